@@ -1,0 +1,36 @@
+"""mechsim: planar multibody mechanisms with sympy-generated constraints.
+
+>>> import mechsim as ms
+>>> mech = ms.examples.double_four_bar()
+>>> res = mech.simulate(t_end=0.1, rtol=1e-8, atol=1e-10)
+>>> res.status
+'success'
+
+Heavy dependencies load only when used: sympy when a model is not in the cache, scipy when a
+simulation starts, matplotlib when a plot is drawn, meshio when a result is exported.
+"""
+
+from importlib import import_module
+
+from .model import (AssemblyError, Body, DofReport, Driver, Force, Ground, Joint, Mechanism,
+                    ModelError, Prismatic, Revolute, RigidBody, Spring, Torque)
+
+__version__ = "0.1.0"
+
+_LAZY_MODULES = {"examples", "scene", "solver", "codegen", "formulations", "integrators",
+                 "results"}
+_LAZY_NAMES = {"SimulationResult": "results", "load_result": "results",
+               "load_scene": "scene"}
+
+
+def __getattr__(name):
+    if name in _LAZY_MODULES:
+        return import_module(f".{name}", __name__)
+    if name in _LAZY_NAMES:
+        return getattr(import_module(f".{_LAZY_NAMES[name]}", __name__), name)
+    raise AttributeError(f"module 'mechsim' has no attribute {name!r}")
+
+
+__all__ = ["AssemblyError", "Body", "DofReport", "Driver", "Force", "Ground", "Joint",
+           "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody", "SimulationResult",
+           "Spring", "Torque", "load_result", "load_scene"]

@@ -1,0 +1,96 @@
+"""Command line: `mechsim run SCENE`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+
+def _run(args) -> int:
+    from .model import ModelError
+    from .scene import load_scene
+
+    t0 = time.perf_counter()
+    try:
+        scene = load_scene(args.scene)
+    except ModelError as exc:
+        print(f"mechsim: {exc}", file=sys.stderr)
+        return 2
+    mech = scene.mechanism
+    try:
+        mech.problem()
+        t_build = time.perf_counter() - t0
+        report = mech.dof()
+        assembly = mech.assemble(t=scene.simulation.get("t_start", 0.0))
+    except ModelError as exc:
+        print(f"mechsim: {exc}", file=sys.stderr)
+        return 2
+    overrides = {}
+    if args.method:
+        overrides["method"] = args.method
+    if args.t_end is not None:
+        overrides["t_end"] = args.t_end
+    try:
+        res = scene.simulate(**overrides)
+    except (ModelError, ValueError) as exc:
+        print(f"mechsim: {exc}", file=sys.stderr)
+        return 2
+
+    out_dir = Path(args.out or scene.output.get("directory") or Path("out") / scene.path.stem)
+    print(f"scene      {scene.path}  ({mech.name})")
+    print(f"model      {'loaded from cache' if mech.from_cache else 'compiled and cached'} "
+          f"in {t_build:.3f} s; {report}")
+    print(f"assembly   {assembly}")
+    s = res.stats
+    print(f"solver     {s['method']} / {s['integrator']}: {s['steps']} steps, "
+          f"{s['rhs_evaluations']} right-hand sides, {s['wall_time']:.3f} s wall")
+    print(f"status     {res.status}: {res.message}  (t = {res.t[0]:g} … {res.t[-1]:g} s, "
+          f"{len(res.t)} samples)")
+    print(f"energy     final drift {res.energy_drift[-1]:+.3e}, "
+          f"max |drift| {abs(res.energy_drift).max():.3e} (scale {res.energy_scale:.4g} J)")
+    print(f"constraint max ‖Φ‖ {res.constraint_violation.max():.3e}")
+    if res.singular_passages:
+        print(f"singular   {len(res.singular_passages)} passage(s):")
+        for p in res.singular_passages:
+            print(f"           {p.t_start:.4f} – {p.t_end:.4f} s, min σ = {p.min_sigma:.3g}")
+    for sw in res.switches:
+        print(f"switch     t = {sw.t:.4f} s: {sw.from_method} → {sw.to_method} ({sw.reason})")
+    for body, local in scene.output.get("points", []):
+        p = res.point(body, local)[-1]
+        print(f"point      {body} {tuple(local)} at t = {res.t[-1]:g}: ({p[0]:.6f}, {p[1]:.6f})")
+    plots = [] if args.no_plots else scene.output.get("plots", [])
+    written = []
+    if plots or scene.output.get("save"):
+        out_dir.mkdir(parents=True, exist_ok=True)
+    for name in plots:
+        if name != "energy":
+            print(f"mechsim: unknown plot {name!r} in [output] plots; known: energy",
+                  file=sys.stderr)
+            return 2
+        written.append(out_dir / f"{scene.path.stem}_energy.png")
+        res.plot_energy(path=written[-1])
+    if scene.output.get("save"):
+        written.append(res.save(out_dir / f"{scene.path.stem}.npz"))
+    for w in written:
+        print(f"wrote      {w}")
+    return 0 if res.success else 1
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="mechsim", description="Planar mechanism simulator")
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="simulate a scene file, print a summary, write plots")
+    run.add_argument("scene", help="a TOML scene file (see mechanisms/)")
+    run.add_argument("--out", help="output directory (default: out/<scene name>)")
+    run.add_argument("--method", help="override the scene's method")
+    run.add_argument("--t-end", type=float, help="override the scene's end time")
+    run.add_argument("--no-plots", action="store_true", help="write no plots")
+    run.set_defaults(func=_run)
+    args = parser.parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

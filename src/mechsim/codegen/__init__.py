@@ -1,0 +1,18 @@
+"""sympy expressions → compiled numeric functions, cached on disk by model structure.
+
+`load_model(structure, build)` returns a module with the functions
+
+    phi(q, t, p)             -> (m,)
+    phi_q(q, t, p)           -> (m, n)
+    phi_t(q, t, p)           -> (m,)
+    gamma(q, v, t, p)        -> (m,)
+    position_terms(q, t, p)  -> (phi, phi_q)
+    terms(q, v, t, p)        -> (phi, phi_q, phi_t, gamma)
+
+where `q`, `v` are float arrays and `p` a sequence of parameter values. On a cache hit the
+module is imported from the cache directory and sympy is never imported.
+"""
+
+from .cache import CODEGEN_VERSION, cache_dir, load_model, structure_key
+
+__all__ = ["CODEGEN_VERSION", "cache_dir", "load_model", "structure_key"]

@@ -1,0 +1,51 @@
+"""The contract every formulation fulfils (scipy's `OdeSolver` docstring style).
+
+A formulation holds a NumericProblem and exposes a first-order ODE y' = f(t, y). To add one:
+
+1. set `name` (its key in `METHODS`) and `default_integrator`;
+2. `initial_state(t, q, v)` -> y0, from a consistent (assembled) state;
+3. `rhs(t, y)` -> y', counting itself in `problem.counters.rhs`;
+4. `state(t, y)` -> (q, v), the full coordinates and velocities;
+5. `after_step(t, y)` -> a corrected y or None. Returning a new y (a projection, a new
+   partition) restarts the integrator there; it is also where a formulation may `log` events.
+
+`options` are the keyword arguments of `simulate` that the formulation accepts; anything it
+does not know is an error naming the option.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..problem import NumericProblem
+
+
+class Formulation:
+    name = ""
+    default_integrator = "DOP853"
+    options: dict = {}
+
+    def __init__(self, problem: NumericProblem, rtol: float, atol: float, **options):
+        unknown = sorted(set(options) - set(self.options))
+        if unknown:
+            raise ValueError(f"method {self.name!r} does not take option(s) "
+                             f"{', '.join(unknown)}; it takes: "
+                             f"{', '.join(sorted(self.options)) or '(none)'}")
+        self.problem = problem
+        self.rtol, self.atol = rtol, atol
+        for key, default in self.options.items():
+            setattr(self, key, options.get(key, default))
+        self.singular_passages: list = []
+        self.switches: list = []
+
+    def initial_state(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def state(self, t: float, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def after_step(self, t: float, y: np.ndarray) -> np.ndarray | None:
+        return None

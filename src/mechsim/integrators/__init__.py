@@ -1,0 +1,23 @@
+"""Integrators: scipy's `OdeSolver` classes by name (more join this registry).
+
+Every entry follows scipy's `OdeSolver` interface (`step()`, `dense_output()`, `t`, `y`,
+`status`, `nfev`), so the solver manager drives all of them the same way.
+"""
+
+from __future__ import annotations
+
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
+
+INTEGRATORS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": BDF,
+               "LSODA": LSODA}
+
+
+def integrator_class(name: str):
+    try:
+        return INTEGRATORS[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown integrator {name!r}; valid integrators: "
+                         f"{', '.join(INTEGRATORS)}") from None
+
+
+__all__ = ["INTEGRATORS", "integrator_class"]

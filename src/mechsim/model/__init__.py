@@ -1,0 +1,12 @@
+"""The declarative model: what the user builds. Imports nothing heavier than numpy."""
+
+from ._checks import ModelError
+from .bodies import Body, Ground, RigidBody
+from .drivers import Driver
+from .forces import Force, Spring, Torque
+from .joints import Joint, Prismatic, Revolute
+from .mechanism import AssemblyError, AssemblyReport, DofReport, Mechanism
+
+__all__ = ["AssemblyError", "AssemblyReport", "Body", "DofReport", "Driver", "Force", "Ground",
+           "Joint", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody", "Spring",
+           "Torque"]

@@ -1,0 +1,58 @@
+"""Argument checks shared by the model classes.
+
+Every message names the model object and the argument, and says what was expected and what was
+given (scipy's style: "`axis` of prismatic 'P1' must have length 2, got 3").
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+
+class ModelError(ValueError):
+    """A mechanism was described inconsistently; the message names the object at fault."""
+
+
+def scalar(value, what: str, owner: str, *, positive: bool = False,
+           nonnegative: bool = False) -> float:
+    """Return `value` as a finite float, or raise naming `owner` and `what`."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{owner}: `{what}` must be a number, got {value!r}") from None
+    if not math.isfinite(x):
+        raise ModelError(f"{owner}: `{what}` must be finite, got {x}")
+    if positive and not x > 0.0:
+        raise ModelError(f"{owner}: `{what}` must be positive, got {x}")
+    if nonnegative and x < 0.0:
+        raise ModelError(f"{owner}: `{what}` must be non-negative, got {x}")
+    return x
+
+
+def vector2(value, what: str, owner: str) -> np.ndarray:
+    """Return `value` as a finite float array of shape (2,), or raise naming `owner`."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ModelError(f"{owner}: `{what}` must be a 2-vector of numbers, got {value!r}") from None
+    if a.shape != (2,):
+        raise ModelError(f"{owner}: `{what}` must have length 2, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ModelError(f"{owner}: `{what}` must be finite, got {a.tolist()}")
+    return a
+
+
+def scalar_or_function(value, what: str, owner: str) -> float | Callable[[float], float]:
+    """A constant (checked now) or a callable of time (checked when first evaluated)."""
+    if callable(value):
+        return value
+    return scalar(value, what, owner)
+
+
+def rotation(angle: float) -> np.ndarray:
+    """Planar rotation matrix A(θ) = [[cos θ, −sin θ], [sin θ, cos θ]]."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s], [s, c]])

@@ -1,0 +1,100 @@
+"""Bodies: the ground and planar rigid bodies with their frame at the centre of mass."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._checks import ModelError, rotation, scalar, vector2
+
+
+class Body:
+    """Base of everything joints and forces attach to.
+
+    A body owns `coordinate_names` (suffixes of its generalized coordinates, in order) and an
+    initial state given by the user: a guess that `Mechanism.assemble` makes consistent.
+    """
+
+    coordinate_names: tuple[str, ...] = ()
+
+    def __init__(self, name: str):
+        if not isinstance(name, str) or not name.strip():
+            raise ModelError(f"a body needs a non-empty name, got {name!r}")
+        self.name = name
+
+    # Every body exposes its initial frame (position of the frame origin and its angle) so that
+    # joints can turn global attachment points into body-fixed ones.
+    position = np.zeros(2)
+    angle = 0.0
+
+    def local_point(self, global_point) -> np.ndarray:
+        """Body-fixed coordinates of a point given globally in the initial configuration."""
+        return rotation(self.angle).T @ (np.asarray(global_point, float) - self.position)
+
+    def local_direction(self, global_direction) -> np.ndarray:
+        return rotation(self.angle).T @ np.asarray(global_direction, float)
+
+    def __repr__(self):
+        return f"{type(self).__name__}({self.name!r})"
+
+
+class Ground(Body):
+    """The fixed body: no coordinates, frame at the origin."""
+
+    def __init__(self, name: str = "ground"):
+        super().__init__(name)
+        self.position = np.zeros(2)
+        self.angle = 0.0
+
+
+class RigidBody(Body):
+    """A planar rigid body with coordinates (x, y, angle) of its centre of mass.
+
+    Parameters
+    ----------
+    name : str
+    mass : float, kg, > 0
+    inertia : float, kg·m², > 0, about the centre of mass
+    position, velocity : 2-vectors, initial state of the centre of mass
+    angle, angular_velocity : float, rad and rad/s
+    """
+
+    coordinate_names = ("x", "y", "angle")
+
+    def __init__(self, name: str, mass: float, inertia: float, position=(0.0, 0.0),
+                 angle: float = 0.0, velocity=(0.0, 0.0), angular_velocity: float = 0.0):
+        super().__init__(name)
+        owner = f"body '{name}'"
+        self.mass = scalar(mass, "mass", owner, positive=True)
+        self.inertia = scalar(inertia, "inertia", owner, positive=True)
+        self.position = vector2(position, "position", owner)
+        self.angle = scalar(angle, "angle", owner)
+        self.velocity = vector2(velocity, "velocity", owner)
+        self.angular_velocity = scalar(angular_velocity, "angular_velocity", owner)
+
+    @classmethod
+    def rod(cls, name: str, start, end, mass: float, velocity=(0.0, 0.0),
+            angular_velocity: float = 0.0) -> "RigidBody":
+        """A uniform slender rod from `start` to `end` (inertia m L²/12 about its middle)."""
+        owner = f"body '{name}'"
+        a, b = vector2(start, "start", owner), vector2(end, "end", owner)
+        length = float(np.hypot(*(b - a)))
+        if not length > 0.0:
+            raise ModelError(f"{owner}: rod `start` and `end` coincide at {a.tolist()}")
+        m = scalar(mass, "mass", owner, positive=True)
+        return cls(name, mass=m, inertia=m * length**2 / 12.0, position=(a + b) / 2.0,
+                   angle=math.atan2(b[1] - a[1], b[0] - a[0]), velocity=velocity,
+                   angular_velocity=angular_velocity)
+
+    @property
+    def initial_coordinates(self) -> np.ndarray:
+        return np.array([self.position[0], self.position[1], self.angle])
+
+    @property
+    def initial_velocities(self) -> np.ndarray:
+        return np.array([self.velocity[0], self.velocity[1], self.angular_velocity])
+
+    @property
+    def mass_diagonal(self) -> np.ndarray:
+        return np.array([self.mass, self.mass, self.inertia])

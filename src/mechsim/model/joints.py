@@ -1,0 +1,155 @@
+"""Joints: each one a short class that states its constraint equations Φ = 0.
+
+A joint declares named parameters (body-fixed attachment points, axes, initial offsets) whose
+values come from the initial configuration, and writes its equations through a context `ctx`
+supplied by the symbolic layer. The parameters become arguments of the generated code, so one
+compiled structure serves every geometry. A joint never imports sympy: `ctx` hands it
+expressions and it only does arithmetic on them.
+
+Contract for a new joint (sympy's `Joint` builds itself through a few hooks in the same way):
+  1. `kind` and `parameter_names`;
+  2. `parameter_values()` -> floats in the order of `parameter_names`;
+  3. `equations(ctx, p)` -> list of expressions, `p` maps parameter names to symbols;
+  4. optionally `coordinate(ctx, p)` and `initial_coordinate()` so a `Driver` can prescribe it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._checks import ModelError, vector2
+from .bodies import Body
+
+
+class Joint:
+    kind = "joint"
+    parameter_names: tuple[str, ...] = ()
+
+    def __init__(self, body_a: Body, body_b: Body, name: str | None = None):
+        for role, body in (("body_a", body_a), ("body_b", body_b)):
+            if not isinstance(body, Body):
+                raise ModelError(f"{self.kind} joint: `{role}` must be a body, got {body!r}")
+        if body_a is body_b:
+            raise ModelError(f"{self.kind} joint: connects body '{body_a.name}' to itself")
+        self.body_a, self.body_b = body_a, body_b
+        self.name = name or f"{self.kind}({body_a.name},{body_b.name})"
+
+    @property
+    def n_equations(self) -> int:
+        return len(self.equation_labels)
+
+    equation_labels: tuple[str, ...] = ()
+
+    def parameter_values(self) -> tuple[float, ...]:
+        raise NotImplementedError
+
+    def equations(self, ctx, p) -> list:
+        raise NotImplementedError
+
+    def coordinate(self, ctx, p):
+        raise ModelError(f"joint '{self.name}' ({self.kind}) has no coordinate a driver can prescribe")
+
+    def initial_coordinate(self) -> float:
+        raise ModelError(f"joint '{self.name}' ({self.kind}) has no coordinate a driver can prescribe")
+
+    def structure(self) -> tuple:
+        return (self.kind, self.name, self.body_a.name, self.body_b.name)
+
+    def __repr__(self):
+        return f"{type(self).__name__}({self.name!r})"
+
+
+class Revolute(Joint):
+    """A pin: the point `at` of body_a coincides with the point `at` of body_b.
+
+    Give `at` as a global point in the initial configuration, or the two body-fixed points
+    `local_a` and `local_b` (then the initial configuration may be a rough guess that
+    `Mechanism.assemble` closes).
+    """
+
+    kind = "revolute"
+    parameter_names = ("ax", "ay", "bx", "by")
+    equation_labels = ("x", "y")
+
+    def __init__(self, body_a: Body, body_b: Body, at=None, *, local_a=None, local_b=None,
+                 name: str | None = None):
+        super().__init__(body_a, body_b, name)
+        owner = f"revolute joint '{self.name}'"
+        if at is not None:
+            if local_a is not None or local_b is not None:
+                raise ModelError(f"{owner}: give either `at` or `local_a` and `local_b`, not both")
+            self.at = vector2(at, "at", owner)
+            self.local_a = self.local_b = None
+        else:
+            if local_a is None or local_b is None:
+                raise ModelError(f"{owner}: needs `at` (a global point) or both `local_a` and `local_b`")
+            self.at = None
+            self.local_a = vector2(local_a, "local_a", owner)
+            self.local_b = vector2(local_b, "local_b", owner)
+
+    def parameter_values(self):
+        if self.at is not None:
+            sa, sb = self.body_a.local_point(self.at), self.body_b.local_point(self.at)
+        else:
+            sa, sb = self.local_a, self.local_b
+        return (sa[0], sa[1], sb[0], sb[1])
+
+    def equations(self, ctx, p):
+        pa = ctx.point(self.body_a, p["ax"], p["ay"])
+        pb = ctx.point(self.body_b, p["bx"], p["by"])
+        return [pb[0] - pa[0], pb[1] - pa[1]]
+
+    def coordinate(self, ctx, p):
+        """Relative angle of body_b with respect to body_a."""
+        return ctx.angle(self.body_b) - ctx.angle(self.body_a)
+
+    def initial_coordinate(self):
+        return self.body_b.angle - self.body_a.angle
+
+
+class Prismatic(Joint):
+    """A slider: body_b translates along `axis` (fixed in body_a) without relative rotation.
+
+    `axis` is a global direction and `at` a global point in the initial configuration; the
+    point `at` of body_b stays on the line through the point `at` of body_a along the axis.
+    """
+
+    kind = "prismatic"
+    parameter_names = ("ax", "ay", "bx", "by", "ux", "uy", "angle0")
+    equation_labels = ("angle", "normal")
+
+    def __init__(self, body_a: Body, body_b: Body, axis=(1.0, 0.0), at=(0.0, 0.0),
+                 name: str | None = None):
+        super().__init__(body_a, body_b, name)
+        owner = f"prismatic joint '{self.name}'"
+        axis = vector2(axis, "axis", owner)
+        norm = float(np.hypot(*axis))
+        if not norm > 1e-12:
+            raise ModelError(f"{owner}: `axis` must be a non-zero direction, got {axis.tolist()}")
+        self.axis = axis / norm
+        self.at = vector2(at, "at", owner)
+
+    def parameter_values(self):
+        sa, sb = self.body_a.local_point(self.at), self.body_b.local_point(self.at)
+        u = self.body_a.local_direction(self.axis)
+        return (sa[0], sa[1], sb[0], sb[1], u[0], u[1], self.body_b.angle - self.body_a.angle)
+
+    def _separation(self, ctx, p):
+        pa = ctx.point(self.body_a, p["ax"], p["ay"])
+        pb = ctx.point(self.body_b, p["bx"], p["by"])
+        return [pb[0] - pa[0], pb[1] - pa[1]]
+
+    def equations(self, ctx, p):
+        d = self._separation(ctx, p)
+        n = ctx.direction(self.body_a, -p["uy"], p["ux"])
+        return [ctx.angle(self.body_b) - ctx.angle(self.body_a) - p["angle0"],
+                n[0] * d[0] + n[1] * d[1]]
+
+    def coordinate(self, ctx, p):
+        """Translation of body_b's point along the axis, measured from body_a's point."""
+        d = self._separation(ctx, p)
+        u = ctx.direction(self.body_a, p["ux"], p["uy"])
+        return u[0] * d[0] + u[1] * d[1]
+
+    def initial_coordinate(self):
+        return 0.0

@@ -1,0 +1,306 @@
+"""Mechanism: the container users build, and the bridge to the numeric problem."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._checks import ModelError, vector2
+from .bodies import Body, Ground, RigidBody
+from .drivers import Driver
+from .forces import Force, Spring, Torque
+from .joints import Joint
+
+
+class AssemblyError(ModelError):
+    """The initial configuration cannot be made to satisfy the constraints."""
+
+
+@dataclass
+class DofReport:
+    """Degrees of freedom from the rank of Φ_q (Grübler counts are wrong for special
+    geometry, the rank is not)."""
+    coordinates: int
+    constraints: int
+    rank: int
+    dof: int
+    redundant: int
+    redundant_joints: list[str] = field(default_factory=list)
+    singular_values: np.ndarray | None = None
+
+    def __str__(self):
+        s = (f"{self.coordinates} coordinates, {self.constraints} constraint equations, "
+             f"rank {self.rank}: {self.dof} degree(s) of freedom")
+        if self.redundant:
+            s += (f"; {self.redundant} redundant constraint equation(s) among "
+                  f"{', '.join(repr(j) for j in self.redundant_joints)}")
+        return s
+
+
+@dataclass
+class AssemblyReport:
+    q: np.ndarray
+    v: np.ndarray
+    iterations: int
+    position_change: float      # max |Δq|
+    velocity_change: float      # max |Δv|
+    residual: float             # max |Φ| after assembly
+
+    def __str__(self):
+        return (f"assembled in {self.iterations} Newton iteration(s): max |Δq| = "
+                f"{self.position_change:.3g}, max |Δv| = {self.velocity_change:.3g}, "
+                f"max |Φ| = {self.residual:.3g}")
+
+
+class Mechanism:
+    """A planar mechanism: bodies, joints, drivers and loads.
+
+    >>> import mechsim as ms
+    >>> mech = ms.Mechanism("pendulum", gravity=(0.0, -9.81))
+    >>> rod = mech.add(ms.RigidBody.rod("rod", (0, 0), (1, 0), mass=1.0))
+    >>> _ = mech.add(ms.Revolute(mech.ground, rod, at=(0, 0)))
+    >>> mech.dof().dof
+    1
+    """
+
+    def __init__(self, name: str = "mechanism", gravity=(0.0, -9.81)):
+        self.name = name
+        self.gravity = vector2(gravity, "gravity", f"mechanism '{name}'")
+        self.ground = Ground()
+        self.bodies: list[Body] = []          # moving bodies, in coordinate order
+        self.joints: list[Joint] = []
+        self.drivers: list[Driver] = []
+        self.loads: list = []                 # springs, forces, torques
+        self._problem = None
+        self._assembled: AssemblyReport | None = None
+
+    # --- building ----------------------------------------------------------------------------
+    def add(self, item):
+        """Add a body, joint, driver, spring, force or torque; returns it."""
+        owner = f"mechanism '{self.name}'"
+        if isinstance(item, Body):
+            if isinstance(item, Ground):
+                raise ModelError(f"{owner}: the ground exists already as `mechanism.ground`")
+            if any(b.name == item.name for b in self._all_bodies()):
+                raise ModelError(f"{owner}: a body named '{item.name}' exists already")
+            self.bodies.append(item)
+        elif isinstance(item, Joint):
+            self._check_names(item, self.joints + self.drivers)
+            for body in (item.body_a, item.body_b):
+                self._check_member(body, f"{item.kind} joint '{item.name}'")
+            self.joints.append(item)
+        elif isinstance(item, Driver):
+            if not any(j is item.joint for j in self.joints):
+                raise ModelError(f"driver '{item.name}': joint '{item.joint.name}' is not in "
+                                 f"{owner}; add the joint first")
+            if any(d.joint is item.joint for d in self.drivers):
+                raise ModelError(f"driver '{item.name}': joint '{item.joint.name}' is driven already")
+            self._check_names(item, self.joints + self.drivers)
+            self.drivers.append(item)
+        elif isinstance(item, (Spring, Force, Torque)):
+            for body in item.bodies:
+                self._check_member(body, f"'{item.name}'")
+            self.loads.append(item)
+        else:
+            raise ModelError(f"{owner}: cannot add {item!r}; expected a body, joint, driver, "
+                             "spring, force or torque")
+        self._problem = None
+        self._assembled = None
+        return item
+
+    def _all_bodies(self):
+        return [self.ground] + self.bodies
+
+    def _check_member(self, body, who):
+        if not any(body is b for b in self._all_bodies()):
+            raise ModelError(f"{who}: body '{body.name}' is not in mechanism '{self.name}'; "
+                             "add the body first")
+
+    @staticmethod
+    def _check_names(item, existing):
+        if any(e.name == item.name for e in existing):
+            raise ModelError(f"a joint or driver named '{item.name}' exists already; "
+                             "give it a `name=`")
+
+    def body(self, name: str) -> Body:
+        for b in self._all_bodies():
+            if b.name == name:
+                return b
+        raise KeyError(f"mechanism '{self.name}' has no body '{name}'; bodies: "
+                       f"{', '.join(b.name for b in self._all_bodies())}")
+
+    def joint(self, name: str) -> Joint:
+        for j in self.joints:
+            if j.name == name:
+                return j
+        raise KeyError(f"mechanism '{self.name}' has no joint '{name}'; joints: "
+                       f"{', '.join(j.name for j in self.joints) or '(none)'}")
+
+    # --- coordinates ---------------------------------------------------------------------------
+    @property
+    def coordinate_names(self) -> list[str]:
+        return [f"{b.name}.{c}" for b in self.bodies for c in b.coordinate_names]
+
+    def _body_starts(self) -> dict:
+        starts, k = {self.ground.name: None}, 0
+        for b in self.bodies:
+            starts[b.name] = k
+            k += len(b.coordinate_names)
+        return starts
+
+    def initial_coordinates(self) -> np.ndarray:
+        return np.concatenate([b.initial_coordinates for b in self.bodies]) if self.bodies \
+            else np.zeros(0)
+
+    def initial_velocities(self) -> np.ndarray:
+        return np.concatenate([b.initial_velocities for b in self.bodies]) if self.bodies \
+            else np.zeros(0)
+
+    # --- the numeric problem -----------------------------------------------------------------
+    def _constraint_items(self):
+        return self.joints + self.drivers
+
+    def structure(self) -> dict:
+        """What the generated code depends on (not parameter values): the cache key."""
+        return {"bodies": [(type(b).__name__, b.name, list(b.coordinate_names)) for b in self.bodies],
+                "constraints": [list(item.structure()) for item in self._constraint_items()]}
+
+    def problem(self):
+        """The NumericProblem of this mechanism (compiled once; from the disk cache if seen)."""
+        if self._problem is None:
+            from ..problem import NumericProblem, PointLoad, SpringData
+            from ..codegen import load_model, structure_key
+
+            if not self.bodies:
+                raise ModelError(f"mechanism '{self.name}' has no moving bodies")
+            items = self._constraint_items()
+            structure = self.structure()
+
+            def build() -> str:
+                from ..codegen.printer import model_source
+                from ..symbolic import build_system
+                return model_source(build_system(self.bodies, items), structure_key(structure),
+                                    self.name)
+
+            model, self.from_cache = load_model(structure, build)
+            starts = self._body_starts()
+            params = [x for item in items for x in item.parameter_values()]
+            names, owners = [], []
+            for item in items:
+                for label in item.equation_labels:
+                    names.append(f"{item.name}.{label}")
+                    owners.append(item.name)
+            springs, loads = [], []
+            for ld in self.loads:
+                if isinstance(ld, Spring):
+                    springs.append(SpringData(
+                        ld.name, starts[ld.body_a.name], starts[ld.body_b.name],
+                        tuple(ld.body_a.local_point(ld.at_a)), tuple(ld.body_b.local_point(ld.at_b)),
+                        ld.stiffness, ld.damping, ld.rest_length))
+                elif starts[ld.body.name] is None:
+                    continue  # a load on the ground does no work
+                elif isinstance(ld, Force):
+                    loads.append(PointLoad(ld.name, starts[ld.body.name],
+                                           tuple(ld.body.local_point(ld.at)),
+                                           _checked_force(ld), False))
+                else:
+                    loads.append(PointLoad(ld.name, starts[ld.body.name], None,
+                                           _checked_torque(ld), True))
+            mass = np.concatenate([b.mass_diagonal for b in self.bodies])
+            self._problem = NumericProblem(model, params, mass, self.gravity, starts,
+                                           self.coordinate_names, names, owners,
+                                           springs, loads, title=self.name)
+        return self._problem
+
+    # --- analysis ----------------------------------------------------------------------------
+    def dof(self, t: float = 0.0) -> DofReport:
+        """Degrees of freedom from the rank of Φ_q at the (assembled, if available) initial
+        configuration; names the joints whose equations are redundant."""
+        prob = self.problem()
+        q = self._assembled.q if self._assembled is not None else self.initial_coordinates()
+        J = prob.phi_q(q, t)
+        m, n = J.shape
+        if m == 0:
+            return DofReport(n, 0, 0, n, 0, [], np.zeros(0))
+        U, s, _ = np.linalg.svd(J)
+        tol = max(m, n) * np.finfo(float).eps * 1e3 * (s[0] if s.size else 1.0)
+        rank = int(np.sum(s > tol))
+        involved = []
+        if rank < m:
+            left_null = U[:, rank:]          # combinations of rows that vanish: redundancy
+            weight = np.linalg.norm(left_null, axis=1)
+            for i in np.flatnonzero(weight > 1e-8):
+                if prob.constraint_owners[i] not in involved:
+                    involved.append(prob.constraint_owners[i])
+        return DofReport(n, m, rank, n - rank, m - rank, involved, s)
+
+    def assemble(self, t: float = 0.0, tol: float = 1e-10, max_iter: int = 50) -> AssemblyReport:
+        """Make the initial state consistent: positions by Newton with the smallest change
+        (kinetic metric), then velocities by projection in the mass metric. Consistent input is
+        kept exactly. Raises AssemblyError naming the joint with the largest residual."""
+        prob = self.problem()
+        q0, v0 = self.initial_coordinates(), self.initial_velocities()
+        q, iterations, err = prob.project_positions(q0, t, tol=tol, max_iter=max_iter)
+        if not err <= tol:
+            phi = prob.phi(q, t)
+            i = int(np.nanargmax(np.abs(phi))) if np.all(np.isfinite(phi)) else 0
+            raise AssemblyError(
+                f"mechanism '{self.name}' cannot be assembled: after {iterations} Newton "
+                f"iterations the largest residual is {abs(phi[i]):.3g} in equation "
+                f"'{prob.constraint_names[i]}' of '{prob.constraint_owners[i]}'. Check that "
+                "joint's points and the link lengths it implies.")
+        J = prob.phi_q(q, t)
+        residual = J @ v0 + prob.phi_t(q, t)
+        vscale = max(1.0, float(np.max(np.abs(v0))) if v0.size else 1.0)
+        v = v0 if np.max(np.abs(residual), initial=0.0) <= tol * vscale \
+            else prob.project_velocities(q, v0, t)
+        r_after = np.max(np.abs(prob.phi_q(q, t) @ v + prob.phi_t(q, t)), initial=0.0)
+        if r_after > 1e-8 * vscale:
+            raise AssemblyError(f"mechanism '{self.name}': no velocity satisfies the "
+                                f"constraints (residual {r_after:.3g}); check the drivers")
+        self._assembled = AssemblyReport(
+            q, v, iterations, float(np.max(np.abs(q - q0), initial=0.0)),
+            float(np.max(np.abs(v - v0), initial=0.0)),
+            float(np.max(np.abs(prob.phi(q, t)), initial=0.0)))
+        return self._assembled
+
+    # --- simulation --------------------------------------------------------------------------
+    def simulate(self, t_end: float, method: str | None = None, **options):
+        """Simulate from the assembled initial state to `t_end`; see `mechsim.solver.simulate`
+        for the options. Returns a SimulationResult (partial, with a status, on failure)."""
+        from ..solver import simulate
+        report = self._assembled or self.assemble(t=options.get("t_start", 0.0))
+        return simulate(self.problem(), report.q, report.v, t_end=t_end, method=method,
+                        **options)
+
+    def __repr__(self):
+        return (f"Mechanism({self.name!r}: {len(self.bodies)} bodies, {len(self.joints)} joints, "
+                f"{len(self.drivers)} drivers, {len(self.loads)} loads)")
+
+
+def _checked_force(ld: Force):
+    if not callable(ld.force):
+        return ld.force
+    f = ld.force
+
+    def value(t):
+        out = np.asarray(f(t), float)
+        if out.shape != (2,) or not np.all(np.isfinite(out)):
+            raise ModelError(f"force '{ld.name}': the function returned {out!r} at t = {t}; "
+                             "expected two finite numbers")
+        return out
+    return value
+
+
+def _checked_torque(ld: Torque):
+    if not callable(ld.torque):
+        return ld.torque
+    f = ld.torque
+
+    def value(t):
+        out = float(f(t))
+        if not np.isfinite(out):
+            raise ModelError(f"torque '{ld.name}': the function returned {out} at t = {t}")
+        return out
+    return value

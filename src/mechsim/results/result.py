@@ -1,0 +1,193 @@
+"""SimulationResult: what a run returns.
+
+Energies and constraint violations are computed on first access (nobody pays for what they do
+not read) from the problem that produced the result; a saved result stores them, so a loaded
+one answers the same questions without the model.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from ..problem import frame_point, frame_point_velocity
+
+
+@dataclass(frozen=True)
+class SingularPassage:
+    """A passage through a singular configuration of Φ_q."""
+    t_start: float
+    t_end: float
+    min_sigma: float
+    joints: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Switch:
+    """A change of formulation by the solver manager."""
+    t: float
+    from_method: str
+    to_method: str
+    reason: str
+
+
+@dataclass
+class EnergyLog:
+    """Energies at the output times, each shape (n,). `total` = kinetic + potential + strain."""
+    kinetic: np.ndarray
+    potential: np.ndarray
+    strain: np.ndarray
+
+    @property
+    def total(self) -> np.ndarray:
+        return self.kinetic + self.potential + self.strain
+
+
+class SimulationResult:
+    """Output of `Mechanism.simulate`.
+
+    Attributes
+    ----------
+    t : ndarray (n,);  q, v : ndarray (n, nq);  coordinate_names : list of str
+    status : "success", "failed" or "interrupted";  message : str
+    stats : dict (steps, rhs_evaluations, partitions, wall_time, …)
+    singular_passages : list of SingularPassage;  switches : list of Switch
+    """
+
+    def __init__(self, t, q, v, coordinate_names, *, problem=None, status="success",
+                 message="", stats=None, singular_passages=(), switches=(),
+                 energy: EnergyLog | None = None, constraint_violation=None):
+        self.t = np.asarray(t, float)
+        self.q = np.asarray(q, float)
+        self.v = np.asarray(v, float)
+        self.coordinate_names = list(coordinate_names)
+        self.problem = problem
+        self.status = status
+        self.message = message
+        self.stats = dict(stats or {})
+        self.singular_passages = list(singular_passages)
+        self.switches = list(switches)
+        if energy is not None:
+            self.__dict__["energy"] = energy
+        if constraint_violation is not None:
+            self.__dict__["constraint_violation"] = np.asarray(constraint_violation, float)
+
+    @property
+    def success(self) -> bool:
+        return self.status == "success"
+
+    def __repr__(self):
+        return (f"SimulationResult(status={self.status!r}, t=[{self.t[0]:.6g}, {self.t[-1]:.6g}], "
+                f"{len(self.t)} samples, {len(self.coordinate_names)} coordinates)")
+
+    # --- coordinates and points --------------------------------------------------------------
+    def coordinate(self, name: str) -> np.ndarray:
+        """One coordinate over time, by name ("crank.angle")."""
+        return self.q[:, self._index(name)]
+
+    def _index(self, name: str) -> int:
+        try:
+            return self.coordinate_names.index(name)
+        except ValueError:
+            raise KeyError(f"no coordinate {name!r}; coordinates: "
+                           f"{', '.join(self.coordinate_names)}") from None
+
+    def _body_start(self, body) -> int | None:
+        name = body if isinstance(body, str) else body.name
+        if f"{name}.x" in self.coordinate_names:
+            return self._index(f"{name}.x")
+        if name == "ground":
+            return None
+        bodies = sorted({c.rsplit(".", 1)[0] for c in self.coordinate_names})
+        raise KeyError(f"no body {name!r} in this result; bodies: {', '.join(bodies)}")
+
+    def point(self, body, local=(0.0, 0.0)) -> np.ndarray:
+        """Global position of a body-fixed point over time, shape (n, 2)."""
+        return frame_point(self.q, self._body_start(body), local)
+
+    def point_velocity(self, body, local=(0.0, 0.0)) -> np.ndarray:
+        """Global velocity of a body-fixed point over time, shape (n, 2)."""
+        return frame_point_velocity(self.q, self.v, self._body_start(body), local)
+
+    # --- energy and constraints --------------------------------------------------------------
+    def _need_problem(self, what):
+        if self.problem is None:
+            raise RuntimeError(f"{what} was not saved with this result and its model is not "
+                               "loaded")
+        return self.problem
+
+    @cached_property
+    def energy(self) -> EnergyLog:
+        p = self._need_problem("the energy log")
+        return EnergyLog(p.kinetic_energy(self.q, self.v), p.potential_energy(self.q),
+                         p.strain_energy(self.q))
+
+    @property
+    def energy_scale(self) -> float:
+        """The scale drift is measured against: the largest of |E(0)|, the peak kinetic energy
+        and the peak change of potential energy, so a mechanism whose total starts near zero
+        still has a meaningful relative drift."""
+        e = self.energy
+        v = e.potential + e.strain
+        return float(max(abs(e.total[0]), np.max(e.kinetic), np.max(np.abs(v - v[0])), 1e-300))
+
+    @property
+    def energy_drift(self) -> np.ndarray:
+        """(E(t) − E(0)) / energy_scale, shape (n,)."""
+        total = self.energy.total
+        return (total - total[0]) / self.energy_scale
+
+    @cached_property
+    def constraint_violation(self) -> np.ndarray:
+        """‖Φ(q(t), t)‖₂ at the output times, shape (n,)."""
+        p = self._need_problem("the constraint violation")
+        return np.array([np.linalg.norm(p.phi(q, t)) for q, t in zip(self.q, self.t)])
+
+    # --- plots -------------------------------------------------------------------------------
+    def plot_energy(self, path=None, ax=None):
+        """Energy drift over time, singular passages shaded, solver switches marked.
+        Returns the matplotlib Figure; writes it to `path` (PNG/PDF/SVG) when given."""
+        from .plots import plot_energy
+        return plot_energy(self, path=path, ax=ax)
+
+    # --- persistence -------------------------------------------------------------------------
+    def save(self, path) -> Path:
+        """Write the result (with its energy log and constraint violation) to an .npz file."""
+        path = Path(path)
+        meta = {"coordinate_names": self.coordinate_names, "status": self.status,
+                "message": self.message, "stats": self.stats,
+                "singular_passages": [asdict(s) for s in self.singular_passages],
+                "switches": [asdict(s) for s in self.switches]}
+        extra = {}
+        if self.problem is not None or "energy" in self.__dict__:
+            e = self.energy
+            extra = {"kinetic": e.kinetic, "potential": e.potential, "strain": e.strain}
+        if self.problem is not None or "constraint_violation" in self.__dict__:
+            extra["constraint_violation"] = self.constraint_violation
+        np.savez_compressed(path, t=self.t, q=self.q, v=self.v,
+                            meta=np.array(json.dumps(meta, default=float)), **extra)
+        return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
+
+
+def load_result(path) -> SimulationResult:
+    """Read a result written by `SimulationResult.save`."""
+    with np.load(path, allow_pickle=False) as data:
+        meta = json.loads(str(data["meta"]))
+        energy = None
+        if "kinetic" in data:
+            energy = EnergyLog(data["kinetic"], data["potential"], data["strain"])
+        violation = data["constraint_violation"] if "constraint_violation" in data else None
+        return SimulationResult(
+            data["t"], data["q"], data["v"], meta["coordinate_names"], status=meta["status"],
+            message=meta["message"], stats=meta["stats"],
+            singular_passages=[SingularPassage(**{**s, "joints": tuple(s.get("joints", ()))})
+                               for s in meta["singular_passages"]],
+            switches=[Switch(**s) for s in meta["switches"]], energy=energy,
+            constraint_violation=violation)
+
+
+SimulationResult.load = staticmethod(load_result)

@@ -1,0 +1,130 @@
+"""Φ(q, t; p) from the joints and drivers of a mechanism, and Φ_q, Φ_t, γ derived from it.
+
+Only Φ is stored; the derivatives are computed on first use and cached (sympy's
+`KanesMethod` keeps its intermediate matrices the same way).
+
+    γ = −(Φ_q q̇)_q q̇ − 2 Φ_qt q̇ − Φ_tt        (acceleration right-hand side, Φ_q q̈ = γ)
+"""
+
+from __future__ import annotations
+
+import re
+from functools import cached_property
+
+import sympy as sp
+from sympy.parsing.sympy_parser import (implicit_multiplication_application, parse_expr,
+                                        standard_transformations)
+
+from ..model._checks import ModelError
+
+
+def identifier(name: str, taken: set[str]) -> str:
+    """A Python identifier that reads like `name` and is not in `taken` (which it joins)."""
+    base = re.sub(r"\W+", "_", name).strip("_") or "item"
+    if not base[0].isalpha():
+        base = "b" + base
+    out, k = base, 2
+    while out in taken or out in {"t", "math"}:
+        out, k = f"{base}{k}", k + 1
+    taken.add(out)
+    return out
+
+
+class SymbolicContext:
+    """What a joint sees while writing its equations: the symbols of the bodies' frames, the
+    parameter symbols of every constraint item, and a parser for time functions."""
+
+    def __init__(self, bodies, items):
+        self.t = sp.Symbol("t", real=True)
+        taken: set[str] = set()
+        self.q: list[sp.Symbol] = []
+        self.v: list[sp.Symbol] = []
+        self._frames = {}
+        for body in bodies:
+            stem = identifier(body.name, taken)
+            syms = [sp.Symbol(f"{stem}_{c}", real=True) for c in body.coordinate_names]
+            self.q += syms
+            self.v += [sp.Symbol(f"{stem}_{c}_dot", real=True) for c in body.coordinate_names]
+            self._frames[id(body)] = syms
+        self.p: list[sp.Symbol] = []
+        self._params = {}
+        for item in items:
+            stem = identifier(item.name, taken)
+            syms = {n: sp.Symbol(f"{stem}_{n}", real=True) for n in item.parameter_names}
+            self.p += list(syms.values())
+            self._params[id(item)] = syms
+
+    def frame(self, body):
+        """(x, y, angle) of the body's frame; zeros for the ground."""
+        return self._frames.get(id(body), (sp.S.Zero, sp.S.Zero, sp.S.Zero))
+
+    def angle(self, body):
+        return self.frame(body)[2]
+
+    def direction(self, body, ux, uy):
+        """A body-fixed direction (ux, uy) in global components."""
+        th = self.angle(body)
+        c, s = sp.cos(th), sp.sin(th)
+        return [c * ux - s * uy, s * ux + c * uy]
+
+    def point(self, body, sx, sy):
+        """Global position of the body-fixed point (sx, sy)."""
+        x, y, _ = self.frame(body)
+        d = self.direction(body, sx, sy)
+        return [x + d[0], y + d[1]]
+
+    def parameters(self, item) -> dict:
+        return self._params[id(item)]
+
+    def time_function(self, expression: str, owner: str):
+        transformations = standard_transformations + (implicit_multiplication_application,)
+        try:
+            f = parse_expr(expression, local_dict={"t": self.t, "pi": sp.pi, "E": sp.E},
+                           transformations=transformations)
+        except Exception as exc:  # sympy raises many types for malformed text
+            raise ModelError(f"{owner}: cannot parse expression {expression!r}: {exc}") from None
+        f = sp.sympify(f)
+        unknown = sorted(str(s) for s in f.free_symbols - {self.t})
+        if unknown:
+            raise ModelError(f"{owner}: expression {expression!r} may depend on t only, "
+                             f"it also uses {', '.join(unknown)}")
+        return f
+
+
+class SymbolicSystem:
+    """Φ and its derivatives for one mechanism structure.
+
+    Attributes: `q`, `v` (coordinate and velocity symbols, n each), `t`, `p` (parameter
+    symbols), `phi` (m × 1). Derived on first access: `phi_q` (m × n), `phi_t`, `gamma`.
+    """
+
+    def __init__(self, ctx: SymbolicContext, phi: list):
+        self.ctx = ctx
+        self.q, self.v, self.t, self.p = ctx.q, ctx.v, ctx.t, ctx.p
+        self.phi = sp.Matrix(phi) if phi else sp.zeros(0, 1)
+
+    @cached_property
+    def phi_q(self) -> sp.Matrix:
+        return self.phi.jacobian(self.q) if self.q else sp.zeros(self.phi.rows, 0)
+
+    @cached_property
+    def phi_t(self) -> sp.Matrix:
+        return self.phi.diff(self.t)
+
+    @cached_property
+    def gamma(self) -> sp.Matrix:
+        qd = sp.Matrix(self.v)
+        if not self.q:
+            return -self.phi_t.diff(self.t)
+        jv = self.phi_q * qd
+        return -(jv.jacobian(self.q) * qd) - 2 * (self.phi_t.jacobian(self.q) * qd) \
+            - self.phi_t.diff(self.t)
+
+
+def build_system(bodies, items) -> SymbolicSystem:
+    """Collect Φ from the constraint `items` (joints, then drivers) acting on `bodies`."""
+    ctx = SymbolicContext(bodies, items)
+    phi = []
+    for item in items:
+        phi += item.equations(ctx, ctx.parameters(item))
+    return SymbolicSystem(ctx, phi)
