@@ -1,0 +1,21 @@
+"""Test setup: a private model cache per test session, so runs neither read nor pollute the
+user's cache, and tolerance-scaled error helpers."""
+
+import os
+import tempfile
+
+import numpy as np
+import pytest
+
+os.environ["MECHSIM_CACHE_DIR"] = tempfile.mkdtemp(prefix="mechsim-test-cache-")
+
+
+def scaled_error(y, y_ref, rtol, atol):
+    """max |y − y*| / (atol + rtol |y*|): below ~5 means the solver met its tolerance."""
+    y, y_ref = np.asarray(y, float), np.asarray(y_ref, float)
+    return float(np.max(np.abs(y - y_ref) / (atol + rtol * np.abs(y_ref))))
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(20261121)

@@ -1,0 +1,121 @@
+"""Code cache, results (save/load, plots) and the command line."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mechsim as ms
+from mechsim.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = ROOT / "mechanisms"
+
+_PROBE = textwrap.dedent("""
+    import json, sys
+    import mechsim as ms
+    scene = ms.load_scene(sys.argv[1])
+    res = scene.simulate(t_end=0.05)
+    print(json.dumps({"from_cache": scene.mechanism.from_cache,
+                      "sympy": "sympy" in sys.modules, "status": res.status}))
+""")
+
+
+def _probe(scene, cache_dir):
+    env = {**os.environ, "MECHSIM_CACHE_DIR": str(cache_dir)}
+    out = subprocess.run([sys.executable, "-c", _PROBE, str(scene)], env=env, check=True,
+                         capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def test_second_run_is_served_from_the_cache_without_sympy(tmp_path):
+    first = _probe(SCENES / "four_bar.toml", tmp_path)
+    assert first == {"from_cache": False, "sympy": True, "status": "success"}
+    second = _probe(SCENES / "four_bar.toml", tmp_path)
+    assert second == {"from_cache": True, "sympy": False, "status": "success"}
+    assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 1
+
+
+def test_import_is_light():
+    code = ("import sys, mechsim; print(sorted(m for m in ('sympy', 'matplotlib', 'meshio', "
+            "'scipy') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_corrupt_cache_entry_is_rebuilt(tmp_path, monkeypatch):
+    from mechsim.codegen import cache
+    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path))
+    cache.clear_memory_cache()
+    mech = ms.examples.pendulum()
+    mech.problem()
+    (entry,) = tmp_path.glob("mechsim_model_*.py")
+    entry.write_text("this is not python")
+    cache.clear_memory_cache()
+    again = ms.examples.pendulum()
+    with pytest.warns(UserWarning, match="unreadable cache entry"):
+        again.problem()
+    assert not again.from_cache
+    assert np.allclose(again.problem().phi(again.initial_coordinates(), 0.0), 0.0)
+    cache.clear_memory_cache()
+
+
+def test_result_save_load_roundtrip(tmp_path):
+    res = ms.examples.double_four_bar().simulate(t_end=0.2, rtol=1e-8, atol=1e-10,
+                                                 output_step=0.02)
+    path = res.save(tmp_path / "run.npz")
+    back = ms.load_result(path)
+    assert back.status == res.status and back.coordinate_names == res.coordinate_names
+    np.testing.assert_array_equal(back.q, res.q)
+    np.testing.assert_array_equal(back.energy.total, res.energy.total)
+    np.testing.assert_array_equal(back.energy_drift, res.energy_drift)
+    np.testing.assert_array_equal(back.constraint_violation, res.constraint_violation)
+    np.testing.assert_array_equal(back.point("coupler1", (0.5, 0)), res.point("coupler1", (0.5, 0)))
+    assert back.stats["steps"] == res.stats["steps"]
+
+
+def test_point_velocity_is_the_derivative_of_point():
+    res = ms.examples.double_four_bar().simulate(t_end=0.3, rtol=1e-10, atol=1e-12,
+                                                 output_step=1e-3)
+    p, v = res.point("coupler2", (0.3, 0.1)), res.point_velocity("coupler2", (0.3, 0.1))
+    fd = (p[2:] - p[:-2]) / (2e-3)
+    np.testing.assert_allclose(v[1:-1], fd, atol=1e-5)
+
+
+def test_energy_plot_is_written(tmp_path):
+    res = ms.examples.pendulum().simulate(t_end=0.5, output_step=0.01)
+    fig = res.plot_energy(path=tmp_path / "e.png")
+    assert (tmp_path / "e.png").stat().st_size > 5000
+    assert fig.axes[0].get_xlabel() == "time [s]"
+
+
+def test_scene_and_factory_build_the_same_four_bar():
+    scene = ms.load_scene(SCENES / "four_bar.toml")
+    factory = ms.examples.four_bar()
+    np.testing.assert_allclose(scene.mechanism.initial_coordinates(),
+                               factory.initial_coordinates(), atol=1e-15)
+    a = scene.mechanism.simulate(t_end=0.1, rtol=1e-9, atol=1e-11, output_step=0.01)
+    b = factory.simulate(t_end=0.1, rtol=1e-9, atol=1e-11, output_step=0.01)
+    np.testing.assert_allclose(a.q, b.q, atol=1e-12)
+
+
+@pytest.mark.parametrize("scene", ["four_bar", "double_four_bar", "slider_crank"])
+def test_cli_runs_each_shipped_scene(scene, tmp_path, capsys):
+    assert main(["run", str(SCENES / f"{scene}.toml"), "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "1 degree(s) of freedom" in out and "status     success" in out
+    assert (tmp_path / f"{scene}_energy.png").exists() and (tmp_path / f"{scene}.npz").exists()
+    res = ms.load_result(tmp_path / f"{scene}.npz")
+    assert np.max(np.abs(res.energy_drift)) < 1e-6
+
+
+def test_cli_reports_bad_scene(tmp_path, capsys):
+    bad = tmp_path / "x.toml"
+    bad.write_text("[simulation]\nt_end = 1\n[[body]]\nname = 'a'\n")
+    assert main(["run", str(bad)]) == 2
+    assert "needs `mass`" in capsys.readouterr().err

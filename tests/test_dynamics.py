@@ -1,0 +1,129 @@
+"""Analytic tier: simulations against exact solutions."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.interpolate import CubicSpline
+from scipy.special import ellipk
+
+import mechsim as ms
+from mechsim.examples import parallelogram_exact, slider_crank_position
+
+
+def test_double_four_bar_matches_the_parallelogram_branch():
+    """IFToMM A02 up to 0.6 s (its first singular configuration is at 0.714 s): every crank
+    follows M_eff θ̈ = −K cos θ with θ(0) = π/2, θ̇(0) = −1."""
+    mech = ms.examples.double_four_bar()
+    res = mech.simulate(t_end=0.6, rtol=1e-9, atol=1e-12, output_step=0.01)
+    assert res.status == "success", res.message
+    theta, _ = parallelogram_exact(res.t, math.pi / 2, -1.0, n=2)
+    exact_tip = np.column_stack([np.cos(theta), np.sin(theta)])
+    for i in range(3):
+        tip = res.point(f"crank{i + 1}", (0.5, 0.0)) - (i, 0.0)
+        assert np.max(np.linalg.norm(tip - exact_tip, axis=1)) <= 1e-7
+    assert np.max(np.abs(res.energy_drift)) <= 1e-7
+    assert res.constraint_violation.max() <= 1e-8
+    # The cranks really moved: about 50° in 0.6 s.
+    assert theta[-1] < math.radians(40)
+
+
+@pytest.mark.parametrize("amplitude_deg", [10.0, 120.0])
+def test_pendulum_period(amplitude_deg):
+    """A uniform rod pinned at one end: T = 4 √(I_O / (m g d)) K(sin²(α/2)), I_O = mL²/3,
+    d = L/2; after one period the state repeats."""
+    L, m, g = 0.8, 1.5, 9.81
+    alpha = math.radians(amplitude_deg)
+    mech = ms.examples.pendulum(length=L, mass=m, angle=-math.pi / 2 + alpha)
+    period = 4.0 * math.sqrt((m * L**2 / 3) / (m * g * L / 2)) * ellipk(math.sin(alpha / 2) ** 2)
+    res = mech.simulate(t_end=period, rtol=1e-10, atol=1e-12, output_step=period / 2)
+    angle, rate = res.coordinate("rod.angle"), res.v[:, 2]
+    assert abs(angle[1] - (-math.pi / 2 - alpha)) < 1e-7     # half a period: the other side
+    assert abs(angle[2] - angle[0]) < 1e-7 and abs(rate[2]) < 1e-6
+
+
+@pytest.mark.parametrize("damping", [0.0, 12.0])
+def test_spring_mass_on_a_prismatic_joint(damping):
+    m, k, x0 = 2.0, 800.0, 0.05
+    mech = ms.examples.spring_mass(mass=m, stiffness=k, stretch=x0, damping=damping)
+    res = mech.simulate(t_end=1.0, rtol=1e-10, atol=1e-12, output_step=0.01)
+    wn = math.sqrt(k / m)
+    zeta = damping / (2 * math.sqrt(k * m))
+    wd = wn * math.sqrt(1 - zeta**2)
+    t = res.t
+    exact = x0 * np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta * wn / wd * np.sin(wd * t))
+    np.testing.assert_allclose(res.coordinate("block.x") - 0.5, exact, atol=1e-8)
+    np.testing.assert_allclose(res.coordinate("block.y"), 0.0, atol=1e-12)
+    if damping == 0.0:
+        # Samples between steps come from DOP853's 7th-order dense output, whose error (here
+        # ~1e-8 with steps of ωh ≈ 0.5) exceeds the step error (~1e-10 drift at the steps).
+        assert np.max(np.abs(res.energy_drift)) < 5e-8
+    else:  # damping dissipates: energy falls monotonically (to sampling noise)
+        assert np.all(np.diff(res.energy.total) < 1e-9)
+
+
+def test_driven_crank_follows_its_driver():
+    mech = ms.examples.pendulum(length=0.5, mass=2.0, angle=0.3)
+    mech.add(ms.Driver(mech.joint("pivot"), "2*t + 0.5*sin(3*t)"))
+    mech.assemble()
+    res = mech.simulate(t_end=2.0, rtol=1e-9, atol=1e-11, output_step=0.05)
+    t = res.t
+    np.testing.assert_allclose(res.coordinate("rod.angle") - 0.3, 2 * t + 0.5 * np.sin(3 * t),
+                               atol=1e-9)
+    np.testing.assert_allclose(res.v[:, 2], 2 + 1.5 * np.cos(3 * t), atol=1e-9)
+
+
+def test_driver_with_nonzero_start_is_assembled_there():
+    mech = ms.examples.pendulum(length=0.5, mass=2.0, angle=0.0)
+    mech.add(ms.Driver(mech.joint("pivot"), "0.4 + t"))
+    report = mech.assemble()
+    assert abs(report.q[2] - 0.4) < 1e-12 and abs(report.v[2] - 1.0) < 1e-12
+    assert report.iterations > 0
+
+
+def test_prismatic_driver():
+    mech = ms.examples.spring_mass()
+    mech.add(ms.Driver(mech.joint("slide"), "0.1*sin(5*t)"))
+    res = mech.simulate(t_end=1.0, rtol=1e-9, atol=1e-11, output_step=0.05)
+    np.testing.assert_allclose(res.coordinate("block.x") - 0.55, 0.1 * np.sin(5 * res.t),
+                               atol=1e-9)
+
+
+def test_slider_crank_runs_through_its_dead_centres():
+    r, l = 0.15, 0.30
+    mech = ms.examples.slider_crank(crank_length=r, rod_length=l, crank_speed=150.0)
+    res = mech.simulate(t_end=0.2, rtol=1e-9, atol=1e-11, output_step=2.5e-4)
+    assert res.status == "success", res.message
+    theta = res.coordinate("crank.angle")
+    assert theta[-1] > 7 * math.pi          # 3.5+ revolutions: 7 or more dead-centre passages
+    np.testing.assert_allclose(res.coordinate("slider.x"), slider_crank_position(theta, r, l),
+                               atol=1e-9)
+    assert np.max(np.abs(res.energy_drift)) < 1e-7
+    # The crank speed fluctuates (the effective inertia varies with angle), but at every dead
+    # centre the slider stands still and all heights are back to zero, so by conservation of
+    # energy the crank speed there is the initial 150 rad/s.
+    omega = res.v[:, 2]
+    assert omega.min() < 110.0
+    dead_centres = np.arange(1, 8) * math.pi
+    np.testing.assert_allclose(CubicSpline(theta, omega)(dead_centres), 150.0, rtol=1e-6)
+
+
+def test_every_scipy_integrator_runs_the_double_four_bar():
+    mech = ms.examples.double_four_bar()
+    theta, _ = parallelogram_exact([0.3], math.pi / 2, -1.0, n=2)
+    for name in ["RK45", "DOP853", "Radau", "BDF", "LSODA"]:
+        res = mech.simulate(t_end=0.3, rtol=1e-8, atol=1e-10, integrator=name)
+        assert res.status == "success", (name, res.message)
+        assert res.stats["integrator"] == name
+        assert abs(res.coordinate("crank1.angle")[-1] - theta[0]) < 1e-5, name
+
+
+def test_failure_mid_run_returns_the_partial_result():
+    mech = ms.examples.pendulum()
+    rod = mech.body("rod")
+    mech.add(ms.Force(rod, lambda t: (0.0, 0.0) if t < 0.5 else (float("nan"), 0.0),
+                      name="bad force"))
+    res = mech.simulate(t_end=1.0, rtol=1e-8, atol=1e-10, output_step=0.01)
+    assert res.status == "failed"
+    assert "bad force" in res.message
+    assert 0.45 <= res.t[-1] <= 0.5 and len(res.t) == len(res.q) > 40
