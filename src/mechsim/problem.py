@@ -10,7 +10,7 @@ diagonal, so it is stored once as `mass_diagonal` and never rebuilt.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -67,7 +67,8 @@ class Counters:
     constraint_terms: int = 0
     factorizations: int = 0
     projections: int = 0
-    extra: dict = field(default_factory=dict)
+    partitions: int = 0
+    switches: int = 0
 
 
 class NumericProblem:

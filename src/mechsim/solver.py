@@ -1,4 +1,5 @@
-"""The solver manager: owns the integration loop, output sampling, restarts and status.
+"""The solver manager: owns the integration loop, output sampling, restarts, the singularity
+monitor and the status.
 
 Formulations supply the ODE and the corrections; integrators supply steps and dense output.
 A failure mid-run (an exception in the model, a singular matrix, an integrator giving up, the
@@ -14,6 +15,7 @@ import time
 import numpy as np
 
 from .formulations import formulation_class
+from .formulations.monitor import SingularityMonitor
 from .integrators import integrator_class
 from .problem import NumericProblem
 from .results import SimulationResult
@@ -43,16 +45,19 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
              t_start: float = 0.0, rtol: float = 1e-6, atol: float = 1e-8,
              max_step: float = math.inf, output_step: float | None = None,
              integrator: str | None = None, first_step: float | None = None,
+             singular_thresholds: tuple[float, float] = (0.02, 0.04),
              **options) -> SimulationResult:
     """Integrate the constrained equations of motion from a consistent (q0, v0) at t_start.
 
     Parameters
     ----------
-    method : name in `mechsim.formulations.METHODS` (default: the registry's default)
+    method : name in `mechsim.formulations.METHODS` (default "hybrid")
     rtol, atol : integrator tolerances
     max_step : largest step the integrator may take
     output_step : spacing of output samples (None: one sample per accepted step)
     integrator : name in `mechsim.integrators.INTEGRATORS` (default: the method's choice)
+    singular_thresholds : (enter, leave) for σ_min/σ_max of Φ_q M^{-1/2}: a singular passage
+        is recorded while the ratio is below `enter` until it rises above `leave`
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
     cls = formulation_class(method)
@@ -65,85 +70,98 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         output_step = _positive(output_step, "output_step")
     solver_cls = integrator_class(integrator or cls.default_integrator)
     form = cls(problem, rtol, atol, **options)
+    monitor = form.monitor = SingularityMonitor(problem, *singular_thresholds)
 
-    projections_before = problem.counters.projections
+    counters = problem.counters
+    before = {k: getattr(counters, k) for k in ("projections", "partitions", "switches", "rhs")}
     start = time.perf_counter()
     ts = output_times(t_start, t_end, output_step)
-    out_t, out_y = [], []
-    y = form.initial_state(t_start, np.asarray(q0, float), np.asarray(v0, float))
+    out_t, out_q, out_v = [], [], []
+    q0, v0 = np.asarray(q0, float), np.asarray(v0, float)
+    y = form.initial_state(t_start, q0, v0)
+    monitor.observe(t_start, q0)
 
     def make(t, y, h):
         kw = {"first_step": min(h, t_end - t)} if h else {}
         return solver_cls(form.rhs, t, y, t_end, rtol=rtol, atol=atol, max_step=max_step, **kw)
 
+    def record(t, q, v):
+        out_t.append(t)
+        out_q.append(np.array(q, float))
+        out_v.append(np.array(v, float))
+
     status, message = "success", "reached t_end"
-    steps = restarts = 0
+    steps = restarts = rejected = 0
     nfev_done = njev_done = nlu_done = 0
     next_out = 0
-    if ts is None:
-        out_t.append(t_start)
-        out_y.append(y.copy())
+    if ts is None or ts[0] == t_start:
+        record(t_start, q0, v0)
+        next_out = 1
     solver = None
+    t_reached = t_start
     try:
         solver = make(t_start, y, first_step)
         while solver.status == "running":
-            t_old, y_old = solver.t, solver.y.copy()
+            t_old = solver.t
             msg = solver.step()
             if solver.status == "failed":
                 status, message = "failed", f"integrator stopped at t = {solver.t:.9g}: {msg}"
                 break
             steps += 1
             t_new, y_new = solver.t, solver.y
+            if ts is not None:
+                dense = None
+                while next_out < len(ts) and ts[next_out] < t_new:
+                    if ts[next_out] > t_old:
+                        dense = dense or solver.dense_output()
+                        record(ts[next_out], *form.state(ts[next_out], dense(ts[next_out])))
+                    next_out += 1
+            q_new, _ = form.state(t_new, y_new)
+            monitor.observe(t_new, q_new)
+            form.last_step = t_new - t_old
             corrected = form.after_step(t_new, y_new)
             y_here = y_new if corrected is None else corrected
-            if ts is None:
-                out_t.append(t_new)
-                out_y.append(y_here.copy())
-            else:
-                dense = None
-                while next_out < len(ts) and ts[next_out] <= t_new:
-                    tk = ts[next_out]
-                    if tk == t_new or tk == t_old:
-                        yk = y_here if tk == t_new else y_old
-                    else:
-                        dense = dense or solver.dense_output()
-                        yk = dense(tk)
-                    out_t.append(tk)
-                    out_y.append(np.array(yk, float))
-                    next_out += 1
+            t_reached = t_new
+            if ts is None or (next_out < len(ts) and ts[next_out] == t_new):
+                record(t_new, *form.state(t_new, y_here))
+                next_out += 1
             if corrected is not None and solver.status == "running":
                 nfev_done += solver.nfev
                 njev_done += int(getattr(solver, "njev", 0))
                 nlu_done += int(getattr(solver, "nlu", 0))
+                rejected += int(getattr(solver, "n_rejected", 0))
                 restarts += 1
                 solver = make(t_new, corrected, solver.step_size)
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
-        t_fail = out_t[-1] if out_t else t_start
-        status, message = "failed", f"{type(exc).__name__} after t = {t_fail:.9g}: {exc}"
+        status, message = "failed", f"{type(exc).__name__} after t = {t_reached:.9g}: {exc}"
+    if status == "failed":
+        if form.failure and form.failure not in message:
+            message += f"; last trouble: {form.failure}"
+        if monitor.inside or monitor.last < monitor.enter:
+            s, u = monitor.measure(out_q[-1], out_t[-1])
+            message += (f"; Φ_q is nearly singular there (σ_min/σ_max = {s:.3g}, joints "
+                        f"{', '.join(monitor.joints_of(u))})")
+    monitor.close(t_reached)
 
     wall = time.perf_counter() - start
-    c = problem.counters
     stats = {
         "method": cls.name,
         "integrator": solver_cls.__name__,
         "steps": steps,
-        "rejected_steps": None,    # scipy's OdeSolver does not expose its rejections
+        "rejected_steps": (rejected + int(solver.n_rejected)
+                           if solver is not None and hasattr(solver, "n_rejected") else None),
         "rhs_evaluations": nfev_done + (solver.nfev if solver is not None else 0),
         "jacobian_evaluations": njev_done + int(getattr(solver, "njev", 0)),
         "lu_decompositions": nlu_done + int(getattr(solver, "nlu", 0)),
         "restarts": restarts,
-        "projections": c.projections - projections_before,
-        "partitions": 0,
+        "projections": counters.projections - before["projections"],
+        "partitions": counters.partitions - before["partitions"],
+        "switches": counters.switches - before["switches"],
         "wall_time": wall,
     }
-    n_out = len(out_t)
-    ys = np.array(out_y).reshape(n_out, -1)
-    qs = np.empty((n_out, problem.n))
-    vs = np.empty((n_out, problem.n))
-    for i in range(n_out):
-        qs[i], vs[i] = form.state(out_t[i], ys[i])
-    return SimulationResult(np.array(out_t), qs, vs, problem.coordinate_names,
+    return SimulationResult(np.array(out_t), np.array(out_q).reshape(len(out_t), -1),
+                            np.array(out_v).reshape(len(out_t), -1), problem.coordinate_names,
                             problem=problem, status=status, message=message, stats=stats,
-                            singular_passages=form.singular_passages, switches=form.switches)
+                            singular_passages=monitor.passages, switches=form.switches)

@@ -6,12 +6,16 @@ here, and an unknown name lists the valid ones.
 
 from .base import Formulation
 from .baumgarte import Baumgarte
+from .hybrid import Hybrid
+from .partitioned import ConstraintSolveError, Partitioned, QRPartitioned, SVDPartitioned
+from .projection import Projection
 
 METHODS: dict[str, type[Formulation]] = {
-    Baumgarte.name: Baumgarte,
+    cls.name: cls for cls in (Partitioned, QRPartitioned, SVDPartitioned, Projection, Hybrid,
+                              Baumgarte)
 }
 
-DEFAULT_METHOD = "baumgarte"
+DEFAULT_METHOD = "hybrid"
 
 
 def formulation_class(name: str | None) -> type[Formulation]:
@@ -23,4 +27,5 @@ def formulation_class(name: str | None) -> type[Formulation]:
                          f"{', '.join(sorted(METHODS))}") from None
 
 
-__all__ = ["DEFAULT_METHOD", "METHODS", "Formulation", "formulation_class"]
+__all__ = ["DEFAULT_METHOD", "METHODS", "ConstraintSolveError", "Formulation",
+           "formulation_class"]

@@ -24,6 +24,9 @@ class Formulation:
     name = ""
     default_integrator = "DOP853"
     options: dict = {}
+    monitor = None        # the manager's SingularityMonitor, set before initial_state
+    last_step = 0.0       # size of the step just accepted, set before after_step
+    failure = ""          # what went wrong last, for the manager's failure message
 
     def __init__(self, problem: NumericProblem, rtol: float, atol: float, **options):
         unknown = sorted(set(options) - set(self.options))

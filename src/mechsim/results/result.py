@@ -19,11 +19,14 @@ from ..problem import frame_point, frame_point_velocity
 
 @dataclass(frozen=True)
 class SingularPassage:
-    """A passage through a singular configuration of Φ_q."""
+    """A passage through a singular configuration of Φ_q: from `t_start` to `t_end` the
+    normalized smallest singular value of Φ_q M^{-1/2} stayed below the monitor's threshold;
+    its minimum `min_sigma` came at `t_min`; `joints` own the rows of its singular vector."""
     t_start: float
     t_end: float
     min_sigma: float
     joints: tuple[str, ...] = ()
+    t_min: float | None = None
 
 
 @dataclass(frozen=True)

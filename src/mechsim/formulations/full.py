@@ -1,0 +1,55 @@
+"""Formulations in all coordinates: the state is y = [q; v] and q̈ comes from the whole
+constrained system. After a step whose ‖Φ‖∞ exceeds `projection_tol`, positions and
+velocities are projected back onto the constraint manifold (mass metric) and the integrator
+restarts there. Subclasses supply `accelerations(t, q, v)`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Formulation
+
+
+class FullCoordinates(Formulation):
+    options = {"projection": True, "projection_tol": None}
+
+    def __init__(self, problem, rtol, atol, **options):
+        super().__init__(problem, rtol, atol, **options)
+        if self.projection_tol is None:
+            # One step's own error is of order rtol; a threshold below it would restart the
+            # integrator after every step (multistep methods then never leave their start-up).
+            self.projection_tol = max(10.0 * rtol, 100.0 * atol)
+        self.n = problem.n
+
+    def initial_state(self, t, q, v):
+        return np.concatenate([q, v])
+
+    def state(self, t, y):
+        return y[:self.n], y[self.n:]
+
+    def accelerations(self, t, q, v) -> np.ndarray:
+        raise NotImplementedError
+
+    def rhs(self, t, y):
+        n = self.n
+        q, v = y[:n], y[n:]
+        self.problem.counters.rhs += 1
+        return np.concatenate([v, self.accelerations(t, q, v)])
+
+    def after_step(self, t, y):
+        if not self.projection:
+            return None
+        prob, n = self.problem, self.n
+        q, v = y[:n], y[n:]
+        phi = prob.phi(q, t)
+        if phi.size == 0 or np.max(np.abs(phi)) <= self.projection_tol:
+            return None
+        q, _, _ = self.project_positions(q, t)
+        return np.concatenate([q, self.project_velocities(q, v, t)])
+
+    def project_positions(self, q, t):
+        return self.problem.project_positions(q, t, tol=0.01 * self.projection_tol)
+
+    def project_velocities(self, q, v, t):
+        return self.problem.project_velocities(q, v, t)

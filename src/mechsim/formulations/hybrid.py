@@ -1,0 +1,103 @@
+"""The hybrid solver manager of seed 001, section 3 (steps 1–13).
+
+LU coordinate partitioning is cheap per step but may jump branch at a singular
+configuration; the projection method passes singular configurations but costs an SVD per
+evaluation. The manager integrates with LU, switches to projection when the singularity
+monitor reports that Φ_q is nearly rank-deficient (σ_min/σ_max below its `enter` threshold) —
+or on the paper's symptom of the independent set changing `repartition_burst` times within
+`burst_steps` steps — and switches back to LU after `stable_steps` consecutive steps with the
+monitor above `leave`, steps not shrinking, and an unchanged LU choice of independent
+coordinates (the paper: 5 steps at the largest step with a stable set). Each switch is
+recorded with its time and reason.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..results import Switch
+from .base import Formulation
+from .partitioned import Partitioned
+from .projection import Projection
+
+
+class Hybrid(Formulation):
+    name = "hybrid"
+    default_integrator = "DOP853"
+    options = {"stable_steps": 5, "repartition_burst": 3, "burst_steps": 10}
+
+    def __init__(self, problem, rtol, atol, **options):
+        super().__init__(problem, rtol, atol, **options)
+        self.lu = Partitioned(problem, rtol, atol)
+        self.proj = Projection(problem, rtol, atol)
+        self.active = self.lu
+        self._stable = 0
+        self._choice = None
+        self._recent: list[int] = []      # steps at which LU re-partitioned
+        self._step = 0
+
+    def initial_state(self, t, q, v):
+        s = self.monitor.measure(q, t)[0] if self.monitor else 1.0
+        if self.monitor and s < self.monitor.enter:
+            self.active = self.proj
+            self.switches.append(Switch(t, "lu", "projection",
+                                        f"starts near a singular configuration (σ ratio {s:.3g})"))
+            return self.proj.initial_state(t, q, v)
+        return self.lu.initial_state(t, q, v)
+
+    def rhs(self, t, y):
+        return self.active.rhs(t, y)
+
+    def state(self, t, y):
+        return self.active.state(t, y)
+
+    def _lu_choice(self, q, t):
+        J = self.problem.phi_q(q, t)
+        _, piv = sla.lu_factor(J.T, check_finite=False)
+        return tuple(piv)
+
+    def _switch(self, t, y, to, reason):
+        q, v = self.active.state(t, y)
+        name_from = self.active.name
+        self.active = to
+        self._stable = 0
+        self._recent.clear()
+        self.switches.append(Switch(t, name_from, to.name, reason))
+        self.problem.counters.switches += 1
+        return to.initial_state(t, q, v)
+
+    def after_step(self, t, y):
+        self._step += 1
+        mon = self.monitor
+        s = mon.last if mon else 1.0
+        if self.active is self.lu:
+            if mon and s < mon.enter:
+                joints = ", ".join(mon._open[3]) if mon.inside else "?"
+                return self._switch(t, y, self.proj, f"σ_min/σ_max = {s:.3g} < {mon.enter:g}: "
+                                    f"near a singular configuration (joints {joints})")
+            before = self.lu.independent
+            out = self.lu.after_step(t, y)
+            if out is not None and self.lu.independent != before:
+                self._recent = [k for k in self._recent if self._step - k < self.burst_steps]
+                self._recent.append(self._step)
+                if len(self._recent) >= self.repartition_burst:
+                    return self._switch(t, out, self.proj,
+                                        f"independent set changed {len(self._recent)} times in "
+                                        f"{self.burst_steps} steps")
+            return out
+        out = self.proj.after_step(t, y)
+        q, _ = self.proj.state(t, y if out is None else out)
+        choice = self._lu_choice(q, t)
+        growing = self.last_step >= 0.99 * getattr(self, "_prev_step", 0.0)
+        self._prev_step = self.last_step
+        if (not mon or s > mon.leave) and growing and choice == self._choice:
+            self._stable += 1
+        else:
+            self._stable = 0
+        self._choice = choice
+        if self._stable >= self.stable_steps:
+            return self._switch(t, y if out is None else out, self.lu,
+                                f"{self._stable} stable steps clear of the singularity "
+                                f"(σ ratio {s:.3g})")
+        return out
