@@ -16,7 +16,9 @@ import numpy as np
 
 from .formulations import formulation_class
 from .formulations.monitor import SingularityMonitor
-from .integrators import integrator_class
+from scipy.integrate import DOP853, RK23, RK45
+
+from .integrators import AdamsPECE, integrator_class
 from .problem import NumericProblem
 from .results import SimulationResult
 
@@ -32,6 +34,21 @@ def output_times(t0: float, t_end: float, output_step: float | None) -> np.ndarr
     else:
         ts[-1] = t_end
     return ts
+
+
+def _correct_in_place(solver, y) -> bool:
+    """Put a projected state into a running integrator without restarting it, where that is
+    sound: one-step RK methods need only y and f(t, y); the Adams method keeps its derivative
+    history (a projected multistep method). Others (BDF, Radau, LSODA carry internal state
+    built on the old y) are restarted by the caller."""
+    if isinstance(solver, AdamsPECE):
+        solver.correct(y)
+        return True
+    if isinstance(solver, (RK23, RK45, DOP853)):
+        solver.y = np.array(y, float)
+        solver.f = solver.fun(solver.t, solver.y)
+        return True
+    return False
 
 
 def _positive(value, what):
@@ -91,7 +108,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         out_v.append(np.array(v, float))
 
     status, message = "success", "reached t_end"
-    steps = restarts = rejected = 0
+    steps = restarts = rejected = corrections = 0
     nfev_done = njev_done = nlu_done = 0
     next_out = 0
     if ts is None or ts[0] == t_start:
@@ -110,22 +127,29 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             steps += 1
             t_new, y_new = solver.t, solver.y
             if ts is not None:
-                dense = None
+                first = next_out
                 while next_out < len(ts) and ts[next_out] < t_new:
-                    if ts[next_out] > t_old:
-                        dense = dense or solver.dense_output()
-                        record(ts[next_out], *form.state(ts[next_out], dense(ts[next_out])))
                     next_out += 1
+                inside = [tk for tk in ts[first:next_out] if tk > t_old]
+                if inside:       # one dense-output call for all samples inside the step
+                    ys = np.atleast_2d(solver.dense_output()(np.array(inside)).T)
+                    for tk, yk in zip(inside, ys):
+                        record(tk, *form.state(tk, yk))
             q_new, _ = form.state(t_new, y_new)
             monitor.observe(t_new, q_new)
             form.last_step = t_new - t_old
+            form.layout_changed = False
             corrected = form.after_step(t_new, y_new)
             y_here = y_new if corrected is None else corrected
             t_reached = t_new
             if ts is None or (next_out < len(ts) and ts[next_out] == t_new):
                 record(t_new, *form.state(t_new, y_here))
                 next_out += 1
-            if corrected is not None and solver.status == "running":
+            if corrected is None or solver.status != "running":
+                continue
+            if not form.layout_changed and _correct_in_place(solver, corrected):
+                corrections += 1
+            else:
                 nfev_done += solver.nfev
                 njev_done += int(getattr(solver, "njev", 0))
                 nlu_done += int(getattr(solver, "nlu", 0))
@@ -156,6 +180,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         "jacobian_evaluations": njev_done + int(getattr(solver, "njev", 0)),
         "lu_decompositions": nlu_done + int(getattr(solver, "nlu", 0)),
         "restarts": restarts,
+        "corrections_in_place": corrections,
         "projections": counters.projections - before["projections"],
         "partitions": counters.partitions - before["partitions"],
         "switches": counters.switches - before["switches"],

@@ -6,8 +6,10 @@ A formulation holds a NumericProblem and exposes a first-order ODE y' = f(t, y).
 2. `initial_state(t, q, v)` -> y0, from a consistent (assembled) state;
 3. `rhs(t, y)` -> y', counting itself in `problem.counters.rhs`;
 4. `state(t, y)` -> (q, v), the full coordinates and velocities;
-5. `after_step(t, y)` -> a corrected y or None. Returning a new y (a projection, a new
-   partition) restarts the integrator there; it is also where a formulation may `log` events.
+5. `after_step(t, y)` -> a corrected y or None. A correction that keeps the meaning of the
+   state (a projection) is applied in place where the integrator allows it; one that changes
+   it (a new partition, a switch of formulation) must set `self.layout_changed = True`, and
+   the manager restarts the integrator there.
 
 `options` are the keyword arguments of `simulate` that the formulation accepts; anything it
 does not know is an error naming the option.
@@ -27,6 +29,7 @@ class Formulation:
     monitor = None        # the manager's SingularityMonitor, set before initial_state
     last_step = 0.0       # size of the step just accepted, set before after_step
     failure = ""          # what went wrong last, for the manager's failure message
+    layout_changed = False  # set by after_step when its correction changes the coordinates
 
     def __init__(self, problem: NumericProblem, rtol: float, atol: float, **options):
         unknown = sorted(set(options) - set(self.options))

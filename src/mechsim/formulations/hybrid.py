@@ -65,10 +65,12 @@ class Hybrid(Formulation):
         self._recent.clear()
         self.switches.append(Switch(t, name_from, to.name, reason))
         self.problem.counters.switches += 1
+        self.layout_changed = True
         return to.initial_state(t, q, v)
 
     def after_step(self, t, y):
         self._step += 1
+        self.layout_changed = False
         mon = self.monitor
         s = mon.last if mon else 1.0
         if self.active is self.lu:
@@ -76,9 +78,9 @@ class Hybrid(Formulation):
                 joints = ", ".join(mon._open[3]) if mon.inside else "?"
                 return self._switch(t, y, self.proj, f"σ_min/σ_max = {s:.3g} < {mon.enter:g}: "
                                     f"near a singular configuration (joints {joints})")
-            before = self.lu.independent
             out = self.lu.after_step(t, y)
-            if out is not None and self.lu.independent != before:
+            self.layout_changed = self.lu.layout_changed
+            if out is not None and self.lu.layout_changed:
                 self._recent = [k for k in self._recent if self._step - k < self.burst_steps]
                 self._recent.append(self._step)
                 if len(self._recent) >= self.repartition_burst:

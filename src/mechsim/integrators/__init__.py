@@ -8,8 +8,10 @@ from __future__ import annotations
 
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
-INTEGRATORS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": BDF,
-               "LSODA": LSODA}
+from .adams import AdamsPECE
+
+INTEGRATORS = {"adams": AdamsPECE, "RK45": RK45, "RK23": RK23, "DOP853": DOP853,
+               "Radau": Radau, "BDF": BDF, "LSODA": LSODA}
 
 
 def integrator_class(name: str):
@@ -20,4 +22,4 @@ def integrator_class(name: str):
                          f"{', '.join(INTEGRATORS)}") from None
 
 
-__all__ = ["INTEGRATORS", "integrator_class"]
+__all__ = ["INTEGRATORS", "AdamsPECE", "integrator_class"]

@@ -1,0 +1,188 @@
+"""Variable-step, variable-order Adams–Bashforth–Moulton in PECE mode (seed 001's integrator).
+
+Each step of order k evaluates the right-hand side twice:
+
+    P  y_p = y_n + ∫ p_k        p_k interpolates f at t_n, …, t_{n−k+1}       (AB, order k)
+    E  f_p = f(t_{n+1}, y_p)
+    C  y_c = y_n + ∫ p*_{k+1}   p*  interpolates f_p, f_n, …, f_{n−k+1}     (AM, order k+1)
+    E  f_c = f(t_{n+1}, y_c)
+
+The integrals run over [t_n, t_{n+1}] on the actual (irregular) grid: the weights are the
+integrals of the Lagrange basis, computed by Gauss–Legendre quadrature (exact for these
+polynomials and, unlike Vandermonde solves, well conditioned for any spacing). The local
+error is estimated by Milne's device ‖y_c − y_p‖ and the higher-order corrector is kept
+(local extrapolation, as in Shampine–Gordon). After each accepted step the estimates at
+orders k−1, k, k+1 (same f values, no extra evaluations) pick the order that allows the
+largest next step; the order rises by at most one per step, so a fresh start (t0 or a
+restart after a re-partition) climbs from order 1. Dense output integrates the corrector's
+interpolant to any point inside the step.
+
+It is a scipy `OdeSolver`, so `solve_ivp(fun, span, y0, method=AdamsPECE)` works too.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.integrate import DenseOutput, OdeSolver
+
+_GX, _GW = np.polynomial.legendre.leggauss(8)     # exact to degree 15 ≥ the highest order
+_GX = 0.5 * (_GX + 1.0)                            # on [0, 1]
+_GW = 0.5 * _GW
+
+
+def integration_weights(nodes: np.ndarray, s) -> np.ndarray:
+    """w_j = ∫_0^s L_j(τ) dτ for the Lagrange basis on `nodes` (in units of the step).
+    `s` scalar -> shape (K,); `s` array (P,) -> shape (P, K)."""
+    s = np.atleast_1d(np.asarray(s, float))
+    x = (s[:, None] * _GX[None, :]).reshape(-1, 1)                 # (P·G, 1) quadrature points
+    diff = x - nodes[None, :]                                      # (P·G, K)
+    dn = nodes[:, None] - nodes[None, :]
+    np.fill_diagonal(dn, 1.0)
+    denom = np.prod(dn, axis=1)                                    # (K,)
+    # L_j(x) = Π_{i≠j}(x − τ_i) / denom_j: prefix and suffix products leave factor j out.
+    ones = np.ones((diff.shape[0], 1))
+    left = np.cumprod(np.hstack([ones, diff[:, :-1]]), axis=1)
+    right = np.cumprod(np.hstack([ones, diff[:, :0:-1]]), axis=1)[:, ::-1]
+    L = (left * right / denom).reshape(s.size, _GX.size, nodes.size)
+    return np.einsum("g,pgk->pk", _GW, L) * s[:, None]
+
+
+class AdamsPECE(OdeSolver):
+    """Variable-step, variable-order Adams PECE (orders 1..`max_order`) with error control.
+
+    Parameters follow scipy's solvers: fun, t0, y0, t_bound, rtol, atol, max_step,
+    first_step; plus `max_order` (default 10). Exposes `order`, `n_rejected`.
+    """
+
+    def __init__(self, fun, t0, y0, t_bound, max_step=np.inf, rtol=1e-6, atol=1e-8,
+                 first_step=None, max_order=10, vectorized=False, **extraneous):
+        super().__init__(fun, t0, y0, t_bound, vectorized, support_complex=False)
+        self.max_step = float(max_step)
+        self.rtol, self.atol = float(rtol), atol
+        if not 1 <= int(max_order) <= 12:
+            raise ValueError(f"`max_order` must be in 1..12, got {max_order}")
+        self.max_order = int(max_order)
+        self.f = self.fun(self.t, self.y)
+        self.ts = [self.t]          # accepted times, newest last
+        self.fs = [self.f]          # their derivatives
+        self.order = 1
+        self.n_rejected = 0
+        self.h = self._initial_step() if first_step is None else min(float(first_step), self._initial_step(loose=True))
+        self.h = min(self.h, self.max_step, abs(self.t_bound - self.t))
+        self._dense = None
+        self._cache: dict = {}
+
+    def _weights(self, nodes):
+        """Step weights (s = 1) for `nodes`, cached by their pattern: the controller keeps h
+        unchanged unless a real change is called for, so on a steady stretch the nodes are
+        the same integers step after step and the weights are computed once."""
+        key = tuple(np.round(nodes, 11))
+        w = self._cache.get(key)
+        if w is None:
+            if len(self._cache) > 4096:
+                self._cache.clear()
+            w = self._cache[key] = integration_weights(np.array(key), 1.0)[0]
+        return w
+
+    def _norm(self, e, y_a, y_b):
+        scale = self.atol + self.rtol * np.maximum(np.abs(y_a), np.abs(y_b))
+        return float(np.sqrt(np.mean((e / scale) ** 2))) if e.size else 0.0
+
+    def _initial_step(self, loose=False):
+        # Order 1 (Euler predictor, trapezoid corrector) has local error ~ h² |f'|: start small
+        # and let the controller grow the step.
+        scale = self.atol + self.rtol * np.abs(self.y)
+        d0 = float(np.sqrt(np.mean((self.y / scale) ** 2))) if self.y.size else 0.0
+        d1 = float(np.sqrt(np.mean((self.f / scale) ** 2))) if self.y.size else 0.0
+        h = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        h = min(h, 1e-2 * abs(self.t_bound - self.t) or 1e-6)
+        return h if loose else h * 0.1
+
+    def _nodes(self, count, h, include_new):
+        """Nodes (in units of h, relative to t_n) of the newest `count` points."""
+        t_n = self.ts[-1]
+        past = (np.array(self.ts[-count:][::-1]) - t_n) / h
+        return np.concatenate([[1.0], past]) if include_new else past
+
+    def _step_impl(self):
+        t, y = self.t, self.y
+        h = min(self.h, self.max_step, abs(self.t_bound - t))
+        while True:
+            k = min(self.order, len(self.ts))
+            if h < 10 * np.abs(np.nextafter(t, np.inf) - t):
+                return False, self.TOO_SMALL_STEP
+            F = np.array(self.fs[-k:][::-1])                        # f_n, f_{n−1}, …
+            a = self._weights(self._nodes(k, h, False))
+            y_p = y + h * (a @ F)
+            f_p = self.fun(t + h, y_p)
+            Fc = np.vstack([f_p, F])
+            b = self._weights(self._nodes(k, h, True))
+            y_c = y + h * (b @ Fc)
+            err = self._norm(y_c - y_p, y, y_c)
+            if err <= 1.0:
+                break
+            self.n_rejected += 1
+            factor = 0.2 if not np.isfinite(err) else max(0.2, 0.9 * err ** (-1.0 / (k + 1)))
+            h *= factor
+            self.order = max(1, min(self.order, k) - (1 if not np.isfinite(err) else 0))
+        f_c = self.fun(t + h, y_c)
+        # The step is accepted: keep the interpolant data for dense output.
+        self._dense = (t, h, y.copy(), np.vstack([f_c, F]), self._nodes(k, h, True))
+        self.t, self.y, self.f = t + h, y_c, f_c
+        self.ts.append(self.t)
+        self.fs.append(f_c)
+        del self.ts[:-(self.max_order + 2)], self.fs[:-(self.max_order + 2)]
+        self.order, factor = self._choose_order(k, h, y, y_c, Fc, err)
+        self.h = h * factor
+        return True, None
+
+    def correct(self, y):
+        """Replace the current state by a corrected one (e.g. projected onto the constraint
+        manifold) and keep the history: the newest derivative is re-evaluated there."""
+        self.y = np.array(y, float)
+        self.f = self.fun(self.t, self.y)
+        self.fs[-1] = self.f
+        if self._dense is not None:
+            t, h, y_old, F, nodes = self._dense
+            F = F.copy()
+            F[0] = self.f
+            self._dense = (t, h, y_old, F, nodes)
+
+    def _choose_order(self, k, h, y, y_c, Fc, err_k):
+        """Order for the next step from error estimates at k−1, k, k+1 (no new evaluations):
+        the one that allows the largest step, rising by at most one."""
+        best_order, best = k, (0.9 * err_k ** (-1.0 / (k + 1)) if err_k > 0 else 5.0)
+        n_hist = len(self.ts) - 1                    # past points before t_{n+1}
+        for j in (k - 1, k + 1):
+            if j < 1 or j > self.max_order or j > n_hist:
+                continue
+            F = Fc[1:j + 1] if j <= k else None
+            if F is None:                              # need one more past derivative
+                F = np.array(self.fs[-(j + 1):-1][::-1])
+            past = (np.array(self.ts[-(j + 1):-1][::-1]) - self.ts[-2]) / h
+            yp = y + h * (self._weights(past) @ F)
+            yc = y + h * (self._weights(np.concatenate([[1.0], past])) @ np.vstack([Fc[0], F]))
+            e = self._norm(yc - yp, y, yc)
+            factor = 0.9 * e ** (-1.0 / (j + 1)) if e > 0 else 5.0
+            if factor > 1.1 * best:
+                best_order, best = j, factor
+        # Hysteresis: keep h (and so cached weights) unless a real change is called for.
+        if best_order == k and 0.9 <= best < 1.5:
+            return best_order, 1.0
+        return best_order, min(2.0, max(0.5, best))
+
+    def _dense_output_impl(self):
+        t, h, y, F, nodes = self._dense
+        return _AdamsDense(t, t + h, y, h, F, nodes)
+
+
+class _AdamsDense(DenseOutput):
+    def __init__(self, t_old, t, y_old, h, F, nodes):
+        super().__init__(t_old, t)
+        self.y_old, self.hh, self.F, self.nodes = y_old, h, F, nodes
+
+    def _call_impl(self, t):
+        s = (np.atleast_1d(t) - self.t_old) / self.hh
+        w = integration_weights(self.nodes, s)                       # (P, K)
+        out = self.y_old[None, :] + self.hh * (w @ self.F)          # (P, n)
+        return out[0] if np.ndim(t) == 0 else out.T
