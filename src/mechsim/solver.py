@@ -96,7 +96,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     out_t, out_q, out_v = [], [], []
     q0, v0 = np.asarray(q0, float), np.asarray(v0, float)
     y = form.initial_state(t_start, q0, v0)
-    monitor.observe(t_start, q0)
+    monitor.observe(t_start, q0, v0)
 
     def make(t, y, h):
         kw = {"first_step": min(h, t_end - t)} if h else {}
@@ -135,8 +135,9 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                     ys = np.atleast_2d(solver.dense_output()(np.array(inside)).T)
                     for tk, yk in zip(inside, ys):
                         record(tk, *form.state(tk, yk))
-            q_new, _ = form.state(t_new, y_new)
-            monitor.observe(t_new, q_new)
+            q_new, v_new = form.state(t_new, y_new)
+            monitor.observe(t_new, q_new, v_new,
+                            lambda tk: form.state(tk, solver.dense_output()(tk)))
             form.last_step = t_new - t_old
             form.layout_changed = False
             corrected = form.after_step(t_new, y_new)
@@ -164,7 +165,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         if form.failure and form.failure not in message:
             message += f"; last trouble: {form.failure}"
         if monitor.inside or monitor.last < monitor.enter:
-            s, u = monitor.measure(out_q[-1], out_t[-1])
+            s, _, u = monitor.measure(out_q[-1], out_t[-1])
             message += (f"; Φ_q is nearly singular there (σ_min/σ_max = {s:.3g}, joints "
                         f"{', '.join(monitor.joints_of(u))})")
     monitor.close(t_reached)

@@ -13,9 +13,6 @@ recorded with its time and reason.
 
 from __future__ import annotations
 
-import numpy as np
-import scipy.linalg as sla
-
 from ..results import Switch
 from .base import Formulation
 from .partitioned import Partitioned
@@ -53,9 +50,10 @@ class Hybrid(Formulation):
         return self.active.state(t, y)
 
     def _lu_choice(self, q, t):
-        J = self.problem.phi_q(q, t)
-        _, piv = sla.lu_factor(J.T, check_finite=False)
-        return tuple(piv)
+        """The independent coordinates LU pivoting would pick here (the set, not the pivot
+        order, which ties in symmetric mechanisms reshuffle from step to step)."""
+        self.lu.choose(self.problem.phi_q(q, t))
+        return self.lu.independent
 
     def _switch(self, t, y, to, reason):
         q, v = self.active.state(t, y)
@@ -74,10 +72,14 @@ class Hybrid(Formulation):
         mon = self.monitor
         s = mon.last if mon else 1.0
         if self.active is self.lu:
-            if mon and s < mon.enter:
-                joints = ", ".join(mon._open[3]) if mon.inside else "?"
-                return self._switch(t, y, self.proj, f"σ_min/σ_max = {s:.3g} < {mon.enter:g}: "
-                                    f"near a singular configuration (joints {joints})")
+            if mon and mon.predicted_within(self.last_step):
+                if mon.inside:
+                    why = (f"σ_min/σ_max = {s:.3g} < {mon.enter:g}: near a singular "
+                           f"configuration (joints {', '.join(mon._open[3])})")
+                else:
+                    why = (f"σ_min/σ_max = {s:.3g} falling at {mon.rate:.3g}/s: a singular "
+                           "configuration ahead")
+                return self._switch(t, y, self.proj, why)
             out = self.lu.after_step(t, y)
             self.layout_changed = self.lu.layout_changed
             if out is not None and self.lu.layout_changed:
@@ -93,7 +95,8 @@ class Hybrid(Formulation):
         choice = self._lu_choice(q, t)
         growing = self.last_step >= 0.99 * getattr(self, "_prev_step", 0.0)
         self._prev_step = self.last_step
-        if (not mon or s > mon.leave) and growing and choice == self._choice:
+        clear = not mon or (s > mon.leave and not mon.predicted_within(self.last_step))
+        if clear and growing and choice == self._choice:
             self._stable += 1
         else:
             self._stable = 0

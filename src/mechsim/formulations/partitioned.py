@@ -1,7 +1,8 @@
 """Generalized coordinate partitioning (Wehage–Haug) and its QR and SVD variants.
 
 The coordinates are split as q = q_ref + B z + D w: B spans the independent directions
-(integrated), D the dependent ones (solved for). Only z and ż are integrated; then
+(integrated), D the dependent ones (solved for); for "lu" and "qr" they are subsets of q and
+are applied by indexing (`CoordinateBasis`), for "svd" they are matrices (`MatrixBasis`). Only z and ż are integrated; then
 
     w  from  Φ(q_ref + B z + D w, t) = 0        by Newton–Raphson (seed 001, eq. 6)
     ẇ  from  Φ_q D ẇ = −Φ_q B ż − Φ_t
@@ -47,6 +48,57 @@ def _numerical_rank(J) -> int:
     return int(np.sum(s > max(J.shape) * np.finfo(float).eps * 1e3 * s[0]))
 
 
+class CoordinateBasis:
+    """Independent / dependent subsets of q (columns of the identity), applied by indexing:
+    no n × n products, which dominate for large mechanisms."""
+
+    def __init__(self, independent, dependent):
+        self.ind = np.sort(np.asarray(independent, dtype=np.intp))
+        self.dep = np.sort(np.asarray(dependent, dtype=np.intp))
+        self.f, self.r = self.ind.size, self.dep.size
+
+    def combine(self, base, z, w):
+        q = base.copy()
+        q[self.ind] += z
+        q[self.dep] += w
+        return q
+
+    def JB(self, J):
+        return J[:, self.ind]
+
+    def JD(self, J):
+        return J[:, self.dep]
+
+    def Bt(self, x):
+        return x[self.ind]
+
+    def Dt(self, x):
+        return x[self.dep]
+
+
+class MatrixBasis(CoordinateBasis):
+    """Orthonormal complementary bases B (n × f) and D (n × r), e.g. from an SVD."""
+
+    def __init__(self, B, D):
+        self.B, self.D = B, D
+        self.f, self.r = B.shape[1], D.shape[1]
+
+    def combine(self, base, z, w):
+        return base + self.B @ z + self.D @ w
+
+    def JB(self, J):
+        return J @ self.B
+
+    def JD(self, J):
+        return J @ self.D
+
+    def Bt(self, x):
+        return self.B.T @ x
+
+    def Dt(self, x):
+        return self.D.T @ x
+
+
 class Partitioned(Formulation):
     name = "lu"
     default_integrator = "DOP853"
@@ -61,8 +113,8 @@ class Partitioned(Formulation):
         self.independent = ()
 
     # --- the hook ----------------------------------------------------------------------------
-    def choose(self, J) -> tuple[np.ndarray, np.ndarray]:
-        """(B, D): independent and dependent bases, shapes (n, n−r) and (n, r)."""
+    def choose(self, J) -> CoordinateBasis:
+        """The independent and dependent directions at Φ_q = J (f = n − r and r of them)."""
         r = _numerical_rank(J)
         _, piv = sla.lu_factor(J.T, check_finite=False)
         perm = np.arange(self.n)
@@ -71,37 +123,34 @@ class Partitioned(Formulation):
         return self._coordinate_bases(perm[r:], perm[:r])
 
     def _coordinate_bases(self, independent, dependent):
-        eye = np.eye(self.n)
         self.independent = tuple(sorted(int(i) for i in independent))
-        return eye[:, np.sort(independent)], eye[:, np.sort(dependent)]
+        return CoordinateBasis(independent, dependent)
 
     # --- partitioning --------------------------------------------------------------------------
-    def partition(self, t, q, v, bases=None):
+    def partition(self, t, q, v, basis=None):
         J = self.problem.phi_q(q, t)
-        self.B, self.D = bases if bases is not None else self.choose(J)
+        self.basis = bs = basis if basis is not None else self.choose(J)
         self.q_ref = np.array(q, float)
-        f = self.B.shape[1]
-        self._accept(t, np.zeros(f), self.B.T @ v, np.zeros(self.D.shape[1]), self.D.T @ v, J,
-                     first=True)
+        self._accept(t, np.zeros(bs.f), bs.Bt(v), np.zeros(bs.r), bs.Dt(v), J, first=True)
         self._cache = None
         self.problem.counters.partitions += 1
-        return np.concatenate([np.zeros(self.B.shape[1]), self.B.T @ v])
+        return np.concatenate([np.zeros(bs.f), bs.Bt(v)])
 
     def _accept(self, t, z, zd, w, wd, J, first=False):
         """Remember an accepted state: the predictor's data and the chord factorisation."""
         self._prev = None if first else (self.t_last, self.z_last, self.w_last)
         self.t_last, self.z_last, self.zd_last, self.w_last, self.wd_last = t, z, zd, w, wd
-        JD = J @ self.D
+        JD = self.basis.JD(J)
         self._square = JD.shape[0] == JD.shape[1]
         if self._square:
             # An explicit inverse as the chord matrix: one small matmul per iteration, where
             # lu_solve spends ~30 µs in its wrapper. Convergence is judged on ‖Φ‖, so the
             # inverse's conditioning affects only the rate.
             self._chord = np.linalg.inv(JD)
-            self._dw_dz = -self._chord @ (J @ self.B)
+            self._dw_dz = -self._chord @ self.basis.JB(J)
             self.problem.counters.factorizations += 1
         else:
-            self._dw_dz = np.zeros((self.D.shape[1], self.B.shape[1]))
+            self._dw_dz = np.zeros((self.basis.r, self.basis.f))
 
     def initial_state(self, t, q, v):
         return self.partition(t, q, v)
@@ -127,14 +176,13 @@ class Partitioned(Formulation):
     def _positions(self, z, t):
         """Chord Newton on Φ(q_ref + B z + D w, t) = 0 with the factorisation of Φ_q D from
         the last accepted step; a fresh Jacobian only if the chord stalls."""
-        prob, D = self.problem, self.D
-        base = self.q_ref + self.B @ z
+        prob, bs = self.problem, self.basis
         w = self._predict(t, z)
         fresh = not self._square
         n_fresh = 0
         err_prev = np.inf
         for k in range(self.max_newton + 1):
-            q = base + D @ w
+            q = bs.combine(self.q_ref, z, w)
             phi = prob.phi(q, t)
             err = float(np.max(np.abs(phi))) if phi.size else 0.0
             if err <= self.newton_tol:
@@ -146,7 +194,7 @@ class Partitioned(Formulation):
             err_prev = err
             if fresh:
                 n_fresh += 1
-                w = w - _solve(prob.phi_q(q, t) @ D, phi)
+                w = w - _solve(bs.JD(prob.phi_q(q, t)), phi)
             else:
                 w = w - self._chord @ phi
         i = int(np.nanargmax(np.abs(phi))) if np.all(np.isfinite(phi)) else 0
@@ -162,12 +210,12 @@ class Partitioned(Formulation):
         c = self._cache
         if c is not None and c[0] == t and np.array_equal(c[1], y):
             return c[2]
-        f = self.B.shape[1]
-        z, zd = y[:f], y[f:]
+        bs = self.basis
+        z, zd = y[:bs.f], y[bs.f:]
         q, n_fresh = self._positions(z, t)
         J = self.problem.phi_q(q, t)
-        wd = _solve(J @ self.D, -(J @ (self.B @ zd)) - self.problem.phi_t(q, t))
-        v = self.B @ zd + self.D @ wd
+        wd = _solve(bs.JD(J), -(bs.JB(J) @ zd) - self.problem.phi_t(q, t))
+        v = bs.combine(np.zeros(self.n), zd, wd)
         out = (q, v, J, n_fresh)
         self._cache = (t, y.copy(), out)
         return out
@@ -185,20 +233,19 @@ class Partitioned(Formulation):
             # A trial step too far for Newton: NaN makes the integrator reject and shrink it.
             return np.full(y.shape, np.nan)
         qdd, _ = prob.accelerations(J, prob.forces(t, q, v), prob.gamma(q, v, t))
-        f = self.B.shape[1]
-        return np.concatenate([y[f:], self.B.T @ qdd])
+        return np.concatenate([y[self.basis.f:], self.basis.Bt(qdd)])
 
     def after_step(self, t, y):
         q, v, J, n_fresh = self.full_state(t, y)
         self.layout_changed = False
-        if n_fresh >= 2 or np.linalg.cond(J @ self.D) > self.cond_max:
+        bs = self.basis
+        if n_fresh >= 2 or np.linalg.cond(bs.JD(J)) > self.cond_max:
             before = self.independent
-            bases = self.choose(J)
+            basis = self.choose(J)
             if self.name == "svd" or self.independent != before:
                 self.layout_changed = True
-                return self.partition(t, q, v, bases)
-        f = self.B.shape[1]
-        self._accept(t, y[:f].copy(), y[f:].copy(), self.D.T @ (q - self.q_ref), self.D.T @ v, J)
+                return self.partition(t, q, v, basis)
+        self._accept(t, y[:bs.f].copy(), y[bs.f:].copy(), bs.Dt(q - self.q_ref), bs.Dt(v), J)
         return None
 
 
@@ -218,4 +265,4 @@ class SVDPartitioned(Partitioned):
         r = _numerical_rank(J)
         _, _, Vt = np.linalg.svd(J)
         self.independent = ()
-        return Vt[r:].T, Vt[:r].T
+        return MatrixBasis(Vt[r:].T, Vt[:r].T)
