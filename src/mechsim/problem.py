@@ -85,6 +85,7 @@ class NumericProblem:
     body_starts : dict name -> index of the body's x in q
     coordinate_names, constraint_names : list of str (one per coordinate / per row of Φ)
     constraint_owners : list of str, the joint or driver that owns each row of Φ
+    constraint_kinds : list of str, "joint" or "driver" for each row of Φ
     springs, loads : tuples of SpringData / PointLoad
     """
 
@@ -92,7 +93,7 @@ class NumericProblem:
 
     def __init__(self, model, parameters, mass_diagonal, gravity, body_starts,
                  coordinate_names, constraint_names, constraint_owners,
-                 springs=(), loads=(), title="mechanism"):
+                 springs=(), loads=(), title="mechanism", constraint_kinds=None):
         self.model = model
         self.p = tuple(float(x) for x in parameters)
         self.mass_diagonal = np.asarray(mass_diagonal, float)
@@ -104,6 +105,7 @@ class NumericProblem:
         self.coordinate_names = list(coordinate_names)
         self.constraint_names = list(constraint_names)
         self.constraint_owners = list(constraint_owners)
+        self.constraint_kinds = list(constraint_kinds or ["joint"] * len(self.constraint_names))
         self.springs = tuple(springs)
         self.loads = tuple(loads)
         self.title = title
@@ -143,7 +145,19 @@ class NumericProblem:
     def forces(self, t, q, v) -> np.ndarray:
         """Generalized applied forces Q(t, q, v), shape (n,)."""
         Q = self._gravity_force.copy()
+        self._add_loads(t, q, v, Q, elastic=True)
+        return Q
+
+    def nonconservative_forces(self, t, q, v) -> np.ndarray:
+        """The part of Q with no potential: spring damping, point forces and torques."""
+        Q = np.zeros(self.n)
+        self._add_loads(t, q, v, Q, elastic=False)
+        return Q
+
+    def _add_loads(self, t, q, v, Q, elastic: bool):
         for sp in self.springs:
+            if not elastic and not sp.damping:
+                continue
             pa = _point(q, sp.a, sp.sa)
             pb = _point(q, sp.b, sp.sb)
             dx, dy = pb[0] - pa[0], pb[1] - pa[1]
@@ -151,7 +165,7 @@ class NumericProblem:
             if length == 0.0:
                 continue  # direction undefined; a zero-length spring carries no force
             ex, ey = dx / length, dy / length
-            tension = sp.stiffness * (length - sp.rest_length)
+            tension = sp.stiffness * (length - sp.rest_length) if elastic else 0.0
             if sp.damping:
                 va = _velocity(q, v, sp.a, sp.sa)
                 vb = _velocity(q, v, sp.b, sp.sb)
@@ -165,7 +179,28 @@ class NumericProblem:
             else:
                 fx, fy = value
                 _add_point_force(Q, q, load.body, load.s, fx, fy)
-        return Q
+
+    @property
+    def has_nonconservative(self) -> bool:
+        """Whether anything can do work besides gravity and elastic springs."""
+        return bool(self.loads) or any(sp.damping for sp in self.springs) or \
+            bool(self.rheonomic_rows)
+
+    @property
+    def rheonomic_rows(self) -> list[int]:
+        """Rows of Φ that depend on time explicitly (drivers): they can do work."""
+        return [i for i, name in enumerate(self.constraint_kinds) if name == "driver"]
+
+    def power(self, t, q, v) -> tuple[float, float]:
+        """(applied, driver) power: Q_ncᵀ v and λᵀ Φ_t. The constraint force −Φ_qᵀλ has
+        power −λᵀ Φ_q v = λᵀ Φ_t, non-zero only on rows with explicit time dependence."""
+        applied = float(self.nonconservative_forces(t, q, v) @ v)
+        driver = 0.0
+        if self.rheonomic_rows:
+            _, J, phi_t, gamma = self.terms(q, v, t)
+            _, lam = self.accelerations(J, self.forces(t, q, v), gamma)
+            driver = float(lam @ phi_t)
+        return applied, driver
 
     # --- energies (vectorized over leading dimensions) ---------------------------------------
     def kinetic_energy(self, q, v) -> np.ndarray:

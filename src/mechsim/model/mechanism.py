@@ -186,11 +186,12 @@ class Mechanism:
             model, self.from_cache = load_model(structure, build)
             starts = self._body_starts()
             params = [x for item in items for x in item.parameter_values()]
-            names, owners = [], []
+            names, owners, kinds = [], [], []
             for item in items:
                 for label in item.equation_labels:
                     names.append(f"{item.name}.{label}")
                     owners.append(item.name)
+                    kinds.append("driver" if isinstance(item, Driver) else "joint")
             springs, loads = [], []
             for ld in self.loads:
                 if isinstance(ld, Spring):
@@ -210,7 +211,8 @@ class Mechanism:
             mass = np.concatenate([b.mass_diagonal for b in self.bodies])
             self._problem = NumericProblem(model, params, mass, self.gravity, starts,
                                            self.coordinate_names, names, owners,
-                                           springs, loads, title=self.name)
+                                           springs, loads, title=self.name,
+                                           constraint_kinds=kinds)
         return self._problem
 
     # --- analysis ----------------------------------------------------------------------------

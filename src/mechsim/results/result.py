@@ -40,14 +40,30 @@ class Switch:
 
 @dataclass
 class EnergyLog:
-    """Energies at the output times, each shape (n,). `total` = kinetic + potential + strain."""
+    """Energies at the output times, each shape (n,). `total` = kinetic + potential + strain;
+    `work` = work done since t₀ by non-conservative forces (dampers, applied forces and
+    torques) and drivers; `balance` = total − total(t₀) − work, zero for an exact solution.
+
+    The work is the cumulative Simpson integral of the power at the output samples, so its
+    accuracy follows the output spacing (fourth order in it)."""
     kinetic: np.ndarray
     potential: np.ndarray
     strain: np.ndarray
+    work: np.ndarray | None = None
+    applied_power: np.ndarray | None = None
+    driver_power: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.work is None:
+            self.work = np.zeros_like(self.kinetic)
 
     @property
     def total(self) -> np.ndarray:
         return self.kinetic + self.potential + self.strain
+
+    @property
+    def balance(self) -> np.ndarray:
+        return self.total - self.total[0] - self.work
 
 
 class SimulationResult:
@@ -126,8 +142,13 @@ class SimulationResult:
     @cached_property
     def energy(self) -> EnergyLog:
         p = self._need_problem("the energy log")
-        return EnergyLog(p.kinetic_energy(self.q, self.v), p.potential_energy(self.q),
-                         p.strain_energy(self.q))
+        log = EnergyLog(p.kinetic_energy(self.q, self.v), p.potential_energy(self.q),
+                        p.strain_energy(self.q))
+        if p.has_nonconservative and len(self.t) > 1:
+            powers = np.array([p.power(t, q, v) for t, q, v in zip(self.t, self.q, self.v)])
+            log.applied_power, log.driver_power = powers[:, 0], powers[:, 1]
+            log.work = _cumulative_integral(powers.sum(axis=1), self.t)
+        return log
 
     @property
     def energy_scale(self) -> float:
@@ -136,13 +157,14 @@ class SimulationResult:
         still has a meaningful relative drift."""
         e = self.energy
         v = e.potential + e.strain
-        return float(max(abs(e.total[0]), np.max(e.kinetic), np.max(np.abs(v - v[0])), 1e-300))
+        return float(max(abs(e.total[0]), np.max(e.kinetic), np.max(np.abs(v - v[0])),
+                         np.max(np.abs(e.work)), 1e-300))
 
     @property
     def energy_drift(self) -> np.ndarray:
-        """(E(t) − E(0)) / energy_scale, shape (n,)."""
-        total = self.energy.total
-        return (total - total[0]) / self.energy_scale
+        """(E(t) − E(0) − W(t)) / energy_scale, shape (n,): W is the work of non-conservative
+        forces and drivers, so a driven or damped mechanism has a meaningful drift too."""
+        return self.energy.balance / self.energy_scale
 
     @cached_property
     def constraint_violation(self) -> np.ndarray:
@@ -168,12 +190,21 @@ class SimulationResult:
         extra = {}
         if self.problem is not None or "energy" in self.__dict__:
             e = self.energy
-            extra = {"kinetic": e.kinetic, "potential": e.potential, "strain": e.strain}
+            extra = {"kinetic": e.kinetic, "potential": e.potential, "strain": e.strain,
+                     "work": e.work}
         if self.problem is not None or "constraint_violation" in self.__dict__:
             extra["constraint_violation"] = self.constraint_violation
         np.savez_compressed(path, t=self.t, q=self.q, v=self.v,
                             meta=np.array(json.dumps(meta, default=float)), **extra)
         return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
+
+
+def _cumulative_integral(y, t):
+    """∫_{t₀}^{t} y dt at every sample: Simpson where there are three or more samples."""
+    from scipy.integrate import cumulative_simpson, cumulative_trapezoid
+    if len(t) < 3:
+        return cumulative_trapezoid(y, t, initial=0.0)
+    return cumulative_simpson(y, x=t, initial=0.0)
 
 
 def load_result(path) -> SimulationResult:
@@ -182,7 +213,8 @@ def load_result(path) -> SimulationResult:
         meta = json.loads(str(data["meta"]))
         energy = None
         if "kinetic" in data:
-            energy = EnergyLog(data["kinetic"], data["potential"], data["strain"])
+            energy = EnergyLog(data["kinetic"], data["potential"], data["strain"],
+                               data["work"] if "work" in data else None)
         violation = data["constraint_violation"] if "constraint_violation" in data else None
         return SimulationResult(
             data["t"], data["q"], data["v"], meta["coordinate_names"], status=meta["status"],
