@@ -160,6 +160,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
+        t_reached = max(t_reached, out_t[-1] if out_t else t_start)
         status, message = "failed", f"{type(exc).__name__} after t = {t_reached:.9g}: {exc}"
     if status == "failed":
         if form.failure and form.failure not in message:

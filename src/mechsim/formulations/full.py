@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Formulation
+from .partitioned import ConstraintSolveError
 
 
 class FullCoordinates(Formulation):
@@ -45,7 +46,14 @@ class FullCoordinates(Formulation):
         phi = prob.phi(q, t)
         if phi.size == 0 or np.max(np.abs(phi)) <= self.projection_tol:
             return None
-        q, _, _ = self.project_positions(q, t)
+        q, _, err = self.project_positions(q, t)
+        if not err <= max(1e-9, 1e3 * self.projection_tol):   # slow near a singularity is fine
+            phi = prob.phi(q, t)
+            i = int(np.nanargmax(np.abs(phi))) if np.all(np.isfinite(phi)) else 0
+            self.failure = (f"the constraints cannot be satisfied at t = {t:.9g}: projection "
+                            f"leaves residual {err:.3g} in '{prob.constraint_names[i]}' of "
+                            f"'{prob.constraint_owners[i]}'")
+            raise ConstraintSolveError(self.failure)
         return np.concatenate([q, self.project_velocities(q, v, t)])
 
     def project_positions(self, q, t):

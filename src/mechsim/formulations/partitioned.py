@@ -25,6 +25,8 @@ method's known weakness, which "hybrid" removes.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import scipy.linalg as sla
 
@@ -116,7 +118,9 @@ class Partitioned(Formulation):
     def choose(self, J) -> CoordinateBasis:
         """The independent and dependent directions at Φ_q = J (f = n − r and r of them)."""
         r = _numerical_rank(J)
-        _, piv = sla.lu_factor(J.T, check_finite=False)
+        with warnings.catch_warnings():      # a rank-deficient Φ_q (redundancy) is expected
+            warnings.simplefilter("ignore", sla.LinAlgWarning)
+            _, piv = sla.lu_factor(J.T, check_finite=False)
         perm = np.arange(self.n)
         for i, p in enumerate(piv):
             perm[i], perm[p] = perm[p], perm[i]
@@ -175,10 +179,31 @@ class Partitioned(Formulation):
 
     def _positions(self, z, t):
         """Chord Newton on Φ(q_ref + B z + D w, t) = 0 with the factorisation of Φ_q D from
-        the last accepted step; a fresh Jacobian only if the chord stalls."""
+        the last accepted step; a fresh Jacobian only if the chord stalls. If Newton fails
+        from the prediction (a long jump, e.g. dense output of a fully driven mechanism
+        whose empty state lets the integrator stride to the end), follow the path from the
+        last accepted state in sub-steps instead."""
+        try:
+            return self._newton(z, t, self._predict(t, z))
+        except ConstraintSolveError:
+            pass
+        for pieces in (4, 16, 64):
+            try:
+                w = self.w_last
+                for k in range(1, pieces + 1):
+                    a = k / pieces
+                    zk = self.z_last + a * (z - self.z_last)
+                    q, n_fresh = self._newton(zk, self.t_last + a * (t - self.t_last), w,
+                                              fresh=True)
+                    w = self.basis.Dt(q - self.q_ref)
+                return q, n_fresh
+            except ConstraintSolveError:
+                continue
+        raise ConstraintSolveError(self.failure)
+
+    def _newton(self, z, t, w, fresh=False):
         prob, bs = self.problem, self.basis
-        w = self._predict(t, z)
-        fresh = not self._square
+        fresh = fresh or not self._square
         n_fresh = 0
         err_prev = np.inf
         for k in range(self.max_newton + 1):
