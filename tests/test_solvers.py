@@ -80,9 +80,14 @@ def test_damper_work_closes_the_energy_balance():
 @pytest.fixture(scope="module")
 def parallelogram_runs():
     mech = ms.examples.four_bar()
-    return {m: mech.simulate(t_end=2.0, method=m, rtol=1e-8, atol=1e-10, max_step=0.01,
+    runs = {m: mech.simulate(t_end=2.0, method=m, rtol=1e-8, atol=1e-10, max_step=0.01,
                              output_step=0.002)
-            for m in ("hybrid", "projection", "lu")}
+            for m in ("hybrid", "projection")}
+    # LU alone with its default Adams integrator grinds through the first passage (~90k
+    # steps, see the issue notes); DOP853 shows its behaviour in a fraction of the time.
+    runs["lu"] = mech.simulate(t_end=2.0, method="lu", rtol=1e-8, atol=1e-10, max_step=0.01,
+                               output_step=0.002, integrator="DOP853")
+    return runs
 
 
 @pytest.mark.parametrize("method", ["hybrid", "projection"])
@@ -188,7 +193,7 @@ def test_adams_order_from_work_precision_slope(max_order):
     t_end = 10.0
     exact = solve_ivp(f, (0, t_end), [1.0, 0.0], method="DOP853", rtol=1e-13, atol=1e-14).y[:, -1]
     errs, work = [], []
-    for tol in np.logspace(-5, -10, 6):
+    for tol in np.logspace(-5, -10 + (4 - max_order if max_order < 4 else 0), 6):
         s = solve_ivp(f, (0, t_end), [1.0, 0.0], method=AdamsPECE, rtol=tol, atol=tol * 1e-2,
                       max_order=max_order)
         errs.append(np.max(np.abs(s.y[:, -1] - exact)))

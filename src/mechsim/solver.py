@@ -62,7 +62,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
              t_start: float = 0.0, rtol: float = 1e-6, atol: float = 1e-8,
              max_step: float = math.inf, output_step: float | None = None,
              integrator: str | None = None, first_step: float | None = None,
-             singular_thresholds: tuple[float, float] = (0.02, 0.04),
+             singular_thresholds: tuple[float, float] = (0.07, 0.14),
              **options) -> SimulationResult:
     """Integrate the constrained equations of motion from a consistent (q0, v0) at t_start.
 
@@ -73,8 +73,9 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     max_step : largest step the integrator may take
     output_step : spacing of output samples (None: one sample per accepted step)
     integrator : name in `mechsim.integrators.INTEGRATORS` (default: the method's choice)
-    singular_thresholds : (enter, leave) for σ_min/σ_max of Φ_q M^{-1/2}: a singular passage
-        is recorded while the ratio is below `enter` until it rises above `leave`
+    singular_thresholds : (enter, leave) for σ_min/σ_max of Φ_q M^{-1/2} relative to its
+        peak in the run: a singular passage is recorded while the ratio is below `enter`
+        until it rises above `leave` (see `mechsim.formulations.monitor`)
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
     cls = formulation_class(method)
@@ -165,7 +166,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     if status == "failed":
         if form.failure and form.failure not in message:
             message += f"; last trouble: {form.failure}"
-        if monitor.inside or monitor.last < monitor.enter:
+        if monitor.inside or monitor.last < monitor.enter:   # (relative to the peak)
             s, _, u = monitor.measure(out_q[-1], out_t[-1])
             message += (f"; Φ_q is nearly singular there (σ_min/σ_max = {s:.3g}, joints "
                         f"{', '.join(monitor.joints_of(u))})")

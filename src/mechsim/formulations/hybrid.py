@@ -13,6 +13,8 @@ recorded with its time and reason.
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..results import Switch
 from .base import Formulation
 from .partitioned import Partitioned
@@ -21,7 +23,7 @@ from .projection import Projection
 
 class Hybrid(Formulation):
     name = "hybrid"
-    default_integrator = "DOP853"
+    default_integrator = "adams"     # the paper's Adams PECE: two evaluations a step
     options = {"stable_steps": 5, "repartition_burst": 3, "burst_steps": 10}
 
     def __init__(self, problem, rtol, atol, **options):
@@ -30,13 +32,12 @@ class Hybrid(Formulation):
         self.proj = Projection(problem, rtol, atol)
         self.active = self.lu
         self._stable = 0
-        self._choice = None
         self._recent: list[int] = []      # steps at which LU re-partitioned
         self._step = 0
 
     def initial_state(self, t, q, v):
         s = self.monitor.measure(q, t)[0] if self.monitor else 1.0
-        if self.monitor and s < self.monitor.enter:
+        if s < 1e-8:          # starts on a singular configuration: no partition is safe
             self.active = self.proj
             self.switches.append(Switch(t, "lu", "projection",
                                         f"starts near a singular configuration (σ ratio {s:.3g})"))
@@ -49,11 +50,12 @@ class Hybrid(Formulation):
     def state(self, t, y):
         return self.active.state(t, y)
 
-    def _lu_choice(self, q, t):
-        """The independent coordinates LU pivoting would pick here (the set, not the pivot
-        order, which ties in symmetric mechanisms reshuffle from step to step)."""
-        self.lu.choose(self.problem.phi_q(q, t))
-        return self.lu.independent
+    def _lu_ready(self, q, t) -> bool:
+        """Would LU partitioning be well conditioned here? cond(Φ_u) of the set its pivoting
+        picks, against a tenth of its re-partition threshold."""
+        J = self.problem.phi_q(q, t)
+        basis = self.lu.choose(J)
+        return np.linalg.cond(basis.JD(J)) < 0.1 * self.lu.cond_max
 
     def _switch(self, t, y, to, reason):
         q, v = self.active.state(t, y)
@@ -92,15 +94,13 @@ class Hybrid(Formulation):
             return out
         out = self.proj.after_step(t, y)
         q, _ = self.proj.state(t, y if out is None else out)
-        choice = self._lu_choice(q, t)
         growing = self.last_step >= 0.99 * getattr(self, "_prev_step", 0.0)
         self._prev_step = self.last_step
         clear = not mon or (s > mon.leave and not mon.predicted_within(self.last_step))
-        if clear and growing and choice == self._choice:
+        if clear and growing and self._lu_ready(q, t):
             self._stable += 1
         else:
             self._stable = 0
-        self._choice = choice
         if self._stable >= self.stable_steps:
             return self._switch(t, y if out is None else out, self.lu,
                                 f"{self._stable} stable steps clear of the singularity "

@@ -103,7 +103,7 @@ class MatrixBasis(CoordinateBasis):
 
 class Partitioned(Formulation):
     name = "lu"
-    default_integrator = "DOP853"
+    default_integrator = "adams"     # the paper's Adams PECE: two evaluations a step
     options = {"cond_max": 1e4, "newton_tol": None, "max_newton": 12}
 
     def __init__(self, problem, rtol, atol, **options):
