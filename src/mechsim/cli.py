@@ -1,4 +1,4 @@
-"""Command line: `mechsim run SCENE`."""
+"""Command line: `mechsim run SCENE`, `mechsim bench [PROBLEM ...]`."""
 
 from __future__ import annotations
 
@@ -54,7 +54,9 @@ def _run(args) -> int:
     if res.singular_passages:
         print(f"singular   {len(res.singular_passages)} passage(s):")
         for p in res.singular_passages:
-            print(f"           {p.t_start:.4f} – {p.t_end:.4f} s, min σ = {p.min_sigma:.3g}")
+            joints = f", joints {', '.join(p.joints)}" if p.joints else ""
+            print(f"           {p.t_start:.4f} – {p.t_end:.4f} s, closest at {p.t_min:.4f} s "
+                  f"(σ_min/σ_max = {p.min_sigma:.3g}){joints}")
     for sw in res.switches:
         print(f"switch     t = {sw.t:.4f} s: {sw.from_method} → {sw.to_method} ({sw.reason})")
     for body, local in scene.output.get("points", []):
@@ -78,6 +80,28 @@ def _run(args) -> int:
     return 0 if res.success else 1
 
 
+def _bench(args) -> int:
+    from . import bench
+
+    problems = args.problems or list(bench.DEFAULT_PROBLEMS)
+    methods = args.methods.split(",") if args.methods else list(bench.DEFAULT_METHODS)
+    rtols = [float(x) for x in args.rtols.split(",")] if args.rtols else list(bench.DEFAULT_RTOLS)
+    print(bench.HEADER)
+    try:
+        rows = bench.run(problems, methods, rtols, integrator=args.integrator,
+                         max_steps=args.max_steps)
+    except ValueError as exc:
+        print(f"mechsim: {exc}", file=sys.stderr)
+        return 2
+    for rtol in rtols:
+        for name, r in bench.ratios(rows, rtol).items():
+            print(f"ratios at rtol {rtol:.0e}, {name}: " +
+                  ", ".join(f"{k} = {v:.2f}" for k, v in r.items()))
+    for path in bench.write(rows, args.out):
+        print(f"wrote {path}")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="mechsim", description="Planar mechanism simulator")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -88,6 +112,16 @@ def main(argv=None) -> int:
     run.add_argument("--t-end", type=float, help="override the scene's end time")
     run.add_argument("--no-plots", action="store_true", help="write no plots")
     run.set_defaults(func=_run)
+    bench = sub.add_parser("bench", help="work–precision table and plots for the solvers")
+    bench.add_argument("problems", nargs="*",
+                       help="parallelogram, double-four-bar, forty-window (default: the first two)")
+    bench.add_argument("--methods", help="comma-separated (default: lu,projection,hybrid,baumgarte)")
+    bench.add_argument("--rtols", help="comma-separated tolerances (default: 1e-5,…,1e-9)")
+    bench.add_argument("--integrator", help="override every method's default integrator")
+    bench.add_argument("--max-steps", type=int, default=20000,
+                       help="give up a run after this many steps (default 20000)")
+    bench.add_argument("--out", default="out/bench", help="where to write CSV and plots")
+    bench.set_defaults(func=_bench)
     args = parser.parse_args(argv)
     return args.func(args)
 

@@ -63,7 +63,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
              max_step: float = math.inf, output_step: float | None = None,
              integrator: str | None = None, first_step: float | None = None,
              singular_thresholds: tuple[float, float] = (0.07, 0.14),
-             **options) -> SimulationResult:
+             max_steps: int | None = None, **options) -> SimulationResult:
     """Integrate the constrained equations of motion from a consistent (q0, v0) at t_start.
 
     Parameters
@@ -76,6 +76,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     singular_thresholds : (enter, leave) for σ_min/σ_max of Φ_q M^{-1/2} relative to its
         peak in the run: a singular passage is recorded while the ratio is below `enter`
         until it rises above `leave` (see `mechsim.formulations.monitor`)
+    max_steps : stop (status "failed", partial result kept) after this many steps
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
     cls = formulation_class(method)
@@ -126,6 +127,10 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                 status, message = "failed", f"integrator stopped at t = {solver.t:.9g}: {msg}"
                 break
             steps += 1
+            if max_steps is not None and steps > max_steps:
+                status, message = "failed", (f"step limit max_steps = {max_steps} reached at "
+                                             f"t = {solver.t:.9g}")
+                break
             t_new, y_new = solver.t, solver.y
             if ts is not None:
                 first = next_out

@@ -76,11 +76,11 @@ class Hybrid(Formulation):
         if self.active is self.lu:
             if mon and mon.predicted_within(self.last_step):
                 if mon.inside:
-                    why = (f"σ_min/σ_max = {s:.3g} < {mon.enter:g}: near a singular "
-                           f"configuration (joints {', '.join(mon._open[3])})")
+                    why = (f"σ_min/σ_max at {s:.3g} of its peak (< {mon.enter:g}): near a "
+                           f"singular configuration (joints {', '.join(mon._open[3])})")
                 else:
-                    why = (f"σ_min/σ_max = {s:.3g} falling at {mon.rate:.3g}/s: a singular "
-                           "configuration ahead")
+                    why = (f"σ_min/σ_max at {s:.3g} of its peak, falling {-mon.rate:.3g}/s: "
+                           "a singular configuration ahead")
                 return self._switch(t, y, self.proj, why)
             out = self.lu.after_step(t, y)
             self.layout_changed = self.lu.layout_changed
@@ -104,5 +104,5 @@ class Hybrid(Formulation):
         if self._stable >= self.stable_steps:
             return self._switch(t, y if out is None else out, self.lu,
                                 f"{self._stable} stable steps clear of the singularity "
-                                f"(σ ratio {s:.3g})")
+                                f"(σ_min/σ_max at {s:.3g} of its peak)")
         return out

@@ -22,7 +22,7 @@ def plot_energy(result, path=None, ax=None):
         ax.axvline(sw.t, color="C2", ls="--", lw=0.8,
                    label="solver switch" if k == 0 else None)
     ax.set_xlabel("time [s]")
-    ax.set_ylabel("(E − E₀) / E_scale")
+    ax.set_ylabel("(E − E₀ − W) / E_scale")
     ax.set_title(f"Energy drift ({result.stats.get('method', '?')})")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")

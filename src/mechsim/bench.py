@@ -1,0 +1,151 @@
+"""Work–precision benchmarks: run time against error for every solver on problems with an
+exact reference (`mechsim bench`).
+
+Each problem is a parallelogram mechanism whose motion on its branch is the 1-DOF equation
+M_eff θ̈ = −K cos θ (integrated independently at rtol 1e-13), so the error of a run is the
+largest distance of a crank tip from its exact position over the run.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import examples
+
+
+@dataclass(frozen=True)
+class Problem:
+    name: str
+    build: object            # () -> Mechanism
+    t_end: float
+    theta0: float
+    omega0: float
+    windows: int
+    max_step: float = math.inf
+    description: str = ""
+
+    def error(self, res) -> float:
+        theta, _ = examples.parallelogram_exact(res.t, self.theta0, self.omega0, n=self.windows)
+        tip = res.point("crank1" if self.windows > 1 else "crank", (0.5, 0.0))
+        return float(np.max(np.hypot(tip[:, 0] - np.cos(theta), tip[:, 1] - np.sin(theta))))
+
+
+PROBLEMS = {
+    "parallelogram": Problem("parallelogram", examples.four_bar, 2.0, math.radians(10), 0.0, 1,
+                             max_step=0.01, description="seed 001 falling four-bar, 2 s, "
+                             "3 singular passages"),
+    "double-four-bar": Problem("double-four-bar", lambda: examples.double_four_bar(2), 10.0,
+                               math.pi / 2, -1.0, 2, description="IFToMM A02, 10 s, "
+                               "10 singular passages"),
+    "forty-window": Problem("forty-window", lambda: examples.double_four_bar(40), 20.0,
+                            math.pi / 2, -1.0, 40, description="40-window four-bar, 20 s, "
+                            "243 coordinates (slow: minutes)"),
+}
+
+DEFAULT_PROBLEMS = ("parallelogram", "double-four-bar")
+DEFAULT_METHODS = ("lu", "projection", "hybrid", "baumgarte")
+DEFAULT_RTOLS = (1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
+
+
+@dataclass
+class Row:
+    problem: str
+    method: str
+    integrator: str
+    rtol: float
+    status: str
+    error: float
+    drift: float
+    wall_time: float
+    steps: int
+    rhs: int
+    passages: int
+
+
+def run(problems=DEFAULT_PROBLEMS, methods=DEFAULT_METHODS, rtols=DEFAULT_RTOLS,
+        integrator=None, max_steps=20000, progress=print) -> list[Row]:
+    """Run every (problem, method, rtol); one warm-up run per problem first so that model
+    building and imports are not timed."""
+    rows = []
+    for name in problems:
+        if name not in PROBLEMS:
+            raise ValueError(f"unknown problem {name!r}; problems: {', '.join(PROBLEMS)}")
+        prob = PROBLEMS[name]
+        mech = prob.build()
+        mech.simulate(t_end=min(0.05, prob.t_end), method="lu")
+        for method in methods:
+            for rtol in rtols:
+                res = mech.simulate(t_end=prob.t_end, method=method, rtol=rtol,
+                                    atol=rtol * 1e-2, max_step=prob.max_step,
+                                    output_step=prob.t_end / 1000, integrator=integrator,
+                                    max_steps=max_steps)
+                row = Row(name, method, res.stats["integrator"], rtol, res.status,
+                          prob.error(res) if res.t[-1] >= prob.t_end else math.nan,
+                          float(np.max(np.abs(res.energy_drift))), res.stats["wall_time"],
+                          res.stats["steps"], res.stats["rhs_evaluations"],
+                          len(res.singular_passages))
+                rows.append(row)
+                if progress:
+                    progress(format_row(row))
+    return rows
+
+
+HEADER = (f"{'problem':16s} {'method':10s} {'integrator':10s} {'rtol':>7s} {'status':8s} "
+          f"{'error':>9s} {'drift':>9s} {'wall [s]':>9s} {'steps':>7s} {'rhs':>7s} {'pass':>4s}")
+
+
+def format_row(r: Row) -> str:
+    return (f"{r.problem:16s} {r.method:10s} {r.integrator:10s} {r.rtol:7.0e} {r.status:8s} "
+            f"{r.error:9.2e} {r.drift:9.2e} {r.wall_time:9.3f} {r.steps:7d} {r.rhs:7d} "
+            f"{r.passages:4d}")
+
+
+def ratios(rows: list[Row], rtol: float) -> dict:
+    """Wall-time ratios hybrid : lu and hybrid : projection at one tolerance, per problem
+    (measured in the same run, as the machine is noisy)."""
+    out = {}
+    for name in dict.fromkeys(r.problem for r in rows):
+        wall = {r.method: r.wall_time for r in rows if r.problem == name and r.rtol == rtol}
+        if {"hybrid", "lu"} <= set(wall):
+            out.setdefault(name, {})["hybrid/lu"] = wall["hybrid"] / wall["lu"]
+        if {"hybrid", "projection"} <= set(wall):
+            out.setdefault(name, {})["hybrid/projection"] = wall["hybrid"] / wall["projection"]
+    return out
+
+
+def write(rows: list[Row], out_dir) -> list[Path]:
+    """CSV of all rows and one error-vs-time plot per problem."""
+    from matplotlib.figure import Figure
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / "bench.csv"
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(list(Row.__dataclass_fields__))
+        for r in rows:
+            w.writerow([getattr(r, k) for k in Row.__dataclass_fields__])
+    written = [path]
+    for name in dict.fromkeys(r.problem for r in rows):
+        fig = Figure(figsize=(6.4, 4.4), layout="constrained")
+        ax = fig.add_subplot()
+        for k, method in enumerate(dict.fromkeys(r.method for r in rows if r.problem == name)):
+            pts = [(r.wall_time, r.error) for r in rows
+                   if r.problem == name and r.method == method and r.status == "success"
+                   and np.isfinite(r.error)]
+            if pts:
+                x, y = zip(*sorted(pts))
+                ax.loglog(x, y, "o-", color=f"C{k}", label=method)
+        ax.set_xlabel("wall time [s]")
+        ax.set_ylabel("max crank-tip error [m]")
+        ax.set_title(f"{name}: {PROBLEMS[name].description}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+        png = out_dir / f"bench_{name}.png"
+        fig.savefig(png, dpi=120)
+        written.append(png)
+    return written
