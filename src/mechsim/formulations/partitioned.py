@@ -141,9 +141,9 @@ class Partitioned(Formulation):
         return np.concatenate([np.zeros(bs.f), bs.Bt(v)])
 
     def _accept(self, t, z, zd, w, wd, J, first=False):
-        """Remember an accepted state: the predictor's data and the chord factorisation."""
-        self._prev = None if first else (self.t_last, self.z_last, self.w_last)
-        self.t_last, self.z_last, self.zd_last, self.w_last, self.wd_last = t, z, zd, w, wd
+        """Remember an accepted state: the chord matrix and the predictor's coefficients."""
+        prev = None if first else (self.t_last, self.z_last, self.w_last)
+        self.t_last, self.z_last = t, z
         JD = self.basis.JD(J)
         self._square = JD.shape[0] == JD.shape[1]
         if self._square:
@@ -151,10 +151,24 @@ class Partitioned(Formulation):
             # lu_solve spends ~30 µs in its wrapper. Convergence is judged on ‖Φ‖, so the
             # inverse's conditioning affects only the rate.
             self._chord = np.linalg.inv(JD)
-            self._dw_dz = -self._chord @ self.basis.JB(J)
+            G = -self._chord @ self.basis.JB(J)
             self.problem.counters.factorizations += 1
         else:
-            self._dw_dz = np.zeros((self.basis.r, self.basis.f))
+            G = np.zeros((self.basis.r, self.basis.f))
+        self.w_last = w
+        # The prediction (see `_predict`) is w(t, z) = a0 + a1 d + a2 d² + G z, d = t − t_last:
+        # the path through the accepted states bent through the one before (O(h³)), corrected
+        # to first order for z off that path. Folded into three vectors here, once per step.
+        cw, cz = np.zeros_like(w), np.zeros_like(z)
+        if prev is not None and prev[0] != t:
+            t0, z0, w0 = prev
+            e = t0 - t
+            cw = (w0 - w - wd * e) / e**2
+            cz = (z0 - z - zd * e) / e**2
+        self._G = G
+        self._a0 = w - G @ z
+        self._a1 = wd - G @ zd
+        self._a2 = cw - G @ cz
 
     def initial_state(self, t, q, v):
         return self.partition(t, q, v)
@@ -166,16 +180,7 @@ class Partitioned(Formulation):
         corrected to first order for how far z lies off that path (∂w/∂z = −Φ_u⁻¹ Φ_q B).
         Integrator stages lie O(h²) off the smooth path, so the correction matters."""
         d = t - self.t_last
-        w = self.w_last + self.wd_last * d
-        zp = self.z_last + self.zd_last * d
-        if self._prev is not None:
-            t0, z0, w0 = self._prev
-            e = t0 - self.t_last
-            if e != 0.0:
-                k = (d / e) ** 2
-                w = w + (w0 - self.w_last - self.wd_last * e) * k
-                zp = zp + (z0 - self.z_last - self.zd_last * e) * k
-        return w + self._dw_dz @ (z - zp)
+        return self._a0 + (self._a1 + self._a2 * d) * d + self._G @ z
 
     def _positions(self, z, t):
         """Chord Newton on Φ(q_ref + B z + D w, t) = 0 with the factorisation of Φ_q D from
