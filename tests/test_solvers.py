@@ -83,8 +83,8 @@ def parallelogram_runs():
     runs = {m: mech.simulate(t_end=2.0, method=m, rtol=1e-8, atol=1e-10, max_step=0.01,
                              output_step=0.002)
             for m in ("hybrid", "projection")}
-    # LU alone with its default Adams integrator grinds through the first passage (~90k
-    # steps, see the issue notes); DOP853 shows its behaviour in a fraction of the time.
+    # LU alone with the Adams integrator grinds through the first passage (~90k steps, see
+    # the issue notes); DOP853 shows its behaviour in a fraction of the time.
     runs["lu"] = mech.simulate(t_end=2.0, method="lu", rtol=1e-8, atol=1e-10, max_step=0.01,
                                output_step=0.002, integrator="DOP853")
     return runs

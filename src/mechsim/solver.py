@@ -147,6 +147,9 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             form.last_step = t_new - t_old
             form.layout_changed = False
             corrected = form.after_step(t_new, y_new)
+            # A formulation may bound the next step (hybrid ahead of a singularity); scipy's
+            # solvers and the Adams method read `max_step` at every step.
+            solver.max_step = max_step if form.step_limit is None else min(max_step, form.step_limit)
             y_here = y_new if corrected is None else corrected
             t_reached = t_new
             if ts is None or (next_out < len(ts) and ts[next_out] == t_new):

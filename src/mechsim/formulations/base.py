@@ -30,6 +30,7 @@ class Formulation:
     last_step = 0.0       # size of the step just accepted, set before after_step
     failure = ""          # what went wrong last, for the manager's failure message
     layout_changed = False  # set by after_step when its correction changes the coordinates
+    step_limit = None       # largest next step the formulation can take safely (None: any)
 
     def __init__(self, problem: NumericProblem, rtol: float, atol: float, **options):
         unknown = sorted(set(options) - set(self.options))

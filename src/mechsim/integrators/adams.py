@@ -71,17 +71,20 @@ class AdamsPECE(OdeSolver):
         self.h = min(self.h, self.max_step, abs(self.t_bound - self.t))
         self._dense = None
         self._cache: dict = {}
+        self._same_h = 0
 
     def _weights(self, nodes):
         """Step weights (s = 1) for `nodes`, cached by their pattern: the controller keeps h
         unchanged unless a real change is called for, so on a steady stretch the nodes are
         the same integers step after step and the weights are computed once."""
-        key = tuple(np.round(nodes, 11))
+        # Steps change by factors of two, so the nodes are dyadic up to the round-off of t:
+        # snapping the key to multiples of 2⁻³⁰ makes equal patterns hit the cache.
+        key = tuple(np.rint(nodes * 2.0**30).astype(np.int64).tolist())
         w = self._cache.get(key)
         if w is None:
             if len(self._cache) > 4096:
                 self._cache.clear()
-            w = self._cache[key] = integration_weights(np.array(key), 1.0)[0]
+            w = self._cache[key] = integration_weights(np.asarray(nodes, float), 1.0)[0]
         return w
 
     def _norm(self, e, y_a, y_b):
@@ -122,8 +125,11 @@ class AdamsPECE(OdeSolver):
             if err <= 1.0:
                 break
             self.n_rejected += 1
-            factor = 0.2 if not np.isfinite(err) else max(0.2, 0.9 * err ** (-1.0 / (k + 1)))
+            # Halve (quarter when far off) rather than scale freely: the node pattern then
+            # recurs and the weights come from the cache.
+            factor = 0.25 if not np.isfinite(err) or err > 2.0 ** (k + 2) else 0.5
             h *= factor
+            self._same_h = 0
             self.order = max(1, min(self.order, k) - (1 if not np.isfinite(err) else 0))
         f_c = self.fun(t + h, y_c)
         # The step is accepted: keep the interpolant data for dense output.
@@ -132,7 +138,10 @@ class AdamsPECE(OdeSolver):
         self.ts.append(self.t)
         self.fs.append(f_c)
         del self.ts[:-(self.max_order + 2)], self.fs[:-(self.max_order + 2)]
+        self._same_h += 1
         self.order, factor = self._choose_order(k, h, y, y_c, Fc, err)
+        if factor != 1.0:
+            self._same_h = 0
         self.h = h * factor
         return True, None
 
@@ -149,12 +158,20 @@ class AdamsPECE(OdeSolver):
             self._dense = (t, h, y_old, F, nodes)
 
     def _choose_order(self, k, h, y, y_c, Fc, err_k):
-        """Order for the next step from error estimates at k−1, k, k+1 (no new evaluations):
-        the one that allows the largest step, rising by at most one."""
+        """Order and step factor for the next step.
+
+        Error estimates at orders k−1, k, k+1 (same f values, no new evaluations) pick the
+        order that allows the largest step; the order rises by at most one, only after k+1
+        steps at the same h (before that the estimate at k+1 is unreliable), and a step that
+        changes the order keeps h. Steps change by halving or doubling only, so node
+        patterns recur and their weights are cached; this costs a few more steps than free
+        scaling and removes most weight computations and rejections."""
         best_order, best = k, (0.9 * err_k ** (-1.0 / (k + 1)) if err_k > 0 else 5.0)
         n_hist = len(self.ts) - 1                    # past points before t_{n+1}
         for j in (k - 1, k + 1):
             if j < 1 or j > self.max_order or j > n_hist:
+                continue
+            if j > k and self._same_h < k + 1:
                 continue
             F = Fc[1:j + 1] if j <= k else None
             if F is None:                              # need one more past derivative
@@ -166,10 +183,13 @@ class AdamsPECE(OdeSolver):
             factor = 0.9 * e ** (-1.0 / (j + 1)) if e > 0 else 5.0
             if factor > 1.1 * best:
                 best_order, best = j, factor
-        # Hysteresis: keep h (and so cached weights) unless a real change is called for.
-        if best_order == k and 0.9 <= best < 1.5:
+        if best_order != k:
             return best_order, 1.0
-        return best_order, min(2.0, max(0.5, best))
+        if best >= 2.0:
+            return k, 2.0
+        if best < 1.0:
+            return k, 0.5
+        return k, 1.0
 
     def _dense_output_impl(self):
         t, h, y, F, nodes = self._dense
