@@ -75,7 +75,9 @@ class Hybrid(Formulation):
         if self.active is self.lu and mon and mon.rate < 0.0 and s > mon.enter:
             # Do not let LU stride across a singular configuration: the next step may only
             # reach the predicted entry into the band, where the manager switches.
-            self.step_limit = max((s - mon.enter) / -mon.rate, 1e-6)
+            # Half the linear prediction: s falls faster than its tangent when the motion
+            # accelerates into the singularity (the seed's falling four-bar does).
+            self.step_limit = max(0.5 * (s - mon.enter) / -mon.rate, 1e-6)
         if self.active is self.lu:
             if mon and mon.predicted_within(self.last_step):
                 if mon.inside:
