@@ -18,9 +18,9 @@ from .model import (AssemblyError, Body, DofReport, Driver, Force, Ground, Joint
 __version__ = "0.1.0"
 
 _LAZY_MODULES = {"examples", "scene", "solver", "codegen", "formulations", "integrators",
-                 "results"}
+                 "results", "analysis", "linear", "bench"}
 _LAZY_NAMES = {"SimulationResult": "results", "load_result": "results",
-               "load_scene": "scene"}
+               "load_scene": "scene", "LinearSystem": "linear"}
 
 
 def __getattr__(name):
@@ -32,5 +32,6 @@ def __getattr__(name):
 
 
 __all__ = ["AssemblyError", "Body", "DofReport", "Driver", "Force", "Ground", "Joint",
-           "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody", "SimulationResult",
+           "LinearSystem", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody",
+           "SimulationResult",
            "Spring", "Torque", "load_result", "load_scene"]
