@@ -21,11 +21,14 @@ _LAZY_MODULES = {"examples", "scene", "solver", "codegen", "formulations", "inte
                  "results", "analysis", "linear", "bench"}
 _LAZY_NAMES = {"SimulationResult": "results", "load_result": "results",
                "load_scene": "scene", "LinearSystem": "linear"}
+_ALIASES = {"rotor": "linear.rotor"}
 
 
 def __getattr__(name):
     if name in _LAZY_MODULES:
         return import_module(f".{name}", __name__)
+    if name in _ALIASES:
+        return import_module(f".{_ALIASES[name]}", __name__)
     if name in _LAZY_NAMES:
         return getattr(import_module(f".{_LAZY_NAMES[name]}", __name__), name)
     raise AttributeError(f"module 'mechsim' has no attribute {name!r}")
