@@ -63,7 +63,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
              max_step: float = math.inf, output_step: float | None = None,
              integrator: str | None = None, first_step: float | None = None,
              singular_thresholds: tuple[float, float] = (0.07, 0.14),
-             max_steps: int | None = None, **options) -> SimulationResult:
+             max_steps: int | None = None, h: float | None = None,
+             **options) -> SimulationResult:
     """Integrate the constrained equations of motion from a consistent (q0, v0) at t_start.
 
     Parameters
@@ -77,6 +78,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         peak in the run: a singular passage is recorded while the ratio is below `enter`
         until it rises above `leave` (see `mechsim.formulations.monitor`)
     max_steps : stop (status "failed", partial result kept) after this many steps
+    h : fixed step for the fixed-step methods ("ss-newmark"); required by them
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
     cls = formulation_class(method)
@@ -88,6 +90,10 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     if output_step is not None:
         output_step = _positive(output_step, "output_step")
     solver_cls = integrator_class(integrator or cls.default_integrator)
+    if h is not None:
+        first_step = _positive(h, "h")
+    elif solver_cls.__name__ == "Trapezoidal":
+        raise ValueError(f"method {cls.name!r} steps at a fixed size: give `h`, e.g. h=1e-3")
     form = cls(problem, rtol, atol, **options)
     monitor = form.monitor = SingularityMonitor(problem, *singular_thresholds)
 
@@ -100,8 +106,9 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     y = form.initial_state(t_start, q0, v0)
     monitor.observe(t_start, q0, v0)
 
-    def make(t, y, h):
-        kw = {"first_step": min(h, t_end - t)} if h else {}
+    def make(t, y, step):
+        step = first_step if h is not None else step      # a fixed step stays fixed
+        kw = {"first_step": min(step, t_end - t)} if step else {}
         return solver_cls(form.rhs, t, y, t_end, rtol=rtol, atol=atol, max_step=max_step, **kw)
 
     def record(t, q, v):

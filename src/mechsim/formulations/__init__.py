@@ -7,12 +7,13 @@ here, and an unknown name lists the valid ones.
 from .base import Formulation
 from .baumgarte import Baumgarte
 from .hybrid import Hybrid
-from .partitioned import ConstraintSolveError, Partitioned, QRPartitioned, SVDPartitioned
+from .partitioned import (ConstraintSolveError, Partitioned, QRPartitioned, SSNewmark,
+                          SVDPartitioned)
 from .projection import Projection
 
 METHODS: dict[str, type[Formulation]] = {
     cls.name: cls for cls in (Partitioned, QRPartitioned, SVDPartitioned, Projection, Hybrid,
-                              Baumgarte)
+                              Baumgarte, SSNewmark)
 }
 
 DEFAULT_METHOD = "hybrid"

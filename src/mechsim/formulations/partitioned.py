@@ -291,6 +291,15 @@ class Partitioned(Formulation):
         return None
 
 
+class SSNewmark(Partitioned):
+    """Seed 000's average-velocity rule on the mechanism's reduced state-space ODE: LU
+    coordinate partitioning, integrated by the implicit trapezoidal rule at the fixed step
+    `h` (a keyword of `simulate`), Newton each step. A-stable: for stiff (flexible)
+    mechanisms at steps far beyond an explicit method's limit."""
+    name = "ss-newmark"
+    default_integrator = "trapezoidal"
+
+
 class QRPartitioned(Partitioned):
     name = "qr"
 

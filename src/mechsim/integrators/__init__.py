@@ -9,9 +9,10 @@ from __future__ import annotations
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
 from .adams import AdamsPECE
+from .trapezoidal import Trapezoidal
 
 INTEGRATORS = {"adams": AdamsPECE, "RK45": RK45, "RK23": RK23, "DOP853": DOP853,
-               "Radau": Radau, "BDF": BDF, "LSODA": LSODA}
+               "Radau": Radau, "BDF": BDF, "LSODA": LSODA, "trapezoidal": Trapezoidal}
 
 
 def integrator_class(name: str):
@@ -22,4 +23,4 @@ def integrator_class(name: str):
                          f"{', '.join(INTEGRATORS)}") from None
 
 
-__all__ = ["INTEGRATORS", "AdamsPECE", "integrator_class"]
+__all__ = ["INTEGRATORS", "AdamsPECE", "Trapezoidal", "integrator_class"]
