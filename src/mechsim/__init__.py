@@ -18,7 +18,7 @@ from .model import (AssemblyError, Body, DofReport, Driver, Force, Ground, Joint
 __version__ = "0.1.0"
 
 _LAZY_MODULES = {"examples", "scene", "solver", "codegen", "formulations", "integrators",
-                 "results", "analysis", "linear", "bench"}
+                 "results", "analysis", "linear", "bench", "oscillators", "shooting"}
 _LAZY_NAMES = {"SimulationResult": "results", "load_result": "results",
                "load_scene": "scene", "LinearSystem": "linear"}
 _ALIASES = {"rotor": "linear.rotor"}

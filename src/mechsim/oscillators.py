@@ -1,0 +1,203 @@
+"""Periodically forced oscillators for shooting (seed 002), with event-exact nonsmooth flows.
+
+A periodic problem is anything with
+    period : float
+    n : number of unknowns
+    initial_state(u) -> full state at t = 0 from the unknowns u
+    flow(u) -> Trajectory over one period (t, x, and the events it met)
+    residual(u) -> g(u), zero at a periodic steady state
+so users can shoot their own problems by writing these.
+
+Units as in the paper: mm and s for the single-degree-of-freedom problems (g = 9800 mm/s²).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+_RTOL, _ATOL = 1e-12, 1e-14
+
+
+@dataclass
+class Trajectory:
+    """One period of motion: t (k,), x (k, n_state); `events` lists (t, kind)."""
+    t: np.ndarray
+    x: np.ndarray
+    events: list = field(default_factory=list)
+
+
+class PeriodicProblem:
+    period: float
+    n: int
+
+    def initial_state(self, u) -> np.ndarray:
+        return np.asarray(u, float)
+
+    def flow(self, u) -> Trajectory:
+        raise NotImplementedError
+
+    def residual(self, u) -> np.ndarray:
+        """g(u) = x(0) − x(T) (eq. 3)."""
+        traj = self.flow(u)
+        return traj.x[0] - traj.x[-1]
+
+    def check(self, u) -> np.ndarray:
+        u = np.asarray(u, float)
+        if u.shape != (self.n,):
+            raise ValueError(f"{type(self).__name__}: the guess must have {self.n} unknowns, "
+                             f"got shape {u.shape}")
+        if not np.all(np.isfinite(u)):
+            raise ValueError(f"{type(self).__name__}: the guess must be finite, got {u}")
+        return u
+
+
+def _positive(owner, **values):
+    for k, v in values.items():
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ValueError(f"{owner}: `{k}` must be positive, got {v!r}")
+
+
+class LinearOscillator(PeriodicProblem):
+    """ẍ + 2ζω_n ẋ + ω_n² x = δ_st ω_n² cos ωt (eq. 4); unknowns (x(0), ẋ(0))."""
+
+    n = 2
+
+    def __init__(self, zeta, omega_n, delta_st, omega):
+        _positive(type(self).__name__, omega_n=omega_n, delta_st=delta_st, omega=omega)
+        if not zeta >= 0:
+            raise ValueError(f"{type(self).__name__}: `zeta` must be non-negative, got {zeta!r}")
+        self.zeta, self.omega_n, self.delta_st, self.omega = zeta, omega_n, delta_st, omega
+        self.period = 2 * math.pi / omega
+
+    def rhs(self, t, y, friction=0.0):
+        x, v = y
+        wn = self.omega_n
+        return [v, -2 * self.zeta * wn * v - wn**2 * x + self.delta_st * wn**2
+                * math.cos(self.omega * t) - friction]
+
+    def flow(self, u, t_span=None, samples=200):
+        u = self.check(u)
+        t0, t1 = t_span or (0.0, self.period)
+        s = solve_ivp(self.rhs, (t0, t1), u, method="DOP853", rtol=_RTOL, atol=_ATOL,
+                      dense_output=True)
+        if not s.success:
+            raise ValueError(f"{type(self).__name__}: the flow failed: {s.message}")
+        tt = np.linspace(t0, t1, samples)
+        x = s.sol(tt).T
+        x[0], x[-1] = u, s.y[:, -1]
+        return Trajectory(tt, x)
+
+    def steady_amplitude(self) -> float:
+        r = self.omega / self.omega_n
+        return self.delta_st / math.hypot(1 - r**2, 2 * self.zeta * r)
+
+
+class CoulombOscillator(LinearOscillator):
+    """Eq. 10: ẍ + 2ζω_n ẋ + ω_n² x + sign(ẋ) μ g = δ_st ω_n² cos ωt, with true sticking.
+
+    At ẋ = 0 the mass sticks while |x − δ_st cos ωt| < μ g / ω_n² (eq. 13) and leaves in the
+    direction of the net force (eq. 12). Slip phases are integrated with events at ẋ = 0
+    (located by scipy's event root finding on the dense output, rtol 1e-12); stick phases
+    are exact — x is constant — and their end is the root of a closed-form function.
+    """
+
+    def __init__(self, zeta, omega_n, delta_st, omega, mu, g=9800.0):
+        super().__init__(zeta, omega_n, delta_st, omega)
+        if not mu >= 0:
+            raise ValueError(f"CoulombOscillator: `mu` must be non-negative, got {mu!r}")
+        _positive("CoulombOscillator", g=g)
+        self.mu, self.g = mu, g
+        self.limit = mu * g / omega_n**2              # half-width of the stick band (eq. 13)
+
+    def _excess(self, t, x):
+        return x - self.delta_st * math.cos(self.omega * t)
+
+    def _slip_direction(self, t, x):
+        """+1 / −1 to leave a stop at (t, x), 0 to stay stuck (eqs. 12–13)."""
+        e = self._excess(t, x)
+        if e < -self.limit:
+            return 1
+        if e > self.limit:
+            return -1
+        return 0
+
+    def flow(self, u, t_span=None, samples=400):
+        u = self.check(u)
+        t, t_end = t_span or (0.0, self.period)
+        x, v = float(u[0]), float(u[1])
+        ts, xs, events = [t], [[x, v]], []
+        guard = 0
+        while t < t_end - 1e-15 * max(1.0, t_end):
+            guard += 1
+            if guard > 10000:
+                raise ValueError("CoulombOscillator: more than 10000 stick/slip changes in one "
+                                 "period; the motion is not resolvable")
+            if v == 0.0:
+                d = self._slip_direction(t, x)
+                if d == 0:                                   # stuck: x constant, exact
+                    t_leave = self._stick_end(t, x, t_end)
+                    tt = np.linspace(t, t_leave, 20)
+                    ts += list(tt[1:])
+                    xs += [[x, 0.0]] * (len(tt) - 1)
+                    events.append((t, "stick"))
+                    t = t_leave
+                    if t >= t_end:
+                        break
+                    events.append((t, "slip"))
+                    d = self._slip_direction(t, x) or (1 if self._excess(t, x) < 0 else -1)
+            else:
+                d = 1 if v > 0 else -1
+            friction = d * self.mu * self.g
+            stop = lambda tt, y: y[1]
+            stop.terminal, stop.direction = True, -d
+            s = solve_ivp(lambda tt, y: self.rhs(tt, y, friction), (t, t_end), [x, v],
+                          method="DOP853", rtol=_RTOL, atol=_ATOL, events=stop,
+                          dense_output=True)
+            if not s.success:
+                raise ValueError(f"CoulombOscillator: the flow failed at t = {t}: {s.message}")
+            t_new = s.t[-1]
+            tt = np.linspace(t, t_new, max(3, int(samples * (t_new - t) / self.period)))
+            seg = s.sol(tt).T
+            ts += list(tt[1:])
+            xs += seg[1:].tolist()
+            t, x, v = t_new, float(s.y[0, -1]), float(s.y[1, -1])
+            if s.status == 1:                                # ẋ reached 0: exactly zero now
+                v = 0.0
+                xs[-1][1] = 0.0
+                events.append((t, "stop"))
+        xs[0] = [float(u[0]), float(u[1])]
+        return Trajectory(np.array(ts), np.array(xs), events)
+
+    def _stick_end(self, t0, x, t_end):
+        """First time after t0 at which |x − δ cos ωt| reaches μg/ω_n² (or t_end)."""
+        f = lambda tt: abs(self._excess(tt, x)) - self.limit
+        n = 256
+        grid = np.linspace(t0, t_end, n + 1)
+        vals = [f(tt) for tt in grid]
+        for a, b, fa, fb in zip(grid[:-1], grid[1:], vals[:-1], vals[1:]):
+            if fa < 0 <= fb:
+                root = brentq(f, a, b, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                # At the root the net force is exactly zero; leave a hair (1e-13 T) later,
+                # where it points the way out, so round-off cannot turn ẋ back and re-stick.
+                return min(root + 1e-13 * self.period, t_end)
+        return t_end
+
+
+def equivalent_damping_amplitude(osc: CoulombOscillator) -> float:
+    """Steady amplitude by equivalent viscous damping for continuous motion (Den Hartog):
+    c_eq ω = 4 μ g / (π X) added to the linear resonance curve, solved for X."""
+    wn, w, d = osc.omega_n, osc.omega, osc.delta_st
+    r = w / wn
+    F = d * wn**2
+    fric = 4 * osc.mu * osc.g / math.pi
+    # |(ω_n² − ω²) X| and (2ζω_n ω X + fric) add in quadrature to F.
+    a = (wn**2 - w**2) ** 2 + (2 * osc.zeta * wn * w) ** 2
+    b = 2 * (2 * osc.zeta * wn * w) * fric
+    c = fric**2 - F**2
+    disc = b * b - 4 * a * c
+    return (-b + math.sqrt(disc)) / (2 * a) if disc >= 0 and a > 0 else math.nan

@@ -1,0 +1,12 @@
+"""Periodic steady states by shooting (seed 002): g(u) = x(0) − x(T) = 0.
+
+    sol = mechsim.shooting.solve(problem, guess, method="warner" | "newton", tol=1e-6)
+
+"warner" is Warner's algorithm of the paper's appendix (a multidimensional secant method);
+"newton" is damped Newton with the monodromy matrix by finite differences of the flow. Both
+return a ShootingResult with the one-period trajectory and the Floquet multipliers.
+"""
+
+from .solve import SHOOTING_METHODS, ShootingResult, monodromy, solve
+
+__all__ = ["SHOOTING_METHODS", "ShootingResult", "monodromy", "solve"]

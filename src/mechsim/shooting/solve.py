@@ -1,0 +1,131 @@
+"""Warner and Newton shooting, Floquet multipliers."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class ShootingResult:
+    converged: bool
+    x0: np.ndarray
+    iterations: int
+    residual: float                  # max |g| at x0
+    message: str
+    trajectory: object = None        # Trajectory over one period from x0
+    floquet_multipliers: np.ndarray | None = None
+    history: list = field(default_factory=list)   # (iteration, max|g|)
+
+    @property
+    def stable(self) -> bool | None:
+        """All Floquet multipliers inside the unit circle (None if not computed)."""
+        if self.floquet_multipliers is None:
+            return None
+        return bool(np.all(np.abs(self.floquet_multipliers) < 1.0))
+
+
+def monodromy(problem, u, rel_step=1e-6):
+    """∂x(T)/∂u by central finite differences of the flow (valid across events as long as
+    the perturbed flows meet the same sequence of events — the saltation is then included)."""
+    u = np.asarray(u, float)
+    n = u.size
+    Mo = np.empty((n, n))
+    for j in range(n):
+        d = rel_step * max(1.0, abs(u[j]))
+        up, um = u.copy(), u.copy()
+        up[j] += d
+        um[j] -= d
+        Mo[:, j] = (problem.flow(up).x[-1] - problem.flow(um).x[-1]) / (2 * d)
+    return Mo
+
+
+def _warner(problem, guess, tol, max_iter, scale, guesses):
+    """Seed 002, appendix, steps 1–7."""
+    n = problem.n
+    X = (np.array(guesses, float) if guesses is not None
+         else np.array([guess * scale**k for k in range(n + 1)]))         # step 1
+    if X.shape != (n + 1, n):
+        raise ValueError(f"Warner's algorithm needs {n + 1} guess vectors of length {n}, "
+                         f"got shape {X.shape}")
+    G = np.array([problem.residual(x) for x in X])                        # step 2
+    history = []
+    best = int(np.argmin(np.max(np.abs(G), axis=1)))
+    x, g = X[best], G[best]
+    for it in range(1, max_iter + 1):
+        Q = np.hstack([np.ones((n + 1, 1)), G])                            # step 3
+        b = np.zeros(n + 1)
+        b[0] = 1.0
+        try:
+            c = np.linalg.solve(Q.T, b)                                    # cᵀ = bᵀ Q⁻¹
+        except np.linalg.LinAlgError:
+            return x, g, it, history, "Q became singular (guess vectors degenerate)"
+        x = c @ X                                                          # step 4
+        if not np.all(np.isfinite(x)):
+            return X[best], G[best], it, history, "the new guess is not finite"
+        g = problem.residual(x)
+        history.append((it, float(np.max(np.abs(g)))))
+        if np.max(np.abs(g)) < tol:                                        # step 7
+            return x, g, it, history, "converged"
+        worst = int(np.argmax(np.sum(G**2, axis=1)))                       # step 5
+        X[worst], G[worst] = x, g                                          # step 6
+        best = int(np.argmin(np.max(np.abs(G), axis=1)))
+    return X[best], G[best], max_iter, history, f"no convergence within {max_iter} iterations"
+
+
+def _newton(problem, guess, tol, max_iter, **_):
+    """Damped Newton: (I − Φ) Δu = −g with Φ the monodromy, halving the step until ‖g‖
+    decreases."""
+    u = np.array(guess, float)
+    g = problem.residual(u)
+    history = []
+    for it in range(1, max_iter + 1):
+        J = np.eye(problem.n) - monodromy(problem, u)
+        try:
+            du = -np.linalg.solve(J, g)
+        except np.linalg.LinAlgError:
+            du = -np.linalg.lstsq(J, g, rcond=None)[0]
+        lam, norm = 1.0, np.linalg.norm(g)
+        for _ in range(30):
+            try:
+                g_new = problem.residual(u + lam * du)
+            except ValueError:
+                g_new = np.full_like(g, np.inf)
+            if np.linalg.norm(g_new) < norm or lam < 1e-6:
+                break
+            lam *= 0.5
+        u, g = u + lam * du, g_new
+        history.append((it, float(np.max(np.abs(g)))))
+        if np.max(np.abs(g)) < tol:
+            return u, g, it, history, "converged"
+    return u, g, max_iter, history, f"no convergence within {max_iter} iterations"
+
+
+SHOOTING_METHODS = {"warner": _warner, "newton": _newton}
+
+
+def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: int = 50,
+          scale: float = 1.01, guesses=None, floquet: bool = True) -> ShootingResult:
+    """Find u with g(u) = 0 for a periodic `problem` (see `mechsim.oscillators`).
+
+    Parameters
+    ----------
+    guess : the unknowns' starting values (for "warner", the other n guess vectors are
+        `guess · scale^k`, as in the paper's tables, unless `guesses` gives all n+1)
+    tol : stop when max |g| < tol (the paper's eq. 8: 1e-6)
+    floquet : compute the Floquet multipliers at the solution (monodromy eigenvalues)
+    """
+    if method not in SHOOTING_METHODS:
+        raise ValueError(f"unknown method {method!r}; valid methods: "
+                         f"{', '.join(SHOOTING_METHODS)}")
+    if not tol > 0:
+        raise ValueError(f"`tol` must be positive, got {tol!r}")
+    guess = problem.check(guess)
+    x, g, its, history, message = SHOOTING_METHODS[method](
+        problem, guess, tol, max_iter, scale=scale, guesses=guesses)
+    converged = message == "converged"
+    traj = problem.flow(x)
+    mults = np.linalg.eigvals(monodromy(problem, x)) if floquet and converged else None
+    return ShootingResult(converged, np.asarray(x), its, float(np.max(np.abs(g))), message,
+                          traj, mults, history)

@@ -1,0 +1,117 @@
+"""Periodic steady states by shooting (seed 002): Tables 1 and 2."""
+
+import math
+
+import numpy as np
+import pytest
+
+import mechsim as ms
+from mechsim.oscillators import CoulombOscillator, LinearOscillator, equivalent_damping_amplitude
+
+PAPER = dict(zeta=0.05, omega_n=100.0, delta_st=0.1, omega=100.0)
+
+
+def repeats_itself(osc, x0, periods=5, tol=1e-6):
+    """Integrate period after period (the forcing is T-periodic): the state comes back."""
+    x = np.array(x0, float)
+    for _ in range(periods):
+        x = osc.flow(x).x[-1]
+        if np.max(np.abs(x - x0)) >= tol:
+            return False
+    return True
+
+
+def close(actual, expected, atol):
+    """|actual − expected| ≤ atol componentwise (atol per component: printed digits)."""
+    return bool(np.all(np.abs(np.asarray(actual) - np.asarray(expected)) <= np.asarray(atol)))
+
+
+@pytest.mark.parametrize("guess, paper_nit", [((1.0, 150.0), 2), ((100.0, 900.0), 2),
+                                              ((10000.0, 90000.0), 3)])
+def test_table_1_linear_oscillator(guess, paper_nit):
+    osc = LinearOscillator(**PAPER)
+    sol = ms.shooting.solve(osc, guess, method="warner", tol=1e-6)
+    assert sol.converged and sol.iterations <= paper_nit
+    np.testing.assert_allclose(sol.x0, [0.0, 100.0], atol=1e-6)   # analytic, ν = 1
+    assert osc.steady_amplitude() == pytest.approx(1.0)           # δ_st/(2ζ) at resonance
+    # Floquet multipliers of a linear oscillator: e^{−ζ ω_n T} (twice, complex pair).
+    np.testing.assert_allclose(np.abs(sol.floquet_multipliers),
+                               math.exp(-0.05 * 100.0 * osc.period), rtol=1e-5)
+    assert sol.stable
+
+
+def test_coulomb_flow_matches_table_2_terminal_values():
+    """The paper's Case 1 guesses and their printed terminal values x(2π/ω)."""
+    osc = CoulombOscillator(**PAPER, mu=0.08)
+    for guess, terminal in [((-0.014, 2.7), (-0.01468, 2.7180)),
+                            ((-0.01414, 2.727), (-0.01475, 2.7292))]:
+        xT = osc.flow(np.array(guess)).x[-1]
+        assert close(xT, terminal, [6e-6, 6e-5]), xT
+
+
+@pytest.mark.parametrize("method", ["warner", "newton"])
+@pytest.mark.parametrize("guess", [(-0.014, 2.7), (-0.07, 10.0)])
+def test_table_2_coulomb_mu_008(method, guess):
+    osc = CoulombOscillator(**PAPER, mu=0.08)
+    sol = ms.shooting.solve(osc, guess, method=method, tol=1e-6)
+    assert sol.converged, sol.message
+    assert close(sol.x0, [-0.01469, 2.7201], [5e-6, 5e-5]), sol.x0   # to the printed digits
+    assert any(kind == "stick" for _, kind in sol.trajectory.events)
+    assert repeats_itself(osc, sol.x0)
+    assert sol.stable
+
+
+def test_table_2_case_3_warner_fails_newton_succeeds():
+    osc = CoulombOscillator(**PAPER, mu=0.08)
+    bad = ms.shooting.solve(osc, (-1.1, 15.0), method="warner", max_iter=50)
+    assert not bad.converged and "50 iterations" in bad.message and bad.x0.shape == (2,)
+    good = ms.shooting.solve(osc, (-1.1, 15.0), method="newton")
+    assert good.converged
+    assert close(good.x0, [-0.01469, 2.7201], [5e-6, 5e-5]), good.x0
+
+
+def test_mu_007_moves_without_stops_near_the_equivalent_damping_amplitude():
+    osc = CoulombOscillator(**PAPER, mu=0.07)
+    sol = ms.shooting.solve(osc, (0.0, 10.0), method="newton")
+    assert sol.converged
+    assert not any(kind == "stick" for _, kind in sol.trajectory.events)
+    amplitude = np.max(np.abs(sol.trajectory.x[:, 0]))
+    assert equivalent_damping_amplitude(osc) == pytest.approx(0.1265, abs=2e-4)   # the paper
+    assert amplitude == pytest.approx(0.1265, rel=0.01)
+    assert repeats_itself(osc, sol.x0)
+
+
+def test_mu_009_has_stops():
+    osc = CoulombOscillator(**PAPER, mu=0.09)
+    sol = ms.shooting.solve(osc, (-0.01, 2.0), method="newton")
+    assert sol.converged
+    stops = [t for t, kind in sol.trajectory.events if kind == "stick"]
+    assert len(stops) == 2
+    # While stuck the mass really is inside the band |x − δ cos ωt| < μg/ω_n² (eq. 13).
+    for t, kind in sol.trajectory.events:
+        if kind == "stick":
+            x = np.interp(t, sol.trajectory.t, sol.trajectory.x[:, 0])
+            assert abs(x - 0.1 * math.cos(100.0 * t)) <= osc.limit * (1 + 1e-9)
+    assert repeats_itself(osc, sol.x0)
+
+
+def test_stick_events_are_located_exactly():
+    """The end of a stick phase solves |x − δ cos ωt| = μg/ω_n² to round-off."""
+    osc = CoulombOscillator(**PAPER, mu=0.09)
+    sol = ms.shooting.solve(osc, (-0.01, 2.0), method="newton")
+    for t, kind in sol.trajectory.events:
+        if kind == "slip":
+            x = np.interp(t, sol.trajectory.t, sol.trajectory.x[:, 0])
+            assert abs(abs(x - 0.1 * math.cos(100.0 * t)) - osc.limit) < 1e-9 * osc.limit + 1e-12
+
+
+def test_bad_shooting_input():
+    osc = LinearOscillator(**PAPER)
+    with pytest.raises(ValueError, match="must have 2 unknowns"):
+        ms.shooting.solve(osc, [1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="`omega` must be positive"):
+        LinearOscillator(0.05, 100.0, 0.1, 0.0)
+    with pytest.raises(ValueError, match="unknown method 'bisect'"):
+        ms.shooting.solve(osc, [1.0, 2.0], method="bisect")
+    with pytest.raises(ValueError, match="`mu` must be non-negative"):
+        CoulombOscillator(**PAPER, mu=-0.1)
