@@ -201,3 +201,97 @@ def equivalent_damping_amplitude(osc: CoulombOscillator) -> float:
     c = fric**2 - F**2
     disc = b * b - 4 * a * c
     return (-b + math.sqrt(disc)) / (2 * a) if disc >= 0 and a > 0 else math.nan
+
+
+class ImpactPair(PeriodicProblem):
+    """Seed 002, Fig. 5: m1 forced, m1 ẍ1 = −m1 ω² A cos(ωt + φ); m2 moves freely between two
+    walls of m1 at clearance r and impacts when |x1 − x2| = r, with restitution e (eq. 17).
+
+    Unknowns u = (x1(0), ẋ1(0), ẋ2(0), φ) with x2(0) = x1(0) (eq. 19); the residual is the
+    4-vector x(0) − x(T) of (x1, ẋ1, x2, ẋ2) (eq. 18). Between impacts the motion is known in
+    closed form, so impacts are roots of a closed-form function (brentq, to round-off).
+    Units lb·s²/in and in (the paper's Table 3).
+    """
+
+    n = 4
+
+    def __init__(self, m1, m2, clearance, amplitude, omega, restitution):
+        _positive("ImpactPair", m1=m1, m2=m2, clearance=clearance, amplitude=amplitude,
+                  omega=omega)
+        if not 0.0 <= restitution <= 1.0:
+            raise ValueError(f"ImpactPair: `restitution` must be in [0, 1], got {restitution!r}")
+        self.m1, self.m2, self.r = m1, m2, clearance
+        self.A, self.omega, self.e = amplitude, omega, restitution
+        self.u = m2 / m1
+        self.period = 2 * math.pi / omega
+
+    def initial_state(self, u):
+        x1, v1, v2, phi = self.check(u)
+        return np.array([x1, v1, x1, v2])
+
+    def _segment(self, t0, s, phi):
+        """Closed-form motion from state s = (x1, v1, x2, v2) at t0."""
+        A, w = self.A, self.omega
+        c1 = s[1] + A * w * math.sin(w * t0 + phi)
+        c0 = s[0] - A * math.cos(w * t0 + phi) - c1 * t0
+
+        def at(t):
+            t = np.asarray(t, float)
+            x1 = A * np.cos(w * t + phi) + c0 + c1 * t
+            v1 = -A * w * np.sin(w * t + phi) + c1
+            x2 = s[2] + s[3] * (t - t0)
+            return np.stack([x1, v1, x2, np.full_like(t, s[3])], axis=-1)
+        return at
+
+    def flow(self, u, t_span=None, samples=400):
+        u = self.check(u)
+        phi = float(u[3])
+        t, t_end = t_span or (0.0, self.period)
+        s = self.initial_state(u)
+        ts, xs, events = [t], [s.copy()], []
+        dt = self.period / 4000
+        for _ in range(10000):
+            seg = self._segment(t, s, phi)
+            d = lambda tt: float(seg(tt)[0] - seg(tt)[2])
+            # Scan the relative displacement on a grid (vectorized) for the first crossing of
+            # either wall from inside; right after an impact d sits on the wall and moves in.
+            grid = np.append(np.arange(t, t_end, dt), t_end)
+            states = seg(grid)
+            D = states[:, 0] - states[:, 2]
+            hit, wall = None, 0
+            for w_ in (1, -1):
+                f = w_ * D - self.r
+                idx = np.flatnonzero((f[:-1] < 0) & (f[1:] >= 0))
+                if idx.size:
+                    k = idx[0]
+                    tr = brentq(lambda tt: w_ * d(tt) - self.r, grid[k], grid[k + 1],
+                                xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                    if hit is None or tr < hit:
+                        hit, wall = tr, w_
+            end = hit if hit is not None else t_end
+            tt = np.linspace(t, end, max(3, int(samples * (end - t) / self.period)))
+            part = seg(tt)
+            ts += list(tt[1:])
+            xs += list(part[1:])
+            if hit is None:
+                break
+            s = seg(hit).copy()
+            s[0] = s[2] + wall * self.r           # exactly on the wall
+            v1, v2, uu, e = s[1], s[3], self.u, self.e
+            s[1] = (1 - uu * e) / (1 + uu) * v1 + (uu + uu * e) / (1 + uu) * v2      # eq. 17
+            s[3] = (1 + e) / (1 + uu) * v1 + (uu - e) / (1 + uu) * v2
+            xs[-1] = s.copy()
+            events.append((hit, "impact+" if wall > 0 else "impact-"))
+            t = hit
+        else:
+            raise ValueError("ImpactPair: more than 10000 impacts in one period (chatter)")
+        return Trajectory(np.array(ts), np.array(xs), events)
+
+    def residual(self, u):
+        traj = self.flow(u)
+        return traj.x[0] - traj.x[-1]
+
+    def mode(self, u) -> tuple[int, int]:
+        """(n, m): impacts on the one wall, then on the other, in one period."""
+        ev = [k for _, k in self.flow(u).events]
+        return (ev.count("impact+"), ev.count("impact-"))

@@ -75,17 +75,16 @@ def _warner(problem, guess, tol, max_iter, scale, guesses):
 
 
 def _newton(problem, guess, tol, max_iter, **_):
-    """Damped Newton: (I − Φ) Δu = −g with Φ the monodromy, halving the step until ‖g‖
-    decreases."""
+    """Damped Newton: (I − Φ) Δu = −g with Φ the monodromy (by finite differences of the
+    flow), halving the step until ‖g‖ decreases."""
     u = np.array(guess, float)
     g = problem.residual(u)
     history = []
     for it in range(1, max_iter + 1):
+        # Minimum-norm step: I − Φ is singular along any symmetry of the problem (the
+        # impact pair may be shifted as a whole: a family of periodic solutions).
         J = np.eye(problem.n) - monodromy(problem, u)
-        try:
-            du = -np.linalg.solve(J, g)
-        except np.linalg.LinAlgError:
-            du = -np.linalg.lstsq(J, g, rcond=None)[0]
+        du = -np.linalg.lstsq(J, g, rcond=1e-10)[0]
         lam, norm = 1.0, np.linalg.norm(g)
         for _ in range(30):
             try:
