@@ -168,3 +168,38 @@ def test_impact_pair_bad_input():
         impact_pair(1.5)
     with pytest.raises(ValueError, match="needs 5 guess vectors of length 4"):
         ms.shooting.solve(impact_pair(), TABLE3_CASE1[0], guesses=TABLE3_CASE1[:3])
+
+
+# --- driven mechanisms -----------------------------------------------------------------------
+def test_mechanism_steady_state_matches_the_harmonic_solution():
+    """A block on a prismatic joint, spring–damper to ground, shaken by F₀ cos ωt: shooting
+    on the mechanism gives the harmonic steady state, in one Newton iteration (linear)."""
+    m, k, c, F0, w = 2.0, 800.0, 6.0, 5.0, 15.0
+    mech = ms.examples.spring_mass(mass=m, stiffness=k, stretch=0.0, damping=c)
+    mech.add(ms.Force(mech.body("block"), lambda t: (F0 * math.cos(w * t), 0.0), name="shaker"))
+    sol = mech.steady_state(2 * math.pi / w)
+    X, lag = F0 / math.hypot(k - m * w * w, c * w), math.atan2(c * w, k - m * w * w)
+    assert sol.converged and sol.iterations <= 2
+    np.testing.assert_allclose(sol.x0, [0.5 + X * math.cos(lag), w * X * math.sin(lag)],
+                               rtol=0, atol=1e-8)                 # the shooting tolerance
+    np.testing.assert_allclose(np.abs(sol.floquet_multipliers),
+                               math.exp(-c / (2 * m) * 2 * math.pi / w), rtol=1e-5)
+
+
+def test_driven_pendulum_steady_state_repeats_and_agrees_with_brute_force():
+    """A damped pendulum under a periodic torque (nonlinear): the shot steady state repeats
+    itself, and long simulation from rest settles onto it."""
+    mech = ms.examples.pendulum(length=0.6, mass=1.0, angle=-math.pi / 2)
+    rod = mech.body("rod")
+    w = 4.0
+    mech.add(ms.Torque(rod, lambda t: 1.5 * math.cos(w * t)))
+    mech.add(ms.Spring(mech.ground, rod, at_a=(0.3, -0.6), at_b=(0.0, -0.6), stiffness=0.0,
+                       damping=2.0, name="dashpot"))
+    T = 2 * math.pi / w
+    sol = mech.steady_state(T)
+    assert sol.converged and sol.stable
+    prob = sol.trajectory.result
+    assert np.ptp(prob.coordinate("rod.angle")) > 0.2             # a real swing
+    brute = mech.simulate(t_end=30 * T, rtol=1e-10, atol=1e-12, output_step=T)
+    angle_end = brute.coordinate("rod.angle")[-1]
+    assert angle_end == pytest.approx(prob.coordinate("rod.angle")[0], abs=1e-5)

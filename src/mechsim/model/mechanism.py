@@ -276,6 +276,19 @@ class Mechanism:
         return simulate(self.problem(), report.q, report.v, t_end=t_end, method=method,
                         **options)
 
+    def steady_state(self, period: float, guess=None, method: str = "newton",
+                     tol: float = 1e-8, max_iter: int = 30, t0: float = 0.0,
+                     **simulate_options):
+        """The periodic steady state of period `period` (e.g. 2π/ω of a driver or a
+        forcing), found by shooting on the independent coordinates and velocities without
+        simulating the transient. Returns a `ShootingResult`; `result.trajectory.result` is
+        the SimulationResult over one period. `guess` defaults to the assembled state."""
+        from ..shooting import solve
+        from ..shooting.mechanism import MechanismPeriodicProblem
+        problem = MechanismPeriodicProblem(self, period, t0, **simulate_options)
+        start = problem.guess0 if guess is None else guess
+        return solve(problem, start, method=method, tol=tol, max_iter=max_iter)
+
     def __repr__(self):
         return (f"Mechanism({self.name!r}: {len(self.bodies)} bodies, {len(self.joints)} joints, "
                 f"{len(self.drivers)} drivers, {len(self.loads)} loads)")
