@@ -203,3 +203,15 @@ def test_driven_pendulum_steady_state_repeats_and_agrees_with_brute_force():
     brute = mech.simulate(t_end=30 * T, rtol=1e-10, atol=1e-12, output_step=T)
     angle_end = brute.coordinate("rod.angle")[-1]
     assert angle_end == pytest.approx(prob.coordinate("rod.angle")[0], abs=1e-5)
+
+
+def test_regime_map_machinery_recovers_the_seed_mode():
+    """The continuation and the process pool: the seed's point comes back in the (3, 3)
+    mode, and parallel rows give the same states as serial ones."""
+    seed = [0.14736333, 5.92750349, 9.42938159, -0.68051311]
+    A, W = np.array([0.188, 0.189]), np.array([49.9, 50.0])
+    par = ms.shooting.regime_map(A, W, seed, 0.189, 50.0, processes=2)
+    ser = ms.shooting.regime_map(A, W, seed, 0.189, 50.0, processes=1)
+    assert tuple(par.modes[1, 1]) == (3, 3)
+    np.testing.assert_array_equal(par.modes, ser.modes)
+    assert np.array_equal(np.isnan(par.x0), np.isnan(ser.x0))

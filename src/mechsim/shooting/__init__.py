@@ -7,6 +7,7 @@
 return a ShootingResult with the one-period trajectory and the Floquet multipliers.
 """
 
+from .regime import RegimeMap, regime_map
 from .solve import SHOOTING_METHODS, ShootingResult, monodromy, solve
 
-__all__ = ["SHOOTING_METHODS", "ShootingResult", "monodromy", "solve"]
+__all__ = ["SHOOTING_METHODS", "RegimeMap", "ShootingResult", "monodromy", "regime_map", "solve"]
