@@ -46,9 +46,11 @@ def _shape(xi, L, phi):
     return Nw, dNw, Nt, dNt
 
 
-def timoshenko_element(L, E, G, rho, A, I, kappa, shear=True):
+def timoshenko_element(L, E, G, rho, A, I, kappa, shear=True, rotary=True):
     """Single-plane element matrices (K, M, Gθ), each 4 × 4 on [w1, θ1, w2, θ2]. Gθ is
-    ∫ ρ J N_θᵀ N_θ dz with J = 2I (polar), the block the gyroscopic matrix is built from."""
+    ∫ ρ J N_θᵀ N_θ dz with J = 2I (polar), the block the gyroscopic matrix is built from.
+    `shear=False` gives Euler–Bernoulli (Hermite) elements; `rotary=False` leaves the
+    rotary inertia out of M (the classical consistent mass)."""
     phi = 12 * E * I / (kappa * G * A * L**2) if shear else 0.0
     K = np.zeros((4, 4))
     M = np.zeros((4, 4))
@@ -58,7 +60,7 @@ def timoshenko_element(L, E, G, rho, A, I, kappa, shear=True):
         gamma = dNw - Nt                                  # shear strain per DOF
         K += w * L * (E * I * np.outer(dNt, dNt) + (kappa * G * A * np.outer(gamma, gamma)
                                                     if shear else 0.0))
-        M += w * L * (rho * A * np.outer(Nw, Nw) + rho * I * np.outer(Nt, Nt))
+        M += w * L * (rho * A * np.outer(Nw, Nw) + (rho * I * np.outer(Nt, Nt) if rotary else 0.0))
         Gt += w * L * rho * 2 * I * np.outer(Nt, Nt)
     return K, M, Gt
 
