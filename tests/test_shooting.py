@@ -155,7 +155,7 @@ def test_table_3_case_1_converges_to_the_33_mode():
     # Without a spring to ground the pair may be shifted as a whole: x1(0) is free (a family
     # of periodic solutions); velocities and phase are fixed.
     assert close(sol.x0[1:], TABLE3_TRUE[1:], [5e-4, 5e-4, 5e-5]), sol.x0
-    assert pair.mode(sol.x0) == (3, 3)
+    assert pair.mode(sol.x0) == (3, 3) and sol.mode == (3, 3)
     shifted = sol.x0 + np.array([0.05, 0.0, 0.0, 0.0])
     assert np.max(np.abs(pair.residual(shifted))) < 1e-6
     # Three periods in one flow come back to the start (the unknowns hold φ, not x2).

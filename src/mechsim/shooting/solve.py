@@ -17,6 +17,7 @@ class ShootingResult:
     trajectory: object = None        # Trajectory over one period from x0
     floquet_multipliers: np.ndarray | None = None
     history: list = field(default_factory=list)   # (iteration, max|g|)
+    mode: tuple | None = None        # (n, m) impacts per period, for problems that have modes
 
     @property
     def stable(self) -> bool | None:
@@ -126,5 +127,6 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
     converged = message == "converged"
     traj = problem.flow(x)
     mults = np.linalg.eigvals(monodromy(problem, x)) if floquet and converged else None
+    mode = problem.mode(x) if hasattr(problem, "mode") else None
     return ShootingResult(converged, np.asarray(x), its, float(np.max(np.abs(g))), message,
-                          traj, mults, history)
+                          traj, mults, history, mode)
