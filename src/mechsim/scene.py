@@ -130,7 +130,8 @@ _KEYS = {
     "torque": {"body", "torque", "name"},
 }
 _SIMULATION_KEYS = {"t_end", "method", "rtol", "atol", "max_step", "output_step", "integrator",
-                    "first_step", "t_start", "alpha", "beta", "projection", "projection_tol"}
+                    "first_step", "t_start", "alpha", "beta", "projection", "projection_tol",
+                    "h", "max_steps", "rcond", "regularization", "exact_projection"}
 _OUTPUT_KEYS = {"plots", "save", "points", "directory"}
 _TOP_KEYS = {"name", "gravity", "parameters", "simulation", "output"} | set(_KEYS)
 
@@ -269,7 +270,10 @@ def load_scene(path) -> Scene:
     simulation = dict(data.get("simulation", {}))
     _check_keys(simulation, _SIMULATION_KEYS, f"{f}: [simulation]")
     for key, value in simulation.items():
-        if key not in ("method", "integrator", "projection"):
+        if key == "max_steps":
+            simulation[key] = int(num(value, f"{f}: [simulation] {key}"))
+        elif key not in ("method", "integrator", "projection", "regularization",
+                         "exact_projection"):
             simulation[key] = num(value, f"{f}: [simulation] {key}")
     if "t_end" not in simulation:
         raise SceneError(f"{f}: [simulation] needs `t_end`")
