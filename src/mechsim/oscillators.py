@@ -252,7 +252,9 @@ class ImpactPair(PeriodicProblem):
         dt = self.period / 4000
         for _ in range(10000):
             seg = self._segment(t, s, phi)
-            d = lambda tt: float(seg(tt)[0] - seg(tt)[2])
+            def d(tt, seg=seg):
+                x = seg(tt)
+                return float(x[0] - x[2])
             # Scan the relative displacement on a grid (vectorized) for the first crossing of
             # either wall from inside; right after an impact d sits on the wall and moves in.
             grid = np.append(np.arange(t, t_end, dt), t_end)

@@ -138,6 +138,15 @@ class NumericProblem:
         self.counters.constraint_terms += 1
         return self.model.terms(q, v, t, self.p)
 
+    def worst_constraint(self, phi) -> str:
+        """'<residual> in '<equation>' of '<joint or driver>'' for the largest |Φ_i|: how
+        failures name the model object at fault."""
+        phi = np.asarray(phi, float)
+        i = int(np.nanargmax(np.abs(phi))) if phi.size and np.all(np.isfinite(phi)) else 0
+        value = abs(phi[i]) if phi.size else 0.0
+        return (f"{value:.3g} in '{self.constraint_names[i]}' of "
+                f"'{self.constraint_owners[i]}'")
+
     # --- mass and forces -------------------------------------------------------------------
     def mass(self, q=None) -> np.ndarray:
         return np.diag(self.mass_diagonal)

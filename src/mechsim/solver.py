@@ -98,7 +98,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     monitor = form.monitor = SingularityMonitor(problem, *singular_thresholds)
 
     counters = problem.counters
-    before = {k: getattr(counters, k) for k in ("projections", "partitions", "switches", "rhs")}
+    before = {k: getattr(counters, k) for k in ("projections", "partitions", "switches",
+                                                 "factorizations", "constraint_terms")}
     start = time.perf_counter()
     ts = output_times(t_start, t_end, output_step)
     out_t, out_q, out_v = [], [], []
@@ -201,6 +202,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         "corrections_in_place": corrections,
         "projections": counters.projections - before["projections"],
         "partitions": counters.partitions - before["partitions"],
+        "factorizations": counters.factorizations - before["factorizations"],
+        "constraint_evaluations": counters.constraint_terms - before["constraint_terms"],
         "switches": counters.switches - before["switches"],
         "wall_time": wall,
     }

@@ -48,11 +48,8 @@ class FullCoordinates(Formulation):
             return None
         q, _, err = self.project_positions(q, t)
         if not err <= max(1e-9, 1e3 * self.projection_tol):   # slow near a singularity is fine
-            phi = prob.phi(q, t)
-            i = int(np.nanargmax(np.abs(phi))) if np.all(np.isfinite(phi)) else 0
             self.failure = (f"the constraints cannot be satisfied at t = {t:.9g}: projection "
-                            f"leaves residual {err:.3g} in '{prob.constraint_names[i]}' of "
-                            f"'{prob.constraint_owners[i]}'")
+                            f"leaves residual {prob.worst_constraint(prob.phi(q, t))}")
             raise ConstraintSolveError(self.failure)
         return np.concatenate([q, self.project_velocities(q, v, t)])
 

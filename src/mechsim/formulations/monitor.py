@@ -93,8 +93,8 @@ class SingularityMonitor:
         return s
 
     def _hidden_minimum(self, a, b, state_at):
-        t0, s0, d0 = a
-        t1, s1, d1 = b
+        t0, _, d0 = a
+        t1, _, d1 = b
         h = t1 - t0
         if not (h > 0.0 and d0 < 0.0 < d1):
             return

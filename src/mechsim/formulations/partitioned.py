@@ -239,10 +239,8 @@ class Partitioned(Formulation):
                 w = w - _solve(bs.JD(prob.phi_q(q, t)), phi)
             else:
                 w = w - self._chord @ phi
-        i = int(np.nanargmax(np.abs(phi))) if np.all(np.isfinite(phi)) else 0
         self.failure = (f"Newton on the dependent coordinates did not converge at t = {t:.9g} "
-                        f"(residual {err:.3g} in '{prob.constraint_names[i]}' of joint "
-                        f"'{prob.constraint_owners[i]}')")
+                        f"(residual {prob.worst_constraint(phi)})")
         raise ConstraintSolveError(self.failure)
 
     def full_state(self, t, y):

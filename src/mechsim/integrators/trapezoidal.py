@@ -56,7 +56,7 @@ class Trapezoidal(OdeSolver):
         h = min(self.h, self.max_step, self.t_bound - t)
         if self._iter is None or self._iter[1] != h:
             self._iter = (self._newton_matrix(t, y, f, h), h)
-        for attempt in range(2):
+        for _ in range(2):
             Jinv = self._iter[0]
             Y = y + h * f                                  # explicit predictor
             for _ in range(self.max_newton):

@@ -245,13 +245,10 @@ class Mechanism:
         q0, v0 = self.initial_coordinates(), self.initial_velocities()
         q, iterations, err = prob.project_positions(q0, t, tol=tol, max_iter=max_iter)
         if not err <= tol:
-            phi = prob.phi(q, t)
-            i = int(np.nanargmax(np.abs(phi))) if np.all(np.isfinite(phi)) else 0
             raise AssemblyError(
                 f"mechanism '{self.name}' cannot be assembled: after {iterations} Newton "
-                f"iterations the largest residual is {abs(phi[i]):.3g} in equation "
-                f"'{prob.constraint_names[i]}' of '{prob.constraint_owners[i]}'. Check that "
-                "joint's points and the link lengths it implies.")
+                f"iterations the largest residual is {prob.worst_constraint(prob.phi(q, t))}. "
+                "Check that joint's points and the link lengths it implies.")
         J = prob.phi_q(q, t)
         residual = J @ v0 + prob.phi_t(q, t)
         vscale = max(1.0, float(np.max(np.abs(v0))) if v0.size else 1.0)
