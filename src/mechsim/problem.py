@@ -4,7 +4,8 @@
 
 Formulations and integrators see only this object (as scipy's solvers see only `fun`): they
 never touch a Body or a Joint. For rigid bodies in absolute coordinates M is constant and
-diagonal, so it is stored once as `mass_diagonal` and never rebuilt.
+diagonal, so it is stored once as `mass_diagonal` and never rebuilt; a flexible beam adds a
+dense block that depends on its angle and modal amplitudes (`mechsim.flexible.invariants`).
 """
 
 from __future__ import annotations
@@ -15,27 +16,45 @@ from dataclasses import dataclass
 import numpy as np
 
 
-def frame_point(q: np.ndarray, start: int | None, s) -> np.ndarray:
-    """Global position of body-fixed point `s` of the body whose (x, y, angle) start at
-    index `start` of `q` (None: the ground). `q` has shape (..., n); result (..., 2)."""
+def _local(q, start, s, modal):
+    """Body-frame position of attachment point `s`, moved by the modal displacement
+    `modal` (2, k) · η for a point of a flexible body."""
     s = np.asarray(s, float)
+    if modal is None:
+        return np.broadcast_to(s, q.shape[:-1] + (2,))
+    k = modal.shape[1]
+    return s + q[..., start + 3:start + 3 + k] @ modal.T
+
+
+def frame_point(q: np.ndarray, start: int | None, s, modal=None) -> np.ndarray:
+    """Global position of body-fixed point `s` of the body whose (x, y, angle) start at
+    index `start` of `q` (None: the ground); on a flexible body `modal` (2, k) adds the
+    point's modal displacement. `q` has shape (..., n); result (..., 2)."""
     if start is None:
-        return np.broadcast_to(s, q.shape[:-1] + (2,)).copy()
+        return np.broadcast_to(np.asarray(s, float), q.shape[:-1] + (2,)).copy()
+    u = _local(q, start, s, modal)
     th = q[..., start + 2]
     c, sn = np.cos(th), np.sin(th)
-    return np.stack([q[..., start] + c * s[0] - sn * s[1],
-                     q[..., start + 1] + sn * s[0] + c * s[1]], axis=-1)
+    return np.stack([q[..., start] + c * u[..., 0] - sn * u[..., 1],
+                     q[..., start + 1] + sn * u[..., 0] + c * u[..., 1]], axis=-1)
 
 
-def frame_point_velocity(q: np.ndarray, v: np.ndarray, start: int | None, s) -> np.ndarray:
-    """Velocity of body-fixed point `s`: ṙ + ω × (A s). Shapes as in `frame_point`."""
-    s = np.asarray(s, float)
+def frame_point_velocity(q: np.ndarray, v: np.ndarray, start: int | None, s,
+                         modal=None) -> np.ndarray:
+    """Velocity of body-fixed point `s`: Ṙ + ω × (A ū) + A (modal · η̇). Shapes as in
+    `frame_point`."""
     if start is None:
         return np.zeros(q.shape[:-1] + (2,))
+    u = _local(q, start, s, modal)
     th, w = q[..., start + 2], v[..., start + 2]
     c, sn = np.cos(th), np.sin(th)
-    return np.stack([v[..., start] - w * (sn * s[0] + c * s[1]),
-                     v[..., start + 1] + w * (c * s[0] - sn * s[1])], axis=-1)
+    dx = -w * (sn * u[..., 0] + c * u[..., 1])
+    dy = w * (c * u[..., 0] - sn * u[..., 1])
+    if modal is not None:
+        du = v[..., start + 3:start + 3 + modal.shape[1]] @ modal.T
+        dx = dx + c * du[..., 0] - sn * du[..., 1]
+        dy = dy + sn * du[..., 0] + c * du[..., 1]
+    return np.stack([v[..., start] + dx, v[..., start + 1] + dy], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -48,6 +67,8 @@ class SpringData:
     stiffness: float
     damping: float
     rest_length: float
+    modal_a: np.ndarray | None = None     # (2, k) modal displacement of a point on a beam
+    modal_b: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -58,6 +79,39 @@ class PointLoad:
     s: tuple[float, float] | None
     value: object          # ndarray (2,), float, or callable of t
     is_torque: bool
+    modal: np.ndarray | None = None
+
+
+class FlexibleData:
+    """A flexible beam's block of coordinates, (x, y, angle, η₁ … η_k) from `start`, with its
+    invariants and generated kernel (`mechsim.flexible`)."""
+    __slots__ = ("name", "start", "invariants", "kernel", "parameters", "slice")
+
+    def __init__(self, name, start, invariants, kernel, parameters):
+        self.name, self.start, self.invariants = name, start, invariants
+        self.kernel, self.parameters = kernel, tuple(parameters)
+        self.slice = slice(start, start + 3 + invariants.n_modes)
+
+
+class MassFactor:
+    """M = L Lᵀ at one configuration, applied as L⁻¹ and L⁻ᵀ. For constant diagonal mass
+    L⁻¹ is the vector `s` = M^{-1/2}; otherwise the dense block-diagonal `Linv`."""
+    __slots__ = ("s", "Linv")
+
+    def __init__(self, s=None, Linv=None):
+        self.s, self.Linv = s, Linv
+
+    def cols(self, J):
+        """J L⁻ᵀ: the mass-scaled Jacobian."""
+        return J * self.s if self.Linv is None else J @ self.Linv.T
+
+    def left(self, x):
+        """L⁻¹ x."""
+        return self.s * x if self.Linv is None else self.Linv @ x
+
+    def right(self, x):
+        """L⁻ᵀ x."""
+        return self.s * x if self.Linv is None else self.Linv.T @ x
 
 
 @dataclass
@@ -87,13 +141,14 @@ class NumericProblem:
     constraint_owners : list of str, the joint or driver that owns each row of Φ
     constraint_kinds : list of str, "joint" or "driver" for each row of Φ
     springs, loads : tuples of SpringData / PointLoad
+    flexible : tuple of FlexibleData; their blocks of M depend on q (`mass_diagonal` holds
+        only nominal values there, and the rigid-body terms skip them)
     """
-
-    constant_mass = True
 
     def __init__(self, model, parameters, mass_diagonal, gravity, body_starts,
                  coordinate_names, constraint_names, constraint_owners,
-                 springs=(), loads=(), title="mechanism", constraint_kinds=None):
+                 springs=(), loads=(), title="mechanism", constraint_kinds=None,
+                 flexible=()):
         self.model = model
         self.p = tuple(float(x) for x in parameters)
         self.mass_diagonal = np.asarray(mass_diagonal, float)
@@ -110,10 +165,23 @@ class NumericProblem:
         self.loads = tuple(loads)
         self.title = title
         self.counters = Counters()
-        # Gravity's generalized force is constant: m g on the x and y of every body.
+        self.flexible = tuple(flexible)
+        self.constant_mass = not self.flexible
+        # Rigid bodies only: their mass is constant and diagonal.
+        self._rigid_mass = self.mass_diagonal.copy()
+        flex_starts = set()
+        for fb in self.flexible:
+            self._rigid_mass[fb.slice] = 0.0
+            flex_starts.add(fb.start)
+        self._factor = MassFactor(s=1.0 / np.sqrt(self.mass_diagonal)) if self.constant_mass \
+            else None
+        self._rigid_factor = np.diag(np.sqrt(1.0 / np.where(self._rigid_mass > 0.0,
+                                                            self._rigid_mass, 1.0)))
+        self._last_factor = None          # (key, MassFactor) of the latest flexible state
+        # Gravity's generalized force on rigid bodies is constant: m g on their x and y.
         self._gravity_force = np.zeros(self.n)
         for start in self.body_starts.values():
-            if start is not None:
+            if start is not None and start not in flex_starts:
                 self._gravity_force[start:start + 2] = self.mass_diagonal[start] * self.gravity
 
     # --- constraints -----------------------------------------------------------------------
@@ -149,11 +217,36 @@ class NumericProblem:
 
     # --- mass and forces -------------------------------------------------------------------
     def mass(self, q=None) -> np.ndarray:
-        return np.diag(self.mass_diagonal)
+        """M(q), shape (n, n); constant unless the mechanism has flexible bodies."""
+        M = np.diag(self._rigid_mass)
+        for fb in self.flexible:
+            if q is None:
+                raise ValueError("the mass matrix of a flexible mechanism depends on q")
+            M[fb.slice, fb.slice] = fb.kernel.mass_block(q[fb.slice], fb.parameters)
+        return M
+
+    def mass_factor(self, q) -> MassFactor:
+        """M(q) = L Lᵀ as a `MassFactor` (shared and constant for rigid mechanisms)."""
+        if self._factor is not None:
+            return self._factor
+        key = np.concatenate([q[fb.slice][2:] for fb in self.flexible]).tobytes()
+        if self._last_factor is not None and self._last_factor[0] == key:
+            return self._last_factor[1]
+        from .flexible.invariants import inverse_cholesky
+        Linv = self._rigid_factor.copy()
+        for fb in self.flexible:
+            Linv[fb.slice, fb.slice] = inverse_cholesky(fb.kernel.mass_block(q[fb.slice],
+                                                                             fb.parameters))
+        f = MassFactor(Linv=Linv)
+        self._last_factor = (key, f)
+        return f
 
     def forces(self, t, q, v) -> np.ndarray:
-        """Generalized applied forces Q(t, q, v), shape (n,)."""
+        """Generalized applied forces Q(t, q, v), shape (n,): for flexible bodies including
+        the quadratic-velocity (centrifugal and Coriolis) terms of M(q)."""
         Q = self._gravity_force.copy()
+        for fb in self.flexible:
+            Q[fb.slice] += fb.kernel.forces(q[fb.slice], v[fb.slice], fb.parameters)
         self._add_loads(t, q, v, Q, elastic=True)
         return Q
 
@@ -167,8 +260,8 @@ class NumericProblem:
         for sp in self.springs:
             if not elastic and not sp.damping:
                 continue
-            pa = _point(q, sp.a, sp.sa)
-            pb = _point(q, sp.b, sp.sb)
+            pa = _point(q, sp.a, sp.sa, sp.modal_a)
+            pb = _point(q, sp.b, sp.sb, sp.modal_b)
             dx, dy = pb[0] - pa[0], pb[1] - pa[1]
             length = math.hypot(dx, dy)
             if length == 0.0:
@@ -176,18 +269,18 @@ class NumericProblem:
             ex, ey = dx / length, dy / length
             tension = sp.stiffness * (length - sp.rest_length) if elastic else 0.0
             if sp.damping:
-                va = _velocity(q, v, sp.a, sp.sa)
-                vb = _velocity(q, v, sp.b, sp.sb)
+                va = _velocity(q, v, sp.a, sp.sa, sp.modal_a)
+                vb = _velocity(q, v, sp.b, sp.sb, sp.modal_b)
                 tension += sp.damping * ((vb[0] - va[0]) * ex + (vb[1] - va[1]) * ey)
-            _add_point_force(Q, q, sp.a, sp.sa, tension * ex, tension * ey)
-            _add_point_force(Q, q, sp.b, sp.sb, -tension * ex, -tension * ey)
+            _add_point_force(Q, q, sp.a, sp.sa, tension * ex, tension * ey, sp.modal_a)
+            _add_point_force(Q, q, sp.b, sp.sb, -tension * ex, -tension * ey, sp.modal_b)
         for load in self.loads:
             value = load.value(t) if callable(load.value) else load.value
             if load.is_torque:
                 Q[load.body + 2] += value
             else:
                 fx, fy = value
-                _add_point_force(Q, q, load.body, load.s, fx, fy)
+                _add_point_force(Q, q, load.body, load.s, fx, fy, load.modal)
 
     @property
     def has_nonconservative(self) -> bool:
@@ -207,21 +300,27 @@ class NumericProblem:
         driver = 0.0
         if self.rheonomic_rows:
             _, J, phi_t, gamma = self.terms(q, v, t)
-            _, lam = self.accelerations(J, self.forces(t, q, v), gamma)
+            _, lam = self.accelerations(J, self.forces(t, q, v), gamma, q)
             driver = float(lam @ phi_t)
         return applied, driver
 
     # --- energies (vectorized over leading dimensions) ---------------------------------------
     def kinetic_energy(self, q, v) -> np.ndarray:
-        return 0.5 * np.einsum("...i,i,...i->...", v, self.mass_diagonal, v)
+        T = 0.5 * np.einsum("...i,i,...i->...", v, self._rigid_mass, v)
+        for fb in self.flexible:
+            T = T + fb.invariants.kinetic(q[..., fb.slice], v[..., fb.slice])
+        return T
 
     def gravity_potential(self, q) -> np.ndarray:
-        return -np.einsum("...i,i->...", q, self._gravity_force)
+        V = -np.einsum("...i,i->...", q, self._gravity_force)
+        for fb in self.flexible:
+            V = V + fb.invariants.gravity_potential(q[..., fb.slice], self.gravity)
+        return V
 
     def spring_potential(self, q) -> np.ndarray:
         total = np.zeros(np.shape(q)[:-1])
         for sp in self.springs:
-            d = frame_point(q, sp.b, sp.sb) - frame_point(q, sp.a, sp.sa)
+            d = frame_point(q, sp.b, sp.sb, sp.modal_b) - frame_point(q, sp.a, sp.sa, sp.modal_a)
             total = total + 0.5 * sp.stiffness * (np.linalg.norm(d, axis=-1) - sp.rest_length) ** 2
         return total
 
@@ -229,20 +328,25 @@ class NumericProblem:
         return self.gravity_potential(q) + self.spring_potential(q)
 
     def strain_energy(self, q) -> np.ndarray:
-        return np.zeros(np.shape(q)[:-1])
+        """Elastic energy of the flexible bodies' modes, ½ Σ ω_k² η_k²."""
+        U = np.zeros(np.shape(q)[:-1])
+        for fb in self.flexible:
+            U = U + fb.invariants.strain(q[..., fb.slice])
+        return U
 
     # --- projections onto the constraint manifold (mass metric) -------------------------------
     def project_positions(self, q, t, tol=1e-12, max_iter=20):
         """Newton steps Δq = −W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ Φ with W = M⁻¹: the smallest correction in
         the kinetic metric. Returns (q, iterations, final ‖Φ‖∞)."""
         q = np.array(q, float)
-        w = self.inverse_mass_diagonal
+        f = self.mass_factor(q)
         for k in range(max_iter + 1):
             phi, J = self.position_terms(q, t)
             err = float(np.max(np.abs(phi))) if phi.size else 0.0
             if err <= tol or k == max_iter or not np.isfinite(err):
                 return q, k, err
-            q -= w * (J.T @ _solve_psd((J * w) @ J.T, phi))
+            Jt = f.cols(J)
+            q -= f.right(Jt.T @ _solve_psd(Jt @ Jt.T, phi))
             self.counters.projections += 1
         return q, max_iter, err
 
@@ -250,17 +354,24 @@ class NumericProblem:
         """v − W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ (Φ_q v + Φ_t): the nearest consistent velocity."""
         J = self.phi_q(q, t)
         r = J @ v + self.phi_t(q, t)
-        w = self.inverse_mass_diagonal
-        return v - w * (J.T @ _solve_psd((J * w) @ J.T, r))
+        f = self.mass_factor(q)
+        Jt = f.cols(J)
+        return v - f.right(Jt.T @ _solve_psd(Jt @ Jt.T, r))
 
-    def accelerations(self, J, Q, c):
-        """Solve [M Φ_qᵀ; Φ_q 0][q̈; λ] = [Q; c] by the Schur complement of the diagonal M.
-        Redundant constraints (a singular Φ_q M⁻¹ Φ_qᵀ) fall back to the least-squares λ."""
-        w = self.inverse_mass_diagonal
-        wq = w * Q
-        lam = _solve_psd((J * w) @ J.T, J @ wq - c)
+    def accelerations(self, J, Q, c, q=None):
+        """Solve [M Φ_qᵀ; Φ_q 0][q̈; λ] = [Q; c] by the Schur complement of M = L Lᵀ (a
+        diagonal for rigid mechanisms; `q` is needed only when M depends on it). Redundant
+        constraints (a singular Φ_q M⁻¹ Φ_qᵀ) fall back to the least-squares λ."""
         self.counters.factorizations += 1
-        return wq - w * (J.T @ lam), lam
+        if self._factor is not None:
+            w = self.inverse_mass_diagonal
+            wq = w * Q
+            lam = _solve_psd((J * w) @ J.T, J @ wq - c)
+            return wq - w * (J.T @ lam), lam
+        f = self.mass_factor(q)
+        Jt, x = f.cols(J), f.left(Q)
+        lam = _solve_psd(Jt @ Jt.T, Jt @ x - c)
+        return f.right(x - Jt.T @ lam), lam
 
 
 def _solve_psd(S, r):
@@ -270,26 +381,45 @@ def _solve_psd(S, r):
         return np.linalg.lstsq(S, r, rcond=None)[0]
 
 
-def _point(q, start, s):
+def _moved(q, start, s, modal):
+    if modal is None:
+        return s
+    d = modal @ q[start + 3:start + 3 + modal.shape[1]]
+    return (s[0] + d[0], s[1] + d[1])
+
+
+def _point(q, start, s, modal=None):
     if start is None:
         return s
+    s = _moved(q, start, s, modal)
     c, sn = math.cos(q[start + 2]), math.sin(q[start + 2])
     return (q[start] + c * s[0] - sn * s[1], q[start + 1] + sn * s[0] + c * s[1])
 
 
-def _velocity(q, v, start, s):
+def _velocity(q, v, start, s, modal=None):
     if start is None:
         return (0.0, 0.0)
+    s = _moved(q, start, s, modal)
     c, sn = math.cos(q[start + 2]), math.sin(q[start + 2])
     w = v[start + 2]
-    return (v[start] - w * (sn * s[0] + c * s[1]), v[start + 1] + w * (c * s[0] - sn * s[1]))
+    vx, vy = v[start] - w * (sn * s[0] + c * s[1]), v[start + 1] + w * (c * s[0] - sn * s[1])
+    if modal is not None:
+        du = modal @ v[start + 3:start + 3 + modal.shape[1]]
+        vx, vy = vx + c * du[0] - sn * du[1], vy + sn * du[0] + c * du[1]
+    return (vx, vy)
 
 
-def _add_point_force(Q, q, start, s, fx, fy):
+def _add_point_force(Q, q, start, s, fx, fy, modal=None):
+    """Generalized force of a point force (fx, fy) at body point `s`: on R the force, on θ
+    its moment about the frame origin, on η its work through the point's mode shapes."""
     if start is None:
         return
+    s = _moved(q, start, s, modal)
     c, sn = math.cos(q[start + 2]), math.sin(q[start + 2])
     rx, ry = c * s[0] - sn * s[1], sn * s[0] + c * s[1]
     Q[start] += fx
     Q[start + 1] += fy
     Q[start + 2] += rx * fy - ry * fx
+    if modal is not None:
+        k = modal.shape[1]
+        Q[start + 3:start + 3 + k] += modal.T @ (c * fx + sn * fy, -sn * fx + c * fy)

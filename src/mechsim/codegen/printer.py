@@ -11,7 +11,6 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
-from ..symbolic import SymbolicSystem
 
 
 class _Printer(PythonCodePrinter):
@@ -20,7 +19,7 @@ class _Printer(PythonCodePrinter):
 
 
 class _ModuleWriter:
-    def __init__(self, system: SymbolicSystem):
+    def __init__(self, system):
         self.sys = system
         self.printer = _Printer()
         self.constants: dict[tuple, str] = {}
@@ -94,7 +93,18 @@ class _ModuleWriter:
         return "\n".join(header + constants + [""] + ["\n\n".join(self.functions), ""])
 
 
-def model_source(system: SymbolicSystem, key: str, title: str) -> str:
+def kernel_source(q, v, p, functions, key: str, title: str) -> str:
+    """A module of free-standing kernels over block arguments `_q`, `_v`, `_p` (symbol lists
+    `q`, `v`, `p`): `functions` is a list of (name, args, outputs, doc) as for
+    `_ModuleWriter.function`. Used for the flexible-beam mass matrix and forces."""
+    from types import SimpleNamespace
+    w = _ModuleWriter(SimpleNamespace(q=list(q), v=list(v), p=list(p), phi=sp.zeros(0, 1)))
+    for name, args, outputs, doc in functions:
+        w.function(name, args, outputs, doc)
+    return w.module(key, title)
+
+
+def model_source(system, key: str, title: str) -> str:
     """The full module text for `system` (see `mechsim.codegen` for the functions)."""
     w = _ModuleWriter(system)
     s = system

@@ -23,4 +23,4 @@ class Baumgarte(FullCoordinates):
         prob = self.problem
         phi, J, phi_t, gamma = prob.terms(q, v, t)
         c = gamma - 2.0 * self.alpha * (J @ v + phi_t) - self.beta**2 * phi
-        return prob.accelerations(J, prob.forces(t, q, v), c)[0]
+        return prob.accelerations(J, prob.forces(t, q, v), c, q)[0]

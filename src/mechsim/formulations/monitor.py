@@ -35,7 +35,6 @@ class SingularityMonitor:
             raise ValueError(f"singularity thresholds need 0 < enter < leave, got {enter}, {leave}")
         self.problem = problem
         self.enter, self.leave = enter, leave
-        self.scale = 1.0 / np.sqrt(problem.mass_diagonal)
         self.passages: list[SingularPassage] = []
         self._open = None            # [t_start, t_min, s_min, joints] while inside
         self.last, self.rate = 1.0, 0.0  # s/peak and its rate at the last observation
@@ -44,7 +43,8 @@ class SingularityMonitor:
 
     def measure(self, q, t, v=None):
         """(s, ṡ, left singular vector of σ_min); ṡ = 0 when v is None."""
-        J = self.problem.phi_q(q, t) * self.scale
+        scale = self.problem.mass_factor(q)
+        J = scale.cols(self.problem.phi_q(q, t))
         m = J.shape[0]
         if m == 0:
             return 1.0, 0.0, np.zeros(0)
@@ -58,7 +58,7 @@ class SingularityMonitor:
             speed = float(np.max(np.abs(v)))
             if speed > 0.0:
                 eps = 1e-7 / speed
-                dJ = (self.problem.phi_q(q + eps * v, t + eps) * self.scale - J) / eps
+                dJ = (scale.cols(self.problem.phi_q(q + eps * v, t + eps)) - J) / eps
                 d_min = U[:, k] @ dJ @ Vt[k]
                 d_max = U[:, 0] @ dJ @ Vt[0]
                 rate = float((d_min * sig[0] - sig[k] * d_max) / sig[0] ** 2)

@@ -272,7 +272,7 @@ class Partitioned(Formulation):
         except ConstraintSolveError:
             # A trial step too far for Newton: NaN makes the integrator reject and shrink it.
             return np.full(y.shape, np.nan)
-        qdd, _ = prob.accelerations(J, prob.forces(t, q, v), prob.gamma(q, v, t))
+        qdd, _ = prob.accelerations(J, prob.forces(t, q, v), prob.gamma(q, v, t), q)
         return np.concatenate([y[self.basis.f:], self.basis.Bt(qdd)])
 
     def after_step(self, t, y):

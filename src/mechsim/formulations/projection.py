@@ -43,21 +43,21 @@ class Projection(FullCoordinates):
             # costs a handful of restarts per run, measured on the seed four-bar.)
             options["projection_tol"] = max(1e-13, 1e-3 * atol)
         super().__init__(problem, rtol, atol, **options)
-        self.s = 1.0 / np.sqrt(problem.mass_diagonal)        # M^{-1/2}
 
-    def _pinv_exact(self, J):
-        """(V_r, Σ_r⁻¹ U_rᵀ) truncated only at round-off: for the projections, which must
-        restore consistency in every direction the constraints still control."""
-        U, sig, Vt = np.linalg.svd(J * self.s, full_matrices=False)
+    @staticmethod
+    def _pinv_exact(Jt):
+        """(V_r, Σ_r⁻¹ U_rᵀ) of the mass-scaled J̃, truncated only at round-off: for the
+        projections, which must restore consistency in every direction the constraints
+        still control."""
+        U, sig, Vt = np.linalg.svd(Jt, full_matrices=False)
         r = int(np.sum(sig > 1e-12 * sig[0])) if sig.size else 0
         return Vt[:r].T, (U[:, :r] / sig[:r]).T
 
-    def _pinv(self, J):
-        """(V, Σ⁺ Uᵀ) of J̃ = J M^{-1/2}, damped: 1/σ becomes σ/(σ² + μ²), μ = rcond·σ_max.
-        Unlike truncation this keeps q̈ continuous as σ_min passes μ, so the error control
-        does not see a jump (truncation made it collapse to microsecond steps on a
-        40-window chain)."""
-        U, sig, Vt = np.linalg.svd(J * self.s, full_matrices=False)
+    def _pinv(self, Jt):
+        """(V, Σ⁺ Uᵀ) of J̃ = J M^{-1/2} = J L⁻ᵀ: truncated below rcond·σ_max, or damped
+        (1/σ becomes σ/(σ² + μ²), μ = rcond·σ_max), which keeps q̈ continuous as σ_min passes
+        μ."""
+        U, sig, Vt = np.linalg.svd(Jt, full_matrices=False)
         self.problem.counters.factorizations += 1
         if not sig.size:
             return Vt.T, U.T
@@ -70,28 +70,33 @@ class Projection(FullCoordinates):
     def accelerations(self, t, q, v):
         prob = self.problem
         _, J, _, gamma = prob.terms(q, v, t)
-        x = self.s * prob.forces(t, q, v)                   # M^{-1/2} Q
+        f = prob.mass_factor(q)
+        x = f.left(prob.forces(t, q, v))                   # L⁻¹ Q
         if J.shape[0]:
-            V, Ui = self._pinv(J)
+            V, Ui = self._pinv(f.cols(J))
             x = x - V @ (V.T @ x) + V @ (Ui @ gamma)
-        return self.s * x
+        return f.right(x)
 
     def project_positions(self, q, t):
         prob = self.problem
         q = np.array(q, float)
         tol = 0.01 * self.projection_tol
+        f = prob.mass_factor(q)
         for k in range(20):
             phi, J = prob.position_terms(q, t)
             err = float(np.max(np.abs(phi)))
             if err <= tol:
                 break
-            V, Ui = self._pinv_exact(J) if self.exact_projection else self._pinv(J)
-            q -= self.s * (V @ (Ui @ phi))
+            Jt = f.cols(J)
+            V, Ui = self._pinv_exact(Jt) if self.exact_projection else self._pinv(Jt)
+            q -= f.right(V @ (Ui @ phi))
             prob.counters.projections += 1
         return q, k, err
 
     def project_velocities(self, q, v, t):
         prob = self.problem
         J = prob.phi_q(q, t)
-        V, Ui = self._pinv_exact(J) if self.exact_projection else self._pinv(J)
-        return v - self.s * (V @ (Ui @ (J @ v + prob.phi_t(q, t))))
+        f = prob.mass_factor(q)
+        Jt = f.cols(J)
+        V, Ui = self._pinv_exact(Jt) if self.exact_projection else self._pinv(Jt)
+        return v - f.right(V @ (Ui @ (J @ v + prob.phi_t(q, t))))

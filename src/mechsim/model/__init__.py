@@ -3,10 +3,11 @@
 from ._checks import ModelError
 from .bodies import Body, Ground, RigidBody
 from .drivers import Driver
+from .flexible_beam import FlexibleBeam
 from .forces import Force, Spring, Torque
 from .joints import Joint, Prismatic, Revolute
 from .mechanism import AssemblyError, AssemblyReport, DofReport, Mechanism
 
-__all__ = ["AssemblyError", "AssemblyReport", "Body", "DofReport", "Driver", "Force", "Ground",
+__all__ = ["AssemblyError", "AssemblyReport", "Body", "DofReport", "Driver", "FlexibleBeam", "Force", "Ground",
            "Joint", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody", "Spring",
            "Torque"]

@@ -35,6 +35,24 @@ class Body:
     def local_direction(self, global_direction) -> np.ndarray:
         return rotation(self.angle).T @ np.asarray(global_direction, float)
 
+    # Hooks for bodies whose points move relative to their frame (flexible beams); a rigid
+    # body's points do not.
+    def attachment_parameter_names(self, role: str) -> tuple[str, ...]:
+        """Names of the extra joint parameters of a point on this body (side `role`)."""
+        return ()
+
+    def attachment_values(self, local, who: str) -> tuple[float, ...]:
+        """Values of those parameters at body point `local`; raises if it cannot attach."""
+        return ()
+
+    def point_modes(self, local, who: str = "") -> np.ndarray | None:
+        """(2, k) modal displacement of body point `local` per unit η (None: rigid)."""
+        return None
+
+    def initial_node_rotation(self, local) -> float:
+        """Rotation of the material at `local` relative to the frame, initially."""
+        return 0.0
+
     def __repr__(self):
         return f"{type(self).__name__}({self.name!r})"
 

@@ -11,6 +11,10 @@ Contract for a new joint (sympy's `Joint` builds itself through a few hooks in t
   2. `parameter_values()` -> floats in the order of `parameter_names`;
   3. `equations(ctx, p)` -> list of expressions, `p` maps parameter names to symbols;
   4. optionally `coordinate(ctx, p)` and `initial_coordinate()` so a `Driver` can prescribe it.
+
+A side attached to a flexible beam adds the mode shapes of its node as parameters (`a_u1`,
+`a_v1`, `a_r1`, … for body_a): `ctx.point(body, sx, sy, p, "a")` moves the point with the
+modes and `ctx.angle(body, p, "a")` turns with the node.
 """
 
 from __future__ import annotations
@@ -33,6 +37,13 @@ class Joint:
             raise ModelError(f"{self.kind} joint: connects body '{body_a.name}' to itself")
         self.body_a, self.body_b = body_a, body_b
         self.name = name or f"{self.kind}({body_a.name},{body_b.name})"
+        self.parameter_names = type(self).parameter_names + \
+            body_a.attachment_parameter_names("a") + body_b.attachment_parameter_names("b")
+
+    def _attachments(self, sa, sb) -> tuple[float, ...]:
+        """Mode-shape parameter values of the attachment points sa (on body_a) and sb."""
+        who = f"{self.kind} joint '{self.name}'"
+        return self.body_a.attachment_values(sa, who) + self.body_b.attachment_values(sb, who)
 
     @property
     def n_equations(self) -> int:
@@ -86,25 +97,31 @@ class Revolute(Joint):
             self.at = None
             self.local_a = vector2(local_a, "local_a", owner)
             self.local_b = vector2(local_b, "local_b", owner)
+        self._attachments(*self._locals())          # a point on a beam must be a node
 
     def parameter_values(self):
+        sa, sb = self._locals()
+        return (sa[0], sa[1], sb[0], sb[1]) + self._attachments(sa, sb)
+
+    def _locals(self):
         if self.at is not None:
-            sa, sb = self.body_a.local_point(self.at), self.body_b.local_point(self.at)
-        else:
-            sa, sb = self.local_a, self.local_b
-        return (sa[0], sa[1], sb[0], sb[1])
+            return self.body_a.local_point(self.at), self.body_b.local_point(self.at)
+        return self.local_a, self.local_b
 
     def equations(self, ctx, p):
-        pa = ctx.point(self.body_a, p["ax"], p["ay"])
-        pb = ctx.point(self.body_b, p["bx"], p["by"])
+        pa = ctx.point(self.body_a, p["ax"], p["ay"], p, "a")
+        pb = ctx.point(self.body_b, p["bx"], p["by"], p, "b")
         return [pb[0] - pa[0], pb[1] - pa[1]]
 
     def coordinate(self, ctx, p):
-        """Relative angle of body_b with respect to body_a."""
-        return ctx.angle(self.body_b) - ctx.angle(self.body_a)
+        """Relative angle of body_b with respect to body_a (at the joint's node for a
+        flexible beam)."""
+        return ctx.angle(self.body_b, p, "b") - ctx.angle(self.body_a, p, "a")
 
     def initial_coordinate(self):
-        return self.body_b.angle - self.body_a.angle
+        sa, sb = self._locals()
+        return (self.body_b.angle + self.body_b.initial_node_rotation(sb)
+                - self.body_a.angle - self.body_a.initial_node_rotation(sa))
 
 
 class Prismatic(Joint):
@@ -128,27 +145,30 @@ class Prismatic(Joint):
             raise ModelError(f"{owner}: `axis` must be a non-zero direction, got {axis.tolist()}")
         self.axis = axis / norm
         self.at = vector2(at, "at", owner)
+        self._attachments(self.body_a.local_point(self.at), self.body_b.local_point(self.at))
 
     def parameter_values(self):
         sa, sb = self.body_a.local_point(self.at), self.body_b.local_point(self.at)
         u = self.body_a.local_direction(self.axis)
-        return (sa[0], sa[1], sb[0], sb[1], u[0], u[1], self.body_b.angle - self.body_a.angle)
+        angle0 = (self.body_b.angle + self.body_b.initial_node_rotation(sb)
+                  - self.body_a.angle - self.body_a.initial_node_rotation(sa))
+        return (sa[0], sa[1], sb[0], sb[1], u[0], u[1], angle0) + self._attachments(sa, sb)
 
     def _separation(self, ctx, p):
-        pa = ctx.point(self.body_a, p["ax"], p["ay"])
-        pb = ctx.point(self.body_b, p["bx"], p["by"])
+        pa = ctx.point(self.body_a, p["ax"], p["ay"], p, "a")
+        pb = ctx.point(self.body_b, p["bx"], p["by"], p, "b")
         return [pb[0] - pa[0], pb[1] - pa[1]]
 
     def equations(self, ctx, p):
         d = self._separation(ctx, p)
-        n = ctx.direction(self.body_a, -p["uy"], p["ux"])
-        return [ctx.angle(self.body_b) - ctx.angle(self.body_a) - p["angle0"],
+        n = ctx.direction(self.body_a, -p["uy"], p["ux"], p, "a")
+        return [ctx.angle(self.body_b, p, "b") - ctx.angle(self.body_a, p, "a") - p["angle0"],
                 n[0] * d[0] + n[1] * d[1]]
 
     def coordinate(self, ctx, p):
         """Translation of body_b's point along the axis, measured from body_a's point."""
         d = self._separation(ctx, p)
-        u = ctx.direction(self.body_a, p["ux"], p["uy"])
+        u = ctx.direction(self.body_a, p["ux"], p["uy"], p, "a")
         return u[0] * d[0] + u[1] * d[1]
 
     def initial_coordinate(self):

@@ -9,6 +9,7 @@ import numpy as np
 from ._checks import ModelError, vector2
 from .bodies import Body, Ground, RigidBody
 from .drivers import Driver
+from .flexible_beam import FlexibleBeam
 from .forces import Force, Spring, Torque
 from .joints import Joint
 
@@ -101,6 +102,8 @@ class Mechanism:
         elif isinstance(item, (Spring, Force, Torque)):
             for body in item.bodies:
                 self._check_member(body, f"'{item.name}'")
+            for body, at in _load_points(item):
+                body.attachment_values(body.local_point(at), f"'{item.name}'")
             self.loads.append(item)
         else:
             raise ModelError(f"{owner}: cannot add {item!r}; expected a body, joint, driver, "
@@ -169,7 +172,7 @@ class Mechanism:
     def problem(self):
         """The NumericProblem of this mechanism (compiled once; from the disk cache if seen)."""
         if self._problem is None:
-            from ..problem import NumericProblem, PointLoad, SpringData
+            from ..problem import FlexibleData, NumericProblem, PointLoad, SpringData
             from ..codegen import load_model, structure_key
 
             if not self.bodies:
@@ -195,24 +198,33 @@ class Mechanism:
             springs, loads = [], []
             for ld in self.loads:
                 if isinstance(ld, Spring):
+                    sa, sb = ld.body_a.local_point(ld.at_a), ld.body_b.local_point(ld.at_b)
                     springs.append(SpringData(
                         ld.name, starts[ld.body_a.name], starts[ld.body_b.name],
-                        tuple(ld.body_a.local_point(ld.at_a)), tuple(ld.body_b.local_point(ld.at_b)),
-                        ld.stiffness, ld.damping, ld.rest_length))
+                        tuple(sa), tuple(sb), ld.stiffness, ld.damping, ld.rest_length,
+                        ld.body_a.point_modes(sa), ld.body_b.point_modes(sb)))
                 elif starts[ld.body.name] is None:
                     continue  # a load on the ground does no work
                 elif isinstance(ld, Force):
-                    loads.append(PointLoad(ld.name, starts[ld.body.name],
-                                           tuple(ld.body.local_point(ld.at)),
-                                           _checked_force(ld), False))
+                    s = ld.body.local_point(ld.at)
+                    loads.append(PointLoad(ld.name, starts[ld.body.name], tuple(s),
+                                           _checked_force(ld), False, ld.body.point_modes(s)))
                 else:
                     loads.append(PointLoad(ld.name, starts[ld.body.name], None,
                                            _checked_torque(ld), True))
             mass = np.concatenate([b.mass_diagonal for b in self.bodies])
+            flexible = []
+            for b in self.bodies:
+                if isinstance(b, FlexibleBeam):
+                    from ..flexible.kernel import load_kernel
+                    inv = b.invariants()
+                    flexible.append(FlexibleData(b.name, starts[b.name], inv,
+                                                 load_kernel(b.n_modes),
+                                                 inv.kernel_parameters(self.gravity)))
             self._problem = NumericProblem(model, params, mass, self.gravity, starts,
                                            self.coordinate_names, names, owners,
                                            springs, loads, title=self.name,
-                                           constraint_kinds=kinds)
+                                           constraint_kinds=kinds, flexible=flexible)
         return self._problem
 
     # --- analysis ----------------------------------------------------------------------------
@@ -289,6 +301,15 @@ class Mechanism:
     def __repr__(self):
         return (f"Mechanism({self.name!r}: {len(self.bodies)} bodies, {len(self.joints)} joints, "
                 f"{len(self.drivers)} drivers, {len(self.loads)} loads)")
+
+
+def _load_points(ld):
+    """(body, global point) of each attachment of a spring or force."""
+    if isinstance(ld, Spring):
+        return [(ld.body_a, ld.at_a), (ld.body_b, ld.at_b)]
+    if isinstance(ld, Force):
+        return [(ld.body, ld.at)]
+    return []
 
 
 def _checked_force(ld: Force):

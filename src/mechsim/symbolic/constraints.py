@@ -56,22 +56,37 @@ class SymbolicContext:
 
     def frame(self, body):
         """(x, y, angle) of the body's frame; zeros for the ground."""
-        return self._frames.get(id(body), (sp.S.Zero, sp.S.Zero, sp.S.Zero))
+        return self._frames.get(id(body), (sp.S.Zero, sp.S.Zero, sp.S.Zero))[:3]
 
-    def angle(self, body):
-        return self.frame(body)[2]
+    def modal(self, body):
+        """The modal amplitudes η of a flexible body (empty for rigid bodies)."""
+        return self._frames.get(id(body), ())[3:]
 
-    def direction(self, body, ux, uy):
+    def angle(self, body, p=None, role=None):
+        """Angle of the body's frame; at an attachment (`p`, `role`, see `point`) of a
+        flexible body it includes the modal rotation of that node."""
+        th = self.frame(body)[2]
+        for k, eta in enumerate(self.modal(body), start=1):
+            if p is not None:
+                th = th + eta * p[f"{role}_r{k}"]
+        return th
+
+    def direction(self, body, ux, uy, p=None, role=None):
         """A body-fixed direction (ux, uy) in global components."""
-        th = self.angle(body)
+        th = self.angle(body, p, role)
         c, s = sp.cos(th), sp.sin(th)
         return [c * ux - s * uy, s * ux + c * uy]
 
-    def point(self, body, sx, sy):
-        """Global position of the body-fixed point (sx, sy)."""
-        x, y, _ = self.frame(body)
-        d = self.direction(body, sx, sy)
-        return [x + d[0], y + d[1]]
+    def point(self, body, sx, sy, p=None, role=None):
+        """Global position of the body-fixed point (sx, sy). On a flexible body the point
+        moves with the modes: pass the joint's parameters `p` and the side `role` ("a" or
+        "b") whose mode-shape parameters `<role>_u<k>`, `<role>_v<k>` belong to the point."""
+        x, y, th = self.frame(body)
+        for k, eta in enumerate(self.modal(body), start=1):
+            sx = sx + eta * p[f"{role}_u{k}"]
+            sy = sy + eta * p[f"{role}_v{k}"]
+        c, s = sp.cos(th), sp.sin(th)
+        return [x + c * sx - s * sy, y + s * sx + c * sy]
 
     def parameters(self, item) -> dict:
         return self._params[id(item)]
