@@ -41,6 +41,15 @@ def test_second_run_is_served_from_the_cache_without_sympy(tmp_path):
     assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 1
 
 
+def test_flexible_scene_second_run_needs_neither_sympy_nor_a_rebuild(tmp_path):
+    first = _probe(SCENES / "flexible_four_bar.toml", tmp_path)
+    assert first == {"from_cache": False, "sympy": True, "status": "success"}
+    second = _probe(SCENES / "flexible_four_bar.toml", tmp_path)
+    assert second == {"from_cache": True, "sympy": False, "status": "success"}
+    # the constraint model and the 2-mode beam kernel
+    assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 2
+
+
 def test_import_is_light():
     code = ("import sys, mechsim; print(sorted(m for m in ('sympy', 'matplotlib', 'meshio', "
             "'scipy') if m in sys.modules))")

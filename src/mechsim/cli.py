@@ -7,6 +7,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 
 def _run(args) -> int:
     from .model import ModelError
@@ -50,6 +52,9 @@ def _run(args) -> int:
           f"{len(res.t)} samples)")
     print(f"energy     final drift {res.energy_drift[-1]:+.3e}, "
           f"max |drift| {abs(res.energy_drift).max():.3e} (scale {res.energy_scale:.4g} J)")
+    if np.any(res.energy.strain):
+        print(f"strain     max elastic energy {res.energy.strain.max():.4g} J at "
+              f"t = {res.t[np.argmax(res.energy.strain)]:.4f} s")
     print(f"constraint max ‖Φ‖ {res.constraint_violation.max():.3e}")
     if res.singular_passages:
         print(f"singular   {len(res.singular_passages)} passage(s):")
@@ -64,7 +69,7 @@ def _run(args) -> int:
         print(f"point      {body} {tuple(local)} at t = {res.t[-1]:g}: ({p[0]:.6f}, {p[1]:.6f})")
     plots = [] if args.no_plots else scene.output.get("plots", [])
     written = []
-    if plots or scene.output.get("save"):
+    if plots or scene.output.get("save") or scene.output.get("export"):
         out_dir.mkdir(parents=True, exist_ok=True)
     for name in plots:
         if name != "energy":
@@ -75,6 +80,8 @@ def _run(args) -> int:
         res.plot_energy(path=written[-1])
     if scene.output.get("save"):
         written.append(res.save(out_dir / f"{scene.path.stem}.npz"))
+    if scene.output.get("export"):
+        written.append(res.export(out_dir / str(scene.output["export"])))
     for w in written:
         print(f"wrote      {w}")
     return 0 if res.success else 1

@@ -84,12 +84,14 @@ class PointLoad:
 
 class FlexibleData:
     """A flexible beam's block of coordinates, (x, y, angle, η₁ … η_k) from `start`, with its
-    invariants and generated kernel (`mechsim.flexible`)."""
-    __slots__ = ("name", "start", "invariants", "kernel", "parameters", "slice")
+    invariants and generated kernel (`mechsim.flexible`); `point_modes(local)` gives the
+    (2, k) modal displacement of a body point."""
+    __slots__ = ("name", "start", "invariants", "kernel", "parameters", "slice", "point_modes")
 
-    def __init__(self, name, start, invariants, kernel, parameters):
+    def __init__(self, name, start, invariants, kernel, parameters, point_modes=None):
         self.name, self.start, self.invariants = name, start, invariants
         self.kernel, self.parameters = kernel, tuple(parameters)
+        self.point_modes = point_modes
         self.slice = slice(start, start + 3 + invariants.n_modes)
 
 
@@ -143,12 +145,14 @@ class NumericProblem:
     springs, loads : tuples of SpringData / PointLoad
     flexible : tuple of FlexibleData; their blocks of M depend on q (`mass_diagonal` holds
         only nominal values there, and the rigid-body terms skip them)
+    drawing : list of (body name, start, local points (p, 2), modal shapes (p, 2, k) or
+        None): the polylines `SimulationResult.export` draws
     """
 
     def __init__(self, model, parameters, mass_diagonal, gravity, body_starts,
                  coordinate_names, constraint_names, constraint_owners,
                  springs=(), loads=(), title="mechanism", constraint_kinds=None,
-                 flexible=()):
+                 flexible=(), drawing=()):
         self.model = model
         self.p = tuple(float(x) for x in parameters)
         self.mass_diagonal = np.asarray(mass_diagonal, float)
@@ -164,6 +168,7 @@ class NumericProblem:
         self.springs = tuple(springs)
         self.loads = tuple(loads)
         self.title = title
+        self.drawing = list(drawing)
         self.counters = Counters()
         self.flexible = tuple(flexible)
         self.constant_mass = not self.flexible
@@ -251,9 +256,13 @@ class NumericProblem:
         return Q
 
     def nonconservative_forces(self, t, q, v) -> np.ndarray:
-        """The part of Q with no potential: spring damping, point forces and torques."""
+        """The part of Q with no potential: spring damping, point forces and torques, and
+        the modal damping of flexible beams."""
         Q = np.zeros(self.n)
         self._add_loads(t, q, v, Q, elastic=False)
+        for fb in self.flexible:
+            k = fb.invariants.n_modes
+            Q[fb.start + 3:fb.start + 3 + k] -= fb.invariants.damping * v[fb.start + 3:fb.start + 3 + k]
         return Q
 
     def _add_loads(self, t, q, v, Q, elastic: bool):
@@ -286,7 +295,8 @@ class NumericProblem:
     def has_nonconservative(self) -> bool:
         """Whether anything can do work besides gravity and elastic springs."""
         return bool(self.loads) or any(sp.damping for sp in self.springs) or \
-            bool(self.rheonomic_rows)
+            bool(self.rheonomic_rows) or any(np.any(fb.invariants.damping > 0.0)
+                                             for fb in self.flexible)
 
     @property
     def rheonomic_rows(self) -> list[int]:

@@ -16,6 +16,19 @@
     mass = 0.1
     inertia = 1e-5
     position = [0.45, 0]
+    [[body]]                     # … or an elastic beam with modal coordinates
+    type = "flexible_beam"
+    name = "coupler"
+    start = [0, 0]
+    end = [1, 0]                 # or `length` and `angle`
+    youngs_modulus = 117e9
+    density = 8910
+    area = 1e-4
+    second_moment = "1e-8/12"
+    n_elements = 10
+    n_modes = 2
+    boundary = "pinned-pinned"   # default; also "clamped-free", "free-free"
+    damping_ratio = 0.0
 
     [[joint]]
     type = "revolute"            # or "prismatic" (with `axis`)
@@ -35,6 +48,7 @@
     [output]
     plots = ["energy"]           # written to the output directory
     save = true                  # result as <scene>.npz
+    export = "motion.xdmf"       # meshio time series of the bodies (ParaView)
     points = [["coupler", [0.5, 0.0]]]   # final positions printed in the summary
 
 Numbers may be given as expressions (+ − * / **, pi, sin, cos, tan, sqrt, radians, degrees,
@@ -51,8 +65,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .model import (Driver, Force, Mechanism, ModelError, Prismatic, Revolute, RigidBody, Spring,
-                    Torque)
+from .model import (Driver, FlexibleBeam, Force, Mechanism, ModelError, Prismatic, Revolute,
+                    RigidBody, Spring, Torque)
 
 
 class SceneError(ModelError):
@@ -122,7 +136,10 @@ class Scene:
 
 _KEYS = {
     "body": {"name", "mass", "inertia", "position", "angle", "velocity", "angular_velocity",
-             "rod"},
+             "rod", "type"},
+    "flexible_beam": {"type", "name", "start", "end", "length", "angle", "youngs_modulus",
+                      "density", "area", "second_moment", "n_elements", "n_modes", "boundary",
+                      "damping_ratio", "velocity", "angular_velocity"},
     "joint": {"type", "name", "bodies", "at", "local_a", "local_b", "axis"},
     "driver": {"joint", "expression", "name"},
     "spring": {"bodies", "at_a", "at_b", "stiffness", "rest_length", "damping", "name"},
@@ -132,8 +149,9 @@ _KEYS = {
 _SIMULATION_KEYS = {"t_end", "method", "rtol", "atol", "max_step", "output_step", "integrator",
                     "first_step", "t_start", "alpha", "beta", "projection", "projection_tol",
                     "h", "max_steps", "rcond", "regularization", "exact_projection"}
-_OUTPUT_KEYS = {"plots", "save", "points", "directory"}
-_TOP_KEYS = {"name", "gravity", "parameters", "simulation", "output"} | set(_KEYS)
+_OUTPUT_KEYS = {"plots", "save", "points", "directory", "export"}
+_TOP_KEYS = {"name", "gravity", "parameters", "simulation", "output"} | set(_KEYS) - \
+    {"flexible_beam"}
 
 
 def load_scene(path) -> Scene:
@@ -184,11 +202,16 @@ def load_scene(path) -> Scene:
 
     for i, t in enumerate(data.get("body", [])):
         where = f"{f}: body[{i}]" + (f" ({t['name']!r})" if "name" in t else "")
-        _check_keys(t, _KEYS["body"], where)
+        kind = t.get("type", "rigid")
+        if kind not in ("rigid", "flexible_beam"):
+            raise SceneError(f"{where}: `type` must be 'rigid' or 'flexible_beam', got {kind!r}")
+        _check_keys(t, _KEYS["body" if kind == "rigid" else kind], where)
         if "name" not in t:
             raise SceneError(f"{where}: needs a `name`")
         kw = {**opt(t, "velocity", where, vec), **opt(t, "angular_velocity", where, num)}
-        if "rod" in t:
+        if kind == "flexible_beam":
+            body = wrap(where, lambda: _beam(t, where, num, vec, opt, kw))
+        elif "rod" in t:
             rod = t["rod"]
             if not isinstance(rod, list) or len(rod) != 2:
                 raise SceneError(f"{where}: `rod` must be [start, end]")
@@ -280,6 +303,38 @@ def load_scene(path) -> Scene:
     output = dict(data.get("output", {}))
     _check_keys(output, _OUTPUT_KEYS, f"{f}: [output]")
     return Scene(path, mech, simulation, output)
+
+
+def _beam(t, where, num, vec, opt, kw) -> FlexibleBeam:
+    """A FlexibleBeam from its scene table: `start` plus `end`, or `length` and `angle`."""
+    if "start" not in t:
+        raise SceneError(f"{where}: a flexible beam needs `start`")
+    start = vec(t["start"], f"{where} start")
+    if "end" in t:
+        if "length" in t or "angle" in t:
+            raise SceneError(f"{where}: give `end`, or `length` and `angle`, not both")
+        end = vec(t["end"], f"{where} end")
+        kw["length"] = math.hypot(end[0] - start[0], end[1] - start[1])
+        kw["angle"] = math.atan2(end[1] - start[1], end[0] - start[0])
+    elif "length" in t:
+        kw["length"] = num(t["length"], f"{where} length")
+        kw.update(opt(t, "angle", where, num))
+    else:
+        raise SceneError(f"{where}: a flexible beam needs `end` or `length`")
+    for key in ("youngs_modulus", "density", "area", "second_moment"):
+        if key not in t:
+            raise SceneError(f"{where}: a flexible beam needs `{key}`")
+        kw[key] = num(t[key], f"{where} {key}")
+    for key in ("n_elements", "n_modes"):
+        if key in t:
+            value = num(t[key], f"{where} {key}")
+            if value != int(value):
+                raise SceneError(f"{where}: `{key}` must be a whole number, got {value}")
+            kw[key] = int(value)
+    kw.update(opt(t, "damping_ratio", where, num))
+    if "boundary" in t:
+        kw["boundary"] = t["boundary"]
+    return FlexibleBeam(t["name"], start=start, **kw)
 
 
 def _check_keys(table, allowed, where):

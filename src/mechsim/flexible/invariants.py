@@ -37,7 +37,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg.lapack import dpotrf as _potrf, dtrtri as _trtri
 
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(4)    # exact to degree 7
 
@@ -175,9 +174,10 @@ class BeamInvariants:
 def inverse_cholesky(Mb) -> np.ndarray:
     """L⁻¹ of the Cholesky factor Mb = L Lᵀ (LAPACK directly: numpy's wrappers cost more
     than the factorisation of a 5 × 5 block)."""
-    L, info = _potrf(Mb, lower=1)
+    from scipy.linalg.lapack import dpotrf, dtrtri      # loaded once a simulation runs
+    L, info = dpotrf(Mb, lower=1)
     if info == 0:
-        L, info = _trtri(L, lower=1)
+        L, info = dtrtri(L, lower=1)
     if info != 0:
         raise np.linalg.LinAlgError("the mass matrix of a flexible beam is not positive "
                                     "definite (modal amplitudes far beyond small deformation?)")

@@ -16,7 +16,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
 from ..linear.rotor import timoshenko_element
 
@@ -86,10 +85,16 @@ def beam_modes(length, youngs_modulus, density, area, second_moment, n_elements=
     if not (isinstance(n_modes, int) and 1 <= n_modes <= available):
         raise ValueError(f"{owner}: `n_modes` must be between 1 and {available} for "
                          f"{n_elements} element(s) {boundary}, got {n_modes!r}")
-    w2, vec = sla.eigh(K[np.ix_(free, free)], M[np.ix_(free, free)])
+    # K φ = ω² M φ through M = L Lᵀ: (L⁻¹ K L⁻ᵀ) y = ω² y, φ = L⁻ᵀ y is mass-normalised.
+    # (numpy alone: a scene with beams should not pay for importing scipy.linalg.)
+    L = np.linalg.cholesky(M[np.ix_(free, free)])
+    Li = np.linalg.inv(L)
+    A = Li @ K[np.ix_(free, free)] @ Li.T
+    w2, y = np.linalg.eigh(0.5 * (A + A.T))
+    vec = Li.T @ y
     keep = slice(rigid, rigid + n_modes)
     shapes = np.zeros((n, n_modes))
-    shapes[free] = vec[:, keep]                     # eigh normalises to Φᵀ M Φ = I
+    shapes[free] = vec[:, keep]                     # Φᵀ M Φ = I
     freqs = np.sqrt(np.maximum(w2[keep], 0.0))
     return ModalBasis(shapes.reshape(n_elements + 1, 3, n_modes), freqs, boundary,
                       np.linspace(0.0, length, n_elements + 1), K, M)

@@ -46,6 +46,8 @@ def _solve(A, b):
 def _condition(A) -> float:
     """1-norm condition number ‖A‖₁ ‖A⁻¹‖₁ (inf if singular); an explicit inverse of the
     small Φ_u is cheaper than the SVD behind np.linalg.cond."""
+    if A.size == 0:
+        return 1.0                      # no constraints: nothing to condition
     if A.shape[0] != A.shape[1]:
         return float(np.linalg.cond(A))
     try:

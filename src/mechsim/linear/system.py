@@ -20,7 +20,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg as sla
 
 
 def _square(name, a, n=None):
@@ -56,6 +55,7 @@ class LinearSystem:
         self.K = _square("K", K, n)
         if not np.allclose(self.M, self.M.T, rtol=1e-12, atol=1e-14 * np.abs(self.M).max()):
             raise ValueError("`M` must be symmetric")
+        import scipy.linalg as sla      # lazily: beam elements are used without scipy
         try:
             self._chol = sla.cho_factor(self.M)
         except np.linalg.LinAlgError:
@@ -243,6 +243,7 @@ class Exact(_StateSpace):
         Z[:N, :N] = system.A * h
         for k in range(blocks - 1):
             Z[k * N:(k + 1) * N, (k + 1) * N:(k + 2) * N] = np.eye(N)
+        import scipy.linalg as sla
         top = sla.expm(Z)[:N]
         self.E = top[:, :N]
         if system.force is None:

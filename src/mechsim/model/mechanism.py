@@ -220,12 +220,44 @@ class Mechanism:
                     inv = b.invariants()
                     flexible.append(FlexibleData(b.name, starts[b.name], inv,
                                                  load_kernel(b.n_modes),
-                                                 inv.kernel_parameters(self.gravity)))
+                                                 inv.kernel_parameters(self.gravity),
+                                                 b.point_modes))
             self._problem = NumericProblem(model, params, mass, self.gravity, starts,
                                            self.coordinate_names, names, owners,
                                            springs, loads, title=self.name,
-                                           constraint_kinds=kinds, flexible=flexible)
+                                           constraint_kinds=kinds, flexible=flexible,
+                                           drawing=self._drawing(starts))
         return self._problem
+
+    def _drawing(self, starts) -> list:
+        """Polylines for export: a rigid body through its attachment points and centre of
+        mass (ordered along their main direction), a beam through 4 points per element."""
+        attached = {b.name: [np.zeros(2)] for b in self.bodies}
+        for j in self.joints:
+            for side, body in (("a", j.body_a), ("b", j.body_b)):
+                if body.name in attached:
+                    at = getattr(j, "at", None)
+                    local = body.local_point(at) if at is not None else getattr(j, f"local_{side}")
+                    attached[body.name].append(np.asarray(local, float))
+        for ld in self.loads:
+            for body, at in _load_points(ld):
+                if body.name in attached:
+                    attached[body.name].append(body.local_point(at))
+        out = []
+        for b in self.bodies:
+            if isinstance(b, FlexibleBeam):
+                xi = np.linspace(0.0, b.length, 4 * b.n_elements + 1)
+                local = np.column_stack([xi, np.zeros_like(xi)])
+                modal = np.stack([b.point_modes(s) for s in local])
+                out.append((b.name, starts[b.name], local, modal))
+                continue
+            pts = np.unique(np.round(np.array(attached[b.name]), 12), axis=0)
+            if len(pts) == 1:
+                pts = np.vstack([pts, pts])
+            centred = pts - pts.mean(axis=0)
+            direction = np.linalg.svd(centred)[2][0]
+            out.append((b.name, starts[b.name], pts[np.argsort(centred @ direction)], None))
+        return out
 
     # --- analysis ----------------------------------------------------------------------------
     def dof(self, t: float = 0.0) -> DofReport:

@@ -124,13 +124,28 @@ class SimulationResult:
         bodies = sorted({c.rsplit(".", 1)[0] for c in self.coordinate_names})
         raise KeyError(f"no body {name!r} in this result; bodies: {', '.join(bodies)}")
 
+    def _point_modes(self, body, local):
+        """(2, k) modal displacement of `local` on a flexible beam, None on a rigid body."""
+        if hasattr(body, "point_modes"):
+            return body.point_modes(local)
+        name = body if isinstance(body, str) else body.name
+        for fb in getattr(self.problem, "flexible", ()):
+            if fb.name == name:
+                return fb.point_modes(local)
+        if self.problem is None and f"{name}.eta1" in self.coordinate_names:
+            raise RuntimeError(f"the mode shapes of beam '{name}' are not saved with this "
+                               "result; pass the FlexibleBeam object itself")
+        return None
+
     def point(self, body, local=(0.0, 0.0)) -> np.ndarray:
-        """Global position of a body-fixed point over time, shape (n, 2)."""
-        return frame_point(self.q, self._body_start(body), local)
+        """Global position of a body-fixed point over time, shape (n, 2). On a flexible
+        beam `local` = (ξ, y) is a point of the undeformed beam, moved with the modes."""
+        return frame_point(self.q, self._body_start(body), local, self._point_modes(body, local))
 
     def point_velocity(self, body, local=(0.0, 0.0)) -> np.ndarray:
         """Global velocity of a body-fixed point over time, shape (n, 2)."""
-        return frame_point_velocity(self.q, self.v, self._body_start(body), local)
+        return frame_point_velocity(self.q, self.v, self._body_start(body), local,
+                                    self._point_modes(body, local))
 
     # --- energy and constraints --------------------------------------------------------------
     def _need_problem(self, what):
@@ -178,6 +193,15 @@ class SimulationResult:
         Returns the matplotlib Figure; writes it to `path` (PNG/PDF/SVG) when given."""
         from .plots import plot_energy
         return plot_energy(self, path=path, ax=ax)
+
+    def export(self, path) -> Path:
+        """Write the motion as a meshio time series (`.xdmf` opens in ParaView; other meshio
+        formats give one file per output time): rigid bodies as lines through their joints,
+        beams as deformed polylines with displacement, velocity and modal fields. See
+        `mechsim.results.export`."""
+        from .export import export
+        p = self._need_problem("the body geometry for export")
+        return export(self, path, p.drawing)
 
     # --- persistence -------------------------------------------------------------------------
     def save(self, path) -> Path:
