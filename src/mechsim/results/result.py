@@ -147,6 +147,17 @@ class SimulationResult:
         return frame_point_velocity(self.q, self.v, self._body_start(body), local,
                                     self._point_modes(body, local))
 
+    def accelerations(self) -> np.ndarray:
+        """q̈ at the output times, shape (n, nq), from the equations of motion at each sample
+        (computed when asked, not stored). Near a singular configuration the constraint
+        forces are found in the least-squares sense."""
+        p = self._need_problem("the accelerations")
+        out = np.empty_like(self.v)
+        for i, (t, q, v) in enumerate(zip(self.t, self.q, self.v)):
+            _, J, _, gamma = p.terms(q, v, t)
+            out[i] = p.accelerations(J, p.forces(t, q, v), gamma, q)[0]
+        return out
+
     # --- energy and constraints --------------------------------------------------------------
     def _need_problem(self, what):
         if self.problem is None:
