@@ -6,7 +6,8 @@ at a fixed step, solved by Newton each step.
 On a linear system it is exactly the state-space Newmark method (eq. 8); it is A-stable, so a
 stiff mechanism (flexible modes) can be stepped far beyond an explicit method's limit. The
 Newton matrix I − h/2 ∂f/∂y is formed by finite differences once per step from the converged
-state of the previous one and reused (a modified Newton); if Newton stalls it is refreshed.
+state of the previous one and reused (a modified Newton); if Newton stalls it is refreshed,
+and if it still fails the step is halved (up to h/64) for that step only.
 """
 
 from __future__ import annotations
@@ -54,9 +55,19 @@ class Trapezoidal(OdeSolver):
     def _step_impl(self):
         t, y, f = self.t, self.y, self.f
         h = min(self.h, self.max_step, self.t_bound - t)
+        # Where Newton fails at the nominal step (a singular configuration, where the reduced
+        # equations change fast), the step is halved up to six times for this step only.
+        for k in range(7):
+            hk = h / 2**k
+            if self._newton_step(t, y, f, hk):
+                return True, None
+        return False, (f"Newton did not converge in the trapezoidal step at t = {t:.9g}, "
+                       f"not even at h/64 = {h / 64:.3g}")
+
+    def _newton_step(self, t, y, f, h) -> bool:
         if self._iter is None or self._iter[1] != h:
             self._iter = (self._newton_matrix(t, y, f, h), h)
-        for _ in range(2):
+        for attempt in range(2):
             Jinv = self._iter[0]
             Y = y + h * f                                  # explicit predictor
             for _ in range(self.max_newton):
@@ -69,12 +80,15 @@ class Trapezoidal(OdeSolver):
                     break
                 if np.sqrt(np.mean((dY / scale) ** 2)) < 0.01:
                     f_new = self.fun(t + h, Y)
+                    if not np.all(np.isfinite(f_new)):
+                        break
                     self._old = (t, y, f, h)
                     self.t, self.y, self.f = t + h, Y, f_new
-                    return True, None
+                    return True
             self.n_rejected += 1
-            self._iter = (self._newton_matrix(t, y, f, h), h)     # refresh and try once more
-        return False, f"Newton did not converge in the trapezoidal step at t = {t:.9g}"
+            if attempt == 0:
+                self._iter = (self._newton_matrix(t, y, f, h), h)   # refresh, try once more
+        return False
 
     def _dense_output_impl(self):
         t, y, f, h = self._old
