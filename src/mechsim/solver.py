@@ -140,18 +140,28 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                                              f"t = {solver.t:.9g}")
                 break
             t_new, y_new = solver.t, solver.y
+            # The step's interpolant, built at most once (scipy's RK methods spend extra
+            # right-hand sides on each `dense_output()` call) and shared by the output
+            # samples and the monitor's search for a minimum inside the step.
+            interpolant = []
+
+            def dense(tk):
+                if not interpolant:
+                    interpolant.append(solver.dense_output())
+                return interpolant[0](tk)
+
             if ts is not None:
                 first = next_out
                 while next_out < len(ts) and ts[next_out] < t_new:
                     next_out += 1
                 inside = [tk for tk in ts[first:next_out] if tk > t_old]
                 if inside:       # one dense-output call for all samples inside the step
-                    ys = np.atleast_2d(solver.dense_output()(np.array(inside)).T)
+                    ys = np.atleast_2d(dense(np.array(inside)).T)
                     for tk, yk in zip(inside, ys):
                         record(tk, *form.state(tk, yk))
             q_new, v_new = form.state(t_new, y_new)
             monitor.observe(t_new, q_new, v_new,
-                            lambda tk: form.state(tk, solver.dense_output()(tk)))
+                            lambda tk: form.state(tk, dense(tk)))
             form.last_step = t_new - t_old
             form.layout_changed = False
             corrected = form.after_step(t_new, y_new)

@@ -43,18 +43,29 @@ def _solve(A, b):
     return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
-def _condition(A) -> float:
+def _condition(A, inv=None) -> float:
     """1-norm condition number ‖A‖₁ ‖A⁻¹‖₁ (inf if singular); an explicit inverse of the
-    small Φ_u is cheaper than the SVD behind np.linalg.cond."""
+    small Φ_u is cheaper than the SVD behind np.linalg.cond. Pass `inv` if it is known."""
     if A.size == 0:
         return 1.0                      # no constraints: nothing to condition
     if A.shape[0] != A.shape[1]:
         return float(np.linalg.cond(A))
-    try:
-        inv = np.linalg.inv(A)
-    except np.linalg.LinAlgError:
-        return np.inf
+    if inv is None:
+        try:
+            inv = np.linalg.inv(A)
+        except np.linalg.LinAlgError:
+            return np.inf
     return float(np.abs(A).sum(axis=0).max() * np.abs(inv).sum(axis=0).max())
+
+
+def _inverse(A):
+    """A⁻¹ of a square matrix, None if it is singular or not square."""
+    if A.shape[0] != A.shape[1]:
+        return None
+    try:
+        return np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return None
 
 
 def _numerical_rank(J) -> int:
@@ -154,8 +165,9 @@ class Partitioned(Formulation):
         self.problem.counters.partitions += 1
         return np.concatenate([np.zeros(bs.f), bs.Bt(v)])
 
-    def _accept(self, t, z, zd, w, wd, J, first=False):
-        """Remember an accepted state: the chord matrix and the predictor's coefficients."""
+    def _accept(self, t, z, zd, w, wd, J, first=False, inverse=None):
+        """Remember an accepted state: the chord matrix and the predictor's coefficients.
+        `inverse` is (Φ_q D)⁻¹ at this state if the caller has it already."""
         prev = None if first else (self.t_last, self.z_last, self.w_last)
         self.t_last, self.z_last = t, z
         JD = self.basis.JD(J)
@@ -164,7 +176,7 @@ class Partitioned(Formulation):
             # An explicit inverse as the chord matrix: one small matmul per iteration, where
             # lu_solve spends ~30 µs in its wrapper. Convergence is judged on ‖Φ‖, so the
             # inverse's conditioning affects only the rate.
-            self._chord = np.linalg.inv(JD)
+            self._chord = np.linalg.inv(JD) if inverse is None else inverse
             G = -self._chord @ self.basis.JB(J)
             self.problem.counters.factorizations += 1
         else:
@@ -281,13 +293,16 @@ class Partitioned(Formulation):
         q, v, J, n_fresh = self.full_state(t, y)
         self.layout_changed = False
         bs = self.basis
-        if n_fresh >= 2 or _condition(bs.JD(J)) > self.cond_max:
+        JD = bs.JD(J)
+        inverse = _inverse(JD)
+        if n_fresh >= 2 or _condition(JD, inverse) > self.cond_max:
             before = self.independent
             basis = self.choose(J)
             if self.name == "svd" or self.independent != before:
                 self.layout_changed = True
                 return self.partition(t, q, v, basis)
-        self._accept(t, y[:bs.f].copy(), y[bs.f:].copy(), bs.Dt(q - self.q_ref), bs.Dt(v), J)
+        self._accept(t, y[:bs.f].copy(), y[bs.f:].copy(), bs.Dt(q - self.q_ref), bs.Dt(v), J,
+                     inverse=inverse)
         return None
 
 
