@@ -160,8 +160,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                     for tk, yk in zip(inside, ys):
                         record(tk, *form.state(tk, yk))
             q_new, v_new = form.state(t_new, y_new)
-            monitor.observe(t_new, q_new, v_new,
-                            lambda tk: form.state(tk, dense(tk)))
+            monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
+                            t_old=t_old)
             form.last_step = t_new - t_old
             form.layout_changed = False
             corrected = form.after_step(t_new, y_new)

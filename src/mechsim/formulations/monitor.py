@@ -17,6 +17,14 @@ for the seed's four-bar, 0.22 for the double four-bar and 0.014 for the 40-windo
 while s/peak is nearly the same function of the crank angle for all three (0.15–0.19 at 10°
 from the singular configuration, 0.03–0.04 at 2°). `enter = 0.07`, `leave = 0.14` of the
 peak (hysteresis) open a band of about ±4° around each passage.
+
+Far from the band the measurement (an SVD and a second Jacobian, ~0.1 ms) is skipped for up
+to `max_skip` steps when two bounds keep s above twice `enter`: Weyl's inequality on the
+Jacobian's change since the last measurement, |σᵢ(J̃) − σᵢ(J̃ₘ)| ≤ ‖J̃ − J̃ₘ‖ (one Jacobian,
+no SVD), for the step's end; and s − R (t_next − t_measured) > 2 enter through a next step
+up to twice as long, with R twice the latest rate or the fastest rate seen in the run. Small
+fixed steps (a flexible mechanism at max step 5e-4 s) then pay for one SVD in a few steps,
+while large steps, which move J̃ a lot, are measured every time.
 """
 
 from __future__ import annotations
@@ -30,6 +38,8 @@ class SingularityMonitor:
     """Records singular passages; `last` and `rate` are s/peak and its rate after the latest
     observation, `inside` tells whether a passage is open."""
 
+    max_skip = 4
+
     def __init__(self, problem, enter: float = 0.07, leave: float = 0.14):
         if not 0.0 < enter < leave:
             raise ValueError(f"singularity thresholds need 0 < enter < leave, got {enter}, {leave}")
@@ -40,6 +50,9 @@ class SingularityMonitor:
         self.last, self.rate = 1.0, 0.0  # s/peak and its rate at the last observation
         self.peak = 0.0
         self._prev = None            # (t, s/peak, ṡ/peak) at the previous observation
+        self._skipped = 0            # steps skipped since that observation
+        self.peak_rate = 0.0         # fastest |ṡ|/peak seen
+        self._measured = None        # (J̃, σ_min, σ_max) at the last measurement
 
     def measure(self, q, t, v=None):
         """(s, ṡ, left singular vector of σ_min); ṡ = 0 when v is None."""
@@ -51,7 +64,9 @@ class SingularityMonitor:
         U, sig, Vt = np.linalg.svd(J, full_matrices=False)
         k = m - 1
         if k >= sig.size or sig[0] <= 0.0:
+            self._measured = None
             return 0.0, 0.0, U[:, -1]
+        self._measured = (J, float(sig[k]), float(sig[0]))
         s = float(sig[k] / sig[0])
         rate = 0.0
         if v is not None:
@@ -73,16 +88,39 @@ class SingularityMonitor:
         """Will s fall below `enter` within the next `h` seconds at its present rate?"""
         return self.last < self.enter or (self.rate < 0.0 and self.last + self.rate * h < self.enter)
 
-    def observe(self, t, q, v=None, state_at=None) -> float:
-        """Take the state at an accepted step. `state_at(t) -> (q, v)` evaluates the step's
-        dense output, used to confirm a minimum hidden inside the step."""
+    def _may_skip(self, q, t, t_old) -> bool:
+        prev = self._prev
+        if self._open is not None or prev is None or t_old is None or \
+                self._skipped >= self.max_skip or self._measured is None:
+            return False
+        bound = max(2.0 * abs(prev[2]), self.peak_rate)
+        horizon = t + 2.0 * (t - t_old) - prev[0]       # through a next step up to twice as long
+        if prev[1] - bound * horizon <= 2.0 * self.enter:
+            return False
+        Jm, smin, smax = self._measured
+        E = float(np.linalg.norm(self.problem.mass_factor(q).cols(self.problem.phi_q(q, t)) - Jm))
+        return max(smin - E, 0.0) / (smax + E) > 2.0 * self.enter * self.peak
+
+    def observe(self, t, q, v=None, state_at=None, t_old=None) -> float:
+        """Take the state at an accepted step that began at `t_old`. `state_at(t) -> (q, v)`
+        evaluates the step's dense output, used to confirm a minimum hidden inside the
+        step. Returns s/peak (the latest measured value when this step was skipped)."""
+        if self._may_skip(q, t, t_old):
+            self._skipped += 1
+            return self.last
         raw, rate, u = self.measure(q, t, v)
+        measured = self._measured        # (the in-step search below measures elsewhere)
         self.peak = max(self.peak, raw)
         s, rate = (raw / self.peak, rate / self.peak) if self.peak > 0 else (0.0, 0.0)
+        self.peak_rate = max(self.peak_rate, abs(rate))
         prev, self._prev = self._prev, (t, s, rate)
+        contiguous = self._skipped == 0 and prev is not None and \
+            (t_old is None or prev[0] == t_old)
+        self._skipped = 0
         self.last, self.rate = s, rate
-        if self._open is None and prev is not None and s >= self.enter and state_at is not None:
+        if self._open is None and contiguous and s >= self.enter and state_at is not None:
             self._hidden_minimum(prev, (t, s, rate), state_at)
+        self._measured = measured
         if self._open is None and s < self.enter:
             self._open = [t, t, raw, self.joints_of(u)]
         elif self._open is not None:

@@ -73,18 +73,19 @@ class AdamsPECE(OdeSolver):
         self._cache: dict = {}
         self._same_h = 0
 
-    def _weights(self, nodes):
-        """Step weights (s = 1) for `nodes`, cached by their pattern: the controller keeps h
-        unchanged unless a real change is called for, so on a steady stretch the nodes are
-        the same integers step after step and the weights are computed once."""
+    def _weights(self, nodes, s=1.0):
+        """Weights ∫_0^s of the Lagrange basis on `nodes`, cached by their pattern: the
+        controller keeps h unchanged unless a real change is called for, so on a steady
+        stretch the nodes are the same integers step after step and the weights are computed
+        once (for dense output on a regular grid, the fractions s recur as well)."""
         # Steps change by factors of two, so the nodes are dyadic up to the round-off of t:
         # snapping the key to multiples of 2⁻³⁰ makes equal patterns hit the cache.
-        key = tuple(np.rint(nodes * 2.0**30).astype(np.int64).tolist())
+        key = tuple(np.rint(np.append(nodes, s) * 2.0**30).astype(np.int64).tolist())
         w = self._cache.get(key)
         if w is None:
             if len(self._cache) > 4096:
                 self._cache.clear()
-            w = self._cache[key] = integration_weights(np.asarray(nodes, float), 1.0)[0]
+            w = self._cache[key] = integration_weights(np.asarray(nodes, float), s)[0]
         return w
 
     def _norm(self, e, y_a, y_b):
@@ -193,16 +194,17 @@ class AdamsPECE(OdeSolver):
 
     def _dense_output_impl(self):
         t, h, y, F, nodes = self._dense
-        return _AdamsDense(t, t + h, y, h, F, nodes)
+        return _AdamsDense(t, t + h, y, h, F, nodes, self._weights)
 
 
 class _AdamsDense(DenseOutput):
-    def __init__(self, t_old, t, y_old, h, F, nodes):
+    def __init__(self, t_old, t, y_old, h, F, nodes, weights):
         super().__init__(t_old, t)
         self.y_old, self.hh, self.F, self.nodes = y_old, h, F, nodes
+        self.weights = weights
 
     def _call_impl(self, t):
         s = (np.atleast_1d(t) - self.t_old) / self.hh
-        w = integration_weights(self.nodes, s)                       # (P, K)
+        w = np.array([self.weights(self.nodes, sk) for sk in s])     # (P, K)
         out = self.y_old[None, :] + self.hh * (w @ self.F)          # (P, n)
         return out[0] if np.ndim(t) == 0 else out.T
