@@ -140,7 +140,13 @@ class AdamsPECE(OdeSolver):
         self.fs.append(f_c)
         del self.ts[:-(self.max_order + 2)], self.fs[:-(self.max_order + 2)]
         self._same_h += 1
-        self.order, factor = self._choose_order(k, h, y, y_c, Fc, err)
+        if h >= self.max_step * (1.0 - 1e-12) and err <= 0.5:
+            # Held at max_step with room to spare: no order would allow a longer step, and
+            # every order costs the same two evaluations, so the choice is skipped (a flexible
+            # mechanism at a small max_step spends most steps here).
+            self.order, factor = k, 1.0
+        else:
+            self.order, factor = self._choose_order(k, h, y, y_c, Fc, err)
         if factor != 1.0:
             self._same_h = 0
         self.h = h * factor
