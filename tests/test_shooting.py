@@ -163,6 +163,30 @@ def test_table_3_case_1_converges_to_the_33_mode():
     assert np.max(np.abs(three.x[-1] - three.x[0])) < 1e-5
 
 
+def test_impact_pair_floquet_multipliers_match_the_growth_of_a_perturbation():
+    """The multipliers come from the state monodromy ∂y(T)/∂y(0) at fixed phase (the
+    shooting unknowns hold φ instead of x2, so ∂y(T)/∂u is not a state map). The (3, 3)
+    orbit is unstable: a perturbation along the dominant eigenvector, flowed on its own
+    with the impacts, is multiplied by −4.77 per period. Translation of the pair as a whole
+    is neutral: a double multiplier 1."""
+    pair = impact_pair()
+    sol = ms.shooting.solve(pair, TABLE3_TRUE, method="newton")
+    assert sol.mode == (3, 3) and sol.stable is False
+    lam = sol.floquet_multipliers[np.argsort(-np.abs(sol.floquet_multipliers))]
+    assert lam[0].real == pytest.approx(-4.7697, rel=1e-3) and abs(lam[0].imag) < 1e-9
+    assert np.allclose(np.abs(lam[1:3]), 1.0, atol=1e-4) and abs(lam[3]) < 0.01
+    vals, vecs = np.linalg.eig(pair.floquet_matrix(sol.x0))
+    k = int(np.argmax(np.abs(vals)))
+    direction = np.real(vecs[:, k]) / np.linalg.norm(np.real(vecs[:, k]))
+    y0, phi = pair.initial_state(sol.x0), sol.x0[3]
+    eps = 1e-7
+    for periods in (1, 2):
+        a, b = y0 + eps * direction, y0.copy()
+        for _ in range(periods):
+            a, b = pair.state_flow(a, phi).x[-1], pair.state_flow(b, phi).x[-1]
+        assert (a - b) @ direction / eps == pytest.approx(vals[k].real ** periods, rel=1e-3)
+
+
 def test_impact_pair_bad_input():
     with pytest.raises(ValueError, match="`restitution` must be in"):
         impact_pair(1.5)

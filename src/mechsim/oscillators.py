@@ -245,9 +245,28 @@ class ImpactPair(PeriodicProblem):
 
     def flow(self, u, t_span=None, samples=400):
         u = self.check(u)
-        phi = float(u[3])
+        return self.state_flow(self.initial_state(u), float(u[3]), t_span, samples)
+
+    def floquet_matrix(self, u, rel_step=1e-6) -> np.ndarray:
+        """∂y(T)/∂y(0) of the state y = (x1, ẋ1, x2, ẋ2) at the fixed phase φ of `u`
+        (central differences; the perturbed flows meet the same impacts, so the saltation
+        at each impact is included). Its eigenvalues are the Floquet multipliers. (The
+        shooting Jacobian ∂y(T)/∂u is not a state-to-state map: u holds φ instead of x2.)"""
+        u = self.check(u)
+        y0, phi = self.initial_state(u), float(u[3])
+        M = np.empty((4, 4))
+        for j in range(4):
+            d = rel_step * max(1.0, abs(y0[j]))
+            yp, ym = y0.copy(), y0.copy()
+            yp[j] += d
+            ym[j] -= d
+            M[:, j] = (self.state_flow(yp, phi).x[-1] - self.state_flow(ym, phi).x[-1]) / (2 * d)
+        return M
+
+    def state_flow(self, y0, phi, t_span=None, samples=400) -> Trajectory:
+        """The motion from any state y0 = (x1, ẋ1, x2, ẋ2) at phase φ (|x1 − x2| ≤ r)."""
         t, t_end = t_span or (0.0, self.period)
-        s = self.initial_state(u)
+        s = np.array(y0, float)
         ts, xs, events = [t], [s.copy()], []
         dt = self.period / 4000
         for _ in range(10000):

@@ -114,7 +114,9 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
     guess : the unknowns' starting values (for "warner", the other n guess vectors are
         `guess · scale^k`, as in the paper's tables, unless `guesses` gives all n+1)
     tol : stop when max |g| < tol (the paper's eq. 8: 1e-6)
-    floquet : compute the Floquet multipliers at the solution (monodromy eigenvalues)
+    floquet : compute the Floquet multipliers at the solution: eigenvalues of the state
+        monodromy (`problem.floquet_matrix(u)` where the unknowns are not the state, else
+        ∂x(T)/∂x(0) by finite differences)
     """
     if method not in SHOOTING_METHODS:
         raise ValueError(f"unknown method {method!r}; valid methods: "
@@ -126,7 +128,11 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
         problem, guess, tol, max_iter, scale=scale, guesses=guesses)
     converged = message == "converged"
     traj = problem.flow(x)
-    mults = np.linalg.eigvals(monodromy(problem, x)) if floquet and converged else None
+    mults = None
+    if floquet and converged:
+        state_map = problem.floquet_matrix(x) if hasattr(problem, "floquet_matrix") \
+            else monodromy(problem, x)
+        mults = np.linalg.eigvals(state_map)
     mode = problem.mode(x) if hasattr(problem, "mode") else None
     return ShootingResult(converged, np.asarray(x), its, float(np.max(np.abs(g))), message,
                           traj, mults, history, mode)
