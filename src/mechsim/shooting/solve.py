@@ -75,16 +75,35 @@ def _warner(problem, guess, tol, max_iter, scale, guesses):
     return X[best], G[best], max_iter, history, f"no convergence within {max_iter} iterations"
 
 
+def residual_jacobian(problem, u, g, rel_step=1e-6):
+    """∂g/∂u by forward differences, reusing g = g(u): n flows. (For the oscillators
+    g = x(0) − x(T) and ∂g/∂u = I − Φ; for the impact pair x(0) is not u itself.)"""
+    u = np.asarray(u, float)
+    J = np.empty((g.size, u.size))
+    for j in range(u.size):
+        d = rel_step * max(1.0, abs(u[j]))
+        up = u.copy()
+        up[j] += d
+        J[:, j] = (problem.residual(up) - g) / d
+    return J
+
+
 def _newton(problem, guess, tol, max_iter, **_):
-    """Damped Newton: (I − Φ) Δu = −g with Φ the monodromy (by finite differences of the
-    flow), halving the step until ‖g‖ decreases."""
+    """Quasi-Newton shooting: the Jacobian ∂g/∂u by forward differences (n flows), then
+    Broyden's rank-one updates (no extra flow) while they keep converging; a fresh Jacobian
+    when a step had to be damped or reduced ‖g‖ by less than half. Steps are halved until
+    ‖g‖ decreases. On a nearly linear problem (Coulomb friction without stops) this takes
+    n + 2 or 3 flows in all, where Newton with a central-difference monodromy took 5 per
+    iteration."""
     u = np.array(guess, float)
     g = problem.residual(u)
     history = []
+    J = None
     for it in range(1, max_iter + 1):
-        # Minimum-norm step: I − Φ is singular along any symmetry of the problem (the
-        # impact pair may be shifted as a whole: a family of periodic solutions).
-        J = np.eye(problem.n) - monodromy(problem, u)
+        if J is None:
+            J = residual_jacobian(problem, u, g)
+        # Minimum-norm step: J is singular along any symmetry of the problem (the impact
+        # pair may be shifted as a whole: a family of periodic solutions).
         du = -np.linalg.lstsq(J, g, rcond=1e-10)[0]
         lam, norm = 1.0, np.linalg.norm(g)
         for _ in range(30):
@@ -95,7 +114,13 @@ def _newton(problem, guess, tol, max_iter, **_):
             if np.linalg.norm(g_new) < norm or lam < 1e-6:
                 break
             lam *= 0.5
-        u, g = u + lam * du, g_new
+        step = lam * du
+        good = lam == 1.0 and np.linalg.norm(g_new) < 0.5 * norm
+        if good and np.all(np.isfinite(g_new)):
+            J = J + np.outer(g_new - g - J @ step, step) / (step @ step)      # Broyden
+        else:
+            J = None
+        u, g = u + step, g_new
         history.append((it, float(np.max(np.abs(g)))))
         if np.max(np.abs(g)) < tol:
             return u, g, it, history, "converged"
