@@ -244,6 +244,28 @@ def test_regime_map_machinery_recovers_the_seed_mode():
     assert np.array_equal(np.isnan(par.x0), np.isnan(ser.x0))
 
 
+def test_regime_map_finds_periodic_states_that_scale_with_frequency():
+    """An 8 × 8 map around Table 3's point. In time τ = ωt and lengths x/r the pair's
+    equations read x1'' = −(A/r) cos(τ + φ) between impacts, so ω only rescales time: a
+    periodic state found at (A, ω), with its velocities scaled by ω'/ω, must be periodic at
+    (A, ω') in the same mode — an independent check of every point the map reports."""
+    seed = [0.14716, 5.9275, 9.4294, -0.68051]
+    A, W = np.linspace(0.16, 0.24, 8), np.linspace(40.0, 60.0, 8)
+    rm = ms.shooting.regime_map(A, W, seed, 0.189, 50.0, processes=2)
+    found = rm.modes[:, :, 0] >= 0
+    assert found.mean() >= 0.9
+    assert tuple(rm.modes[np.argmin(abs(A - 0.189)), np.argmin(abs(W - 50.0))]) == (3, 3)
+    for i, j in zip(*np.nonzero(found)):
+        other = W[(j + 3) % len(W)]
+        x1, v1, v2, phi = rm.x0[i, j]
+        scaled = np.array([x1, v1 * other / W[j], v2 * other / W[j], phi])
+        pair = ms.oscillators.ImpactPair(m1=0.2799, m2=0.000545, clearance=0.028,
+                                         amplitude=A[i], omega=other, restitution=0.7)
+        g = pair.residual(scaled)
+        assert np.max(np.abs(g / [1, other / W[j], 1, other / W[j]])) < 2e-6, (A[i], W[j])
+        assert pair.mode(scaled) == tuple(rm.modes[i, j])
+
+
 def test_flexible_slider_crank_steady_state_and_its_modal_floquet_multipliers():
     """The seed's flexible slider-crank, crank driven at 150 rad/s, rod with 2 % modal
     damping: shooting on the modal coordinates finds the periodic steady state without the

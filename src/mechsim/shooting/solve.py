@@ -42,7 +42,7 @@ def monodromy(problem, u, rel_step=1e-6):
     return Mo
 
 
-def _warner(problem, guess, tol, max_iter, scale, guesses):
+def _warner(problem, guess, tol, max_iter, scale, guesses, **_):
     """Seed 002, appendix, steps 1–7."""
     n = problem.n
     X = (np.array(guesses, float) if guesses is not None
@@ -88,7 +88,7 @@ def residual_jacobian(problem, u, g, rel_step=1e-6):
     return J
 
 
-def _newton(problem, guess, tol, max_iter, **_):
+def _newton(problem, guess, tol, max_iter, max_halvings=30, **_):
     """Quasi-Newton shooting: the Jacobian ∂g/∂u by forward differences (n flows), then
     Broyden's rank-one updates (no extra flow) while they keep converging; a fresh Jacobian
     when a step had to be damped or reduced ‖g‖ by less than half. Steps are halved until
@@ -106,7 +106,7 @@ def _newton(problem, guess, tol, max_iter, **_):
         # pair may be shifted as a whole: a family of periodic solutions).
         du = -np.linalg.lstsq(J, g, rcond=1e-10)[0]
         lam, norm = 1.0, np.linalg.norm(g)
-        for _ in range(30):
+        for _ in range(max_halvings):
             try:
                 g_new = problem.residual(u + lam * du)
             except ValueError:
@@ -131,7 +131,8 @@ SHOOTING_METHODS = {"warner": _warner, "newton": _newton}
 
 
 def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: int = 50,
-          scale: float = 1.01, guesses=None, floquet: bool = True) -> ShootingResult:
+          scale: float = 1.01, guesses=None, floquet: bool = True,
+          max_halvings: int = 30) -> ShootingResult:
     """Find u with g(u) = 0 for a periodic `problem` (see `mechsim.oscillators`).
 
     Parameters
@@ -139,6 +140,8 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
     guess : the unknowns' starting values (for "warner", the other n guess vectors are
         `guess · scale^k`, as in the paper's tables, unless `guesses` gives all n+1)
     tol : stop when max |g| < tol (the paper's eq. 8: 1e-6)
+    max_halvings : "newton" halves a step at most this often looking for a smaller ‖g‖
+        (fewer makes hopeless starts fail sooner, e.g. in a regime map)
     floquet : compute the Floquet multipliers at the solution: eigenvalues of the state
         monodromy (`problem.floquet_matrix(u)` where the unknowns are not the state, else
         ∂x(T)/∂x(0) by finite differences)
@@ -150,7 +153,7 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
         raise ValueError(f"`tol` must be positive, got {tol!r}")
     guess = problem.check(guess)
     x, g, its, history, message = SHOOTING_METHODS[method](
-        problem, guess, tol, max_iter, scale=scale, guesses=guesses)
+        problem, guess, tol, max_iter, scale=scale, guesses=guesses, max_halvings=max_halvings)
     converged = message == "converged"
     traj = problem.flow(x)
     mults = None
