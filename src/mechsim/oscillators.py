@@ -80,17 +80,94 @@ class LinearOscillator(PeriodicProblem):
         return [v, -2 * self.zeta * wn * v - wn**2 * x + self.delta_st * wn**2
                 * math.cos(self.omega * t) - friction]
 
+    @property
+    def closed_form(self) -> bool:
+        """Underdamped: slip phases are evaluated in closed form (else integrated)."""
+        return self.zeta < 1.0
+
+    def _segment(self, t0, x0, v0, friction=0.0):
+        """The motion from (x0, v0) at t0 under the constant extra force −`friction`, in
+        closed form (ζ < 1): returns state(t) -> (x, v) arrays for array t, and the state
+        transition matrix ∂(x, v)(t)/∂(x0, v0) as a function of t."""
+        wn, z, w = self.omega_n, self.zeta, self.omega
+        F = self.delta_st * wn**2
+        den = (wn**2 - w**2) ** 2 + (2 * z * wn * w) ** 2
+        a, b = F * (wn**2 - w**2) / den, F * 2 * z * wn * w / den
+        xs = -friction / wn**2
+        sig, wd = z * wn, wn * math.sqrt(1.0 - z * z)
+        xp0 = a * math.cos(w * t0) + b * math.sin(w * t0) + xs
+        vp0 = -a * w * math.sin(w * t0) + b * w * math.cos(w * t0)
+        c1 = x0 - xp0
+        c2 = (v0 - vp0 + sig * c1) / wd
+
+        def state(t):
+            t = np.asarray(t, float)
+            tau = t - t0
+            e, c, sn = np.exp(-sig * tau), np.cos(wd * tau), np.sin(wd * tau)
+            x = a * np.cos(w * t) + b * np.sin(w * t) + xs + e * (c1 * c + c2 * sn)
+            v = (-a * w * np.sin(w * t) + b * w * np.cos(w * t)
+                 + e * ((-sig * c1 + wd * c2) * c + (-sig * c2 - wd * c1) * sn))
+            return x, v
+
+        def transition(t):
+            tau = t - t0
+            e, c, sn = math.exp(-sig * tau), math.cos(wd * tau), math.sin(wd * tau)
+            return e * np.array([[c + sig / wd * sn, sn / wd],
+                                 [-(wn * wn / wd) * sn, c - sig / wd * sn]])
+
+        def velocity(t):
+            """ẋ at a scalar t (plain math: the root finder calls it ~20 times a stop)."""
+            tau = t - t0
+            e, c, sn = math.exp(-sig * tau), math.cos(wd * tau), math.sin(wd * tau)
+            return (-a * w * math.sin(w * t) + b * w * math.cos(w * t)
+                    + e * ((-sig * c1 + wd * c2) * c + (-sig * c2 - wd * c1) * sn))
+        state.velocity = velocity
+        return state, transition
+
     def flow(self, u, t_span=None, samples=200):
+        return self.flow_with_monodromy(u, t_span, samples)[0]
+
+    def _cached_flow(self, u):
+        """The one-period flow (end points only) and monodromy of u, remembered for the latest
+        u: Newton asks for (g, J), then the Floquet multipliers at the same point."""
+        key = np.asarray(u, float).tobytes()
+        last = getattr(self, "_last", None)
+        if last is None or last[0] != key:
+            last = self._last = (key, self.flow_with_monodromy(u, samples=3))
+        return last[1]
+
+    def flow_with_monodromy(self, u, t_span=None, samples=200):
+        """(Trajectory, ∂x(t_end)/∂x(t_start)) — exact: the motion is known in closed form."""
         u = self.check(u)
         t0, t1 = t_span or (0.0, self.period)
-        s = solve_ivp(self.rhs, (t0, t1), u, method="DOP853", rtol=_RTOL, atol=_ATOL,
-                      dense_output=True)
-        if not s.success:
-            raise ValueError(f"{type(self).__name__}: the flow failed: {s.message}")
+        if not self.closed_form:
+            s = solve_ivp(self.rhs, (t0, t1), u, method="DOP853", rtol=_RTOL, atol=_ATOL,
+                          dense_output=True)
+            if not s.success:
+                raise ValueError(f"{type(self).__name__}: the flow failed: {s.message}")
+            tt = np.linspace(t0, t1, samples)
+            x = s.sol(tt).T
+            x[0], x[-1] = u, s.y[:, -1]
+            return Trajectory(tt, x), None
+        state, transition = self._segment(t0, float(u[0]), float(u[1]))
         tt = np.linspace(t0, t1, samples)
-        x = s.sol(tt).T
-        x[0], x[-1] = u, s.y[:, -1]
-        return Trajectory(tt, x)
+        x = np.column_stack(state(tt))
+        x[0] = u
+        return Trajectory(tt, x), transition(t1)
+
+    def residual_jacobian(self, u):
+        """(g, ∂g/∂u) from one flow: g = u − x(T), ∂g/∂u = I − M with the exact monodromy."""
+        traj, M = self._cached_flow(u)
+        if M is None:
+            return None
+        return traj.x[0] - traj.x[-1], np.eye(2) - M
+
+    def floquet_matrix(self, u):
+        M = self._cached_flow(u)[1]
+        if M is None:
+            from .shooting.solve import monodromy
+            return monodromy(self, u)
+        return M
 
     def steady_amplitude(self) -> float:
         r = self.omega / self.omega_n
@@ -101,9 +178,11 @@ class CoulombOscillator(LinearOscillator):
     """Eq. 10: ẍ + 2ζω_n ẋ + ω_n² x + sign(ẋ) μ g = δ_st ω_n² cos ωt, with true sticking.
 
     At ẋ = 0 the mass sticks while |x − δ_st cos ωt| < μ g / ω_n² (eq. 13) and leaves in the
-    direction of the net force (eq. 12). Slip phases are integrated with events at ẋ = 0
-    (located by scipy's event root finding on the dense output, rtol 1e-12); stick phases
-    are exact — x is constant — and their end is the root of a closed-form function.
+    direction of the net force (eq. 12). Slip phases are linear with constant friction, so
+    for ζ < 1 they are evaluated in closed form and each stop ẋ = 0 is the root of a
+    closed-form function (brentq to round-off); stick phases are exact — x is constant — and
+    their end is a root as well. The monodromy comes with the flow (`flow_with_monodromy`),
+    so Newton shooting needs one flow per iteration.
     """
 
     def __init__(self, zeta, omega_n, delta_st, omega, mu, g=9800.0):
@@ -127,10 +206,20 @@ class CoulombOscillator(LinearOscillator):
         return 0
 
     def flow(self, u, t_span=None, samples=400):
+        return self.flow_with_monodromy(u, t_span, samples)[0]
+
+    def flow_with_monodromy(self, u, t_span=None, samples=400):
+        """(Trajectory, M): the motion over one period (or `t_span`) and its monodromy
+        M = ∂x(t_end)/∂x(t_start), the product of the slip phases' transition matrices
+        (closed form) and the saltation matrices at the stops, diag(1, a⁺/a⁻) (a± the
+        acceleration just after and before; a⁺ = 0 when the mass sticks). Stick phases
+        map (δx, 0) to itself; leaving a stop the net force is zero, so no saltation. M is
+        None where it is undefined (ζ ≥ 1 integrates numerically; a grazing stop)."""
         u = self.check(u)
         t, t_end = t_span or (0.0, self.period)
         x, v = float(u[0]), float(u[1])
         ts, xs, events = [t], [[x, v]], []
+        M = np.eye(2) if self.closed_form else None
         guard = 0
         while t < t_end - 1e-15 * max(1.0, t_end):
             guard += 1
@@ -145,6 +234,8 @@ class CoulombOscillator(LinearOscillator):
                     ts += list(tt[1:])
                     xs += [[x, 0.0]] * (len(tt) - 1)
                     events.append((t, "stick"))
+                    if M is not None:
+                        M = np.array([[1.0, 0.0], [0.0, 0.0]]) @ M
                     t = t_leave
                     if t >= t_end:
                         break
@@ -153,25 +244,73 @@ class CoulombOscillator(LinearOscillator):
             else:
                 d = 1 if v > 0 else -1
             friction = d * self.mu * self.g
-            stop = lambda tt, y: y[1]
-            stop.terminal, stop.direction = True, -d
-            s = solve_ivp(lambda tt, y: self.rhs(tt, y, friction), (t, t_end), [x, v],
-                          method="DOP853", rtol=_RTOL, atol=_ATOL, events=stop,
-                          dense_output=True)
-            if not s.success:
-                raise ValueError(f"CoulombOscillator: the flow failed at t = {t}: {s.message}")
-            t_new = s.t[-1]
-            tt = np.linspace(t, t_new, max(3, int(samples * (t_new - t) / self.period)))
-            seg = s.sol(tt).T
-            ts += list(tt[1:])
-            xs += seg[1:].tolist()
-            t, x, v = t_new, float(s.y[0, -1]), float(s.y[1, -1])
-            if s.status == 1:                                # ẋ reached 0: exactly zero now
+            if self.closed_form:
+                t_new, x, v, part, stopped, T = self._closed_slip(t, x, v, d, friction, t_end,
+                                                                   samples)
+                M = T @ M
+            else:
+                t_new, x, v, part, stopped = self._integrated_slip(t, x, v, d, friction,
+                                                                   t_end, samples)
+            ts += list(part[0][1:])
+            xs += part[1][1:].tolist()
+            t = t_new
+            if stopped:                                      # ẋ reached 0: exactly zero now
                 v = 0.0
                 xs[-1][1] = 0.0
                 events.append((t, "stop"))
+                if M is not None:
+                    a_before = self._acceleration(t, x, friction)
+                    after = self._slip_direction(t, x)
+                    a_after = 0.0 if after == 0 else self._acceleration(
+                        t, x, after * self.mu * self.g)
+                    M = (np.array([[1.0, 0.0], [0.0, a_after / a_before]]) @ M
+                         if abs(a_before) > 1e-9 * self.g else None)
         xs[0] = [float(u[0]), float(u[1])]
-        return Trajectory(np.array(ts), np.array(xs), events)
+        return Trajectory(np.array(ts), np.array(xs), events), M
+
+    def _acceleration(self, t, x, friction):
+        """ẍ at rest (ẋ = 0) under the friction force `friction` (signed)."""
+        return self.delta_st * self.omega_n**2 * math.cos(self.omega * t) \
+            - self.omega_n**2 * x - friction
+
+    def _closed_slip(self, t, x, v, d, friction, t_end, samples):
+        """Slip in direction d from (t, x, v) until ẋ = 0 or t_end, in closed form: the
+        first stop is bracketed on a grid of 128 points per forcing or damped-oscillation
+        period, whichever is shorter, and refined by brentq."""
+        state, transition = self._segment(t, x, v, friction)
+        shortest = min(self.period, 2 * math.pi / self.omega_n)
+        n = max(8, int(math.ceil(128 * (t_end - t) / shortest)))
+        grid = np.linspace(t, t_end, n + 1)
+        dv = d * state(grid)[1]
+        # From rest d·ẋ starts at 0 and rises: look for its first return to 0 after t.
+        idx = np.flatnonzero(dv[1:] <= 0.0)
+        stopped = idx.size > 0
+        if stopped:
+            k = idx[0] + 1
+            lo = grid[k - 1] if k > 1 else t + 1e-9 * (grid[1] - t)
+            f = lambda tt: d * state.velocity(tt)             # noqa: E731
+            if f(lo) <= 0.0:
+                lo = t + 1e-12 * (grid[1] - t)
+            t_new = brentq(f, lo, grid[k], xtol=1e-15, rtol=4 * np.finfo(float).eps)
+        else:
+            t_new = t_end
+        tt = np.linspace(t, t_new, max(3, int(samples * (t_new - t) / self.period)))
+        xx, vv = state(tt)
+        x_new, v_new = float(xx[-1]), float(vv[-1])
+        return t_new, x_new, v_new, (tt, np.column_stack([xx, vv])), stopped, \
+            transition(t_new)
+
+    def _integrated_slip(self, t, x, v, d, friction, t_end, samples):
+        """The same for ζ ≥ 1, with scipy's event location on the dense output."""
+        stop = lambda tt, y: y[1]                              # noqa: E731
+        stop.terminal, stop.direction = True, -d
+        s = solve_ivp(lambda tt, y: self.rhs(tt, y, friction), (t, t_end), [x, v],
+                      method="DOP853", rtol=_RTOL, atol=_ATOL, events=stop, dense_output=True)
+        if not s.success:
+            raise ValueError(f"CoulombOscillator: the flow failed at t = {t}: {s.message}")
+        t_new = s.t[-1]
+        tt = np.linspace(t, t_new, max(3, int(samples * (t_new - t) / self.period)))
+        return t_new, float(s.y[0, -1]), float(s.y[1, -1]), (tt, s.sol(tt).T), s.status == 1
 
     def _stick_end(self, t0, x, t_end):
         """First time after t0 at which |x − δ cos ωt| reaches μg/ω_n² (or t_end)."""

@@ -76,9 +76,16 @@ def _warner(problem, guess, tol, max_iter, scale, guesses, **_):
 
 
 def residual_jacobian(problem, u, g, rel_step=1e-6):
-    """∂g/∂u by forward differences, reusing g = g(u): n flows. (For the oscillators
-    g = x(0) − x(T) and ∂g/∂u = I − Φ; for the impact pair x(0) is not u itself.)"""
+    """∂g/∂u: exact from the problem when it knows its monodromy
+    (`problem.residual_jacobian(u) -> (g, J)` or None), else by forward differences reusing
+    g = g(u): n flows. (For the oscillators g = x(0) − x(T) and ∂g/∂u = I − Φ; for the
+    impact pair x(0) is not u itself.)"""
     u = np.asarray(u, float)
+    exact = getattr(problem, "residual_jacobian", None)
+    if exact is not None:
+        out = exact(u)
+        if out is not None:
+            return out[1]
     J = np.empty((g.size, u.size))
     for j in range(u.size):
         d = rel_step * max(1.0, abs(u[j]))
@@ -91,14 +98,24 @@ def residual_jacobian(problem, u, g, rel_step=1e-6):
 def _newton(problem, guess, tol, max_iter, max_halvings=30, **_):
     """Quasi-Newton shooting: the Jacobian ∂g/∂u by forward differences (n flows), then
     Broyden's rank-one updates (no extra flow) while they keep converging; a fresh Jacobian
-    when a step had to be damped or reduced ‖g‖ by less than half. Steps are halved until
-    ‖g‖ decreases. On a nearly linear problem (Coulomb friction without stops) this takes
+    when a step had to be damped or reduced ‖g‖ by less than half. A problem that knows its
+    monodromy (`residual_jacobian`) gives the exact Jacobian with each flow instead. Steps
+    are halved until ‖g‖ decreases. On a nearly linear problem (Coulomb friction without stops) this takes
     n + 2 or 3 flows in all, where Newton with a central-difference monodromy took 5 per
     iteration."""
     u = np.array(guess, float)
-    g = problem.residual(u)
+    exact = getattr(problem, "residual_jacobian", None)
+
+    def evaluate(x):
+        """(g, J) with the exact J when the problem has it (one flow), else (g, None)."""
+        if exact is not None:
+            out = exact(x)
+            if out is not None:
+                return out
+        return problem.residual(x), None
+
+    g, J = evaluate(u)
     history = []
-    J = None
     for it in range(1, max_iter + 1):
         if J is None:
             J = residual_jacobian(problem, u, g)
@@ -108,15 +125,17 @@ def _newton(problem, guess, tol, max_iter, max_halvings=30, **_):
         lam, norm = 1.0, np.linalg.norm(g)
         for _ in range(max_halvings):
             try:
-                g_new = problem.residual(u + lam * du)
+                g_new, J_new = evaluate(u + lam * du)
             except ValueError:
-                g_new = np.full_like(g, np.inf)
+                g_new, J_new = np.full_like(g, np.inf), None
             if np.linalg.norm(g_new) < norm or lam < 1e-6:
                 break
             lam *= 0.5
         step = lam * du
         good = lam == 1.0 and np.linalg.norm(g_new) < 0.5 * norm
-        if good and np.all(np.isfinite(g_new)):
+        if J_new is not None:
+            J = J_new
+        elif good and np.all(np.isfinite(g_new)):
             J = J + np.outer(g_new - g - J @ step, step) / (step @ step)      # Broyden
         else:
             J = None
