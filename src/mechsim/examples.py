@@ -22,9 +22,17 @@ def four_bar(tilt: float = math.radians(10.0), length: float = 1.0, mass: float 
     Singular (all bars aligned) when the cranks pass horizontal."""
     mech = Mechanism("four-bar", gravity=gravity)
     c, s = length * math.cos(tilt), length * math.sin(tilt)
-    crank = mech.add(RigidBody.rod("crank", (0.0, 0.0), (c, s), mass))
-    coupler = mech.add(RigidBody.rod("coupler", (c, s), (length + c, s), mass))
-    rocker = mech.add(RigidBody.rod("rocker", (length, 0.0), (length + c, s), mass))
+    coupler = RigidBody.rod("coupler", (c, s), (length + c, s), mass)
+    return _parallelogram(mech, coupler, tilt, length, mass)
+
+
+def _parallelogram(mech, coupler, tilt, length, link_mass) -> Mechanism:
+    """Crank and rocker rods of `link_mass` at `tilt`, joined by `coupler` (already built,
+    rigid or elastic): the seed's falling four-bar with joints A, B, C, D."""
+    c, s = length * math.cos(tilt), length * math.sin(tilt)
+    crank = mech.add(RigidBody.rod("crank", (0.0, 0.0), (c, s), link_mass))
+    mech.add(coupler)
+    rocker = mech.add(RigidBody.rod("rocker", (length, 0.0), (length + c, s), link_mass))
     mech.add(Revolute(mech.ground, crank, at=(0.0, 0.0), name="A"))
     mech.add(Revolute(crank, coupler, at=(c, s), name="B"))
     mech.add(Revolute(coupler, rocker, at=(length + c, s), name="C"))
@@ -44,7 +52,6 @@ def flexible_four_bar(youngs_modulus: float = 117e9, density: float = 8910.0,
     mech = Mechanism("flexible four-bar" if not rigid else "four-bar (rigid coupler)",
                      gravity=gravity)
     c, s = length * math.cos(tilt), length * math.sin(tilt)
-    crank = mech.add(RigidBody.rod("crank", (0.0, 0.0), (c, s), link_mass))
     area = width * width
     if rigid:
         coupler = RigidBody.rod("coupler", (c, s), (length + c, s), density * area * length)
@@ -53,13 +60,7 @@ def flexible_four_bar(youngs_modulus: float = 117e9, density: float = 8910.0,
                                density=density, area=area, second_moment=width**4 / 12.0,
                                n_elements=n_elements, n_modes=n_modes, start=(c, s), angle=0.0,
                                damping_ratio=damping_ratio)
-    mech.add(coupler)
-    rocker = mech.add(RigidBody.rod("rocker", (length, 0.0), (length + c, s), link_mass))
-    mech.add(Revolute(mech.ground, crank, at=(0.0, 0.0), name="A"))
-    mech.add(Revolute(crank, coupler, at=(c, s), name="B"))
-    mech.add(Revolute(coupler, rocker, at=(length + c, s), name="C"))
-    mech.add(Revolute(mech.ground, rocker, at=(length, 0.0), name="D"))
-    return mech
+    return _parallelogram(mech, coupler, tilt, length, link_mass)
 
 
 def double_four_bar(n: int = 2, length: float = 1.0, mass: float = 1.0,

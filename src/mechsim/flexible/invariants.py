@@ -127,20 +127,29 @@ class BeamInvariants:
             self.B.ravel(), self.stiffness, self.damping, np.asarray(gravity, float)]))
 
     # --- energies (vectorized over leading dimensions) ---------------------------------------
-    def kinetic(self, x, v):
-        """½ vᵀ M v for block states x, v of shape (..., 3 + k)."""
+    def _moments(self, x, v):
+        """Shared terms of a block state (..., 3 + k): A S̄ (first moment of mass about the
+        frame origin, global), A (J̃ S̄ ω + S_η η̇) (its rate from rotation and modes), the
+        moment of inertia I(η) and the coupling (b₀ + Bᵀη)·η̇."""
         th, eta = x[..., 2], x[..., 3:]
         w, e = v[..., 2], v[..., 3:]
         c, s = np.cos(th), np.sin(th)
         sbar = self.s0 + eta @ self.s_eta.T
         se = e @ self.s_eta.T
-        # Ṙ · A (J̃ S̄ ω + S_η e)
         jx, jy = -sbar[..., 1] * w + se[..., 0], sbar[..., 0] * w + se[..., 1]
-        cross = v[..., 0] * (c * jx - s * jy) + v[..., 1] * (s * jx + c * jy)
+        first = (c * sbar[..., 0] - s * sbar[..., 1], s * sbar[..., 0] + c * sbar[..., 1])
+        rate = (c * jx - s * jy, s * jx + c * jy)
         inertia = self.inertia0 + 2.0 * eta @ self.c + np.sum(eta * eta, axis=-1)
-        coupling = w * np.sum((self.b0 + eta @ self.B) * e, axis=-1)
-        return (0.5 * self.mass * (v[..., 0] ** 2 + v[..., 1] ** 2) + cross
-                + 0.5 * inertia * w * w + coupling + 0.5 * np.sum(e * e, axis=-1))
+        coupling = np.sum((self.b0 + eta @ self.B) * e, axis=-1)
+        return first, rate, inertia, coupling
+
+    def kinetic(self, x, v):
+        """½ vᵀ M v for block states x, v of shape (..., 3 + k)."""
+        _, rate, inertia, coupling = self._moments(x, v)
+        w, e = v[..., 2], v[..., 3:]
+        return (0.5 * self.mass * (v[..., 0] ** 2 + v[..., 1] ** 2)
+                + v[..., 0] * rate[0] + v[..., 1] * rate[1]
+                + 0.5 * inertia * w * w + w * coupling + 0.5 * np.sum(e * e, axis=-1))
 
     def gravity_potential(self, x, gravity):
         """−gᵀ (m R + A S̄)."""
@@ -157,18 +166,10 @@ class BeamInvariants:
 
     def angular_momentum(self, x, v):
         """∫ρ r × ṙ dV about the global origin, for block states of shape (..., 3 + k)."""
-        th, eta = x[..., 2], x[..., 3:]
-        w, e = v[..., 2], v[..., 3:]
-        c, s = np.cos(th), np.sin(th)
-        sbar = self.s0 + eta @ self.s_eta.T
-        se = e @ self.s_eta.T
-        asx, asy = c * sbar[..., 0] - s * sbar[..., 1], s * sbar[..., 0] + c * sbar[..., 1]
-        jx, jy = -sbar[..., 1] * w + se[..., 0], sbar[..., 0] * w + se[..., 1]
-        ajx, ajy = c * jx - s * jy, s * jx + c * jy
+        first, rate, inertia, coupling = self._moments(x, v)
         X, Y, VX, VY = x[..., 0], x[..., 1], v[..., 0], v[..., 1]
-        inertia = self.inertia0 + 2.0 * eta @ self.c + np.sum(eta * eta, axis=-1)
-        return (self.mass * (X * VY - Y * VX) + (X * ajy - Y * ajx) + (asx * VY - asy * VX)
-                + inertia * w + np.sum((self.b0 + eta @ self.B) * e, axis=-1))
+        return (self.mass * (X * VY - Y * VX) + (X * rate[1] - Y * rate[0])
+                + (first[0] * VY - first[1] * VX) + inertia * v[..., 2] + coupling)
 
 
 def inverse_cholesky(Mb) -> np.ndarray:
