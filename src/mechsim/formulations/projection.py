@@ -65,6 +65,7 @@ class Projection(FullCoordinates):
         μ."""
         U, sig, Vt = np.linalg.svd(Jt, full_matrices=False)
         self.problem.counters.factorizations += 1
+        self._sig = sig
         if not sig.size:
             return Vt.T, U.T
         if self.regularization == "truncate":
@@ -82,8 +83,12 @@ class Projection(FullCoordinates):
             Jt = f.cols(J)
             V, Ui = self._pinv(Jt)
             x = x - V @ (V.T @ x) + V @ (Ui @ gamma)
-            if self.regularization == "truncate" and V.shape[1] < min(Jt.shape):
-                x = self._across(t, q, v, Jt, f, x, V.shape[1])
+            r = V.shape[1]
+            # Dropped singular values at round-off level are redundant constraints (or,
+            # with probability nil, a step landing exactly on the singularity): no crossing.
+            if self.regularization == "truncate" and r < min(Jt.shape) and \
+                    self._sig[r] > 1e-12 * self._sig[0]:
+                x = self._across(t, q, v, Jt, f, x, r)
         return f.right(x)
 
     def _across(self, t, q, v, Jt, f, x, r):
