@@ -117,13 +117,14 @@ def slider_crank(crank_length: float = 0.15, rod_length: float = 0.30,
                  crank_speed: float = 150.0, driven: bool = False,
                  gravity=(0.0, -9.81), flexible: bool = False, n_elements: int = 10,
                  n_modes: int = 2, youngs_modulus: float = 2e11, density: float = 7870.0,
-                 width: float = 0.008) -> Mechanism:
+                 width: float = 0.008, damping_ratio: float = 0.0) -> Mechanism:
     """An in-line slider-crank (crank pivot at the origin, slider on the x axis), rigid rods.
     Defaults: the dimensions of the seed's flexible slider-crank (crank 0.15 m, rod 0.30 m of
     8 mm × 8 mm steel, slider 0.075552 kg). The crank starts at `crank_angle` turning at
     `crank_speed`; with `driven=True` a driver holds that speed, otherwise it runs free and
     passes its dead centres on its own inertia. With `flexible=True` the rod is an elastic
-    beam (square section `width`, pinned–pinned modes) whose mass follows from its density."""
+    beam (square section `width`, pinned–pinned modes, modal `damping_ratio`) whose mass
+    follows from its density."""
     r, l = crank_length, rod_length
     if not r < l:
         raise ValueError(f"slider-crank: crank ({r}) must be shorter than the rod ({l})")
@@ -141,7 +142,8 @@ def slider_crank(crank_length: float = 0.15, rod_length: float = 0.30,
         rod = mech.add(FlexibleBeam("rod", length=l, youngs_modulus=youngs_modulus,
                                     density=density, area=width**2, second_moment=width**4 / 12,
                                     n_elements=n_elements, n_modes=n_modes, start=b, angle=phi,
-                                    velocity=vb, angular_velocity=phid))
+                                    velocity=vb, angular_velocity=phid,
+                                    damping_ratio=damping_ratio))
         mech.name = "flexible slider-crank"
     else:
         rod = mech.add(RigidBody.rod("rod", b, c, rod_mass, velocity=vb + phid * l / 2 * e_rod,
