@@ -11,6 +11,7 @@ four-bar has no closed form: its error is the largest distance of the coupler's 
 from __future__ import annotations
 
 import csv
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,7 +36,7 @@ class Problem:
 
     def error(self, res) -> float:
         if self.reference is not None:
-            ref = _reference(self)
+            ref = self.reference()                     # computed once (cached)
             mid = res.point("coupler", (0.5, 0.0))
             ref_mid = np.column_stack([np.interp(res.t, ref.t, ref.point("coupler", (0.5, 0.0))[:, k])
                                        for k in range(2)])
@@ -59,6 +60,7 @@ PROBLEMS = {
 
 
 
+@functools.cache
 def _flexible_reference():
     return examples.flexible_four_bar().simulate(
         1.2, method="projection", rtol=1e-11, atol=1e-13, max_step=5e-4, output_step=1.2e-4)
@@ -68,15 +70,6 @@ PROBLEMS["flexible-four-bar"] = Problem(
     "flexible-four-bar", examples.flexible_four_bar, 1.2, math.radians(10), 0.0, 1,
     max_step=5e-4, integrator="adams", reference=_flexible_reference,
     description="seed 001 elastic coupler, 1.2 s, 2 singular passages")
-
-_references: dict = {}
-
-
-def _reference(prob: Problem):
-    if prob.name not in _references:
-        _references[prob.name] = prob.reference()
-    return _references[prob.name]
-
 
 DEFAULT_PROBLEMS = ("parallelogram", "double-four-bar")
 DEFAULT_METHODS = ("lu", "projection", "hybrid", "baumgarte")

@@ -391,16 +391,11 @@ class ImpactPair(PeriodicProblem):
         (central differences; the perturbed flows meet the same impacts, so the saltation
         at each impact is included). Its eigenvalues are the Floquet multipliers. (The
         shooting Jacobian ∂y(T)/∂u is not a state-to-state map: u holds φ instead of x2.)"""
+        from .shooting.solve import central_jacobian
         u = self.check(u)
-        y0, phi = self.initial_state(u), float(u[3])
-        M = np.empty((4, 4))
-        for j in range(4):
-            d = rel_step * max(1.0, abs(y0[j]))
-            yp, ym = y0.copy(), y0.copy()
-            yp[j] += d
-            ym[j] -= d
-            M[:, j] = (self.state_flow(yp, phi).x[-1] - self.state_flow(ym, phi).x[-1]) / (2 * d)
-        return M
+        phi = float(u[3])
+        return central_jacobian(lambda y: self.state_flow(y, phi).x[-1],
+                                self.initial_state(u), rel_step)
 
     def state_flow(self, y0, phi, t_span=None, samples=400) -> Trajectory:
         """The motion from any state y0 = (x1, ẋ1, x2, ẋ2) at phase φ (|x1 − x2| ≤ r)."""

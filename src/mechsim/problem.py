@@ -261,8 +261,8 @@ class NumericProblem:
         Q = np.zeros(self.n)
         self._add_loads(t, q, v, Q, elastic=False)
         for fb in self.flexible:
-            k = fb.invariants.n_modes
-            Q[fb.start + 3:fb.start + 3 + k] -= fb.invariants.damping * v[fb.start + 3:fb.start + 3 + k]
+            modes = slice(fb.start + 3, fb.slice.stop)
+            Q[modes] -= fb.invariants.damping * v[modes]
         return Q
 
     def _add_loads(self, t, q, v, Q, elastic: bool):

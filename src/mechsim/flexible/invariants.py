@@ -33,7 +33,6 @@ rate approaches the first bending frequency, far from the mechanisms this is mea
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np

@@ -31,8 +31,8 @@ def _source(k: int, key: str) -> str:
     v = sp.symbols(f"xd yd w e1:{k + 1}", real=True)
     th, eta = q[2], sp.Matrix(q[3:])
     w, e = v[2], sp.Matrix(v[3:])
-    it = iter(sp.symbols(f"p0:{parameter_count(k)}", real=True))
     p = list(sp.symbols(f"p0:{parameter_count(k)}", real=True))
+    it = iter(p)
     take = lambda n: sp.Matrix([next(it) for _ in range(n)])          # noqa: E731
     mass = next(it)
     s0 = take(2)

@@ -52,32 +52,36 @@ class SingularityMonitor:
         self._prev = None            # (t, s/peak, ṡ/peak) at the previous observation
         self._skipped = 0            # steps skipped since that observation
         self.peak_rate = 0.0         # fastest |ṡ|/peak seen
-        self._measured = None        # (J̃, σ_min, σ_max) at the last measurement
+        self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
+
+    def _jacobian(self, q, t):
+        """J̃ = Φ_q L⁻ᵀ, the mass-scaled Jacobian."""
+        return self.problem.mass_factor(q).cols(self.problem.phi_q(q, t))
 
     def measure(self, q, t, v=None):
         """(s, ṡ, left singular vector of σ_min); ṡ = 0 when v is None."""
-        scale = self.problem.mass_factor(q)
-        J = scale.cols(self.problem.phi_q(q, t))
+        return self._measure(q, t, v, self._jacobian(q, t))[:3]
+
+    def _measure(self, q, t, v, J):
+        """`measure` at J = J̃(q), also returning (σ_min, σ_max) (σ_max = 0: rank lost)."""
         m = J.shape[0]
         if m == 0:
-            return 1.0, 0.0, np.zeros(0)
+            return 1.0, 0.0, np.zeros(0), 1.0, 1.0
         U, sig, Vt = np.linalg.svd(J, full_matrices=False)
         k = m - 1
         if k >= sig.size or sig[0] <= 0.0:
-            self._measured = None
-            return 0.0, 0.0, U[:, -1]
-        self._measured = (J, float(sig[k]), float(sig[0]))
+            return 0.0, 0.0, U[:, -1], 0.0, 0.0
         s = float(sig[k] / sig[0])
         rate = 0.0
         if v is not None:
             speed = float(np.max(np.abs(v)))
             if speed > 0.0:
                 eps = 1e-7 / speed
-                dJ = (scale.cols(self.problem.phi_q(q + eps * v, t + eps)) - J) / eps
+                dJ = (self._jacobian(q + eps * v, t + eps) - J) / eps
                 d_min = U[:, k] @ dJ @ Vt[k]
                 d_max = U[:, 0] @ dJ @ Vt[0]
                 rate = float((d_min * sig[0] - sig[k] * d_max) / sig[0] ** 2)
-        return s, rate, U[:, k]
+        return s, rate, U[:, k], float(sig[k]), float(sig[0])
 
     def joints_of(self, u) -> tuple[str, ...]:
         owners = self.problem.constraint_owners
@@ -88,28 +92,33 @@ class SingularityMonitor:
         """Will s fall below `enter` within the next `h` seconds at its present rate?"""
         return self.last < self.enter or (self.rate < 0.0 and self.last + self.rate * h < self.enter)
 
-    def _may_skip(self, q, t, t_old) -> bool:
+    def _may_skip(self, q, t, t_old):
+        """(skip?, J̃(q) if it was computed for the Weyl bound)."""
         prev = self._prev
         if self._open is not None or prev is None or t_old is None or \
                 self._skipped >= self.max_skip or self._measured is None:
-            return False
+            return False, None
         bound = max(2.0 * abs(prev[2]), self.peak_rate)
         horizon = t + 2.0 * (t - t_old) - prev[0]       # through a next step up to twice as long
         if prev[1] - bound * horizon <= 2.0 * self.enter:
-            return False
+            return False, None
         Jm, smin, smax = self._measured
-        E = float(np.linalg.norm(self.problem.mass_factor(q).cols(self.problem.phi_q(q, t)) - Jm))
-        return max(smin - E, 0.0) / (smax + E) > 2.0 * self.enter * self.peak
+        J = self._jacobian(q, t)
+        E = float(np.linalg.norm(J - Jm))
+        return max(smin - E, 0.0) / (smax + E) > 2.0 * self.enter * self.peak, J
 
     def observe(self, t, q, v=None, state_at=None, t_old=None) -> float:
         """Take the state at an accepted step that began at `t_old`. `state_at(t) -> (q, v)`
         evaluates the step's dense output, used to confirm a minimum hidden inside the
         step. Returns s/peak (the latest measured value when this step was skipped)."""
-        if self._may_skip(q, t, t_old):
+        skip, J = self._may_skip(q, t, t_old)
+        if skip:
             self._skipped += 1
             return self.last
-        raw, rate, u = self.measure(q, t, v)
-        measured = self._measured        # (the in-step search below measures elsewhere)
+        if J is None:
+            J = self._jacobian(q, t)
+        raw, rate, u, smin, smax = self._measure(q, t, v, J)
+        self._measured = (J, smin, smax) if smax > 0.0 else None
         self.peak = max(self.peak, raw)
         s, rate = (raw / self.peak, rate / self.peak) if self.peak > 0 else (0.0, 0.0)
         self.peak_rate = max(self.peak_rate, abs(rate))
@@ -120,7 +129,6 @@ class SingularityMonitor:
         self.last, self.rate = s, rate
         if self._open is None and contiguous and s >= self.enter and state_at is not None:
             self._hidden_minimum(prev, (t, s, rate), state_at)
-        self._measured = measured
         if self._open is None and s < self.enter:
             self._open = [t, t, raw, self.joints_of(u)]
         elif self._open is not None:

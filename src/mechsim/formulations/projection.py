@@ -54,25 +54,24 @@ class Projection(FullCoordinates):
     def _pinv_exact(Jt):
         """(V_r, Σ_r⁻¹ U_rᵀ) of the mass-scaled J̃, truncated only at round-off: for the
         projections, which must restore consistency in every direction the constraints
-        still control."""
+        still control. The singular values come third."""
         U, sig, Vt = np.linalg.svd(Jt, full_matrices=False)
         r = int(np.sum(sig > 1e-12 * sig[0])) if sig.size else 0
-        return Vt[:r].T, (U[:, :r] / sig[:r]).T
+        return Vt[:r].T, (U[:, :r] / sig[:r]).T, sig
 
     def _pinv(self, Jt):
         """(V, Σ⁺ Uᵀ) of J̃ = J M^{-1/2} = J L⁻ᵀ: truncated below rcond·σ_max, or damped
         (1/σ becomes σ/(σ² + μ²), μ = rcond·σ_max), which keeps q̈ continuous as σ_min passes
-        μ."""
+        μ. The singular values come third."""
         U, sig, Vt = np.linalg.svd(Jt, full_matrices=False)
         self.problem.counters.factorizations += 1
-        self._sig = sig
         if not sig.size:
-            return Vt.T, U.T
+            return Vt.T, U.T, sig
         if self.regularization == "truncate":
             r = int(np.sum(sig > self.rcond * sig[0]))
-            return Vt[:r].T, (U[:, :r] / sig[:r]).T
+            return Vt[:r].T, (U[:, :r] / sig[:r]).T, sig
         mu2 = (self.rcond * sig[0]) ** 2
-        return Vt.T, (U * (sig / (sig**2 + mu2))).T
+        return Vt.T, (U * (sig / (sig**2 + mu2))).T, sig
 
     def accelerations(self, t, q, v):
         prob = self.problem
@@ -81,13 +80,13 @@ class Projection(FullCoordinates):
         x = f.left(prob.forces(t, q, v))                   # L⁻¹ Q
         if J.shape[0]:
             Jt = f.cols(J)
-            V, Ui = self._pinv(Jt)
+            V, Ui, sig = self._pinv(Jt)
             x = x - V @ (V.T @ x) + V @ (Ui @ gamma)
             r = V.shape[1]
             # Dropped singular values at round-off level are redundant constraints (or,
             # with probability nil, a step landing exactly on the singularity): no crossing.
             if self.regularization == "truncate" and r < min(Jt.shape) and \
-                    self._sig[r] > 1e-12 * self._sig[0]:
+                    sig[r] > 1e-12 * sig[0]:
                 x = self._across(t, q, v, Jt, f, x, r)
         return f.right(x)
 
@@ -141,7 +140,7 @@ class Projection(FullCoordinates):
             if err <= tol:
                 break
             Jt = f.cols(J)
-            V, Ui = self._pinv_exact(Jt) if self.exact_projection else self._pinv(Jt)
+            V, Ui, _ = self._pinv_exact(Jt) if self.exact_projection else self._pinv(Jt)
             q -= f.right(V @ (Ui @ phi))
             prob.counters.projections += 1
         return q, k, err
@@ -151,5 +150,5 @@ class Projection(FullCoordinates):
         J = prob.phi_q(q, t)
         f = prob.mass_factor(q)
         Jt = f.cols(J)
-        V, Ui = self._pinv_exact(Jt) if self.exact_projection else self._pinv(Jt)
+        V, Ui, _ = self._pinv_exact(Jt) if self.exact_projection else self._pinv(Jt)
         return v - f.right(V @ (Ui @ (J @ v + prob.phi_t(q, t))))

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ._checks import ModelError, scalar, vector2
+from ._checks import ModelError, rotation, scalar, vector2
 from .bodies import Body
 
 
@@ -111,8 +109,7 @@ class FlexibleBeam(Body):
         tol = 1e-6 * self.length
         i = int(np.argmin(np.abs(self.nodes - local[0])))
         if abs(self.nodes[i] - local[0]) > tol or abs(local[1]) > tol:
-            g = self.position + np.array([[math.cos(self.angle), -math.sin(self.angle)],
-                                          [math.sin(self.angle), math.cos(self.angle)]]) @ local
+            g = self.position + rotation(self.angle) @ local
             raise ModelError(
                 f"{who}: point ({g[0]:.6g}, {g[1]:.6g}) is not a node of beam '{self.name}' "
                 f"(it lies {local[0]:.6g} m along and {local[1]:.3g} m off its axis); its "

@@ -40,6 +40,10 @@ class Joint:
         self.parameter_names = type(self).parameter_names + \
             body_a.attachment_parameter_names("a") + body_b.attachment_parameter_names("b")
 
+    def attachment_points(self):
+        """(body_a's point, body_b's point) in their body frames, from the global `at`."""
+        return self.body_a.local_point(self.at), self.body_b.local_point(self.at)
+
     def _attachments(self, sa, sb) -> tuple[float, ...]:
         """Mode-shape parameter values of the attachment points sa (on body_a) and sb."""
         who = f"{self.kind} joint '{self.name}'"
@@ -97,15 +101,15 @@ class Revolute(Joint):
             self.at = None
             self.local_a = vector2(local_a, "local_a", owner)
             self.local_b = vector2(local_b, "local_b", owner)
-        self._attachments(*self._locals())          # a point on a beam must be a node
+        self._attachments(*self.attachment_points())   # a point on a beam must be a node
 
     def parameter_values(self):
-        sa, sb = self._locals()
+        sa, sb = self.attachment_points()
         return (sa[0], sa[1], sb[0], sb[1]) + self._attachments(sa, sb)
 
-    def _locals(self):
+    def attachment_points(self):
         if self.at is not None:
-            return self.body_a.local_point(self.at), self.body_b.local_point(self.at)
+            return super().attachment_points()
         return self.local_a, self.local_b
 
     def equations(self, ctx, p):
@@ -119,7 +123,7 @@ class Revolute(Joint):
         return ctx.angle(self.body_b, p, "b") - ctx.angle(self.body_a, p, "a")
 
     def initial_coordinate(self):
-        sa, sb = self._locals()
+        sa, sb = self.attachment_points()
         return (self.body_b.angle + self.body_b.initial_node_rotation(sb)
                 - self.body_a.angle - self.body_a.initial_node_rotation(sa))
 
@@ -145,10 +149,10 @@ class Prismatic(Joint):
             raise ModelError(f"{owner}: `axis` must be a non-zero direction, got {axis.tolist()}")
         self.axis = axis / norm
         self.at = vector2(at, "at", owner)
-        self._attachments(self.body_a.local_point(self.at), self.body_b.local_point(self.at))
+        self._attachments(*self.attachment_points())
 
     def parameter_values(self):
-        sa, sb = self.body_a.local_point(self.at), self.body_b.local_point(self.at)
+        sa, sb = self.attachment_points()
         u = self.body_a.local_direction(self.axis)
         angle0 = (self.body_b.angle + self.body_b.initial_node_rotation(sb)
                   - self.body_a.angle - self.body_a.initial_node_rotation(sa))

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._checks import ModelError, vector2
-from .bodies import Body, Ground, RigidBody
+from .bodies import Body, Ground
 from .drivers import Driver
 from .flexible_beam import FlexibleBeam
 from .forces import Force, Spring, Torque
@@ -234,10 +234,8 @@ class Mechanism:
         mass (ordered along their main direction), a beam through 4 points per element."""
         attached = {b.name: [np.zeros(2)] for b in self.bodies}
         for j in self.joints:
-            for side, body in (("a", j.body_a), ("b", j.body_b)):
+            for body, local in zip((j.body_a, j.body_b), j.attachment_points()):
                 if body.name in attached:
-                    at = getattr(j, "at", None)
-                    local = body.local_point(at) if at is not None else getattr(j, f"local_{side}")
                     attached[body.name].append(np.asarray(local, float))
         for ld in self.loads:
             for body, at in _load_points(ld):

@@ -23,13 +23,6 @@ import numpy as np
 from ..problem import frame_point, frame_point_velocity
 
 
-def _rotate(q, start, vec):
-    th = q[:, start + 2][:, None]
-    c, s = np.cos(th), np.sin(th)
-    return np.stack([c * vec[..., 0] - s * vec[..., 1], s * vec[..., 0] + c * vec[..., 1]],
-                    axis=-1)
-
-
 def export(result, path, drawing) -> Path:
     """Write `result` to `path` (.xdmf: one time series file; any other meshio format: one
     file per output time, `<stem>_<i><suffix>`). `drawing` is the problem's list of
@@ -52,10 +45,8 @@ def export(result, path, drawing) -> Path:
                         for i, s in enumerate(local)], axis=1)
         if modal is None:
             el = np.zeros((n, p, 2))
-        else:
-            k = modal.shape[2]
-            eta = q[:, start + 3:start + 3 + k]
-            el = _rotate(q, start, np.einsum("ijk,nk->nij", modal, eta))
+        else:                     # the deformed points less the same points of the frame
+            el = pos - np.stack([frame_point(q, start, s) for s in local], axis=1)
         for k in range(max_modes):
             value = q[:, start + 3 + k] if modal is not None and k < modal.shape[2] \
                 else np.zeros(n)

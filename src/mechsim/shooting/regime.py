@@ -5,7 +5,6 @@ neighbour; rows of constant amplitude run in parallel on a process pool.
 
 from __future__ import annotations
 
-import math
 import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass

@@ -27,19 +27,24 @@ class ShootingResult:
         return bool(np.all(np.abs(self.floquet_multipliers) < 1.0))
 
 
-def monodromy(problem, u, rel_step=1e-6):
-    """∂x(T)/∂u by central finite differences of the flow (valid across events as long as
-    the perturbed flows meet the same sequence of events — the saltation is then included)."""
+def central_jacobian(end, u, rel_step=1e-6):
+    """∂end/∂u by central differences of `end(u) -> ndarray` (a flow's final state: valid
+    across events as long as the perturbed flows meet the same sequence of events — the
+    saltation is then included)."""
     u = np.asarray(u, float)
-    n = u.size
-    Mo = np.empty((n, n))
-    for j in range(n):
+    columns = []
+    for j in range(u.size):
         d = rel_step * max(1.0, abs(u[j]))
         up, um = u.copy(), u.copy()
         up[j] += d
         um[j] -= d
-        Mo[:, j] = (problem.flow(up).x[-1] - problem.flow(um).x[-1]) / (2 * d)
-    return Mo
+        columns.append((end(up) - end(um)) / (2 * d))
+    return np.column_stack(columns)
+
+
+def monodromy(problem, u, rel_step=1e-6):
+    """∂x(T)/∂u by central differences of the problem's flow."""
+    return central_jacobian(lambda x: problem.flow(x).x[-1], u, rel_step)
 
 
 def _warner(problem, guess, tol, max_iter, scale, guesses, **_):
@@ -75,17 +80,10 @@ def _warner(problem, guess, tol, max_iter, scale, guesses, **_):
     return X[best], G[best], max_iter, history, f"no convergence within {max_iter} iterations"
 
 
-def residual_jacobian(problem, u, g, rel_step=1e-6):
-    """∂g/∂u: exact from the problem when it knows its monodromy
-    (`problem.residual_jacobian(u) -> (g, J)` or None), else by forward differences reusing
-    g = g(u): n flows. (For the oscillators g = x(0) − x(T) and ∂g/∂u = I − Φ; for the
-    impact pair x(0) is not u itself.)"""
+def _forward_jacobian(problem, u, g, rel_step=1e-6):
+    """∂g/∂u by forward differences reusing g = g(u): n flows. (For the oscillators
+    g = x(0) − x(T) and ∂g/∂u = I − Φ; for the impact pair x(0) is not u itself.)"""
     u = np.asarray(u, float)
-    exact = getattr(problem, "residual_jacobian", None)
-    if exact is not None:
-        out = exact(u)
-        if out is not None:
-            return out[1]
     J = np.empty((g.size, u.size))
     for j in range(u.size):
         d = rel_step * max(1.0, abs(u[j]))
@@ -99,10 +97,8 @@ def _newton(problem, guess, tol, max_iter, max_halvings=30, **_):
     """Quasi-Newton shooting: the Jacobian ∂g/∂u by forward differences (n flows), then
     Broyden's rank-one updates (no extra flow) while they keep converging; a fresh Jacobian
     when a step had to be damped or reduced ‖g‖ by less than half. A problem that knows its
-    monodromy (`residual_jacobian`) gives the exact Jacobian with each flow instead. Steps
-    are halved until ‖g‖ decreases. On a nearly linear problem (Coulomb friction without stops) this takes
-    n + 2 or 3 flows in all, where Newton with a central-difference monodromy took 5 per
-    iteration."""
+    monodromy (`residual_jacobian(u) -> (g, J)` or None) gives the exact Jacobian with each
+    flow instead. Steps are halved until ‖g‖ decreases."""
     u = np.array(guess, float)
     exact = getattr(problem, "residual_jacobian", None)
 
@@ -118,7 +114,7 @@ def _newton(problem, guess, tol, max_iter, max_halvings=30, **_):
     history = []
     for it in range(1, max_iter + 1):
         if J is None:
-            J = residual_jacobian(problem, u, g)
+            J = _forward_jacobian(problem, u, g)
         # Minimum-norm step: J is singular along any symmetry of the problem (the impact
         # pair may be shifted as a whole: a family of periodic solutions).
         du = -np.linalg.lstsq(J, g, rcond=1e-10)[0]

@@ -66,9 +66,8 @@ class SymbolicContext:
         """Angle of the body's frame; at an attachment (`p`, `role`, see `point`) of a
         flexible body it includes the modal rotation of that node."""
         th = self.frame(body)[2]
-        for k, eta in enumerate(self.modal(body), start=1):
-            if p is not None:
-                th = th + eta * p[f"{role}_r{k}"]
+        for k, eta in enumerate(self.modal(body) if p is not None else (), start=1):
+            th = th + eta * p[f"{role}_r{k}"]
         return th
 
     def direction(self, body, ux, uy, p=None, role=None):
@@ -82,7 +81,7 @@ class SymbolicContext:
         moves with the modes: pass the joint's parameters `p` and the side `role` ("a" or
         "b") whose mode-shape parameters `<role>_u<k>`, `<role>_v<k>` belong to the point."""
         x, y, th = self.frame(body)
-        for k, eta in enumerate(self.modal(body), start=1):
+        for k, eta in enumerate(self.modal(body) if p is not None else (), start=1):
             sx = sx + eta * p[f"{role}_u{k}"]
             sy = sy + eta * p[f"{role}_v{k}"]
         c, s = sp.cos(th), sp.sin(th)
