@@ -255,3 +255,31 @@ def test_projection_accelerations_on_and_near_the_singular_configuration(theta):
     assert acc[2] == pytest.approx(exact, rel=1e-7)          # crank
     assert acc[8] == pytest.approx(exact, rel=1e-7)          # rocker
     assert abs(acc[5]) < 1e-6                                # the coupler does not turn
+
+
+@pytest.mark.parametrize("theta", [0.0, 1e-7, 2e-5, 6e-5, 1e-3])
+def test_projection_accelerations_through_a_double_singularity(theta):
+    """The double four-bar loses two constraint directions at once (both windows flatten
+    together, two singular values cross zero side by side). On its branch every crank has
+    θ̈ = −K/M_eff cos θ exactly; inside the truncation band both lost directions'
+    accelerations must be recovered together."""
+    from mechsim.formulations.projection import Projection
+    n, w = 2, -2.0
+    prob = ms.examples.double_four_bar(n).problem()
+    c, s = math.cos(theta), math.sin(theta)
+    q, v = [], []
+    for i in range(n + 1):                                    # cranks
+        q += [i + 0.5 * c, 0.5 * s, theta]
+        v += [-0.5 * s * w, 0.5 * c * w, w]
+    for i in range(n):                                        # couplers
+        q += [i + c + 0.5, s, 0.0]
+        v += [-s * w, c * w, 0.0]
+    q, v = np.array(q), np.array(v)
+    assert np.max(np.abs(prob.phi(q, 0.0))) < 1e-15
+    m_eff, k = ms.examples.parallelogram_constants(n)
+    acc = Projection(prob, 1e-8, 1e-10).accelerations(0.0, q, v)
+    exact = -k / m_eff * math.cos(theta)
+    for i in range(n + 1):
+        assert acc[3 * i + 2] == pytest.approx(exact, rel=1e-6), i
+    for i in range(n):
+        assert abs(acc[3 * (n + 1) + 3 * i + 2]) < 1e-5
