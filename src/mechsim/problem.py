@@ -115,6 +115,10 @@ class MassFactor:
         """L⁻ᵀ x."""
         return self.s * x if self.Linv is None else self.Linv.T @ x
 
+    def unright(self, x):
+        """Lᵀ x, the inverse of `right`: accelerations q̈ into the scaled x = Lᵀ q̈."""
+        return x / self.s if self.Linv is None else np.linalg.solve(self.Linv.T, x)
+
 
 @dataclass
 class Counters:
@@ -385,10 +389,8 @@ class NumericProblem:
 
 
 def _solve_psd(S, r):
-    try:
-        return np.linalg.solve(S, r)
-    except np.linalg.LinAlgError:
-        return np.linalg.lstsq(S, r, rcond=None)[0]
+    from .dense import solve_psd          # scipy: not needed to build a scene
+    return solve_psd(S, r)
 
 
 def _moved(q, start, s, modal):

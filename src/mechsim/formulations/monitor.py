@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import dense
 from ..results import SingularPassage
 
 
@@ -67,7 +68,7 @@ class SingularityMonitor:
         m = J.shape[0]
         if m == 0:
             return 1.0, 0.0, np.zeros(0), 1.0, 1.0
-        U, sig, Vt = np.linalg.svd(J, full_matrices=False)
+        U, sig, Vt = dense.svd(J)
         k = m - 1
         if k >= sig.size or sig[0] <= 0.0:
             return 0.0, 0.0, U[:, -1], 0.0, 0.0

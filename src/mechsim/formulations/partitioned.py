@@ -30,6 +30,7 @@ import warnings
 import numpy as np
 import scipy.linalg as sla
 
+from .. import dense
 from .base import Formulation
 
 
@@ -39,7 +40,7 @@ class ConstraintSolveError(RuntimeError):
 
 def _solve(A, b):
     if A.shape[0] == A.shape[1]:
-        return np.linalg.solve(A, b)
+        return dense.solve(A, b)
     return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
@@ -52,7 +53,7 @@ def _condition(A, inv=None) -> float:
         return float(np.linalg.cond(A))
     if inv is None:
         try:
-            inv = np.linalg.inv(A)
+            inv = dense.inv(A)
         except np.linalg.LinAlgError:
             return np.inf
     return float(np.abs(A).sum(axis=0).max() * np.abs(inv).sum(axis=0).max())
@@ -63,7 +64,7 @@ def _inverse(A):
     if A.shape[0] != A.shape[1]:
         return None
     try:
-        return np.linalg.inv(A)
+        return dense.inv(A)
     except np.linalg.LinAlgError:
         return None
 
@@ -71,7 +72,7 @@ def _inverse(A):
 def _numerical_rank(J) -> int:
     if J.shape[0] == 0:
         return 0
-    s = np.linalg.svd(J, compute_uv=False)
+    s = dense.svdvals(J)
     return int(np.sum(s > max(J.shape) * np.finfo(float).eps * 1e3 * s[0]))
 
 
@@ -176,7 +177,7 @@ class Partitioned(Formulation):
             # An explicit inverse as the chord matrix: one small matmul per iteration, where
             # lu_solve spends ~30 µs in its wrapper. Convergence is judged on ‖Φ‖, so the
             # inverse's conditioning affects only the rate.
-            self._chord = np.linalg.inv(JD) if inverse is None else inverse
+            self._chord = dense.inv(JD) if inverse is None else inverse
             G = -self._chord @ self.basis.JB(J)
             self.problem.counters.factorizations += 1
         else:
