@@ -84,6 +84,20 @@ def test_mu_007_moves_without_stops_near_the_equivalent_damping_amplitude():
     assert repeats_itself(osc, sol.x0)
 
 
+@pytest.mark.parametrize("mu", [0.07, 0.08, 0.09])
+def test_coulomb_brute_force_from_rest_settles_on_the_shooting_solution(mu):
+    """Iterating the period map from rest (a simulation to steady state) ends where Newton
+    shooting lands; the sampled trajectory ends on the period map's state."""
+    osc = CoulombOscillator(**PAPER, mu=mu)
+    sol = ms.shooting.solve(osc, (0.0, 0.0), method="newton", tol=1e-10)
+    x = np.zeros(2)
+    for _ in range(150):                       # μ = 0.07 contracts by 0.73 per period
+        x = CoulombOscillator(**PAPER, mu=mu).period_map(x)
+    assert np.max(np.abs(x - sol.x0)) < 1e-9
+    assert np.array_equal(sol.trajectory.x[0], sol.x0)
+    assert np.max(np.abs(sol.trajectory.x[-1] - osc.period_map(sol.x0))) < 1e-13
+
+
 def test_mu_009_has_stops():
     osc = CoulombOscillator(**PAPER, mu=0.09)
     sol = ms.shooting.solve(osc, (-0.01, 2.0), method="newton")

@@ -41,10 +41,14 @@ class PeriodicProblem:
     def flow(self, u) -> Trajectory:
         raise NotImplementedError
 
+    def period_map(self, u) -> np.ndarray:
+        """x(T) from x(0) = u: one period of motion, end state only (the Poincaré map that
+        shooting zeroes and a brute-force simulation iterates)."""
+        return self.flow(u).x[-1]
+
     def residual(self, u) -> np.ndarray:
         """g(u) = x(0) − x(T) (eq. 3)."""
-        traj = self.flow(u)
-        return traj.x[0] - traj.x[-1]
+        return self.check(u) - self.period_map(u)
 
     def check(self, u) -> np.ndarray:
         u = np.asarray(u, float)
@@ -121,7 +125,14 @@ class LinearOscillator(PeriodicProblem):
             e, c, sn = math.exp(-sig * tau), math.cos(wd * tau), math.sin(wd * tau)
             return (-a * w * math.sin(w * t) + b * w * math.cos(w * t)
                     + e * ((-sig * c1 + wd * c2) * c + (-sig * c2 - wd * c1) * sn))
-        state.velocity = velocity
+
+        def position(t):
+            """x at a scalar t."""
+            tau = t - t0
+            e = math.exp(-sig * tau)
+            return (a * math.cos(w * t) + b * math.sin(w * t) + xs
+                    + e * (c1 * math.cos(wd * tau) + c2 * math.sin(wd * tau)))
+        state.velocity, state.position = velocity, position
         return state, transition
 
     def flow(self, u, t_span=None, samples=200):
@@ -206,7 +217,26 @@ class CoulombOscillator(LinearOscillator):
         return 0
 
     def flow(self, u, t_span=None, samples=400):
+        if t_span is None:
+            motion = self._cached_motion(u)             # Newton's last iterate: no new events
+            return self._sampled(u, motion[0], motion[1], samples)
         return self.flow_with_monodromy(u, t_span, samples)[0]
+
+    def _cached_flow(self, u):
+        _, events, M, end = self._cached_motion(u)
+        return Trajectory(np.array([0.0, self.period]), np.vstack([u, end]), events), M
+
+    def period_map(self, u):
+        return self._cached_motion(u)[3]
+
+    def _cached_motion(self, u):
+        """`_motion` over one period, remembered for the latest u: Newton asks for (g, J),
+        then the Floquet multipliers and the trajectory at the same point."""
+        key = np.asarray(u, float).tobytes()
+        last = getattr(self, "_last_motion", None)
+        if last is None or last[0] != key:
+            last = self._last_motion = (key, self._motion(u))
+        return last[1]
 
     def flow_with_monodromy(self, u, t_span=None, samples=400):
         """(Trajectory, M): the motion over one period (or `t_span`) and its monodromy
@@ -215,10 +245,32 @@ class CoulombOscillator(LinearOscillator):
         acceleration just after and before; a⁺ = 0 when the mass sticks). Stick phases
         map (δx, 0) to itself; leaving a stop the net force is zero, so no saltation. M is
         None where it is undefined (ζ ≥ 1 integrates numerically; a grazing stop)."""
+        pieces, events, M, _ = self._motion(u, t_span)
+        return self._sampled(u, pieces, events, samples), M
+
+    def _sampled(self, u, pieces, events, samples):
+        """The trajectory through `pieces` (t_a, t_b, state(t) -> (x, v), stops), with
+        about `samples` points per period (20 per stick phase)."""
+        ts, xs = [pieces[0][0]], [np.asarray(u, float)]
+        for ta, tb, state, stops in pieces:
+            n = 20 if stops is None else max(3, int(samples * (tb - ta) / self.period))
+            tt = np.linspace(ta, tb, n)[1:]
+            part = np.empty((tt.size, 2))
+            part[:, 0], part[:, 1] = state(tt)
+            if stops:
+                part[-1, 1] = 0.0                       # ẋ reached 0: exactly zero there
+            ts.append(tt)
+            xs.append(part)
+        return Trajectory(np.hstack(ts), np.vstack(xs), events)
+
+    def _motion(self, u, t_span=None):
+        """The stick and slip phases over `t_span` (one period by default): (pieces, events,
+        M, end state); see `flow_with_monodromy`. Each slip phase keeps its closed-form state, so the
+        trajectory is sampled afterwards at any density without finding the events again."""
         u = self.check(u)
         t, t_end = t_span or (0.0, self.period)
         x, v = float(u[0]), float(u[1])
-        ts, xs, events = [t], [[x, v]], []
+        pieces, events = [], []
         M = np.eye(2) if self.closed_form else None
         guard = 0
         while t < t_end - 1e-15 * max(1.0, t_end):
@@ -230,9 +282,7 @@ class CoulombOscillator(LinearOscillator):
                 d = self._slip_direction(t, x)
                 if d == 0:                                   # stuck: x constant, exact
                     t_leave = self._stick_end(t, x, t_end)
-                    tt = np.linspace(t, t_leave, 20)
-                    ts += list(tt[1:])
-                    xs += [[x, 0.0]] * (len(tt) - 1)
+                    pieces.append((t, t_leave, lambda tt, x=x: (x, 0.0), None))
                     events.append((t, "stick"))
                     if M is not None:
                         M = np.array([[1.0, 0.0], [0.0, 0.0]]) @ M
@@ -245,18 +295,14 @@ class CoulombOscillator(LinearOscillator):
                 d = 1 if v > 0 else -1
             friction = d * self.mu * self.g
             if self.closed_form:
-                t_new, x, v, part, stopped, T = self._closed_slip(t, x, v, d, friction, t_end,
-                                                                   samples)
+                t_new, x, v, state, stopped, T = self._closed_slip(t, x, v, d, friction, t_end)
                 M = T @ M
             else:
-                t_new, x, v, part, stopped = self._integrated_slip(t, x, v, d, friction,
-                                                                   t_end, samples)
-            ts += list(part[0][1:])
-            xs += part[1][1:].tolist()
+                t_new, x, v, state, stopped = self._integrated_slip(t, x, v, d, friction, t_end)
+            pieces.append((t, t_new, state, stopped))
             t = t_new
             if stopped:                                      # ẋ reached 0: exactly zero now
                 v = 0.0
-                xs[-1][1] = 0.0
                 events.append((t, "stop"))
                 if M is not None:
                     a_before = self._acceleration(t, x, friction)
@@ -265,15 +311,14 @@ class CoulombOscillator(LinearOscillator):
                         t, x, after * self.mu * self.g)
                     M = (np.array([[1.0, 0.0], [0.0, a_after / a_before]]) @ M
                          if abs(a_before) > 1e-9 * self.g else None)
-        xs[0] = [float(u[0]), float(u[1])]
-        return Trajectory(np.array(ts), np.array(xs), events), M
+        return pieces, events, M, np.array([x, v])
 
     def _acceleration(self, t, x, friction):
         """ẍ at rest (ẋ = 0) under the friction force `friction` (signed)."""
         return self.delta_st * self.omega_n**2 * math.cos(self.omega * t) \
             - self.omega_n**2 * x - friction
 
-    def _closed_slip(self, t, x, v, d, friction, t_end, samples):
+    def _closed_slip(self, t, x, v, d, friction, t_end):
         """Slip in direction d from (t, x, v) until ẋ = 0 or t_end, in closed form: the
         first stop is bracketed on a grid of 128 points per forcing or damped-oscillation
         period, whichever is shorter, and refined by brentq."""
@@ -294,13 +339,10 @@ class CoulombOscillator(LinearOscillator):
             t_new = brentq(f, lo, grid[k], xtol=1e-15, rtol=4 * np.finfo(float).eps)
         else:
             t_new = t_end
-        tt = np.linspace(t, t_new, max(3, int(samples * (t_new - t) / self.period)))
-        xx, vv = state(tt)
-        x_new, v_new = float(xx[-1]), float(vv[-1])
-        return t_new, x_new, v_new, (tt, np.column_stack([xx, vv])), stopped, \
+        return t_new, state.position(t_new), state.velocity(t_new), state, stopped, \
             transition(t_new)
 
-    def _integrated_slip(self, t, x, v, d, friction, t_end, samples):
+    def _integrated_slip(self, t, x, v, d, friction, t_end):
         """The same for ζ ≥ 1, with scipy's event location on the dense output."""
         stop = lambda tt, y: y[1]                              # noqa: E731
         stop.terminal, stop.direction = True, -d
@@ -308,9 +350,8 @@ class CoulombOscillator(LinearOscillator):
                       method="DOP853", rtol=_RTOL, atol=_ATOL, events=stop, dense_output=True)
         if not s.success:
             raise ValueError(f"CoulombOscillator: the flow failed at t = {t}: {s.message}")
-        t_new = s.t[-1]
-        tt = np.linspace(t, t_new, max(3, int(samples * (t_new - t) / self.period)))
-        return t_new, float(s.y[0, -1]), float(s.y[1, -1]), (tt, s.sol(tt).T), s.status == 1
+        return s.t[-1], float(s.y[0, -1]), float(s.y[1, -1]), lambda tt: tuple(s.sol(tt)), \
+            s.status == 1
 
     def _stick_end(self, t0, x, t_end):
         """First time after t0 at which |x − δ cos ωt| reaches μg/ω_n² (or t_end)."""
