@@ -41,6 +41,11 @@ from .full import FullCoordinates
 
 # Singular values below this multiple of the truncation cut join the crossing cluster.
 _CLUSTER = 10.0
+# Larger clusters are left truncated. The 40-window chain loses 40 directions over a
+# stretch of its passage, each crossing the band slowly; interpolating them took 170 ms per
+# evaluation (twelve Schur solves of 240 × 240) and made the first 0.7 s take minutes,
+# while plain truncation takes the chain through the passage in 8 steps.
+_MAX_CLUSTER = 4
 
 
 class Projection(FullCoordinates):
@@ -74,13 +79,16 @@ class Projection(FullCoordinates):
         μ. The singular values come third."""
         U, sig, Vt = dense.svd(Jt)
         self.problem.counters.factorizations += 1
+        return self._regularized(U, sig, Vt) + (sig,)
+
+    def _regularized(self, U, sig, Vt):
         if not sig.size:
-            return Vt.T, U.T, sig
+            return Vt.T, U.T
         if self.regularization == "truncate":
             r = int(np.sum(sig > self.rcond * sig[0]))
-            return Vt[:r].T, (U[:, :r] / sig[:r]).T, sig
+            return Vt[:r].T, (U[:, :r] / sig[:r]).T
         mu2 = (self.rcond * sig[0]) ** 2
-        return Vt.T, (U * (sig / (sig**2 + mu2))).T, sig
+        return Vt.T, (U * (sig / (sig**2 + mu2))).T
 
     def accelerations(self, t, q, v):
         prob = self.problem
@@ -89,35 +97,20 @@ class Projection(FullCoordinates):
         x = f.left(prob.forces(t, q, v))                   # L⁻¹ Q
         if J.shape[0]:
             Jt = f.cols(J)
-            V, Ui, sig = self._pinv(Jt)
+            U, sig, Vt = dense.svd(Jt)
+            prob.counters.factorizations += 1
+            V, Ui = self._regularized(U, sig, Vt)
             x = x - V @ (V.T @ x) + V @ (Ui @ gamma)
             r = V.shape[1]
+            # Singular values at round-off are redundant constraints, unless they move (a
+            # state exactly on the singular configuration): `_across` tells them apart, and
+            # remembers how many are redundant so that a redundant mechanism pays once.
             if self.regularization == "truncate" and r < min(Jt.shape) and (
-                    sig[r] > 1e-12 * sig[0] or self._moving(t, q, v, f, sig)):
-                x = self._across(t, q, v, Jt, f, x, r)
+                    sig[r] > 1e-12 * sig[0] or np.sum(sig <= 1e-12 * sig[0]) > self._redundant):
+                x = self._across(t, q, v, Jt, f, x, r, U, sig, Vt)
         return f.right(x)
 
-    def _moving(self, t, q, v, f, sig) -> bool:
-        """Are singular values at round-off moving (a state exactly on the singular
-        configuration, e.g. a mechanism started there) rather than redundant constraints
-        (which stay at zero)? Checked a hair along the motion, and only while there are
-        more of them than the redundant constraints found so far, so a redundant mechanism
-        pays once."""
-        zero = int(np.sum(sig <= 1e-12 * sig[0]))
-        if zero <= self._redundant:
-            return False
-        speed = float(np.max(np.abs(v)))
-        if speed == 0.0:
-            return False
-        d = 1e-7 / speed
-        s = dense.svdvals(f.cols(self.problem.phi_q(q + d * v, t + d)))
-        still = int(np.sum(s <= 1e-12 * s[0]))
-        if still < zero:
-            return True
-        self._redundant = zero
-        return False
-
-    def _across(self, t, q, v, Jt, f, x, r):
+    def _across(self, t, q, v, Jt, f, x, r, U, sig, Vt):
         """Inside the truncation band the lost directions (right singular vectors W of the
         dropped σ) get no constraint acceleration, a jump of a few percent in q̈ that
         collapses the step size where a step lands on the singular configuration. Where σ
@@ -126,34 +119,42 @@ class Projection(FullCoordinates):
         the band, so well conditioned), averaged, which is the linear interpolation to t
         with O(δ²) error. The small singular values are treated as one cluster with
         W spanning all below `_CLUSTER` × the cut: the double four-bar loses two at once,
-        and the components of both must stay continuous while either is dropped."""
+        and the components of both must stay continuous while either is dropped. The
+        cluster's subspace is well defined even where its singular vectors are not (on the
+        singular configuration itself), so the SVD of this evaluation serves."""
         prob = self.problem
         speed = float(np.max(np.abs(v)))
         if speed == 0.0:
             return x
-        # The singular vectors a hair along the motion, on whichever side is further from
-        # the singular configuration: on it σ = 0 and the SVD's choice of w within the null
-        # space is arbitrary; just off it, W spans the directions being lost.
-        d0 = 1e-7 / speed
-        nudged = []
-        for sign in (1.0, -1.0):
-            J0 = f.cols(prob.phi_q(q + sign * d0 * v, t + sign * d0))
-            nudged.append((dense.svd(J0), sign * d0))
-        (U, sig, Vt), d = max(nudged, key=lambda item: item[0][1][r])
+        # dσ_k/dt = u_kᵀ (dJ̃/dt) w_k, with dJ̃/dt from one Φ_q a hair along the motion.
+        eps = 1e-7 / speed
+        J1 = f.cols(prob.phi_q(q + eps * v, t + eps))
+        dJ = (J1 - Jt) / eps
+        if sig[-1] <= 1e-12 * sig[0]:
+            # On the singular configuration itself the SVD's choice of vectors within the
+            # null space is arbitrary (it may mix in the motion's own direction); a hair
+            # along the motion they are the directions being lost.
+            U, sig, Vt = dense.svd(J1)
         cut = self.rcond * sig[0]
+        zero = 1e-12 * sig[0]
         # δ takes every σ of the cluster at least 2 cuts out of the band. A σ that does not
-        # move (a redundant constraint's stays at zero) is no crossing and stays dropped.
-        delta, cluster = 0.0, []
+        # move (a redundant constraint's stays at zero) is no crossing and stays dropped,
+        # as does one too slow to leave the band within a short distance.
+        delta, cluster, redundant = 0.0, [], 0
         for k in range(min(Jt.shape)):
             if k < r and sig[k] > _CLUSTER * cut:
                 continue
-            slope = abs(sig[k] - U[:, k] @ Jt @ Vt[k]) / abs(d)
+            slope = abs(U[:, k] @ dJ @ Vt[k])
+            if sig[k] <= zero and slope <= 1e-6 * sig[0]:
+                redundant += 1
+                continue
             step = 3.0 * cut / slope if slope > 0.0 else np.inf
             if step * speed > 1e-2:
                 continue
             cluster.append(k)
             delta = max(delta, step)
-        if not cluster:
+        self._redundant = redundant
+        if not cluster or len(cluster) > _MAX_CLUSTER:
             return x
         W = Vt[cluster].T
         # The states δ before and after follow q̈ itself, whose W-components are what is
@@ -161,16 +162,18 @@ class Projection(FullCoordinates):
         # singularity): two passes of the fixed point. The first changes q̈ by ~1 (the
         # truncation's error), the second by ~1e-5, a third by the noise of the end values
         # (~1e-6 on the double four-bar). The end states must be consistent to round-off
-        # (an inconsistency is amplified by 1/σ² there): positions and velocities are
-        # projected. Out of the band the Schur complement (condition ~ 1/σ² ≤ 1e8) is as
-        # accurate as the SVD for the end values, at a tenth of the cost.
+        # (an inconsistency is amplified by 1/σ² there): the Taylor positions (off by
+        # O(δ³)) take one Newton step, the velocities are projected. Out of the band the
+        # Schur complement (condition ~ 1/σ² ≤ 1e8) is as accurate as the SVD for the end
+        # values, at a fraction of the cost.
         for _ in range(2):
             a = f.right(x)
             mean = np.zeros_like(a)
             for sign in (1.0, -1.0):
                 h = sign * delta
                 ts = t + h
-                qs, _, _ = prob.project_positions(q + h * v + 0.5 * h * h * a, ts, tol=1e-13)
+                qs, _, _ = prob.project_positions(q + h * v + 0.5 * h * h * a, ts, tol=1e-13,
+                                                  max_iter=1)
                 vs = prob.project_velocities(qs, v + h * a, ts)
                 _, Js, _, gs = prob.terms(qs, vs, ts)
                 acc, _ = prob.accelerations(Js, prob.forces(ts, qs, vs), gs, qs)
