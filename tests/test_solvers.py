@@ -147,7 +147,7 @@ def test_double_four_bar_ten_seconds_hybrid():
 
 @pytest.mark.slow
 def test_forty_window_four_bar_twenty_seconds():
-    res = ms.examples.double_four_bar(40).simulate(t_end=20.0, method="hybrid", rtol=1e-7,
+    res = ms.examples.double_four_bar(40).simulate(t_end=20.0, method="hybrid", rtol=5e-8,
                                                    atol=1e-9, output_step=0.05)
     assert res.status == "success", res.message
     theta, _ = parallelogram_exact(res.t, math.pi / 2, -1.0, n=40)
