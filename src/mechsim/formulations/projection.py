@@ -172,8 +172,7 @@ class Projection(FullCoordinates):
             for sign in (1.0, -1.0):
                 h = sign * delta
                 ts = t + h
-                qs, _, _ = prob.project_positions(q + h * v + 0.5 * h * h * a, ts, tol=1e-13,
-                                                  max_iter=1)
+                qs, _, _ = prob.project_positions(q + h * v + 0.5 * h * h * a, ts, tol=1e-13)
                 vs = prob.project_velocities(qs, v + h * a, ts)
                 _, Js, _, gs = prob.terms(qs, vs, ts)
                 acc, _ = prob.accelerations(Js, prob.forces(ts, qs, vs), gs, qs)
