@@ -17,12 +17,13 @@ velocity projections, which use the exact pseudo-inverse, instead of by J̃⁺γ
 Inside the band, where the motion crosses the singular configuration, the components of
 q̈ along the lost directions (0/0 on the configuration) are interpolated from the exact
 accelerations at consistent states just outside the band on either side (`_across`), for
-all small singular values together: the double four-bar loses two at once. Dropping them
-was off by 5 % in q̈ and made the step size collapse wherever a step landed within the band
-(to 7e-8 s; 99 of 213 steps at rtol 1e-8). Treating each singular value on its own through
-the slopes of uᵀγ and uᵀJ̃w left one passage of the double four-bar (4.599 s, where both
-σ are in the band) at 335 evaluations; the joint interpolation needs 54 in the whole hybrid
-run at rtol 1e-8: 1865 evaluations and 119 steps in all, against 2531 and 130 before.
+all small singular values together: every passage of the double four-bar loses two at
+once. Dropping them was off by 5 % in q̈ and made the step size collapse wherever a step
+landed within the band (to 7e-8 s; 99 of 213 steps at rtol 1e-8). Treating each singular
+value on its own (through the slopes of uᵀγ and uᵀJ̃w) was off by up to 40 % where both
+were in the band, and one passage (4.599 s) cost 335 evaluations; with the joint
+interpolation the hybrid run at rtol 1e-8 takes 116 steps and 2083 evaluations against 130
+and 2531 (bench settings).
 
 Measured (rtol 1e-8; crank error over the seed's parallelogram 2 s / the double four-bar
 10 s, DOP853): rcond 1e-8 leaves the branch at the second passage; truncation at 1e-4 with
