@@ -139,12 +139,16 @@ class LinearOscillator(PeriodicProblem):
         return self.flow_with_monodromy(u, t_span, samples)[0]
 
     def _cached_flow(self, u):
-        """The one-period flow (end points only) and monodromy of u, remembered for the latest
-        u: Newton asks for (g, J), then the Floquet multipliers at the same point."""
+        """The one-period flow (end points only) and monodromy of u."""
+        return self._remembered(u, lambda: self.flow_with_monodromy(u, samples=3))
+
+    def _remembered(self, u, compute):
+        """compute(), remembered for the latest u: Newton asks for (g, J), then the Floquet
+        multipliers and the trajectory at the same point."""
         key = np.asarray(u, float).tobytes()
         last = getattr(self, "_last", None)
         if last is None or last[0] != key:
-            last = self._last = (key, self.flow_with_monodromy(u, samples=3))
+            last = self._last = (key, compute())
         return last[1]
 
     def flow_with_monodromy(self, u, t_span=None, samples=200):
@@ -230,13 +234,8 @@ class CoulombOscillator(LinearOscillator):
         return self._cached_motion(u)[3]
 
     def _cached_motion(self, u):
-        """`_motion` over one period, remembered for the latest u: Newton asks for (g, J),
-        then the Floquet multipliers and the trajectory at the same point."""
-        key = np.asarray(u, float).tobytes()
-        last = getattr(self, "_last_motion", None)
-        if last is None or last[0] != key:
-            last = self._last_motion = (key, self._motion(u))
-        return last[1]
+        """`_motion` over one period, remembered for the latest u."""
+        return self._remembered(u, lambda: self._motion(u))
 
     def flow_with_monodromy(self, u, t_span=None, samples=400):
         """(Trajectory, M): the motion over one period (or `t_span`) and its monodromy
@@ -265,8 +264,9 @@ class CoulombOscillator(LinearOscillator):
 
     def _motion(self, u, t_span=None):
         """The stick and slip phases over `t_span` (one period by default): (pieces, events,
-        M, end state); see `flow_with_monodromy`. Each slip phase keeps its closed-form state, so the
-        trajectory is sampled afterwards at any density without finding the events again."""
+        M, end state); see `flow_with_monodromy`. Each slip phase keeps its closed-form
+        state, so the trajectory is sampled afterwards at any density without finding the
+        events again."""
         u = self.check(u)
         t, t_end = t_span or (0.0, self.period)
         x, v = float(u[0]), float(u[1])
