@@ -187,11 +187,37 @@ class NumericProblem:
         self._rigid_factor = np.diag(np.sqrt(1.0 / np.where(self._rigid_mass > 0.0,
                                                             self._rigid_mass, 1.0)))
         self._last_factor = None          # (key, MassFactor) of the latest flexible state
+        self._schur = False               # not yet decided (see `schur`)
         # Gravity's generalized force on rigid bodies is constant: m g on their x and y.
         self._gravity_force = np.zeros(self.n)
         for start in self.body_starts.values():
             if start is not None and start not in flex_starts:
                 self._gravity_force[start:start + 2] = self.mass_diagonal[start] * self.gravity
+
+    @property
+    def schur(self):
+        """The banded Schur complement of a large rigid mechanism (`mechsim.banded`), built
+        on first use; None where the dense path serves. Assign None to force the dense
+        path, or a `BandedSchur` to force the banded one."""
+        if self._schur is False:
+            from .banded import for_problem
+            self._schur = for_problem(self)
+        return self._schur
+
+    @schur.setter
+    def schur(self, value):
+        self._schur = value
+
+    def _schur_solve(self, J, r, f):
+        """(Φ_q M⁻¹ Φ_qᵀ)⁻¹ r: banded Cholesky where available, else dense Cholesky with
+        the least-squares solution for a singular complement (redundant constraints)."""
+        band = self.schur if self._factor is not None else None
+        if band is not None:
+            c = band.factor(J)
+            if c is not None:
+                return band.solve(c, r)
+        Jt = f.cols(J)
+        return _solve_psd(Jt @ Jt.T, r)
 
     # --- constraints -----------------------------------------------------------------------
     def phi(self, q, t):
@@ -359,8 +385,7 @@ class NumericProblem:
             err = float(np.max(np.abs(phi))) if phi.size else 0.0
             if err <= tol or k == max_iter or not np.isfinite(err):
                 return q, k, err
-            Jt = f.cols(J)
-            q -= f.right(Jt.T @ _solve_psd(Jt @ Jt.T, phi))
+            q -= f.right(f.cols(J).T @ self._schur_solve(J, phi, f))
             self.counters.projections += 1
         return q, max_iter, err
 
@@ -369,8 +394,7 @@ class NumericProblem:
         J = self.phi_q(q, t)
         r = J @ v + self.phi_t(q, t)
         f = self.mass_factor(q)
-        Jt = f.cols(J)
-        return v - f.right(Jt.T @ _solve_psd(Jt @ Jt.T, r))
+        return v - f.right(f.cols(J).T @ self._schur_solve(J, r, f))
 
     def accelerations(self, J, Q, c, q=None):
         """Solve [M Φ_qᵀ; Φ_q 0][q̈; λ] = [Q; c] by the Schur complement of M = L Lᵀ (a
@@ -380,7 +404,10 @@ class NumericProblem:
         if self._factor is not None:
             w = self.inverse_mass_diagonal
             wq = w * Q
-            lam = _solve_psd((J * w) @ J.T, J @ wq - c)
+            band = self.schur
+            fac = band.factor(J) if band is not None else None
+            r = J @ wq - c
+            lam = band.solve(fac, r) if fac is not None else _solve_psd((J * w) @ J.T, r)
             return wq - w * (J.T @ lam), lam
         f = self.mass_factor(q)
         Jt, x = f.cols(J), f.left(Q)

@@ -24,6 +24,7 @@ class _ModuleWriter:
         self.printer = _Printer()
         self.constants: dict[tuple, str] = {}
         self.functions: list[str] = []
+        self.extra: list[str] = []
 
     def _constant(self, values) -> str:
         values = tuple(map(int, values))
@@ -90,7 +91,8 @@ class _ModuleWriter:
         ]
         constants = [f"{name} = _np.array({list(values)!r}, dtype=_np.intp)"
                      for values, name in self.constants.items()]
-        return "\n".join(header + constants + [""] + ["\n\n".join(self.functions), ""])
+        return "\n".join(header + self.extra + constants + [""] +
+                         ["\n\n".join(self.functions), ""])
 
 
 def kernel_source(q, v, p, functions, key: str, title: str) -> str:
@@ -110,6 +112,10 @@ def model_source(system, key: str, title: str) -> str:
     s = system
     w.function("phi", ("_q", "t", "_p"), [s.phi], "Constraint residual Φ, shape (m,).")
     w.function("phi_q", ("_q", "t", "_p"), [s.phi_q], "Jacobian Φ_q, shape (m, n).")
+    # Where Φ_q can be non-zero at all: what a sparse factorisation of its products needs.
+    nz = [(i, j) for i in range(s.phi_q.rows) for j in range(s.phi_q.cols) if s.phi_q[i, j] != 0]
+    w.extra += [f"JACOBIAN_ROWS = {[i for i, _ in nz]!r}",
+                f"JACOBIAN_COLS = {[j for _, j in nz]!r}", ""]
     w.function("phi_t", ("_q", "t", "_p"), [s.phi_t], "Φ_t, shape (m,).")
     w.function("gamma", ("_q", "_v", "t", "_p"), [s.gamma],
                "γ = −(Φ_q v)_q v − 2 Φ_qt v − Φ_tt, shape (m,).")

@@ -68,21 +68,44 @@ class SingularityMonitor:
         m = J.shape[0]
         if m == 0:
             return 1.0, 0.0, np.zeros(0), 1.0, 1.0
-        U, sig, Vt = dense.svd(J)
-        k = m - 1
-        if k >= sig.size or sig[0] <= 0.0:
-            return 0.0, 0.0, U[:, -1], 0.0, 0.0
-        s = float(sig[k] / sig[0])
+        pair = self._banded(J)
+        if pair is None:
+            U, sig, Vt = dense.svd(J)
+            k = m - 1
+            if k >= sig.size or sig[0] <= 0.0:
+                return 0.0, 0.0, U[:, -1], 0.0, 0.0
+            pair = (sig[k], U[:, k], Vt[k]), (sig[0], U[:, 0], Vt[0])
+        (smin, u_min, v_min), (smax, u_max, v_max) = pair
+        s = float(smin / smax)
         rate = 0.0
         if v is not None:
             speed = float(np.max(np.abs(v)))
             if speed > 0.0:
                 eps = 1e-7 / speed
                 dJ = (self._jacobian(q + eps * v, t + eps) - J) / eps
-                d_min = U[:, k] @ dJ @ Vt[k]
-                d_max = U[:, 0] @ dJ @ Vt[0]
-                rate = float((d_min * sig[0] - sig[k] * d_max) / sig[0] ** 2)
-        return s, rate, U[:, k], float(sig[k]), float(sig[0])
+                d_min = u_min @ dJ @ v_min
+                d_max = u_max @ dJ @ v_max
+                rate = float((d_min * smax - smin * d_max) / smax ** 2)
+        return s, rate, u_min, float(smin), float(smax)
+
+    def _banded(self, J):
+        """((σ_min, u, v), (σ_max, u, v)) of J̃ from the banded Schur complement of a large
+        rigid mechanism (`mechsim.banded`), or None where the dense SVD must serve: no
+        banded form, or J̃J̃ᵀ too near singular for its Cholesky factor and inverse
+        iteration."""
+        band = self.problem.schur
+        if band is None:
+            return None
+        c = band.factor(J, scaled=True)
+        low = band.smallest(c) if c is not None else None
+        if low is None:
+            return None
+        lam_min, u_min = low
+        lam_max, u_max = band.largest()
+        if not lam_min > 1e-12 * lam_max:
+            return None      # σ_min below 1e-6 σ_max: squared, it would be lost to round-off
+        smin, smax = np.sqrt(lam_min), np.sqrt(lam_max)
+        return (smin, u_min, J.T @ u_min / smin), (smax, u_max, J.T @ u_max / smax)
 
     def joints_of(self, u) -> tuple[str, ...]:
         owners = self.problem.constraint_owners
