@@ -58,7 +58,6 @@ class BandedSchur:
         self.kd = int(np.max(where[second] - where[first], initial=0))
         self._ia, self._ib = first * n + col, second * n + col
         self._slot = (self.kd + where[first] - where[second]) * m + where[second]
-        self._col = col
         self.weights = np.asarray(weights, float)
         self._wpair = self.weights[col]
         self._low = self._high = None      # latest eigenvectors (warm starts)

@@ -208,14 +208,18 @@ class NumericProblem:
     def schur(self, value):
         self._schur = value
 
-    def _schur_solve(self, J, r, f):
-        """(Φ_q M⁻¹ Φ_qᵀ)⁻¹ r: banded Cholesky where available, else dense Cholesky with
-        the least-squares solution for a singular complement (redundant constraints)."""
+    def _schur_solve(self, J, r, f=None, factor=None):
+        """(Φ_q M⁻¹ Φ_qᵀ)⁻¹ r: banded Cholesky where available (`factor`: its factor, if the
+        caller has it), else dense Cholesky with the least-squares solution for a singular
+        complement (redundant constraints). The dense complement is formed from the
+        mass-scaled J̃ = f.cols(J), or as (J W) Jᵀ when `f` is None (constant mass)."""
         band = self.schur if self._factor is not None else None
         if band is not None:
-            c = band.factor(J)
+            c = band.factor(J) if factor is None else factor
             if c is not None:
                 return band.solve(c, r)
+        if f is None:
+            return _solve_psd((J * self.inverse_mass_diagonal) @ J.T, r)
         Jt = f.cols(J)
         return _solve_psd(Jt @ Jt.T, r)
 
@@ -396,18 +400,16 @@ class NumericProblem:
         f = self.mass_factor(q)
         return v - f.right(f.cols(J).T @ self._schur_solve(J, r, f))
 
-    def accelerations(self, J, Q, c, q=None):
+    def accelerations(self, J, Q, c, q=None, factor=None):
         """Solve [M Φ_qᵀ; Φ_q 0][q̈; λ] = [Q; c] by the Schur complement of M = L Lᵀ (a
         diagonal for rigid mechanisms; `q` is needed only when M depends on it). Redundant
-        constraints (a singular Φ_q M⁻¹ Φ_qᵀ) fall back to the least-squares λ."""
+        constraints (a singular Φ_q M⁻¹ Φ_qᵀ) fall back to the least-squares λ. `factor`:
+        the complement's banded factor at J, if the caller has it (`mechsim.banded`)."""
         self.counters.factorizations += 1
         if self._factor is not None:
             w = self.inverse_mass_diagonal
             wq = w * Q
-            band = self.schur
-            fac = band.factor(J) if band is not None else None
-            r = J @ wq - c
-            lam = band.solve(fac, r) if fac is not None else _solve_psd((J * w) @ J.T, r)
+            lam = self._schur_solve(J, J @ wq - c, factor=factor)
             return wq - w * (J.T @ lam), lam
         f = self.mass_factor(q)
         Jt, x = f.cols(J), f.left(Q)

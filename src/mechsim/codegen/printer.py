@@ -33,6 +33,7 @@ class _ModuleWriter:
         return self.constants[values]
 
     def function(self, name: str, args: tuple[str, ...], outputs: list[sp.Matrix], doc: str):
+        """Write one function; returns each output's non-zero (i, j) entries."""
         sysm, pr = self.sys, self.printer
         # Nonzero entries of every output, cse'd together.
         entries, layout = [], []
@@ -74,6 +75,7 @@ class _ModuleWriter:
             results.append(out)
         lines.append(f"    return {results[0] if len(results) == 1 else '(' + ', '.join(results) + ')'}")
         self.functions.append("\n".join(lines))
+        return [nz for _, _, nz in layout]
 
     def module(self, key: str, title: str) -> str:
         s = self.sys
@@ -111,9 +113,8 @@ def model_source(system, key: str, title: str) -> str:
     w = _ModuleWriter(system)
     s = system
     w.function("phi", ("_q", "t", "_p"), [s.phi], "Constraint residual Φ, shape (m,).")
-    w.function("phi_q", ("_q", "t", "_p"), [s.phi_q], "Jacobian Φ_q, shape (m, n).")
+    [nz] = w.function("phi_q", ("_q", "t", "_p"), [s.phi_q], "Jacobian Φ_q, shape (m, n).")
     # Where Φ_q can be non-zero at all: what a sparse factorisation of its products needs.
-    nz = [(i, j) for i in range(s.phi_q.rows) for j in range(s.phi_q.cols) if s.phi_q[i, j] != 0]
     w.extra += [f"JACOBIAN_ROWS = {[i for i, _ in nz]!r}",
                 f"JACOBIAN_COLS = {[j for _, j in nz]!r}", ""]
     w.function("phi_t", ("_q", "t", "_p"), [s.phi_t], "Φ_t, shape (m,).")

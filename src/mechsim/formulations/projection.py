@@ -98,9 +98,9 @@ class Projection(FullCoordinates):
     def _banded(self, J):
         """The banded Cholesky factor of Φ_q M⁻¹ Φ_qᵀ when the problem has one
         (`mechsim.banded`) and every singular value of J̃ is clear of the truncation cut
-        (σ_min² > (2 rcond)² times a Gershgorin bound of σ_max²): there truncation drops nothing and the exact Schur
-        complement is the projection method's q̈, at O(m) cost instead of an SVD's O(m³).
-        None otherwise, and then the SVD decides."""
+        (σ_min² > (2 rcond)² times a Gershgorin bound of σ_max²): there truncation drops
+        nothing and the exact Schur complement is the projection method's q̈, at O(m) cost
+        instead of an SVD's O(m³). None otherwise, and then the SVD decides."""
         band = self.problem.schur
         if band is None or self.regularization != "truncate":
             return None
@@ -117,10 +117,7 @@ class Projection(FullCoordinates):
         _, J, _, gamma = prob.terms(q, v, t)
         c = self._banded(J) if J.shape[0] else None
         if c is not None:
-            w = prob.inverse_mass_diagonal
-            wq = w * prob.forces(t, q, v)
-            prob.counters.factorizations += 1
-            return wq - w * (J.T @ prob.schur.solve(c, J @ wq - gamma))
+            return prob.accelerations(J, prob.forces(t, q, v), gamma, factor=c)[0]
         f = prob.mass_factor(q)
         x = f.left(prob.forces(t, q, v))                   # L⁻¹ Q
         if J.shape[0]:
