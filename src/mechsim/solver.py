@@ -51,6 +51,24 @@ def _correct_in_place(solver, y) -> bool:
     return False
 
 
+def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step):
+    """Approach and cross a singular passage ahead with the formulation's bridge
+    (`mechsim.formulations.bridge`): (t_b, q_b, v_b, interpolant) when crossed, else None,
+    with the next step limited to the landing point while approaching."""
+    s, rate = monitor.last * monitor.peak, monitor.rate * monitor.peak
+    h_next = min(getattr(solver, "h_abs", None) or getattr(solver, "h", None)
+                 or solver.step_size, max_step)
+    plan = bridge.plan(s, rate, t, h_next)
+    if plan is not None and plan[0] == "cross":
+        crossed = bridge.cross(t, q, v, plan[1], lambda qk, tk: monitor.measure(qk, tk)[0])
+        if crossed is not None:
+            return crossed
+        plan = bridge.plan(s, rate, t, h_next)      # declined: land closer, or stand down
+    if plan is not None and plan[0] == "land":
+        solver.max_step = min(solver.max_step, plan[1])
+    return None
+
+
 def _positive(value, what):
     x = float(value)
     if not (x > 0 and math.isfinite(x)):
@@ -126,6 +144,16 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         next_out = 1
     solver = None
     t_reached = t_start
+    bridge = getattr(form, "bridge", None)
+    bridges = 0
+
+    def retire(old):
+        nonlocal nfev_done, njev_done, nlu_done, rejected
+        nfev_done += old.nfev
+        njev_done += int(getattr(old, "njev", 0))
+        nlu_done += int(getattr(old, "nlu", 0))
+        rejected += int(getattr(old, "n_rejected", 0))
+
     try:
         solver = make(t_start, y, first_step)
         while solver.status == "running":
@@ -173,17 +201,42 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             if ts is None or (next_out < len(ts) and ts[next_out] == t_new):
                 record(t_new, *form.state(t_new, y_here))
                 next_out += 1
-            if corrected is None or solver.status != "running":
+            if corrected is not None and solver.status == "running":
+                if not form.layout_changed and _correct_in_place(solver, corrected):
+                    corrections += 1
+                else:
+                    retire(solver)
+                    restarts += 1
+                    solver = make(t_new, corrected, solver.step_size)
+            if bridge is None or not form.bridging or solver.status != "running":
                 continue
-            if not form.layout_changed and _correct_in_place(solver, corrected):
-                corrections += 1
+            crossed = _bridge_passage(form, bridge, monitor, solver, t_new,
+                                      *form.state(t_new, y_here), max_step)
+            if crossed is None:
+                continue
+            t_b, q_b, v_b, interp = crossed
+            bridges += 1
+            if ts is not None:
+                first = next_out
+                while next_out < len(ts) and ts[next_out] <= t_b:
+                    next_out += 1
+                inside = [tk for tk in ts[first:next_out] if tk > t_new]
+                if inside:
+                    ys = np.atleast_2d(interp(np.array(inside)).T)
+                    for tk, yk in zip(inside, ys):
+                        record(tk, yk[:problem.n], yk[problem.n:])
             else:
-                nfev_done += solver.nfev
-                njev_done += int(getattr(solver, "njev", 0))
-                nlu_done += int(getattr(solver, "nlu", 0))
-                rejected += int(getattr(solver, "n_rejected", 0))
-                restarts += 1
-                solver = make(t_new, corrected, solver.step_size)
+                record(t_b, q_b, v_b)
+            monitor.crossed(t_new, t_b, lambda tk: np.split(interp(tk), [problem.n]))
+            monitor.observe(t_b, q_b, v_b)
+            y_b = form.resume(t_b, q_b, v_b)
+            form.last_step = t_b - t_new
+            after = form.after_step(t_b, y_b)
+            y_b = y_b if after is None else after
+            t_reached = t_b
+            retire(solver)
+            restarts += 1
+            solver = make(t_b, y_b, getattr(solver, "h_abs", None) or solver.step_size)
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
@@ -215,6 +268,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         "factorizations": counters.factorizations - before["factorizations"],
         "constraint_evaluations": counters.constraint_terms - before["constraint_terms"],
         "switches": counters.switches - before["switches"],
+        "bridges": bridges,
         "wall_time": wall,
     }
     return SimulationResult(np.array(out_t), np.array(out_q).reshape(len(out_t), -1),

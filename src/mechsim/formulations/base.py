@@ -31,6 +31,12 @@ class Formulation:
     failure = ""          # what went wrong last, for the manager's failure message
     layout_changed = False  # set by after_step when its correction changes the coordinates
     step_limit = None       # largest next step the formulation can take safely (None: any)
+    bridge = None           # a PassageBridge when the formulation can cross passages by one
+    bridging = False        # whether the manager may use it at the present step
+
+    def resume(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The state y for a consistent (q, v) at t in the present layout (after a bridge)."""
+        return self.initial_state(t, q, v)
 
     def __init__(self, problem: NumericProblem, rtol: float, atol: float, **options):
         unknown = sorted(set(options) - set(self.options))

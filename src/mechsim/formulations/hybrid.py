@@ -29,6 +29,7 @@ class Hybrid(Formulation):
         self.lu = Partitioned(problem, rtol, atol)
         self.proj = Projection(problem, rtol, atol)
         self.active = self.lu
+        self.bridge = self.proj.bridge
         self._stable = 0
         self._recent: list[int] = []      # steps at which LU re-partitioned
         self._step = 0
@@ -41,6 +42,13 @@ class Hybrid(Formulation):
                                         f"starts near a singular configuration (σ ratio {s:.3g})"))
             return self.proj.initial_state(t, q, v)
         return self.lu.initial_state(t, q, v)
+
+    @property
+    def bridging(self):
+        return self.active is self.proj and self.bridge is not None
+
+    def resume(self, t, q, v):
+        return self.active.resume(t, q, v)
 
     def rhs(self, t, y):
         return self.active.rhs(t, y)

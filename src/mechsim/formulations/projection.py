@@ -39,6 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import dense
+from .bridge import PassageBridge
 from .full import FullCoordinates
 
 # Singular values below this multiple of the truncation cut join the crossing cluster.
@@ -57,7 +58,7 @@ class Projection(FullCoordinates):
     name = "projection"
     default_integrator = "DOP853"
     options = {**FullCoordinates.options, "rcond": 1e-4, "exact_projection": True,
-               "regularization": "truncate"}
+               "regularization": "truncate", "bridge_passages": True}
 
     def __init__(self, problem, rtol, atol, **options):
         if options.get("projection_tol") is None:
@@ -68,6 +69,9 @@ class Projection(FullCoordinates):
             options["projection_tol"] = max(1e-13, 1e-3 * atol)
         super().__init__(problem, rtol, atol, **options)
         self._redundant = 0          # singular values found to stay at zero (redundancy)
+        if self.regularization == "truncate" and self.bridge_passages:
+            self.bridge = PassageBridge(problem, self.accelerations, self.rcond, rtol, atol)
+            self.bridging = True
 
     @staticmethod
     def _pinv_exact(Jt):
