@@ -15,6 +15,7 @@ from scipy.linalg import lapack
 
 _gesv, _posv, _getrf, _getri = lapack.dgesv, lapack.dposv, lapack.dgetrf, lapack.dgetri
 _gesdd = lapack.dgesdd
+_potrf, _pocon, _potrs = lapack.dpotrf, lapack.dpocon, lapack.dpotrs
 
 
 def solve(A, b):
@@ -39,6 +40,24 @@ def solve_psd(S, r):
     if info == 0:
         return x
     return np.linalg.lstsq(S, r, rcond=None)[0]
+
+
+def cholesky_conditioned(S, min_rcond):
+    """The upper Cholesky factor of a symmetric positive definite S whose reciprocal
+    condition number exceeds `min_rcond`, else None. The condition is LAPACK's estimate
+    (dpocon) in the 1-norm, with ‖S‖₁ bounded above by m·max Sᵢᵢ (|Sᵢⱼ| ≤ max Sᵢᵢ for a
+    positive definite S), which errs towards None; for symmetric S, 1/κ₂ ≥ 1/κ₁."""
+    c, info = _potrf(S)
+    if info != 0:
+        return None
+    rcond, info = _pocon(c, S.shape[0] * S.diagonal().max())
+    return c if info == 0 and rcond > min_rcond else None
+
+
+def cho_solve(c, r):
+    """x with S x = r from the upper Cholesky factor c of S."""
+    x, _ = _potrs(c, r)
+    return x
 
 
 def inv(A):

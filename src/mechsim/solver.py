@@ -53,7 +53,7 @@ def _correct_in_place(solver, y) -> bool:
 
 def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step):
     """Approach and cross a singular passage ahead with the formulation's bridge
-    (`mechsim.formulations.bridge`): (t_b, q_b, v_b, interpolant) when crossed, else None,
+    (`mechsim.formulations.bridge`): (t_b, q_b, v_b, interpolant, t*) when crossed, else None,
     with the next step limited to the landing point while approaching."""
     s, rate = monitor.last * monitor.peak, monitor.rate * monitor.peak
     h_next = min(getattr(solver, "h_abs", None) or getattr(solver, "h", None)
@@ -214,7 +214,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                                       *form.state(t_new, y_here), max_step)
             if crossed is None:
                 continue
-            t_b, q_b, v_b, interp = crossed
+            t_b, q_b, v_b, interp, t_star = crossed
             bridges += 1
             if ts is not None:
                 first = next_out
@@ -227,7 +227,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                         record(tk, yk[:problem.n], yk[problem.n:])
             else:
                 record(t_b, q_b, v_b)
-            monitor.crossed(t_new, t_b, lambda tk: np.split(interp(tk), [problem.n]))
+            monitor.crossed(t_new, t_b, t_star, interp(t_star)[:problem.n])
             monitor.observe(t_b, q_b, v_b)
             y_b = form.resume(t_b, q_b, v_b)
             form.last_step = t_b - t_new

@@ -60,6 +60,7 @@ class PassageBridge:
         self.free_step = None                   # step size before the approach
         self.landing = None                     # distance d before t* while approaching
         self.standing_down = False              # this passage is left to the formulation
+        self._prev = None                       # (t, rate) at the previous plan
         self.last_estimate = None
         self.crossings: list = []               # (t_from, t_to, error estimate)
 
@@ -67,28 +68,32 @@ class PassageBridge:
         """What to do after a step ending at t with σ_min/σ_max = s falling at `rate` and a
         next step of h_next proposed: None (go on), ("land", h) (take a step of h to the
         landing point), or ("cross", t*)."""
+        prev, self._prev = self._prev, (t, rate)
         if rate >= 0.0:
-            self.landing, self.standing_down = None, False
+            self.landing, self.standing_down, self._prev = None, False, None
         if not rate < 0.0 or self.standing_down:
             return None
         if s < self.edge:                # landed in the band: the formulation steps through
             self.landing, self.standing_down = None, True
             return None
-        to_star = s / -rate
         self._rate = -rate
+        # s falls faster than its tangent where the motion accelerates into the
+        # configuration: with the rate's change since the previous step, the instant is the
+        # root of s + ṡ τ + ½ s̈ τ² (the linear prediction when there is no curvature yet).
+        curv = (rate - prev[1]) / (t - prev[0]) if prev is not None and t > prev[0] else 0.0
+        disc = rate * rate - 2.0 * curv * s
+        to_star = 2.0 * s / (-rate + np.sqrt(disc)) if disc > 0.0 else s / -rate
         if self.landing is None:
             if to_star > 3.0 * h_next:
                 self.free_step = h_next
                 return None
-            # Not so close that the history would reach into the band (s ≈ |rate| (t* − t)).
+            # Start and end clear of the band (s ≈ |rate| (t* − t) near the configuration).
             self.landing = max(LANDING * (self.free_step or h_next), 1.6 * self.edge / -rate)
         if to_star <= 1.05 * self.landing:
             return "cross", t + to_star
-        # s falls faster than its tangent where the motion accelerates into the
-        # configuration: approach in steps of 0.7 of the linear prediction until close.
         h = to_star - self.landing
         if to_star > 2.0 * self.landing:
-            h *= 0.7
+            h *= 0.9
         return ("land", h) if h < h_next else None
 
     def _consistent(self, q, v, t):
@@ -105,7 +110,8 @@ class PassageBridge:
 
     def _history(self, t_n, q_n, v_n, ts):
         """Consistent states at the times `ts` before t_n on the trajectory through
-        (q_n, v_n): integrated backwards at rtol 1e-13, away from the configuration."""
+        (q_n, v_n): integrated backwards, away from the configuration, at a hundredth of
+        the run's tolerances."""
         from scipy.integrate import solve_ivp
         n = self.problem.n
 
@@ -114,8 +120,8 @@ class PassageBridge:
             return np.concatenate([y[n:], self.accelerations(t, y[:n], y[n:])])
 
         y_n = np.concatenate([q_n, v_n])
-        sol = solve_ivp(f, (t_n, ts[-1]), y_n, method="DOP853", t_eval=ts, rtol=1e-13,
-                        atol=1e-3 * self.atol)
+        sol = solve_ivp(f, (t_n, ts[-1]), y_n, method="DOP853", t_eval=ts,
+                        rtol=max(1e-13, 1e-2 * self.rtol), atol=1e-2 * self.atol)
         if sol.status != 0:
             raise ArithmeticError(f"the passage's history could not be integrated: {sol.message}")
         return [self._consistent(y[:n], y[n:], tk) for tk, y in zip(ts, sol.y.T)]
@@ -126,7 +132,7 @@ class PassageBridge:
 
     def cross(self, t_n, q_n, v_n, t_star, measure, iterations=4):
         """One Adams step from (q_n, v_n) at t_n over t*; `measure(q, t)` gives σ_min/σ_max.
-        Returns (t_b, q_b, v_b, interpolant), or None: then the approach goes on with a
+        Returns (t_b, q_b, v_b, interpolant, t*), or None: then the approach goes on with a
         shorter landing distance, or the bridge stands down for this passage."""
         n = self.problem.n
         H = SPAN * (t_star - t_n)
@@ -189,7 +195,7 @@ class PassageBridge:
 
         self.crossings.append((t_n, t_b, err))
         self.landing = None
-        return t_b, q_b, v_b, interpolant
+        return t_b, q_b, v_b, interpolant, t_star
 
     def _decline(self, err):
         """Not crossed: land closer while the band allows (the error falls as d^(k+1) where

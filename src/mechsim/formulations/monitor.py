@@ -176,12 +176,11 @@ class SingularityMonitor:
                                 options={"xatol": 1e-5 * (t1 - t0)})
         return float(found.x), float(found.fun)
 
-    def crossed(self, t0, t1, state_at):
+    def crossed(self, t0, t1, tm, qm):
         """A passage was crossed in one step from t0 to t1 without observations inside
-        (`mechsim.formulations.bridge`): its minimum is found on the step's interpolant and
-        recorded with the open passage, or as a passage of its own."""
-        tm, sm = self._deepest(t0, t1, state_at)
-        _, _, um = self.measure(state_at(tm)[0], tm)
+        (`mechsim.formulations.bridge`), its singular instant predicted at tm where the
+        configuration is qm: recorded with the open passage, or as a passage of its own."""
+        sm, _, um = self.measure(qm, tm)
         if self._open is not None:
             if sm < self._open[2]:
                 self._open[1:4] = [tm, sm, self.joints_of(um)]
