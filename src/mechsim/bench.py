@@ -55,7 +55,7 @@ PROBLEMS = {
                                "10 singular passages"),
     "forty-window": Problem("forty-window", lambda: examples.double_four_bar(40), 20.0,
                             math.pi / 2, -1.0, 40, description="40-window four-bar, 20 s, "
-                            "243 coordinates (slow: minutes)"),
+                            "243 coordinates"),
 }
 
 
