@@ -146,6 +146,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     t_reached = t_start
     bridge = getattr(form, "bridge", None)
     bridges = 0
+    bridge_evals_before = bridge.evaluations if bridge is not None else 0
 
     def retire(old):
         nonlocal nfev_done, njev_done, nlu_done, rejected
@@ -252,13 +253,14 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     monitor.close(t_reached)
 
     wall = time.perf_counter() - start
+    bridge_evals = bridge.evaluations - bridge_evals_before if bridge is not None else 0
     stats = {
         "method": cls.name,
         "integrator": solver_cls.__name__,
         "steps": steps,
         "rejected_steps": (rejected + int(solver.n_rejected)
                            if solver is not None and hasattr(solver, "n_rejected") else None),
-        "rhs_evaluations": nfev_done + (solver.nfev if solver is not None else 0),
+        "rhs_evaluations": nfev_done + (solver.nfev if solver is not None else 0) + bridge_evals,
         "jacobian_evaluations": njev_done + int(getattr(solver, "njev", 0)),
         "lu_decompositions": nlu_done + int(getattr(solver, "nlu", 0)),
         "restarts": restarts,
@@ -269,6 +271,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         "constraint_evaluations": counters.constraint_terms - before["constraint_terms"],
         "switches": counters.switches - before["switches"],
         "bridges": bridges,
+        "bridge_evaluations": bridge_evals,
         "wall_time": wall,
     }
     return SimulationResult(np.array(out_t), np.array(out_q).reshape(len(out_t), -1),

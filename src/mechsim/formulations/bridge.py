@@ -9,26 +9,27 @@ inside it, and where its stages land decides whether the step size collapses; a 
 (forty windows lose forty directions one after another) collapses at almost every passage.
 
 An Adams step evaluates only at its ends. The bridge lands the integrator a distance d
-before the singular instant t* (linear prediction from σ_min/σ_max and its rate), then takes
-one Adams step of length H = 2.4 d to a point as far past it:
+before the singular instant t* (predicted from σ_min/σ_max, its rate and the rate's change),
+then takes one Adams step of length H = 2.4 d to a point as far past it:
 
-- the history is `order` states spaced H/2 back from the landing point, read from the dense
-  output of the last two steps, projected onto the constraints (mass metric) and given their
-  exact accelerations (they lie outside the band, where q̈ is well conditioned);
+- the history is up to `order` states spaced H/2 back from the landing point, integrated
+  backwards from it (away from the configuration) at a hundredth of the run's tolerances,
+  projected onto the constraints to round-off and given their exact accelerations;
 - the predictor (Adams–Bashforth on that history) gives the end state, which is projected
-  onto the constraints: the branch the motion was on is the nearer one, since the other is a
-  distance of order H away and the predictor's error many orders less;
-- the corrector (Adams–Moulton with the end point) is iterated with the end state projected
-  before each evaluation there; Milne's device ‖y_c − y_p‖ estimates the error.
+  onto the constraints (mass metric): the branch the motion was on is the nearer one, the
+  other being a distance of order H away and the predictor's error many orders less;
+- the corrector (Adams–Moulton with the end point) is iterated, the end state projected
+  before each evaluation there; the order is chosen by the differences between correctors
+  of successive orders, which also estimate the error.
 
 d starts at 1/14 of the step the integrator took freely before the approach (an Adams step
-needs a few times shorter steps than an eighth-order Runge–Kutta step at equal error, and
-spacing H/2 keeps the history's extrapolation well conditioned: measured on the double
-four-bar at rtol 1e-9, order 8 at spacing H/2 estimates 0.2 for H = 5 ms and 15 for 20 ms,
-while spacing H/8 estimates 99 at 5 ms). A bridge whose estimate misses the tolerance is not
-taken: d shrinks by the estimate's (order+1)-th root and the integrator lands again. At the
-band's edge (σ_min/σ_max under twice `EDGE` cuts) the bridge stands down and the formulation
-steps through the passage on its own.
+needs a few times shorter steps than an eighth-order Runge–Kutta step at equal error), and
+never so close that σ_min/σ_max at the landing point falls under 1.6 `EDGE` cuts. Spacing
+H/2 keeps the history's extrapolation well conditioned: on the double four-bar at rtol 3e-9
+spacings H/3 and H/4 read 2–10× larger estimates. A bridge whose estimate misses the
+tolerance is not taken: d shrinks by the estimate's (order+1)-th root and the integrator
+lands again; at the floor of 1.2 `EDGE` cuts, or if a landing falls inside the band, the
+bridge stands down and the formulation steps through the passage on its own.
 """
 
 from __future__ import annotations
@@ -63,6 +64,7 @@ class PassageBridge:
         self._prev = None                       # (t, rate) at the previous plan
         self.last_estimate = None
         self.crossings: list = []               # (t_from, t_to, error estimate)
+        self.evaluations = 0                    # right-hand sides evaluated by the bridge
 
     def plan(self, s, rate, t, h_next):
         """What to do after a step ending at t with σ_min/σ_max = s falling at `rate` and a
@@ -89,11 +91,11 @@ class PassageBridge:
                 return None
             # Start and end clear of the band (s ≈ |rate| (t* − t) near the configuration).
             self.landing = max(LANDING * (self.free_step or h_next), 1.6 * self.edge / -rate)
-        if to_star <= 1.05 * self.landing:
+        if to_star <= 1.5 * self.landing:
             return "cross", t + to_star
-        h = to_star - self.landing
-        if to_star > 2.0 * self.landing:
-            h *= 0.9
+        # Aim at the landing distance, but keep clear of the floor should the prediction
+        # be 10 % short.
+        h = min(to_star - self.landing, 0.9 * to_star - 1.2 * self.edge / -rate)
         return ("land", h) if h < h_next else None
 
     def _consistent(self, q, v, t):
@@ -106,6 +108,7 @@ class PassageBridge:
 
     def _f(self, t, q, v):
         self.problem.counters.rhs += 1
+        self.evaluations += 1
         return np.concatenate([v, self.accelerations(t, q, v)])
 
     def _history(self, t_n, q_n, v_n, ts):
@@ -117,6 +120,7 @@ class PassageBridge:
 
         def f(t, y):
             self.problem.counters.rhs += 1
+            self.evaluations += 1
             return np.concatenate([y[n:], self.accelerations(t, y[:n], y[n:])])
 
         y_n = np.concatenate([q_n, v_n])
