@@ -93,9 +93,12 @@ class PassageBridge:
             self.landing = max(LANDING * (self.free_step or h_next), 1.6 * self.edge / -rate)
         if to_star <= 1.5 * self.landing:
             return "cross", t + to_star
-        # Aim at the landing distance, but keep clear of the floor should the prediction
-        # be 10 % short.
-        h = min(to_star - self.landing, 0.9 * to_star - 1.2 * self.edge / -rate)
+        # From far off the prediction may be short by tens of percent (measured: 5 ms of
+        # 60 on the double four-bar): go three quarters of the way first, then land.
+        h = to_star - max(self.landing, 0.25 * to_star)
+        if h <= 0.0:                     # declined already closer than the landing point
+            self.landing, self.standing_down = None, True
+            return None
         return ("land", h) if h < h_next else None
 
     def _consistent(self, q, v, t):
