@@ -62,6 +62,7 @@ class PassageBridge:
         self.landing = None                     # distance d before t* while approaching
         self.standing_down = False              # this passage is left to the formulation
         self._prev = None                       # (t, rate) at the previous plan
+        self._rate = 0.0                        # |rate| of σ_min/σ_max at the last plan
         self.last_estimate = None
         self.crossings: list = []               # (t_from, t_to, error estimate)
         self.evaluations = 0                    # right-hand sides evaluated by the bridge
@@ -117,20 +118,14 @@ class PassageBridge:
     def _history(self, t_n, q_n, v_n, ts):
         """Consistent states at the times `ts` before t_n on the trajectory through
         (q_n, v_n): integrated backwards, away from the configuration, at a hundredth of
-        the run's tolerances."""
+        the run's tolerances; None if that integration fails."""
         from scipy.integrate import solve_ivp
         n = self.problem.n
-
-        def f(t, y):
-            self.problem.counters.rhs += 1
-            self.evaluations += 1
-            return np.concatenate([y[n:], self.accelerations(t, y[:n], y[n:])])
-
-        y_n = np.concatenate([q_n, v_n])
-        sol = solve_ivp(f, (t_n, ts[-1]), y_n, method="DOP853", t_eval=ts,
+        sol = solve_ivp(lambda t, y: self._f(t, y[:n], y[n:]), (t_n, ts[-1]),
+                        np.concatenate([q_n, v_n]), method="DOP853", t_eval=ts,
                         rtol=max(1e-13, 1e-2 * self.rtol), atol=1e-2 * self.atol)
         if sol.status != 0:
-            raise ArithmeticError(f"the passage's history could not be integrated: {sol.message}")
+            return None
         return [self._consistent(y[:n], y[n:], tk) for tk, y in zip(ts, sol.y.T)]
 
     def _norm(self, e, a, b):
@@ -147,7 +142,11 @@ class PassageBridge:
         ts = t_n - D * np.arange(self.order)
         q_n, v_n = self._consistent(q_n, v_n, t_n)
         F = [self._f(t_n, q_n, v_n)]
-        for tk, (q, v) in zip(ts[1:], self._history(t_n, q_n, v_n, ts[1:])):
+        states = self._history(t_n, q_n, v_n, ts[1:])
+        if states is None:
+            self.landing, self.standing_down = None, True
+            return None
+        for tk, (q, v) in zip(ts[1:], states):
             F.append(self._f(tk, q, v))
         F = np.array(F)
         y_n = np.concatenate([q_n, v_n])
@@ -185,7 +184,6 @@ class PassageBridge:
         ys = [y_n + H * (integration_weights(nodes[:k], 1.0)[0] @ Fb[:k])
               for k in range(3, nodes.size + 1)]
         errs = [self._norm(hi - lo, y_n, hi) for lo, hi in zip(ys, ys[1:])]
-        self.by_order = errs
         best = int(np.argmin(errs))
         err = self.last_estimate = errs[best]
         if err > 1.0:
