@@ -56,14 +56,14 @@ def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step):
     (`mechsim.formulations.bridge`): (t_b, q_b, v_b, interpolant, t*) when crossed, else None,
     with the next step limited to the landing point while approaching."""
     s, rate = monitor.last * monitor.peak, monitor.rate * monitor.peak
-    h_next = min(getattr(solver, "h_abs", None) or getattr(solver, "h", None)
-                 or solver.step_size, max_step)
-    plan = bridge.plan(s, rate, t, h_next)
+    h_free = getattr(solver, "h_abs", None) or getattr(solver, "h", None) or solver.step_size
+    h_next = min(h_free, max_step)
+    plan = bridge.plan(s, rate, t, h_next, max_step_bound=h_free >= max_step)
     if plan is not None and plan[0] == "cross":
         crossed = bridge.cross(t, q, v, plan[1], lambda qk, tk: monitor.measure(qk, tk)[0])
         if crossed is not None:
             return crossed
-        plan = bridge.plan(s, rate, t, h_next)      # declined: land closer, or stand down
+        plan = bridge.plan(s, rate, t, h_next, h_free >= max_step)   # land closer, or stand down
     if plan is not None and plan[0] == "land":
         solver.max_step = min(solver.max_step, plan[1])
     return None
@@ -147,6 +147,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     bridge = getattr(form, "bridge", None)
     bridges = 0
     bridge_evals_before = bridge.evaluations if bridge is not None else 0
+    bridge_over_before = bridge.over_tolerance if bridge is not None else 0
 
     def retire(old):
         nonlocal nfev_done, njev_done, nlu_done, rejected
@@ -209,7 +210,12 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                     retire(solver)
                     restarts += 1
                     solver = make(t_new, corrected, solver.step_size)
-            if bridge is None or not form.bridging or solver.status != "running":
+            if bridge is None or solver.status != "running":
+                continue
+            if not form.bridging:
+                h_free = getattr(solver, "h_abs", None) or getattr(solver, "h", None)
+                if h_free:
+                    bridge.note_step(min(h_free, max_step), h_free >= max_step)
                 continue
             crossed = _bridge_passage(form, bridge, monitor, solver, t_new,
                                       *form.state(t_new, y_here), max_step)
@@ -272,6 +278,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         "switches": counters.switches - before["switches"],
         "bridges": bridges,
         "bridge_evaluations": bridge_evals,
+        "bridges_over_tolerance": (bridge.over_tolerance - bridge_over_before
+                                   if bridge is not None else 0),
         "wall_time": wall,
     }
     return SimulationResult(np.array(out_t), np.array(out_q).reshape(len(out_t), -1),

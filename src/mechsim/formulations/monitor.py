@@ -47,7 +47,7 @@ class SingularityMonitor:
         self.problem = problem
         self.enter, self.leave = enter, leave
         self.passages: list[SingularPassage] = []
-        self._open = None            # [t_start, t_min, s_min, joints] while inside
+        self._open = None            # [t_start, t_min, s_min, joints, bridged] while inside
         self.last, self.rate = 1.0, 0.0  # s/peak and its rate at the last observation
         self.peak = 0.0
         self._prev = None            # (t, s/peak, ṡ/peak) at the previous observation
@@ -154,7 +154,7 @@ class SingularityMonitor:
         if self._open is None and contiguous and s >= self.enter and state_at is not None:
             self._hidden_minimum(prev, (t, s, rate), state_at)
         if self._open is None and s < self.enter:
-            self._open = [t, t, raw, self.joints_of(u)]
+            self._open = [t, t, raw, self.joints_of(u), False]
         elif self._open is not None:
             if raw < self._open[2]:
                 self._open[1:4] = [t, raw, self.joints_of(u)]
@@ -182,10 +182,9 @@ class SingularityMonitor:
         configuration is qm: recorded with the open passage, or as a passage of its own."""
         sm, _, um = self.measure(qm, tm)
         if self._open is not None:
-            if sm < self._open[2]:
-                self._open[1:4] = [tm, sm, self.joints_of(um)]
+            self._open[1:5] = [tm, sm, self.joints_of(um), True]
         elif sm < self.enter * self.peak:
-            self.passages.append(SingularPassage(t0, t1, sm, self.joints_of(um), tm))
+            self.passages.append(SingularPassage(t0, t1, sm, self.joints_of(um), tm, True))
 
     def _hidden_minimum(self, a, b, state_at):
         t0, _, d0 = a
@@ -209,6 +208,6 @@ class SingularityMonitor:
 
     def close(self, t):
         if self._open is not None:
-            t0, tmin, smin, joints = self._open
-            self.passages.append(SingularPassage(t0, t, smin, joints, tmin))
+            t0, tmin, smin, joints, bridged = self._open
+            self.passages.append(SingularPassage(t0, t, smin, joints, tmin, bridged))
             self._open = None

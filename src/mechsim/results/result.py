@@ -21,12 +21,15 @@ from ..problem import frame_point, frame_point_velocity
 class SingularPassage:
     """A passage through a singular configuration of Φ_q: from `t_start` to `t_end` the
     normalized smallest singular value of Φ_q M^{-1/2} stayed below the monitor's threshold;
-    its minimum `min_sigma` came at `t_min`; `joints` own the rows of its singular vector."""
+    its minimum `min_sigma` came at `t_min`; `joints` own the rows of its singular vector;
+    `bridged`: crossed in one step by the passage bridge, `t_min` being its predicted
+    singular instant."""
     t_start: float
     t_end: float
     min_sigma: float
     joints: tuple[str, ...] = ()
     t_min: float | None = None
+    bridged: bool = False
 
 
 @dataclass(frozen=True)
