@@ -51,12 +51,17 @@ def _correct_in_place(solver, y) -> bool:
     return False
 
 
+def _proposed_step(solver):
+    """The step size the integrator proposes next (scipy's RK: h_abs; Adams: h)."""
+    return getattr(solver, "h_abs", None) or getattr(solver, "h", None) or solver.step_size
+
+
 def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step):
     """Approach and cross a singular passage ahead with the formulation's bridge
     (`mechsim.formulations.bridge`): (t_b, q_b, v_b, interpolant, t*) when crossed, else None,
     with the next step limited to the landing point while approaching."""
     s, rate = monitor.last * monitor.peak, monitor.rate * monitor.peak
-    h_free = getattr(solver, "h_abs", None) or getattr(solver, "h", None) or solver.step_size
+    h_free = _proposed_step(solver)
     h_next = min(h_free, max_step)
     plan = bridge.plan(s, rate, t, h_next, max_step_bound=h_free >= max_step)
     if plan is not None and plan[0] == "cross":
@@ -213,7 +218,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             if bridge is None or solver.status != "running":
                 continue
             if not form.bridging:
-                h_free = getattr(solver, "h_abs", None) or getattr(solver, "h", None)
+                h_free = _proposed_step(solver)
                 if h_free:
                     bridge.note_step(min(h_free, max_step), h_free >= max_step)
                 continue
@@ -243,7 +248,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             t_reached = t_b
             retire(solver)
             restarts += 1
-            solver = make(t_b, y_b, getattr(solver, "h_abs", None) or solver.step_size)
+            solver = make(t_b, y_b, _proposed_step(solver))
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:

@@ -140,16 +140,13 @@ class Projection(FullCoordinates):
         if c is not None:
             return prob.accelerations(J, prob.forces(t, q, v), gamma, factor=c)[0]
         f = prob.mass_factor(q)
-        if prob.schur is None:
-            Jt = f.cols(J)
-            c = self._clear(Jt)
-            if c is not None:
-                prob.counters.factorizations += 1
-                x = f.left(prob.forces(t, q, v))
-                return f.right(x - Jt.T @ dense.cho_solve(c, Jt @ x - gamma))
         x = f.left(prob.forces(t, q, v))                   # L⁻¹ Q
         if J.shape[0]:
             Jt = f.cols(J)
+            c = self._clear(Jt) if prob.schur is None else None
+            if c is not None:
+                prob.counters.factorizations += 1
+                return f.right(x - Jt.T @ dense.cho_solve(c, Jt @ x - gamma))
             U, sig, Vt = dense.svd(Jt)
             prob.counters.factorizations += 1
             V, Ui = self._regularized(U, sig, Vt)
