@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..integrators.adams import integration_weights
+from ..integrators.adams import error_norm, integration_weights
 
 # The band's edge, in multiples of the truncation cut (σ_min/σ_max = rcond).
 EDGE = 3.0
@@ -64,12 +64,10 @@ class PassageBridge:
         self.landing = None                     # distance d before t* while approaching
         self.standing_down = False              # this passage is left to the formulation
         self._prev = None                       # (t, rate) at the previous plan
-        self._prev_before = None                # and the one before it
+        self._planned = None                    # (t, predicted time to t*) of the last plan
         self._rate = 0.0                        # |rate| of σ_min/σ_max at the last plan
-        self._declined_at = None                # t of the last bridge not taken
         self._free_bound = False                # the free step was the run's max_step
         self.last_estimate = None
-        self.crossings: list = []               # (t_from, t_to, error estimate)
         self.evaluations = 0                    # right-hand sides evaluated by the bridge
         self.over_tolerance = 0                 # bridges taken at the floor with estimate > 1
 
@@ -84,10 +82,10 @@ class PassageBridge:
         """What to do after a step ending at t with σ_min/σ_max = s falling at `rate` and a
         next step of h_next proposed (`max_step_bound`: h_next is the run's max_step): None
         (go on), ("land", h) (take a step of h to the landing point), or ("cross", t*)."""
-        prev = self._prev
-        if prev is not None and prev[0] == t:           # re-planned after a decline
-            prev = self._prev_before
-        self._prev_before, self._prev = prev, (t, rate)
+        replan = self._planned is not None and self._planned[0] == t    # after a decline
+        prev = None if replan else self._prev
+        if not replan:
+            self._prev = (t, rate)
         if rate >= 0.0:
             self.landing, self.standing_down, self._prev = None, False, None
             self.free_step = None
@@ -100,9 +98,13 @@ class PassageBridge:
         # s falls faster than its tangent where the motion accelerates into the
         # configuration: with the rate's change since the previous step, the instant is the
         # root of s + ṡ τ + ½ s̈ τ² (the linear prediction when there is no curvature yet).
-        curv = (rate - prev[1]) / (t - prev[0]) if prev is not None and t > prev[0] else 0.0
-        disc = rate * rate - 2.0 * curv * s
-        to_star = 2.0 * s / (-rate + np.sqrt(disc)) if disc > 0.0 else s / -rate
+        if replan:
+            to_star = self._planned[1]
+        else:
+            curv = (rate - prev[1]) / (t - prev[0]) if prev is not None and t > prev[0] else 0.0
+            disc = rate * rate - 2.0 * curv * s
+            to_star = 2.0 * s / (-rate + np.sqrt(disc)) if disc > 0.0 else s / -rate
+            self._planned = (t, to_star)
         if self.landing is None:
             if to_star > 3.0 * h_next:
                 self.note_step(h_next, max_step_bound)
@@ -113,7 +115,7 @@ class PassageBridge:
             # declined at 0.66 ms for the round-off of q̈ there, and crossed from 1.5 ms).
             floor = (3.2 if self._free_bound else 1.6) * self.edge / -rate
             self.landing = max(LANDING * (self.free_step or h_next), floor)
-        if to_star <= 1.5 * self.landing and t != self._declined_at:
+        if to_star <= 1.5 * self.landing and not replan:
             return "cross", t + to_star
         # From far off the prediction may be short by tens of percent (measured: 5 ms of
         # 60 on the double four-bar): go three quarters of the way first, then land.
@@ -150,8 +152,7 @@ class PassageBridge:
         return [self._consistent(y[:n], y[n:], tk) for tk, y in zip(ts, sol.y.T)]
 
     def _norm(self, e, a, b):
-        scale = self.atol + self.rtol * np.maximum(np.abs(a), np.abs(b))
-        return float(np.sqrt(np.mean((e / scale) ** 2)))
+        return error_norm(e, a, b, self.rtol, self.atol)
 
     def cross(self, t_n, q_n, v_n, t_star, measure, iterations=4):
         """One Adams step from (q_n, v_n) at t_n over t*; `measure(q, t)` gives σ_min/σ_max.
@@ -226,7 +227,6 @@ class PassageBridge:
             y = y_n[None, :] + H * (integration_weights(nodes, s) @ Fc)
             return y[0] if np.ndim(tk) == 0 else y.T
 
-        self.crossings.append((t_n, t_b, err))
         self.landing = None
         return t_b, q_b, v_b, interpolant, t_star
 
@@ -239,7 +239,6 @@ class PassageBridge:
         it is truncation; where it is the round-off of the accelerations near the
         configuration it does not, and the floor ends the attempts), else stand down for
         this passage."""
-        self._declined_at = self._prev[0] if self._prev else None
         if self.landing is None:         # called outside a planned approach
             return None
         floor = self._floor()

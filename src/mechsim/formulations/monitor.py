@@ -162,20 +162,6 @@ class SingularityMonitor:
                 self.close(t)
         return s
 
-    def _deepest(self, t0, t1, state_at):
-        """(t, s) of the smallest s on [t0, t1] along `state_at`. s is V-shaped near a
-        singular configuration (≈ |angle to it|) and curved by the motion's acceleration, so
-        neither a cubic model nor the tangents' intersection tells reliably how deep it
-        goes: look on the interpolant itself (~20 evaluations)."""
-        from scipy.optimize import minimize_scalar
-
-        def s_at(tk):
-            return self.measure(state_at(tk)[0], tk)[0]
-
-        found = minimize_scalar(s_at, bounds=(t0, t1), method="bounded",
-                                options={"xatol": 1e-5 * (t1 - t0)})
-        return float(found.x), float(found.fun)
-
     def crossed(self, t0, t1, tm, qm):
         """A passage was crossed in one step from t0 to t1 without observations inside
         (`mechsim.formulations.bridge`), its singular instant predicted at tm where the
@@ -192,9 +178,18 @@ class SingularityMonitor:
         h = t1 - t0
         if not (h > 0.0 and d0 < 0.0 < d1):
             return
-        # A local minimum of s lies inside the step: look on the dense output (once per
-        # local minimum).
-        tm, sm = self._deepest(t0, t1, state_at)
+        # A local minimum of s lies inside the step. s is V-shaped near a singular
+        # configuration (≈ |angle to it|) and curved by the motion's acceleration, so neither
+        # a cubic model nor the tangents' intersection tells reliably how deep it goes: look
+        # on the dense output itself (once per local minimum, ~20 evaluations).
+        from scipy.optimize import minimize_scalar
+
+        def s_at(tk):
+            return self.measure(state_at(tk)[0], tk)[0]
+
+        found = minimize_scalar(s_at, bounds=(t0, t1), method="bounded",
+                                options={"xatol": 1e-5 * h})
+        tm, sm = float(found.x), float(found.fun)
         if sm < self.enter * self.peak:
             qm, _ = state_at(tm)
             _, _, um = self.measure(qm, tm)

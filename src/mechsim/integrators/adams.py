@@ -47,6 +47,14 @@ def integration_weights(nodes: np.ndarray, s) -> np.ndarray:
     return np.einsum("g,pgk->pk", _GW, L) * s[:, None]
 
 
+def error_norm(e, y_a, y_b, rtol, atol) -> float:
+    """RMS of the error e scaled by atol + rtol·max(|y_a|, |y_b|): ≤ 1 meets the tolerance."""
+    if not e.size:
+        return 0.0
+    scale = atol + rtol * np.maximum(np.abs(y_a), np.abs(y_b))
+    return float(np.sqrt(np.mean((e / scale) ** 2)))
+
+
 class AdamsPECE(OdeSolver):
     """Variable-step, variable-order Adams PECE (orders 1..`max_order`) with error control.
 
@@ -89,8 +97,7 @@ class AdamsPECE(OdeSolver):
         return w
 
     def _norm(self, e, y_a, y_b):
-        scale = self.atol + self.rtol * np.maximum(np.abs(y_a), np.abs(y_b))
-        return float(np.sqrt(np.mean((e / scale) ** 2))) if e.size else 0.0
+        return error_norm(e, y_a, y_b, self.rtol, self.atol)
 
     def _initial_step(self, loose=False):
         # Order 1 (Euler predictor, trapezoid corrector) has local error ~ h² |f'|: start small
