@@ -67,6 +67,9 @@ def test_grouped_functions_agree_with_single_ones(problem, rng):
     phi2, J2 = problem.position_terms(q, t)
     np.testing.assert_allclose(phi2, phi, **same)
     np.testing.assert_allclose(J2, J, **same)
+    J3, gamma3 = problem.dynamics_terms(q, v, t)
+    np.testing.assert_allclose(J3, J, **same)
+    np.testing.assert_allclose(gamma3, gamma, **same)
 
 
 def test_parameters_are_arguments_not_constants():

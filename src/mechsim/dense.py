@@ -50,7 +50,7 @@ def cholesky_conditioned(S, min_rcond):
     c, info = _potrf(S)
     if info != 0:
         return None
-    rcond, info = _pocon(c, S.shape[0] * S.diagonal().max())
+    rcond, info = _pocon(c, S.shape[0] * max(S.diagonal().tolist()))
     return c if info == 0 and rcond > min_rcond else None
 
 

@@ -245,6 +245,11 @@ class NumericProblem:
         self.counters.constraint_terms += 1
         return self.model.terms(q, v, t, self.p)
 
+    def dynamics_terms(self, q, v, t):
+        """(Φ_q, γ) sharing their subexpressions: what q̈ needs."""
+        self.counters.constraint_terms += 1
+        return self.model.dynamics_terms(q, v, t, self.p)
+
     def worst_constraint(self, phi) -> str:
         """'<residual> in '<equation>' of '<joint or driver>'' for the largest |Φ_i|: how
         failures name the model object at fault."""

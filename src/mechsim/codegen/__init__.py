@@ -8,6 +8,7 @@
     gamma(q, v, t, p)        -> (m,)
     position_terms(q, t, p)  -> (phi, phi_q)
     terms(q, v, t, p)        -> (phi, phi_q, phi_t, gamma)
+    dynamics_terms(q, v, t, p) -> (phi_q, gamma)
 
 where `q`, `v` are float arrays and `p` a sequence of parameter values. On a cache hit the
 module is imported from the cache directory and sympy is never imported.

@@ -19,7 +19,7 @@ from pathlib import Path
 from types import ModuleType
 
 # Bump when the generated code changes meaning, so stale cache entries are not used.
-CODEGEN_VERSION = 2
+CODEGEN_VERSION = 3
 
 
 def cache_dir() -> Path:

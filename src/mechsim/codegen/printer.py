@@ -123,4 +123,6 @@ def model_source(system, key: str, title: str) -> str:
     w.function("position_terms", ("_q", "t", "_p"), [s.phi, s.phi_q], "(Φ, Φ_q) with shared terms.")
     w.function("terms", ("_q", "_v", "t", "_p"), [s.phi, s.phi_q, s.phi_t, s.gamma],
                "(Φ, Φ_q, Φ_t, γ) with shared terms.")
+    w.function("dynamics_terms", ("_q", "_v", "t", "_p"), [s.phi_q, s.gamma],
+               "(Φ_q, γ) with shared terms: what the constrained accelerations need.")
     return w.module(key, title)

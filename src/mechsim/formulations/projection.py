@@ -135,15 +135,17 @@ class Projection(FullCoordinates):
 
     def accelerations(self, t, q, v):
         prob = self.problem
-        _, J, _, gamma = prob.terms(q, v, t)
-        c = self._banded(J) if J.shape[0] else None
+        J, gamma = prob.dynamics_terms(q, v, t)
+        m = J.shape[0]
+        banded = m and prob.schur is not None
+        c = self._banded(J) if banded else None
         if c is not None:
             return prob.accelerations(J, prob.forces(t, q, v), gamma, factor=c)[0]
         f = prob.mass_factor(q)
         x = f.left(prob.forces(t, q, v))                   # L⁻¹ Q
-        if J.shape[0]:
+        if m:
             Jt = f.cols(J)
-            c = self._clear(Jt) if prob.schur is None else None
+            c = None if banded else self._clear(Jt)
             if c is not None:
                 prob.counters.factorizations += 1
                 return f.right(x - Jt.T @ dense.cho_solve(c, Jt @ x - gamma))
@@ -225,7 +227,7 @@ class Projection(FullCoordinates):
                 ts = t + h
                 qs, _, _ = prob.project_positions(q + h * v + 0.5 * h * h * a, ts, tol=1e-13)
                 vs = prob.project_velocities(qs, v + h * a, ts)
-                _, Js, _, gs = prob.terms(qs, vs, ts)
+                Js, gs = prob.dynamics_terms(qs, vs, ts)
                 acc, _ = prob.accelerations(Js, prob.forces(ts, qs, vs), gs, qs)
                 mean += 0.5 * acc
             x = x + W @ (W.T @ (f.unright(mean) - x))
