@@ -54,6 +54,12 @@ def cholesky_conditioned(S, min_rcond):
     return c if info == 0 and rcond > min_rcond else None
 
 
+def cho_factor_or_none(S):
+    """The upper Cholesky factor of S, or None if S is not numerically positive definite."""
+    c, info = _potrf(S)
+    return c if info == 0 else None
+
+
 def cho_solve(c, r):
     """x with S x = r from the upper Cholesky factor c of S."""
     x, _ = _potrs(c, r)

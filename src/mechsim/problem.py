@@ -398,6 +398,53 @@ class NumericProblem:
             self.counters.projections += 1
         return q, max_iter, err
 
+    def complement_solver(self, J, f):
+        """r ↦ (Φ_q M⁻¹ Φ_qᵀ)⁻¹ r from one Cholesky factor at Φ_q = J (`f`: the mass factor
+        there), banded where the problem has the banded form; None if the complement is
+        not numerically positive definite (a singular configuration, redundancy)."""
+        band = self.schur if self._factor is not None else None
+        if band is not None:
+            c = band.factor(J)
+            return None if c is None else (lambda r: band.solve(c, r))
+        from .dense import cho_factor_or_none, cho_solve
+        Jt = f.cols(J)
+        c = cho_factor_or_none(Jt @ Jt.T)
+        return None if c is None else (lambda r: cho_solve(c, r))
+
+    def project_state(self, q, v, t, tol, extra=0, max_iter=8, solve=None):
+        """(q, v) with ‖Φ‖∞ ≤ tol (then `extra` further iterations) and Φ_q v + Φ_t = 0, by
+        a chord Newton in the mass metric whose single factor of Φ_q M⁻¹ Φ_qᵀ at the given
+        q also serves the velocity projection: where the corrections are small (a state
+        off the manifold by an integrator's error) each iteration gains the digits by
+        which Φ_q moves, and the one factor does the work of the three or four that
+        `project_positions` and `project_velocities` form. `solve`: the factor's solve
+        (`complement_solver`) if the caller has it. None where the complement cannot be
+        factored or the chord does not converge; the full projections serve there."""
+        f = self.mass_factor(q)
+        phi, J = self.position_terms(q, t)
+        if solve is None:
+            solve = self.complement_solver(J, f)
+            if solve is None:
+                return None
+        Jt = f.cols(J)
+        q = np.array(q, float)
+        for _ in range(max_iter):
+            if max(abs(phi).tolist(), default=0.0) <= tol:
+                break
+            q -= f.right(Jt.T @ solve(phi))
+            self.counters.projections += 1
+            phi = self.phi(q, t)
+        else:
+            return None
+        for _ in range(extra):
+            q -= f.right(Jt.T @ solve(phi))
+            self.counters.projections += 1
+            phi = self.phi(q, t)
+        J = self.phi_q(q, t)
+        f = self.mass_factor(q)
+        r = J @ v + self.phi_t(q, t)
+        return q, v - f.right(f.cols(J).T @ solve(r))
+
     def project_velocities(self, q, v, t):
         """v − W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ (Φ_q v + Φ_t): the nearest consistent velocity."""
         J = self.phi_q(q, t)

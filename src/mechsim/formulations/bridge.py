@@ -129,6 +129,9 @@ class PassageBridge:
         prob = self.problem
         # Close to the configuration a residual of Φ is amplified by 1/σ_min² in q̈: one
         # Newton step past 1e-13 takes it to round-off.
+        done = prob.project_state(q, v, t, 1e-13, extra=1)
+        if done is not None:
+            return done
         q, _, _ = prob.project_positions(q, t, tol=1e-13)
         q, _, _ = prob.project_positions(q, t, tol=0.0, max_iter=1)
         return q, prob.project_velocities(q, v, t)

@@ -234,12 +234,10 @@ class Projection(FullCoordinates):
         return x
 
     def after_step(self, t, y):
-        """Project an accepted state back onto the constraints (FullCoordinates), sharing
-        one Cholesky factor of J̃J̃ᵀ between a chord Newton on the positions and the
-        velocity projection where J̃ is clear of the band: the corrections are of the
-        order of the tolerance, so the factor at the step's end serves to round-off (each
-        chord iteration gains the eight digits by which J̃ moves). On the double four-bar
-        this takes a projection from four Jacobians and four factorisations to one of each."""
+        """Project an accepted state back onto the constraints (FullCoordinates) with one
+        Cholesky factor of J̃J̃ᵀ for positions and velocities (`NumericProblem.project_state`)
+        where J̃ is clear of the band: on the double four-bar one Jacobian and one
+        factorisation per projection instead of four of each."""
         prob, n = self.problem, self.n
         if not self.projection or prob.schur is not None or not prob.m:
             return super().after_step(t, y)
@@ -249,21 +247,9 @@ class Projection(FullCoordinates):
             return None
         f = prob.mass_factor(q)
         c = self._clear(f.cols(J))
-        if c is None:
-            return super().after_step(t, y)
-        Jt = f.cols(J)
-        tol = 0.01 * self.projection_tol
-        for _ in range(4):
-            q = q - f.right(Jt.T @ dense.cho_solve(c, phi))
-            prob.counters.projections += 1
-            phi = prob.phi(q, t)
-            if max(abs(phi).tolist()) <= tol:
-                break
-        else:
-            return super().after_step(t, y)
-        J = prob.phi_q(q, t)
-        r = J @ v + prob.phi_t(q, t)
-        return np.concatenate([q, v - f.right(f.cols(J).T @ dense.cho_solve(c, r))])
+        done = None if c is None else prob.project_state(
+            q, v, t, 0.01 * self.projection_tol, solve=lambda r: dense.cho_solve(c, r))
+        return super().after_step(t, y) if done is None else np.concatenate(done)
 
     def project_positions(self, q, t):
         prob = self.problem
