@@ -105,3 +105,16 @@ def test_ten_window_chain_runs_on_the_banded_path_between_passages(monkeypatch):
     branch = Problem("ten-window", None, 0.5, math.pi / 2, -1.0, 10)
     assert branch.error(res) <= 1e-8                  # largest crank-tip distance off the branch
     assert res.stats["rhs_evaluations"] > 50 and svds == []
+
+
+def test_a_run_does_not_depend_on_the_runs_before_it():
+    """The banded form keeps eigenvector warm starts between evaluations; a new run starts
+    without them (before, a hybrid run after a projection run of the 40-window chain ended
+    at another error and evaluation count than the same run alone)."""
+    chain = ms.examples.double_four_bar(10)
+    kw = dict(t_end=1.5, rtol=3e-9, atol=3e-11, output_step=0.01)
+    first = chain.simulate(method="hybrid", **kw)
+    chain.simulate(method="projection", **kw)
+    again = chain.simulate(method="hybrid", **kw)
+    assert first.stats["rhs_evaluations"] == again.stats["rhs_evaluations"]
+    np.testing.assert_array_equal(first.q, again.q)

@@ -62,6 +62,10 @@ class BandedSchur:
         self._wpair = self.weights[col]
         self._low = self._high = None      # latest eigenvectors (warm starts)
 
+    def forget(self):
+        """Drop the warm starts, so that a run does not depend on the runs before it."""
+        self._low = self._high = None
+
     def assemble(self, J, scaled=False):
         """S in band storage ((kd + 1) × m); `scaled`: J is already J̃ = J W^{1/2}."""
         v = J.ravel()

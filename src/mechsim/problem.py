@@ -204,6 +204,12 @@ class NumericProblem:
             self._schur = for_problem(self)
         return self._schur
 
+    def start_run(self):
+        """Forget what earlier runs left behind (the banded form's eigenvector warm starts):
+        the same run twice gives the same result."""
+        if self._schur not in (False, None):
+            self._schur.forget()
+
     @schur.setter
     def schur(self, value):
         self._schur = value

@@ -117,6 +117,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         first_step = _positive(h, "h")
     elif solver_cls.__name__ == "Trapezoidal":
         raise ValueError(f"method {cls.name!r} steps at a fixed size: give `h`, e.g. h=1e-3")
+    problem.start_run()
     form = cls(problem, rtol, atol, **options)
     monitor = form.monitor = SingularityMonitor(problem, *singular_thresholds)
 
