@@ -286,3 +286,20 @@ def test_projection_accelerations_through_a_double_singularity(theta):
         assert acc[3 * i + 2] == pytest.approx(exact, rel=1e-6), i
     for i in range(n):
         assert abs(acc[3 * (n + 1) + 3 * i + 2]) < 1e-5
+
+
+def test_bench_repeat_keeps_each_runs_shortest_time():
+    """`mechsim bench --repeat N` runs every case N times in rounds and reports one row per
+    case with the same run (error, steps, evaluations) as a single repeat."""
+    from mechsim import bench
+
+    kw = dict(problems=["parallelogram"], methods=["projection", "lu"], rtols=[1e-5],
+              progress=None)
+    once = bench.run(**kw)
+    thrice = bench.run(**kw, repeat=3)
+    assert [(r.method, r.rtol) for r in thrice] == [("projection", 1e-5), ("lu", 1e-5)]
+    for a, b in zip(once, thrice):
+        assert (a.error, a.steps, a.rhs, a.passages) == (b.error, b.steps, b.rhs, b.passages)
+        assert a.error < 1e-3 and b.passages == 3
+    with pytest.raises(ValueError, match="repeat"):
+        bench.run(**kw, repeat=0)

@@ -97,7 +97,7 @@ def _bench(args) -> int:
     print(bench.HEADER)
     try:
         rows = bench.run(problems, methods, rtols, integrator=args.integrator,
-                         max_steps=args.max_steps)
+                         max_steps=args.max_steps, repeat=args.repeat)
     except ValueError as exc:
         print(f"mechsim: {exc}", file=sys.stderr)
         return 2
@@ -128,6 +128,9 @@ def main(argv=None) -> int:
     bench.add_argument("--integrator", help="override every method's default integrator")
     bench.add_argument("--max-steps", type=int, default=20000,
                        help="give up a run after this many steps (default 20000)")
+    bench.add_argument("--repeat", type=int, default=1,
+                       help="run everything this many times in rounds and keep each run's "
+                            "shortest wall time (default 1)")
     bench.add_argument("--out", default="out/bench", help="where to write CSV and plots")
     bench.set_defaults(func=_bench)
     args = parser.parse_args(argv)
