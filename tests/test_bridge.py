@@ -85,14 +85,14 @@ def ten_window():
 
 def test_bridging_saves_the_steps_stepping_through_costs(ten_window):
     """The ten-window chain loses ten directions over each passage, one after another;
-    without the bridge the steps land among them and shrink (measured 4943 evaluations for
-    3 s against 703)."""
+    without the bridge the steps land among them and shrink (measured 2786 evaluations for
+    3 s against 881, the bridges' own included)."""
     kw = dict(t_end=3.0, method="projection", rtol=1e-8, atol=1e-10, output_step=0.01)
     bridged = ten_window.simulate(**kw)
     through = ten_window.simulate(**kw, bridge_passages=False)
     assert bridged.status == through.status == "success"
     assert bridged.stats["bridges"] == 3 and through.stats["bridges"] == 0
-    assert bridged.stats["rhs_evaluations"] < 0.3 * through.stats["rhs_evaluations"]
+    assert bridged.stats["rhs_evaluations"] < 0.4 * through.stats["rhs_evaluations"]
     assert tip_error(bridged, 10) <= 1e-7
 
 

@@ -39,6 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import dense
+from ..problem import newton_stalled
 from .bridge import PassageBridge
 from .full import FullCoordinates
 
@@ -259,21 +260,27 @@ class Projection(FullCoordinates):
 
     def after_step(self, t, y):
         """Project an accepted state back onto the constraints (FullCoordinates) with one
-        Cholesky factor of J̃J̃ᵀ for positions and velocities (`NumericProblem.project_state`)
-        where J̃ is clear of the band: on the double four-bar one Jacobian and one
-        factorisation per projection instead of four of each."""
+        factor of Φ_q M⁻¹ Φ_qᵀ for positions and velocities (`NumericProblem.project_state`)
+        where J̃ is clear of the band: the dense Cholesky factor, or the banded one of a
+        long chain. On the double four-bar one Jacobian and one factorisation per
+        projection instead of four of each."""
         prob, n = self.problem, self.n
         self._far = self._far_from_band()
-        if not self.projection or prob.schur is not None or not prob.m:
+        if not self.projection or not prob.m:
             return super().after_step(t, y)
         q, v = y[:n], y[n:]
         phi, J = prob.position_terms(q, t)
         if max(abs(phi).tolist()) <= self.projection_tol:
             return None
-        f = prob.mass_factor(q)
-        c = self._clear(f.cols(J))
-        done = None if c is None else prob.project_state(
-            q, v, t, 0.01 * self.projection_tol, solve=lambda r: dense.cho_solve(c, r))
+        band = prob.schur
+        if band is not None:
+            c = self._banded(J)
+            solve = None if c is None else (lambda r: band.solve(c, r))
+        else:
+            c = self._clear(prob.mass_factor(q).cols(J))
+            solve = None if c is None else (lambda r: dense.cho_solve(c, r))
+        done = None if solve is None else prob.project_state(
+            q, v, t, 0.01 * self.projection_tol, solve=solve)
         return super().after_step(t, y) if done is None else np.concatenate(done)
 
     def project_positions(self, q, t):
@@ -283,11 +290,13 @@ class Projection(FullCoordinates):
         f = prob.mass_factor(q)
         if self._clear_at(prob.phi_q(q, t), f):
             return prob.project_positions(q, t, tol=tol)      # clear of the band: exact Schur
+        prev = np.inf
         for k in range(20):
             phi, J = prob.position_terms(q, t)
             err = float(np.max(np.abs(phi)))
-            if err <= tol:
+            if err <= tol or newton_stalled(err, prev, tol):
                 break
+            prev = err
             Jt = f.cols(J)
             V, Ui, _ = self._pinv_exact(Jt) if self.exact_projection else self._pinv(Jt)
             q -= f.right(V @ (Ui @ phi))
