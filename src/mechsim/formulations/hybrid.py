@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from ..results import Switch
 from .base import Formulation
-from .partitioned import Partitioned, _condition
+from .partitioned import Partitioned
 from .projection import Projection
 
 
@@ -65,7 +65,7 @@ class Hybrid(Formulation):
         # row rank there, unless that ratio is itself at round-off (redundant constraints).
         full = mon is not None and mon.last * mon.peak > 1e-6
         basis = self.lu.choose(J, J.shape[0] if full else None)
-        return _condition(basis.JD(J)) < 0.1 * self.lu.cond_max
+        return basis.block(J).condition() < 0.1 * self.lu.cond_max
 
     def _switch(self, t, y, to, reason):
         q, v = self.active.state(t, y)
