@@ -28,8 +28,11 @@ never so close that σ_min/σ_max at the landing point falls under 1.6 `EDGE` cu
 H/2 keeps the history's extrapolation well conditioned: on the double four-bar at rtol 3e-9
 spacings H/3 and H/4 read 2–10× larger estimates. A bridge whose estimate misses the
 tolerance is not taken: d shrinks by the estimate's (order+1)-th root and the integrator
-lands again; at the floor of 1.2 `EDGE` cuts, or if a landing falls inside the band, the
-bridge stands down and the formulation steps through the passage on its own.
+lands again. Where landing closer makes the estimate no better (it is then the round-off of
+q̈ near the configuration, not truncation), or at the floor of 1.2 `EDGE` cuts, the best
+declined bridge with an estimate up to `FLOOR_ACCEPT` is taken; without one, or if a
+landing falls inside the band, the bridge stands down and the formulation steps through the
+passage on its own.
 """
 
 from __future__ import annotations
