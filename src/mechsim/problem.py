@@ -439,16 +439,16 @@ class NumericProblem:
         Jt = f.cols(J)
         q = np.array(q, float)
         prev = np.inf
-        for _ in range(max_iter):
+        for k in range(max_iter + 1):
             err = max(abs(phi).tolist(), default=0.0)
             if err <= tol or newton_stalled(err, prev, tol):
                 break
+            if k == max_iter:
+                return None
             prev = err
             q -= f.right(Jt.T @ solve(phi))
             self.counters.projections += 1
             phi = self.phi(q, t)
-        else:
-            return None
         for _ in range(extra):
             q -= f.right(Jt.T @ solve(phi))
             self.counters.projections += 1
