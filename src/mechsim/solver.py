@@ -16,7 +16,7 @@ import numpy as np
 
 from .formulations import formulation_class
 from .formulations.monitor import SingularityMonitor
-from scipy.integrate import DOP853, RK23, RK45
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45
 
 from .integrators import AdamsPECE, integrator_class
 from .problem import NumericProblem
@@ -36,13 +36,39 @@ def output_times(t0: float, t_end: float, output_step: float | None) -> np.ndarr
     return ts
 
 
+def _corrects_in_place(solver_cls) -> bool:
+    """Can `_correct_in_place` enter a projected state into this kind of integrator?"""
+    return issubclass(solver_cls, (AdamsPECE, RK23, RK45, DOP853, BDF, LSODA))
+
+
 def _correct_in_place(solver, y) -> bool:
     """Put a projected state into a running integrator without restarting it, where that is
     sound: one-step RK methods need only y and f(t, y); the Adams method keeps its derivative
     history (a projected multistep method). Others (BDF, Radau, LSODA carry internal state
     built on the old y) are restarted by the caller."""
+    if not _corrects_in_place(type(solver)):
+        return False
     if isinstance(solver, AdamsPECE):
         solver.correct(y)
+        return True
+    if isinstance(solver, BDF):
+        # Its history is the backward differences ∇ᵏyₙ (rows 0 … order + 1 of D), each of
+        # which holds yₙ with coefficient 1: replacing yₙ shifts them all by the correction
+        # and keeps the older points (a projected multistep method, as for Adams).
+        delta = np.asarray(y, float) - solver.y
+        solver.D[:solver.order + 2] += delta
+        solver.y = np.array(y, float)
+        return True
+    if isinstance(solver, LSODA):
+        # ODEPACK's documented workspace: the Nordsieck array YH starts at RWORK(21), its
+        # first column the current y; replacing it keeps the history (as for BDF).
+        rwork = _lsoda_workspace(solver)
+        n = solver.y.size
+        if rwork is None or rwork.size < 20 + n:
+            return False
+        rwork[20:20 + n] = y
+        solver.y = np.array(y, float)
+        solver._lsoda_solver._y = solver.y.copy()
         return True
     if isinstance(solver, (RK23, RK45, DOP853)):
         solver.y = np.array(y, float)
@@ -51,9 +77,20 @@ def _correct_in_place(solver, y) -> bool:
     return False
 
 
+def _lsoda_workspace(solver):
+    """LSODA's RWORK array (ODEPACK's documented layout), or None."""
+    ode = getattr(solver, "_lsoda_solver", None)
+    return getattr(getattr(ode, "_integrator", None), "rwork", None)
+
+
 def _proposed_step(solver):
-    """The step size the integrator proposes next (scipy's RK: h_abs; Adams: h)."""
-    return getattr(solver, "h_abs", None) or getattr(solver, "h", None) or solver.step_size
+    """The step size the integrator proposes next (scipy's RK, BDF, Radau: h_abs; Adams: h;
+    LSODA: HCUR, RWORK(12))."""
+    h = getattr(solver, "h_abs", None) or getattr(solver, "h", None)
+    if h is None and isinstance(solver, LSODA):
+        rwork = _lsoda_workspace(solver)
+        h = float(rwork[11]) if rwork is not None and rwork.size > 11 else None
+    return h or solver.step_size
 
 
 def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step):
@@ -62,6 +99,8 @@ def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step):
     with the next step limited to the landing point while approaching."""
     s, rate = monitor.last * monitor.peak, monitor.rate * monitor.peak
     h_free = _proposed_step(solver)
+    if not h_free:                   # a restarted integrator that has not stepped yet
+        return None
     h_next = min(h_free, max_step)
     plan = bridge.plan(s, rate, t, h_next, max_step_bound=h_free >= max_step)
     if plan is not None and plan[0] == "cross":
@@ -119,6 +158,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         raise ValueError(f"method {cls.name!r} steps at a fixed size: give `h`, e.g. h=1e-3")
     problem.start_run()
     form = cls(problem, rtol, atol, **options)
+    form.restarts_on_correction = not _corrects_in_place(solver_cls)
     monitor = form.monitor = SingularityMonitor(problem, *singular_thresholds)
 
     counters = problem.counters
@@ -131,10 +171,16 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     y = form.initial_state(t_start, q0, v0)
     monitor.observe(t_start, q0, v0)
 
-    def make(t, y, step):
+    def make(t, y, step, bound=max_step):
         step = first_step if h is not None else step      # a fixed step stays fixed
-        kw = {"first_step": min(step, t_end - t)} if step else {}
-        return solver_cls(form.rhs, t, y, t_end, rtol=rtol, atol=atol, max_step=max_step, **kw)
+        kw = {"first_step": min(step, t_end - t, bound)} if step else {}
+        return solver_cls(form.rhs, t, y, t_end, rtol=rtol, atol=atol, max_step=bound, **kw)
+
+    # scipy's RK, Radau and BDF and the Adams method read `max_step` at every step, so the
+    # step bounds of a formulation (the hybrid ahead of a singularity) and of the passage
+    # bridge's landing apply at once; LSODA takes its bound only when it starts, so a new
+    # bound restarts it.
+    bound_at_start = max_step if solver_cls.__name__ == "LSODA" else None
 
     def record(t, q, v):
         out_t.append(t)
@@ -165,6 +211,17 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     try:
         solver = make(t_start, y, first_step)
         while solver.status == "running":
+            if bound_at_start is not None:
+                # Restart only where the bound decides the next step: a tighter one below
+                # the step LSODA would take, or a looser one where the old bound held it.
+                want = getattr(solver, "max_step", bound_at_start)
+                h_next = _proposed_step(solver) or 0.0
+                if (want < bound_at_start and h_next > want) or \
+                        (want > bound_at_start and h_next >= 0.9 * bound_at_start):
+                    bound_at_start = want
+                    retire(solver)
+                    restarts += 1
+                    solver = make(solver.t, solver.y, min(h_next, want) or None, want)
             t_old = solver.t
             msg = solver.step()
             if solver.status == "failed":
@@ -201,8 +258,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             form.last_step = t_new - t_old
             form.layout_changed = False
             corrected = form.after_step(t_new, y_new)
-            # A formulation may bound the next step (hybrid ahead of a singularity); scipy's
-            # solvers and the Adams method read `max_step` at every step.
+            # A formulation may bound the next step (hybrid ahead of a singularity).
             solver.max_step = max_step if form.step_limit is None else min(max_step, form.step_limit)
             y_here = y_new if corrected is None else corrected
             t_reached = t_new

@@ -79,6 +79,10 @@ class Hybrid(Formulation):
         return to.initial_state(t, q, v)
 
     def after_step(self, t, y):
+        # The projection formulation reads these as the manager's own formulation would.
+        proj = self.proj
+        proj.monitor, proj.last_step = self.monitor, self.last_step
+        proj.restarts_on_correction = self.restarts_on_correction
         self._step += 1
         self.layout_changed = False
         self.step_limit = None
