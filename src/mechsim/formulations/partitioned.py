@@ -107,7 +107,9 @@ class _SparseBlock:
     """Φ_q D of a long chain (hundreds of dependent coordinates, four non-zeros a row)
     factored by SuperLU: on the 40-window chain 0.14 ms to factor and 24 µs to solve,
     against 3.7 ms for the dense inverse and 0.67 ms for a dense solve. The condition
-    number is the 1-norm estimate (Higham's, as LAPACK's condition estimators)."""
+    number is the 1-norm estimate of Hager and Higham (as LAPACK's condition estimators),
+    with one probe vector: more would be drawn from numpy's global random generator, which
+    would make re-partitioning, and so whole runs, depend on the caller's random state."""
 
     def __init__(self, A):
         from scipy.sparse.linalg import splu
@@ -131,7 +133,7 @@ class _SparseBlock:
         lu = self.lu
         op = LinearOperator(self.A.shape, matvec=lu.solve, dtype=float,
                             rmatvec=lambda x: lu.solve(x, trans="T"))
-        return float(abs(self.A).sum(axis=0).max() * onenormest(op))
+        return float(abs(self.A).sum(axis=0).max() * onenormest(op, t=1))
 
 
 class CoordinateBasis:
