@@ -43,9 +43,9 @@ def _corrects_in_place(solver_cls) -> bool:
 
 def _correct_in_place(solver, y) -> bool:
     """Put a projected state into a running integrator without restarting it, where that is
-    sound: one-step RK methods need only y and f(t, y); the Adams method keeps its derivative
-    history (a projected multistep method). Others (BDF, Radau, LSODA carry internal state
-    built on the old y) are restarted by the caller."""
+    sound: one-step RK methods need only y and f(t, y); the multistep methods (Adams, BDF,
+    LSODA) keep their history with the newest point replaced (a projected multistep method).
+    Radau (its Newton state is built on the old y) is restarted by the caller."""
     if not _corrects_in_place(type(solver)):
         return False
     if isinstance(solver, AdamsPECE):
