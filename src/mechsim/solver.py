@@ -16,7 +16,7 @@ import numpy as np
 
 from .formulations import formulation_class
 from .formulations.monitor import SingularityMonitor
-from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
 from .integrators import AdamsPECE, integrator_class
 from .problem import NumericProblem
@@ -36,18 +36,12 @@ def output_times(t0: float, t_end: float, output_step: float | None) -> np.ndarr
     return ts
 
 
-def _corrects_in_place(solver_cls) -> bool:
-    """Can `_correct_in_place` enter a projected state into this kind of integrator?"""
-    return issubclass(solver_cls, (AdamsPECE, RK23, RK45, DOP853, BDF, LSODA))
-
-
 def _correct_in_place(solver, y) -> bool:
     """Put a projected state into a running integrator without restarting it, where that is
-    sound: one-step RK methods need only y and f(t, y); the multistep methods (Adams, BDF,
-    LSODA) keep their history with the newest point replaced (a projected multistep method).
-    Radau (its Newton state is built on the old y) is restarted by the caller."""
-    if not _corrects_in_place(type(solver)):
-        return False
+    sound: the one-step methods (RK, Radau) need only y and f(t, y), Radau's previous
+    collocation polynomial serving as before for its Newton start; the multistep methods
+    (Adams, BDF, LSODA) keep their history with the newest point replaced (a projected
+    multistep method)."""
     if isinstance(solver, AdamsPECE):
         solver.correct(y)
         return True
@@ -70,7 +64,7 @@ def _correct_in_place(solver, y) -> bool:
         solver.y = np.array(y, float)
         solver._lsoda_solver._y = solver.y.copy()
         return True
-    if isinstance(solver, (RK23, RK45, DOP853)):
+    if isinstance(solver, (RK23, RK45, DOP853, Radau)):
         solver.y = np.array(y, float)
         solver.f = solver.fun(solver.t, solver.y)
         return True
@@ -158,7 +152,6 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         raise ValueError(f"method {cls.name!r} steps at a fixed size: give `h`, e.g. h=1e-3")
     problem.start_run()
     form = cls(problem, rtol, atol, **options)
-    form.restarts_on_correction = not _corrects_in_place(solver_cls)
     monitor = form.monitor = SingularityMonitor(problem, *singular_thresholds)
 
     counters = problem.counters

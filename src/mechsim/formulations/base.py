@@ -31,9 +31,6 @@ class Formulation:
     failure = ""          # what went wrong last, for the manager's failure message
     layout_changed = False  # set by after_step when its correction changes the coordinates
     step_limit = None       # largest next step the formulation can take safely (None: any)
-    # Set by the manager: a correction from after_step restarts the integrator (Radau)
-    # instead of entering it in place.
-    restarts_on_correction = False
     bridge = None           # a PassageBridge when the formulation can cross passages by one
     bridging = False        # whether the manager may use it at the present step
 

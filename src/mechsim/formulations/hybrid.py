@@ -82,7 +82,6 @@ class Hybrid(Formulation):
         # The projection formulation reads these as the manager's own formulation would.
         proj = self.proj
         proj.monitor, proj.last_step = self.monitor, self.last_step
-        proj.restarts_on_correction = self.restarts_on_correction
         self._step += 1
         self.layout_changed = False
         self.step_limit = None

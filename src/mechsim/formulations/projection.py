@@ -62,16 +62,12 @@ class Projection(FullCoordinates):
                "regularization": "truncate", "bridge_passages": True}
 
     def __init__(self, problem, rtol, atol, **options):
-        # Near a singular configuration any inconsistency of (q, v) enters γ and is
-        # amplified by 1/σ_min in J̃⁺γ: keep the state on the manifold to round-off. (The
-        # integrators keep ‖Φ‖ that small on their own most of the time.) Where a correction
-        # restarts the integrator (Radau: 105 restarts in the double four-bar's first 2 s),
-        # the state is corrected far from passages only once ‖Φ‖ exceeds FullCoordinates'
-        # tolerance, max(10 rtol, 100 atol) (11 restarts).
-        self._loose_tol = None
         if options.get("projection_tol") is None:
+            # Near a singular configuration any inconsistency of (q, v) enters γ and is
+            # amplified by 1/σ_min in J̃⁺γ: keep the state on the manifold to round-off.
+            # (The integrators keep ‖Φ‖ that small on their own most of the time, and they
+            # take the projected state in place, without a restart.)
             options["projection_tol"] = max(1e-13, 1e-3 * atol)
-            self._loose_tol = max(10.0 * rtol, 100.0 * atol)
         super().__init__(problem, rtol, atol, **options)
         self._redundant = 0          # singular values found to stay at zero (redundancy)
         # Set after an accepted step far from any passage: until the next one, the
@@ -274,9 +270,7 @@ class Projection(FullCoordinates):
             return super().after_step(t, y)
         q, v = y[:n], y[n:]
         phi, J = prob.position_terms(q, t)
-        trigger = self._loose_tol if (self.restarts_on_correction and self._loose_tol
-                                      and self._far) else self.projection_tol
-        if max(abs(phi).tolist()) <= trigger:
+        if max(abs(phi).tolist()) <= self.projection_tol:
             return None
         band = prob.schur
         if band is not None:
