@@ -138,6 +138,10 @@ class Projection(FullCoordinates):
             return self._banded(J) is not None
         return self._clear(f.cols(J)) is not None
 
+    def initial_state(self, t, q, v):
+        self._far = False              # until an accepted step says otherwise (a switch)
+        return super().initial_state(t, q, v)
+
     def _far_from_band(self):
         """Will every evaluation of the next step find J̃ clear of the truncation cut? So
         the monitor says after this step: σ_min/σ_max above its `leave` threshold, not
