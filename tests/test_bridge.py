@@ -83,17 +83,22 @@ def ten_window():
     return ms.examples.double_four_bar(10)
 
 
-def test_bridging_saves_the_steps_stepping_through_costs(ten_window):
-    """The ten-window chain loses ten directions over each passage, one after another;
-    without the bridge the steps land among them and shrink (measured 2786 evaluations for
-    3 s against 881, the bridges' own included)."""
+def test_bridging_costs_each_passage_a_bounded_number_of_evaluations(ten_window):
+    """The ten-window chain loses ten directions over each passage, one after another.
+    Bridged, each passage costs its Adams step's evaluations (212 for three passages, 881 in
+    all for 3 s, the same with compiled or Python kernels). Stepping through costs what the
+    step placement happens to give: for these 3 s, 694 evaluations with the compiled
+    kernels and 2786 with the Python ones, whose results differ only by round-off; over
+    10 s, 6515 and 4212 against the bridge's 2780; on the 40-window chain, minutes."""
     kw = dict(t_end=3.0, method="projection", rtol=1e-8, atol=1e-10, output_step=0.01)
     bridged = ten_window.simulate(**kw)
-    through = ten_window.simulate(**kw, bridge_passages=False)
-    assert bridged.status == through.status == "success"
-    assert bridged.stats["bridges"] == 3 and through.stats["bridges"] == 0
-    assert bridged.stats["rhs_evaluations"] < 0.4 * through.stats["rhs_evaluations"]
+    assert bridged.status == "success"
+    assert bridged.stats["bridges"] == 3 and bridged.stats["bridges_over_tolerance"] == 0
+    assert bridged.stats["bridge_evaluations"] <= 80 * 3
+    assert bridged.stats["rhs_evaluations"] < 1000
     assert tip_error(bridged, 10) <= 1e-7
+    through = ten_window.simulate(**kw, bridge_passages=False)
+    assert through.status == "success" and through.stats["bridges"] == 0
 
 
 def test_ten_window_chain_hybrid_bridges_its_passages(ten_window):

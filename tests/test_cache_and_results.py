@@ -121,3 +121,39 @@ def test_cli_reports_bad_scene(tmp_path, capsys):
     bad.write_text("[simulation]\nt_end = 1\n[[body]]\nname = 'a'\n")
     assert main(["run", str(bad)]) == 2
     assert "needs `mass`" in capsys.readouterr().err
+
+
+def test_a_large_model_runs_compiled_c_twins_of_its_kernels(tmp_path, monkeypatch, rng):
+    """The ten-window chain (63 coordinates) carries C twins of its generated functions,
+    compiled into the cache next to the module: they agree with the Python functions to
+    round-off. Without a working compiler the Python functions serve, with equal results."""
+    import shutil
+    import sysconfig
+    from mechsim.codegen import cache
+
+    if shutil.which((os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0]) is None:
+        pytest.skip("no C compiler on this machine")
+    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("MECHSIM_NO_COMPILE", raising=False)
+    cache.clear_memory_cache()
+    mech = ms.examples.double_four_bar(10)
+    model = mech.problem().model
+    assert model.COMPILED and len(list(tmp_path.glob("mechsim_model_*.so"))) == 1
+    p = mech.problem().p
+    for _ in range(3):
+        q, v = rng.normal(size=model.N), rng.normal(size=model.N)
+        for name, args in [("phi", (q, 0.3, p)), ("phi_q", (q, 0.3, p)),
+                           ("position_terms", (q, 0.3, p)), ("gamma", (q, v, 0.3, p)),
+                           ("dynamics_terms", (q, v, 0.3, p)), ("terms", (q, v, 0.3, p))]:
+            fast, slow = getattr(model, name)(*args), model.PYTHON_KERNELS[name](*args)
+            for a, b in zip(*(x if isinstance(x, tuple) else (x,) for x in (fast, slow))):
+                np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13 * (1 + np.abs(b).max()))
+    # The same cache entry without its library, and no compiler: the Python functions.
+    (library,) = tmp_path.glob("mechsim_model_*.so")
+    library.unlink()
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+    cache.clear_memory_cache()
+    fallback, from_cache = cache.load_model(mech.structure(), lambda: "not used")
+    assert from_cache and not fallback.COMPILED and not list(tmp_path.glob("*.so"))
+    np.testing.assert_allclose(fallback.dynamics_terms(q, v, 0.3, p)[0],
+                               model.dynamics_terms(q, v, 0.3, p)[0], rtol=0, atol=1e-13)

@@ -11,7 +11,8 @@
     dynamics_terms(q, v, t, p) -> (phi_q, gamma)
 
 where `q`, `v` are float arrays and `p` a sequence of parameter values. On a cache hit the
-module is imported from the cache directory and sympy is never imported.
+module is imported from the cache directory and sympy is never imported. A large model's
+functions run as compiled C where a compiler is available (`mechsim.codegen.compiled`).
 """
 
 from .cache import CODEGEN_VERSION, cache_dir, load_model, structure_key

@@ -18,8 +18,10 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
+from .compiled import attach
+
 # Bump when the generated code changes meaning, so stale cache entries are not used.
-CODEGEN_VERSION = 3
+CODEGEN_VERSION = 4
 
 
 def cache_dir() -> Path:
@@ -61,6 +63,7 @@ def load_model(structure, build: Callable[[], str]) -> tuple[ModuleType, bool]:
         try:
             module = _import_source(name, path)
             if getattr(module, "KEY", None) == key:
+                attach(module, path)
                 _loaded[key] = module
                 return module, True
         except Exception as exc:  # a corrupt entry is rebuilt, not fatal
@@ -73,6 +76,7 @@ def load_model(structure, build: Callable[[], str]) -> tuple[ModuleType, bool]:
             f.write(source)
         os.replace(tmp, path)
         module = _import_source(name, path)
+        attach(module, path)
     except OSError as exc:
         warnings.warn(f"mechsim: model cache {path.parent} is not writable ({exc}); "
                       "the model is compiled in memory for this run only")

@@ -19,12 +19,16 @@ class _Printer(PythonCodePrinter):
 
 
 class _ModuleWriter:
-    def __init__(self, system):
+    def __init__(self, system, c_kernels=False):
         self.sys = system
         self.printer = _Printer()
         self.constants: dict[tuple, str] = {}
         self.functions: list[str] = []
         self.extra: list[str] = []
+        # C twins of the functions (`mechsim.codegen.compiled`): [(name, has_v, shapes)]
+        self.c_kernels = c_kernels
+        self.c_functions: list[str] = []
+        self.c_signatures: list[tuple] = []
 
     def _constant(self, values) -> str:
         values = tuple(map(int, values))
@@ -42,6 +46,8 @@ class _ModuleWriter:
             layout.append((mat.rows, mat.cols, nz))
             entries += [mat[i, j] for i, j in nz]
         repl, reduced = sp.cse(entries, symbols=sp.numbered_symbols("_c"))
+        if self.c_kernels:
+            self._c_function(name, "_v" in args, layout, repl, reduced)
         lines = [f"def {name}({', '.join(args)}):", f'    """{doc}"""']
         used = set().union(*(e.free_symbols for e in reduced), *(r.free_symbols for _, r in repl)) \
             if entries else set()
@@ -77,6 +83,29 @@ class _ModuleWriter:
         self.functions.append("\n".join(lines))
         return [nz for _, _, nz in layout]
 
+    def _c_function(self, name, has_v, layout, repl, reduced):
+        """The C twin of one function, `mechsim_<name>` (`gamma` is taken by math.h): the same
+        common subexpressions, outputs written into zeroed row-major arrays."""
+        from sympy.printing.c import C99CodePrinter
+        s = self.sys
+        names = {x: sp.Symbol(f"q[{i}]") for i, x in enumerate(s.q)}
+        names.update({x: sp.Symbol(f"v[{i}]") for i, x in enumerate(s.v)})
+        names.update({x: sp.Symbol(f"p[{i}]") for i, x in enumerate(s.p)})
+        pr = C99CodePrinter()
+        outs = ", ".join(f"double *o{k}" for k in range(len(layout)))
+        head = "const double *q, const double *v" if has_v else "const double *q"
+        lines = [f"void mechsim_{name}({head}, double t, const double *p, {outs}) {{"]
+        for sym, expr in repl:
+            lines.append(f"  const double {sym} = {pr.doprint(expr.xreplace(names))};")
+        k = 0
+        for idx, (rows, cols, nz) in enumerate(layout):
+            for (i, j), e in zip(nz, reduced[k:k + len(nz)]):
+                lines.append(f"  o{idx}[{i * cols + j}] = {pr.doprint(e.xreplace(names))};")
+            k += len(nz)
+        lines.append("}")
+        self.c_functions.append("\n".join(lines))
+        self.c_signatures.append((name, has_v, [(rows, cols) for rows, cols, _ in layout]))
+
     def module(self, key: str, title: str) -> str:
         s = self.sys
         header = [
@@ -93,6 +122,10 @@ class _ModuleWriter:
         ]
         constants = [f"{name} = _np.array({list(values)!r}, dtype=_np.intp)"
                      for values, name in self.constants.items()]
+        if self.c_functions:
+            c_source = "#include <math.h>\n\n" + "\n\n".join(self.c_functions) + "\n"
+            constants += ["", f"C_SOURCE = {c_source!r}",
+                          f"C_SIGNATURES = {self.c_signatures!r}"]
         return "\n".join(header + self.extra + constants + [""] +
                          ["\n\n".join(self.functions), ""])
 
@@ -108,9 +141,15 @@ def kernel_source(q, v, p, functions, key: str, title: str) -> str:
     return w.module(key, title)
 
 
+# Mechanisms with at least this many coordinates get C twins of their functions: there the
+# Python kernels cost 0.1–0.2 ms a call (the 40-window chain), against a few µs of ctypes
+# overhead; below it the Python kernels are as fast as a foreign call.
+C_MIN_COORDINATES = 60
+
+
 def model_source(system, key: str, title: str) -> str:
     """The full module text for `system` (see `mechsim.codegen` for the functions)."""
-    w = _ModuleWriter(system)
+    w = _ModuleWriter(system, c_kernels=len(system.q) >= C_MIN_COORDINATES)
     s = system
     w.function("phi", ("_q", "t", "_p"), [s.phi], "Constraint residual Φ, shape (m,).")
     [nz] = w.function("phi_q", ("_q", "t", "_p"), [s.phi_q], "Jacobian Φ_q, shape (m, n).")
