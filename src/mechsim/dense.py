@@ -47,8 +47,8 @@ def cholesky_conditioned(S, min_rcond):
     condition number exceeds `min_rcond`, else None. The condition is LAPACK's estimate
     (dpocon) in the 1-norm, with ‖S‖₁ bounded above by m·max Sᵢᵢ (|Sᵢⱼ| ≤ max Sᵢᵢ for a
     positive definite S), which errs towards None; for symmetric S, 1/κ₂ ≥ 1/κ₁."""
-    c, info = _potrf(S)
-    if info != 0:
+    c = cho_factor_or_none(S)
+    if c is None:
         return None
     rcond, info = _pocon(c, S.shape[0] * max(S.diagonal().tolist()))
     return c if info == 0 and rcond > min_rcond else None

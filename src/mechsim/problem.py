@@ -219,15 +219,23 @@ class NumericProblem:
         caller has it), else dense Cholesky with the least-squares solution for a singular
         complement (redundant constraints). The dense complement is formed from the
         mass-scaled J̃ = f.cols(J), or as (J W) Jᵀ when `f` is None (constant mass)."""
-        band = self.schur if self._factor is not None else None
+        band = self._band()
         if band is not None:
             c = band.factor(J) if factor is None else factor
             if c is not None:
                 return band.solve(c, r)
+        return _solve_psd(self._complement(J, f), r)
+
+    def _band(self):
+        """The banded form of Φ_q M⁻¹ Φ_qᵀ where it serves (constant mass), else None."""
+        return self.schur if self._factor is not None else None
+
+    def _complement(self, J, f=None):
+        """The dense Φ_q M⁻¹ Φ_qᵀ: J̃J̃ᵀ from J̃ = f.cols(J), or (J W) Jᵀ (constant mass)."""
         if f is None:
-            return _solve_psd((J * self.inverse_mass_diagonal) @ J.T, r)
+            return (J * self.inverse_mass_diagonal) @ J.T
         Jt = f.cols(J)
-        return _solve_psd(Jt @ Jt.T, r)
+        return Jt @ Jt.T
 
     # --- constraints -----------------------------------------------------------------------
     def phi(self, q, t):
@@ -412,13 +420,12 @@ class NumericProblem:
         """r ↦ (Φ_q M⁻¹ Φ_qᵀ)⁻¹ r from one Cholesky factor at Φ_q = J (`f`: the mass factor
         there), banded where the problem has the banded form; None if the complement is
         not numerically positive definite (a singular configuration, redundancy)."""
-        band = self.schur if self._factor is not None else None
+        band = self._band()
         if band is not None:
             c = band.factor(J)
             return None if c is None else (lambda r: band.solve(c, r))
         from .dense import cho_factor_or_none, cho_solve
-        Jt = f.cols(J)
-        c = cho_factor_or_none(Jt @ Jt.T)
+        c = cho_factor_or_none(self._complement(J, f))
         return None if c is None else (lambda r: cho_solve(c, r))
 
     def project_state(self, q, v, t, tol, extra=0, max_iter=8, solve=None):

@@ -180,6 +180,18 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         out_q.append(np.array(q, float))
         out_v.append(np.array(v, float))
 
+    def record_within(t_lo, t_hi, through, values, state):
+        """Record the output samples in (t_lo, t_hi), or (t_lo, t_hi] with `through`, from
+        one call of the interpolant `values(times)` and `state(t, y) -> (q, v)`."""
+        nonlocal next_out
+        first = next_out
+        while next_out < len(ts) and (ts[next_out] < t_hi or through and ts[next_out] == t_hi):
+            next_out += 1
+        inside = [tk for tk in ts[first:next_out] if tk > t_lo]
+        if inside:
+            for tk, yk in zip(inside, np.atleast_2d(values(np.array(inside)).T)):
+                record(tk, *state(tk, yk))
+
     status, message = "success", "reached t_end"
     steps = restarts = rejected = corrections = 0
     nfev_done = njev_done = nlu_done = 0
@@ -237,14 +249,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                 return interpolant[0](tk)
 
             if ts is not None:
-                first = next_out
-                while next_out < len(ts) and ts[next_out] < t_new:
-                    next_out += 1
-                inside = [tk for tk in ts[first:next_out] if tk > t_old]
-                if inside:       # one dense-output call for all samples inside the step
-                    ys = np.atleast_2d(dense(np.array(inside)).T)
-                    for tk, yk in zip(inside, ys):
-                        record(tk, *form.state(tk, yk))
+                record_within(t_old, t_new, False, dense, form.state)
             q_new, v_new = form.state(t_new, y_new)
             monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
                             t_old=t_old)
@@ -279,14 +284,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             t_b, q_b, v_b, interp, t_star = crossed
             bridges += 1
             if ts is not None:
-                first = next_out
-                while next_out < len(ts) and ts[next_out] <= t_b:
-                    next_out += 1
-                inside = [tk for tk in ts[first:next_out] if tk > t_new]
-                if inside:
-                    ys = np.atleast_2d(interp(np.array(inside)).T)
-                    for tk, yk in zip(inside, ys):
-                        record(tk, yk[:problem.n], yk[problem.n:])
+                record_within(t_new, t_b, True, interp,
+                              lambda tk, yk: (yk[:problem.n], yk[problem.n:]))
             else:
                 record(t_b, q_b, v_b)
             monitor.crossed(t_new, t_b, t_star, interp(t_star)[:problem.n])

@@ -362,10 +362,11 @@ class Partitioned(Formulation):
         z, zd = y[:bs.f], y[bs.f:]
         q, n_fresh = self._positions(z, t)
         J = self.problem.phi_q(q, t)
-        wd = bs.block(J).solve(-(bs.JB(J) @ zd) - self.problem.phi_t(q, t))
+        block = bs.block(J)
+        wd = block.solve(-(bs.JB(J) @ zd) - self.problem.phi_t(q, t))
         v = bs.assemble(zd, wd)
         out = (q, v, J, n_fresh)
-        self._cache = (t, key, out)
+        self._cache = (t, key, out, block)
         return out
 
     def state(self, t, y):
@@ -387,7 +388,7 @@ class Partitioned(Formulation):
         q, v, J, n_fresh = self.full_state(t, y)
         self.layout_changed = False
         bs = self.basis
-        block = bs.block(J)
+        block = self._cache[3]                  # Φ_q D at this state, from full_state
         if n_fresh >= 2 or block.condition() > self.cond_max:
             before = self.independent
             basis = self.choose(J)

@@ -132,11 +132,19 @@ class Projection(FullCoordinates):
             return None
         return dense.cholesky_conditioned(Jt @ Jt.T, max(100, Jt.shape[0]) * self.rcond ** 2)
 
+    def _clear_solver(self, J, f):
+        """r ↦ (J̃J̃ᵀ)⁻¹ r from the banded or the dense Cholesky factor where every singular
+        value of J̃ is clear of the truncation cut, else None."""
+        band = self.problem.schur
+        if band is not None:
+            c = self._banded(J)
+            return None if c is None else (lambda r: band.solve(c, r))
+        c = self._clear(f.cols(J))
+        return None if c is None else (lambda r: dense.cho_solve(c, r))
+
     def _clear_at(self, J, f):
-        """Is every singular value of J̃ clear of the truncation cut (banded or dense test)?"""
-        if self.problem.schur is not None:
-            return self._banded(J) is not None
-        return self._clear(f.cols(J)) is not None
+        """Is every singular value of J̃ clear of the truncation cut?"""
+        return self._clear_solver(J, f) is not None
 
     def initial_state(self, t, q, v):
         self._far = False              # until an accepted step says otherwise (a switch)
@@ -276,13 +284,7 @@ class Projection(FullCoordinates):
         phi, J = prob.position_terms(q, t)
         if max(abs(phi).tolist()) <= self.projection_tol:
             return None
-        band = prob.schur
-        if band is not None:
-            c = self._banded(J)
-            solve = None if c is None else (lambda r: band.solve(c, r))
-        else:
-            c = self._clear(prob.mass_factor(q).cols(J))
-            solve = None if c is None else (lambda r: dense.cho_solve(c, r))
+        solve = self._clear_solver(J, prob.mass_factor(q))
         done = None if solve is None else prob.project_state(
             q, v, t, 0.01 * self.projection_tol, solve=solve)
         return super().after_step(t, y) if done is None else np.concatenate(done)
