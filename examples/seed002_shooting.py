@@ -20,9 +20,10 @@ import numpy as np
 from matplotlib.figure import Figure
 
 import mechsim as ms
+from mechsim import bench
 from mechsim.oscillators import CoulombOscillator, LinearOscillator
 
-PAPER = dict(zeta=0.05, omega_n=100.0, delta_st=0.1, omega=100.0)
+PAPER = bench.COULOMB                   # ζ = 0.05, ω_n = 100, δ_st = 0.1, ω = 100
 
 
 def table(osc, cases, paper_nit):
@@ -36,29 +37,6 @@ def table(osc, cases, paper_nit):
         print("  ".join(row) + f"   paper NIT: {nit}")
 
 
-def brute_force(osc, x0, reference, tol=1e-6, max_periods=5000):
-    """Simulate period after period (the same closed-form motion shooting uses) until the
-    state is within `tol` of the periodic one. Knowing `reference` is an oracle a real run
-    lacks (it would stop on the change per period, which is smaller than the distance by
-    1 − ρ, ρ the contraction per period): the comparison favours brute force."""
-    x = np.array(x0, float)
-    for k in range(1, max_periods + 1):
-        x = osc.period_map(x)
-        if np.max(np.abs(x - reference)) <= tol:
-            return x, k
-    return x, max_periods
-
-
-def _best(run, repeats=5):
-    """(shortest wall time, result) of `repeats` runs."""
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = run()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
-
-
 def main(out: Path):
     print("Table 1: linear oscillator (ζ = 0.05, ω_n = 100, δ_st = 0.1, ν = 1)")
     table(LinearOscillator(**PAPER), [("Case 1", (1.0, 150.0)), ("Case 2", (100.0, 900.0)),
@@ -70,25 +48,14 @@ def main(out: Path):
           ("3", "15", "fails within 50"))
     fig = Figure(figsize=(8, 4), layout="constrained")
     ax = fig.add_subplot()
-    print("Shooting vs brute force to the same accuracy (|x − x*| ≤ 1e-6, x* from shooting "
-          "at 1e-12):")
-    for mu, guess in ((0.07, (0.0, 10.0)), (0.07, (0.0, 0.0)), (0.08, (-0.014, 2.7)),
-                      (0.08, (0.0, 0.0)), (0.09, (-0.01, 2.0)), (0.09, (0.0, 0.0))):
-        ref = ms.shooting.solve(CoulombOscillator(**PAPER, mu=mu), guess, method="newton",
-                                tol=1e-12, floquet=False).x0
-        # Best of 5, each on a fresh oscillator (no motion cached from an earlier run).
-        # Shooting's tolerance on g is 1e-7 so that its state, too, is within 1e-6.
-        t_shoot, sol = _best(lambda: ms.shooting.solve(CoulombOscillator(**PAPER, mu=mu), guess,
-                                                       method="newton", tol=1e-7,
-                                                       floquet=False))
-        t_brute, (xb, periods) = _best(lambda: brute_force(CoulombOscillator(**PAPER, mu=mu),
-                                                           guess, ref))
-        print(f"  μ = {mu}, from {guess!s:14s}: shooting {1e3 * t_shoot:6.2f} ms "
-              f"({sol.iterations} Newton iterations, error {np.max(np.abs(sol.x0 - ref)):.1e}), "
-              f"brute force {1e3 * t_brute:6.2f} ms ({periods:3d} periods): "
-              f"{t_brute / t_shoot:5.1f}× faster")
-        if guess != (0.0, 0.0):
-            ax.plot(sol.trajectory.t, sol.trajectory.x[:, 0], label=f"μ = {mu}")
+    print("Shooting vs brute force to the same accuracy (`mechsim bench coulomb` has the "
+          "full sweep):")
+    print("  " + bench.SHOOTING_HEADER)
+    bench.shooting_run(accuracies=(1e-6, 1e-10), repeat=10,
+                       progress=lambda line: print("  " + line))
+    for mu, guess in ((0.07, (0.0, 10.0)), (0.08, (-0.014, 2.7)), (0.09, (-0.01, 2.0))):
+        sol = ms.shooting.solve(CoulombOscillator(**PAPER, mu=mu), guess, method="newton")
+        ax.plot(sol.trajectory.t, sol.trajectory.x[:, 0], label=f"μ = {mu}")
     ax.set(xlabel="time [s]", ylabel="x [mm]", title="Fig. 4: steady states with Coulomb friction")
     ax.grid(True, alpha=0.3)
     ax.legend()

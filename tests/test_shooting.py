@@ -349,3 +349,40 @@ def test_coulomb_closed_form_monodromy_matches_finite_differences(mu, u):
                     method="DOP853", rtol=1e-12, atol=1e-14)
     k = np.searchsorted(traj.t, t_first)
     np.testing.assert_allclose(traj.x[k], ref.y[:, -1], atol=1e-9)
+
+
+def test_coulomb_shooting_bench_counts_flows_against_periods():
+    """`mechsim bench coulomb`: both runs reach the accuracy asked for, from the same start
+    on the same motion. Brute force needs one more period per factor ρ = 0.73 of accuracy
+    (μ = 0.07 slips all the time, so it contracts linearly), Newton at most one more flow;
+    at 1e-10 shooting takes more than 10 times fewer flows. With sticking (μ = 0.09) brute
+    force settles within a few periods, as shooting does."""
+    from mechsim import bench
+    rows = bench.shooting_run(cases=((0.07, (0.0, 0.0)), (0.09, (0.0, 0.0))),
+                              accuracies=(1e-6, 1e-10), repeat=1, progress=None)
+    for r in rows:
+        assert r.shooting_error <= r.accuracy and r.brute_error <= r.accuracy
+        assert r.shooting_time > 0 and r.brute_time > 0
+    slow = {r.accuracy: r for r in rows if r.mu == 0.07}
+    per_decade = (slow[1e-10].brute_periods - slow[1e-6].brute_periods) / 4
+    assert abs(per_decade - 1 / math.log10(1 / 0.73)) < 1.0        # 7.3 periods a decade
+    assert slow[1e-10].shooting_flows - slow[1e-6].shooting_flows <= 1
+    assert slow[1e-10].brute_periods >= 10 * slow[1e-10].shooting_flows
+    sticking = [r for r in rows if r.mu == 0.09]
+    assert all(r.brute_periods <= 5 and r.shooting_flows <= 5 for r in sticking)
+
+
+def test_shooting_pays_only_for_the_flows_it_needs():
+    """Newton with the exact monodromy takes one flow per iterate (the start's included);
+    the sampled period is computed only when asked for, from the last flow's phases."""
+    osc = CoulombOscillator(**PAPER, mu=0.07)
+    sol = ms.shooting.solve(osc, (0.0, 10.0), method="newton", tol=1e-7, floquet=False)
+    assert osc.flows == sol.iterations + 1
+    traj = sol.trajectory
+    assert osc.flows == sol.iterations + 1             # sampled from the remembered motion
+    assert sol.trajectory is traj
+    assert np.array_equal(traj.x[0], sol.x0)
+    # The brute-force map needs no monodromy, and gives the same state to round-off.
+    fresh = CoulombOscillator(**PAPER, mu=0.07)
+    np.testing.assert_allclose(fresh.period_map(sol.x0), traj.x[-1], rtol=0, atol=1e-14)
+    assert fresh._motion(sol.x0, monodromy=False)[2] is None

@@ -92,20 +92,32 @@ def _bench(args) -> int:
     from . import bench
 
     problems = args.problems or list(bench.DEFAULT_PROBLEMS)
+    shooting = "coulomb" in problems
+    problems = [p for p in problems if p != "coulomb"]
     methods = args.methods.split(",") if args.methods else list(bench.DEFAULT_METHODS)
     rtols = [float(x) for x in args.rtols.split(",")] if args.rtols else list(bench.DEFAULT_RTOLS)
-    print(bench.HEADER)
     try:
-        rows = bench.run(problems, methods, rtols, integrator=args.integrator,
-                         max_steps=args.max_steps, repeat=args.repeat)
+        accuracies = ([float(x) for x in args.accuracies.split(",")] if args.accuracies
+                      else list(bench.DEFAULT_ACCURACIES))
+        written = []
+        if problems:
+            print(bench.HEADER)
+            rows = bench.run(problems, methods, rtols, integrator=args.integrator,
+                             max_steps=args.max_steps, repeat=args.repeat or 1)
+            for rtol in rtols:
+                for name, r in bench.ratios(rows, rtol).items():
+                    print(f"ratios at rtol {rtol:.0e}, {name}: " +
+                          ", ".join(f"{k} = {v:.2f}" for k, v in r.items()))
+            written += bench.write(rows, args.out)
+        if shooting:
+            print("Coulomb oscillator: shooting against brute force to the same accuracy")
+            print(bench.SHOOTING_HEADER)
+            srows = bench.shooting_run(accuracies=accuracies, repeat=args.repeat or 20)
+            written += bench.write_shooting(srows, args.out)
     except ValueError as exc:
         print(f"mechsim: {exc}", file=sys.stderr)
         return 2
-    for rtol in rtols:
-        for name, r in bench.ratios(rows, rtol).items():
-            print(f"ratios at rtol {rtol:.0e}, {name}: " +
-                  ", ".join(f"{k} = {v:.2f}" for k, v in r.items()))
-    for path in bench.write(rows, args.out):
+    for path in written:
         print(f"wrote {path}")
     return 0
 
@@ -122,15 +134,20 @@ def main(argv=None) -> int:
     run.set_defaults(func=_run)
     bench = sub.add_parser("bench", help="work–precision table and plots for the solvers")
     bench.add_argument("problems", nargs="*",
-                       help="parallelogram, double-four-bar, forty-window (default: the first two)")
+                       help="parallelogram, double-four-bar, forty-window, flexible-four-bar, "
+                            "coulomb (shooting against brute force; default: the first two)")
     bench.add_argument("--methods", help="comma-separated (default: lu,projection,hybrid,baumgarte)")
     bench.add_argument("--rtols", help="comma-separated tolerances (default: 1e-5,…,1e-9)")
     bench.add_argument("--integrator", help="override every method's default integrator")
     bench.add_argument("--max-steps", type=int, default=20000,
                        help="give up a run after this many steps (default 20000)")
-    bench.add_argument("--repeat", type=int, default=1,
+    bench.add_argument("--repeat", type=int,
                        help="run everything this many times in rounds and keep each run's "
-                            "shortest wall time (default 1)")
+                            "shortest wall time (default 1; 20 for coulomb, whose runs take "
+                            "milliseconds)")
+    bench.add_argument("--accuracies",
+                       help="coulomb: comma-separated accuracies of the periodic state "
+                            "(default: 1e-4,1e-6,1e-8,1e-10)")
     bench.add_argument("--out", default="out/bench", help="where to write CSV and plots")
     bench.set_defaults(func=_bench)
     args = parser.parse_args(argv)

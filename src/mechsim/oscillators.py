@@ -77,6 +77,7 @@ class LinearOscillator(PeriodicProblem):
             raise ValueError(f"{type(self).__name__}: `zeta` must be non-negative, got {zeta!r}")
         self.zeta, self.omega_n, self.delta_st, self.omega = zeta, omega_n, delta_st, omega
         self.period = 2 * math.pi / omega
+        self.flows = 0                  # motions computed (one period or a t_span each)
 
     def rhs(self, t, y, friction=0.0):
         x, v = y
@@ -145,16 +146,23 @@ class LinearOscillator(PeriodicProblem):
     def _remembered(self, u, compute):
         """compute(), remembered for the latest u: Newton asks for (g, J), then the Floquet
         multipliers and the trajectory at the same point."""
-        key = np.asarray(u, float).tobytes()
+        out = self._recalled(u)
+        if out is None:
+            out = compute()
+            self._last = (np.asarray(u, float).tobytes(), out)
+        return out
+
+    def _recalled(self, u):
+        """What `_remembered` holds for u, or None."""
         last = getattr(self, "_last", None)
-        if last is None or last[0] != key:
-            last = self._last = (key, compute())
-        return last[1]
+        return last[1] if last is not None and last[0] == np.asarray(u, float).tobytes() \
+            else None
 
     def flow_with_monodromy(self, u, t_span=None, samples=200):
         """(Trajectory, ∂x(t_end)/∂x(t_start)) — exact: the motion is known in closed form."""
         u = self.check(u)
         t0, t1 = t_span or (0.0, self.period)
+        self.flows += 1
         if not self.closed_form:
             s = solve_ivp(self.rhs, (t0, t1), u, method="DOP853", rtol=_RTOL, atol=_ATOL,
                           dense_output=True)
@@ -231,7 +239,10 @@ class CoulombOscillator(LinearOscillator):
         return Trajectory(np.array([0.0, self.period]), np.vstack([u, end]), events), M
 
     def period_map(self, u):
-        return self._cached_motion(u)[3]
+        """x(T): Newton's latest flow when u is its iterate, else a flow without the
+        monodromy (what Warner's residual and a brute-force simulation need)."""
+        motion = self._recalled(u)
+        return (motion if motion is not None else self._motion(u, monodromy=False))[3]
 
     def _cached_motion(self, u):
         """`_motion` over one period, remembered for the latest u."""
@@ -262,16 +273,17 @@ class CoulombOscillator(LinearOscillator):
             xs.append(part)
         return Trajectory(np.hstack(ts), np.vstack(xs), events)
 
-    def _motion(self, u, t_span=None):
+    def _motion(self, u, t_span=None, monodromy=True):
         """The stick and slip phases over `t_span` (one period by default): (pieces, events,
-        M, end state); see `flow_with_monodromy`. Each slip phase keeps its closed-form
-        state, so the trajectory is sampled afterwards at any density without finding the
-        events again."""
+        M, end state); see `flow_with_monodromy` (M is None without `monodromy`). Each slip
+        phase keeps its closed-form state, so the trajectory is sampled afterwards at any
+        density without finding the events again."""
         u = self.check(u)
         t, t_end = t_span or (0.0, self.period)
         x, v = float(u[0]), float(u[1])
         pieces, events = [], []
-        M = np.eye(2) if self.closed_form else None
+        M = np.eye(2) if self.closed_form and monodromy else None
+        self.flows += 1
         guard = 0
         while t < t_end - 1e-15 * max(1.0, t_end):
             guard += 1
@@ -295,8 +307,10 @@ class CoulombOscillator(LinearOscillator):
                 d = 1 if v > 0 else -1
             friction = d * self.mu * self.g
             if self.closed_form:
-                t_new, x, v, state, stopped, T = self._closed_slip(t, x, v, d, friction, t_end)
-                M = T @ M
+                t_new, x, v, state, stopped, T = self._closed_slip(t, x, v, d, friction, t_end,
+                                                                   M is not None)
+                if M is not None:
+                    M = T @ M
             else:
                 t_new, x, v, state, stopped = self._integrated_slip(t, x, v, d, friction, t_end)
             pieces.append((t, t_new, state, stopped))
@@ -318,11 +332,12 @@ class CoulombOscillator(LinearOscillator):
         return self.delta_st * self.omega_n**2 * math.cos(self.omega * t) \
             - self.omega_n**2 * x - friction
 
-    def _closed_slip(self, t, x, v, d, friction, t_end):
+    def _closed_slip(self, t, x, v, d, friction, t_end, transition=True):
         """Slip in direction d from (t, x, v) until ẋ = 0 or t_end, in closed form: the
         first stop is bracketed on a grid of 128 points per forcing or damped-oscillation
-        period, whichever is shorter, and refined by brentq."""
-        state, transition = self._segment(t, x, v, friction)
+        period, whichever is shorter, and refined by brentq. The phase's transition matrix
+        comes last (None unless `transition`)."""
+        state, phase_transition = self._segment(t, x, v, friction)
         shortest = min(self.period, 2 * math.pi / self.omega_n)
         n = max(8, int(math.ceil(128 * (t_end - t) / shortest)))
         grid = np.linspace(t, t_end, n + 1)
@@ -340,7 +355,7 @@ class CoulombOscillator(LinearOscillator):
         else:
             t_new = t_end
         return t_new, state.position(t_new), state.velocity(t_new), state, stopped, \
-            transition(t_new)
+            (phase_transition(t_new) if transition else None)
 
     def _integrated_slip(self, t, x, v, d, friction, t_end):
         """The same for ζ ≥ 1, with scipy's event location on the dense output."""
@@ -356,11 +371,11 @@ class CoulombOscillator(LinearOscillator):
     def _stick_end(self, t0, x, t_end):
         """First time after t0 at which |x − δ cos ωt| reaches μg/ω_n² (or t_end)."""
         f = lambda tt: abs(self._excess(tt, x)) - self.limit
-        n = 256
-        grid = np.linspace(t0, t_end, n + 1)
-        vals = [f(tt) for tt in grid]
-        for a, b, fa, fb in zip(grid[:-1], grid[1:], vals[:-1], vals[1:]):
-            if fa < 0 <= fb:
+        grid = np.linspace(t0, t_end, 257)
+        vals = np.abs(x - self.delta_st * np.cos(self.omega * grid)) - self.limit
+        for k in np.flatnonzero((vals[:-1] < 0) & (vals[1:] >= 0)):
+            a, b = grid[k], grid[k + 1]
+            if f(a) < 0 <= f(b):                     # the scalar f brentq sees agrees
                 root = brentq(f, a, b, xtol=1e-15, rtol=4 * np.finfo(float).eps)
                 # At the root the net force is exactly zero; leave a hair (1e-13 T) later,
                 # where it points the way out, so round-off cannot turn ẋ back and re-stick.
@@ -404,6 +419,7 @@ class ImpactPair(PeriodicProblem):
         self.A, self.omega, self.e = amplitude, omega, restitution
         self.u = m2 / m1
         self.period = 2 * math.pi / omega
+        self.flows = 0                  # motions computed (one period or a t_span each)
 
     def initial_state(self, u):
         x1, v1, v2, phi = self.check(u)
@@ -443,6 +459,7 @@ class ImpactPair(PeriodicProblem):
         t, t_end = t_span or (0.0, self.period)
         s = np.array(y0, float)
         ts, xs, events = [t], [s.copy()], []
+        self.flows += 1
         dt = self.period / 4000
         A, w = self.A, self.omega
         for _ in range(10000):

@@ -63,7 +63,7 @@ def _solve_point(params, A, w, guess):
         return None, None
     if not sol.converged:
         return None, None
-    return sol.x0, pair.mode(sol.x0)
+    return sol.x0, sol.mode
 
 
 def _row(args):

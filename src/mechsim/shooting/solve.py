@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Callable
 
 import numpy as np
 
@@ -14,10 +16,16 @@ class ShootingResult:
     iterations: int
     residual: float                  # max |g| at x0
     message: str
-    trajectory: object = None        # Trajectory over one period from x0
     floquet_multipliers: np.ndarray | None = None
     history: list = field(default_factory=list)   # (iteration, max|g|)
     mode: tuple | None = None        # (n, m) impacts per period, for problems that have modes
+    flow: Callable | None = field(default=None, repr=False, compare=False)
+
+    @cached_property
+    def trajectory(self):
+        """The motion over one period from x0 (the problem's `flow(x0)`), computed on first
+        use: a run that only wants x0 does not pay for the sampled period."""
+        return None if self.flow is None else self.flow()
 
     @property
     def stable(self) -> bool | None:
@@ -170,7 +178,6 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
     x, g, its, history, message = SHOOTING_METHODS[method](
         problem, guess, tol, max_iter, scale=scale, guesses=guesses, max_halvings=max_halvings)
     converged = message == "converged"
-    traj = problem.flow(x)
     mults = None
     if floquet and converged:
         state_map = problem.floquet_matrix(x) if hasattr(problem, "floquet_matrix") \
@@ -178,4 +185,4 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
         mults = np.linalg.eigvals(state_map)
     mode = problem.mode(x) if hasattr(problem, "mode") else None
     return ShootingResult(converged, np.asarray(x), its, float(np.max(np.abs(g))), message,
-                          traj, mults, history, mode)
+                          mults, history, mode, flow=lambda: problem.flow(x))
