@@ -238,6 +238,10 @@ class CoulombOscillator(LinearOscillator):
         _, events, M, end = self._cached_motion(u)
         return Trajectory(np.array([0.0, self.period]), np.vstack([u, end]), events), M
 
+    def residual_jacobian(self, u):
+        _, _, M, end = self._cached_motion(u)
+        return None if M is None else (np.asarray(u, float) - end, np.eye(2) - M)
+
     def period_map(self, u):
         """x(T): Newton's latest flow when u is its iterate, else a flow without the
         monodromy (what Warner's residual and a brute-force simulation need)."""
@@ -297,7 +301,7 @@ class CoulombOscillator(LinearOscillator):
                     pieces.append((t, t_leave, lambda tt, x=x: (x, 0.0), None))
                     events.append((t, "stick"))
                     if M is not None:
-                        M = np.array([[1.0, 0.0], [0.0, 0.0]]) @ M
+                        M[1] = 0.0                           # diag(1, 0) M
                     t = t_leave
                     if t >= t_end:
                         break
@@ -323,8 +327,10 @@ class CoulombOscillator(LinearOscillator):
                     after = self._slip_direction(t, x)
                     a_after = 0.0 if after == 0 else self._acceleration(
                         t, x, after * self.mu * self.g)
-                    M = (np.array([[1.0, 0.0], [0.0, a_after / a_before]]) @ M
-                         if abs(a_before) > 1e-9 * self.g else None)
+                    if abs(a_before) > 1e-9 * self.g:
+                        M[1] *= a_after / a_before           # diag(1, a⁺/a⁻) M
+                    else:
+                        M = None
         return pieces, events, M, np.array([x, v])
 
     def _acceleration(self, t, x, friction):
