@@ -7,8 +7,11 @@ eliminated:
     q̈ = M^{-1/2} [ J̃⁺ γ + P_T M^{-1/2} Q ]
 
 (the mass-orthogonal complement makes Blajer's M₁₁ = P_Tᵀ M P_T the identity on the null
-space, so eq. 10 needs no further solve). The SVD is recomputed at every evaluation, so the
-null space is tracked every step. In the accelerations, singular values below
+space, so eq. 10 needs no further solve). The projector is rebuilt at every evaluation, so
+the null space is tracked every step: where every singular value of J̃ is clear of the
+truncation cut, J̃⁺ = J̃ᵀ(J̃J̃ᵀ)⁻¹ exactly, and a Cholesky factor of J̃J̃ᵀ (banded for long
+chains) gives the same q̈ as the SVD at a fraction of its cost; nearer the cut the SVD
+decides. In the accelerations, singular values below
 `rcond · σ_max` are dropped (`regularization="truncate"`; "damp" uses σ/(σ² + μ²) instead):
 inside that narrow band the nearly-lost constraint direction is held by the position and
 velocity projections, which use the exact pseudo-inverse, instead of by J̃⁺γ, whose

@@ -16,11 +16,13 @@ INTEGRATORS = {"adams": AdamsPECE, "RK45": RK45, "RK23": RK23, "DOP853": DOP853,
 
 
 def integrator_class(name: str):
-    try:
-        return INTEGRATORS[name]
-    except (KeyError, TypeError):
-        raise ValueError(f"unknown integrator {name!r}; valid integrators: "
-                         f"{', '.join(INTEGRATORS)}") from None
+    """The integrator called `name`, in any letter case ("radau" is scipy's Radau)."""
+    if isinstance(name, str):
+        for key, cls in INTEGRATORS.items():
+            if key.lower() == name.lower():
+                return cls
+    raise ValueError(f"unknown integrator {name!r}; valid integrators: "
+                     f"{', '.join(INTEGRATORS)}")
 
 
 __all__ = ["INTEGRATORS", "AdamsPECE", "Trapezoidal", "integrator_class"]
