@@ -63,6 +63,8 @@ def test_unknown_method_lists_the_valid_ones():
         mech.simulate(t_end=1.0, integrator="Euler")
     with pytest.raises(ValueError, match="does not take option.*gamma"):
         mech.simulate(t_end=1.0, gamma=3.0)
+    # Names are matched in any letter case.
+    assert mech.simulate(t_end=0.05, integrator="radau").stats["integrator"] == "Radau"
     with pytest.raises(ValueError, match="rtol"):
         mech.simulate(t_end=1.0, rtol=-1.0)
 
