@@ -9,6 +9,7 @@ and a `message` (diffrax's RESULTS): no work is lost.
 
 from __future__ import annotations
 
+import collections
 import math
 import time
 
@@ -71,6 +72,25 @@ def _correct_in_place(solver, y) -> bool:
     return False
 
 
+def _warm_start(solver, old, form, past) -> int:
+    """After a change of coordinates at solver.t, give a fresh Adams solver the history the
+    old one had, re-expressed in the new coordinates: y' at the last accepted states
+    `past` ((t, q, v), oldest first, the present one excluded) from `form.derivative`, up
+    to the old order. Returns the right-hand sides spent (0 where not possible: then the
+    solver starts from order 1 as usual)."""
+    if not (isinstance(solver, AdamsPECE) and isinstance(old, AdamsPECE)) or not past:
+        return 0
+    recent = list(past)[-old.order:]
+    try:
+        fs = [form.derivative(t, q, v) for t, q, v in recent]
+    except NotImplementedError:
+        return 0
+    if not all(np.all(np.isfinite(f)) for f in fs):
+        return len(fs)
+    solver.seed_history([t for t, _, _ in recent], fs, old.order, _proposed_step(old))
+    return len(fs)
+
+
 def _lsoda_workspace(solver):
     """LSODA's RWORK array (ODEPACK's documented layout), or None."""
     ode = getattr(solver, "_lsoda_solver", None)
@@ -89,7 +109,7 @@ def _proposed_step(solver):
 
 def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step):
     """Approach and cross a singular passage ahead with the formulation's bridge
-    (`mechsim.formulations.bridge`): (t_b, q_b, v_b, interpolant, t*) when crossed, else None,
+    (`mechsim.formulations.bridge`): its `Crossing` when crossed, else None,
     with the next step limited to the landing point while approaching."""
     s, rate = monitor.last * monitor.peak, monitor.rate * monitor.peak
     h_free = _proposed_step(solver)
@@ -201,6 +221,9 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         next_out = 1
     solver = None
     t_reached = t_start
+    # Accepted states since the last passage (t, q, v), for a warm multistep restart.
+    keep_past = issubclass(solver_cls, AdamsPECE)
+    past = collections.deque(maxlen=AdamsPECE.max_order_limit + 1)
     bridge = getattr(form, "bridge", None)
     bridges = 0
     bridge_evals_before = bridge.evaluations if bridge is not None else 0
@@ -260,6 +283,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             solver.max_step = max_step if form.step_limit is None else min(max_step, form.step_limit)
             y_here = y_new if corrected is None else corrected
             t_reached = t_new
+            if keep_past:
+                past.append((t_new, np.array(q_new), np.array(v_new)))
             if ts is None or (next_out < len(ts) and ts[next_out] == t_new):
                 record(t_new, *form.state(t_new, y_here))
                 next_out += 1
@@ -269,7 +294,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                 else:
                     retire(solver)
                     restarts += 1
-                    solver = make(t_new, corrected, solver.step_size)
+                    old, solver = solver, make(t_new, corrected, solver.step_size)
+                    nfev_done += _warm_start(solver, old, form, list(past)[:-1])
             if bridge is None or solver.status != "running":
                 continue
             if not form.bridging:
@@ -281,7 +307,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                                       *form.state(t_new, y_here), max_step)
             if crossed is None:
                 continue
-            t_b, q_b, v_b, interp, t_star = crossed
+            t_b, q_b, v_b, interp, t_star, history = crossed
             bridges += 1
             if ts is not None:
                 record_within(t_new, t_b, True, interp,
@@ -297,7 +323,13 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             t_reached = t_b
             retire(solver)
             restarts += 1
-            solver = make(t_b, y_b, _proposed_step(solver))
+            # The history goes on from the states the bridge was built on, all outside
+            # the passage's band.
+            past.clear()
+            past.extend(history)
+            old, solver = solver, make(t_b, y_b, _proposed_step(solver))
+            nfev_done += _warm_start(solver, old, form, past)
+            past.append((t_b, np.array(q_b), np.array(v_b)))
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:

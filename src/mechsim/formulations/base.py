@@ -34,6 +34,12 @@ class Formulation:
     bridge = None           # a PassageBridge when the formulation can cross passages by one
     bridging = False        # whether the manager may use it at the present step
 
+    def derivative(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """y' in the present layout at a consistent full state (q, v): what `rhs` gives at
+        the y of that state, without solving for the state first. The manager uses it to
+        re-express a multistep integrator's history after a switch or a new partition."""
+        raise NotImplementedError
+
     def resume(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The state y for a consistent (q, v) at t in the present layout (after a bridge)."""
         return self.initial_state(t, q, v)

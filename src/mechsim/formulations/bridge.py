@@ -37,6 +37,8 @@ passage on its own.
 
 from __future__ import annotations
 
+from typing import Callable, NamedTuple
+
 import numpy as np
 
 from ..integrators.adams import error_norm, integration_weights
@@ -48,6 +50,19 @@ LANDING = 1.0 / 14.0
 SPAN = 2.4
 # The largest error estimate taken at the landing floor rather than stepping through.
 FLOOR_ACCEPT = 10.0
+
+
+class Crossing(NamedTuple):
+    """A bridge over a passage: the end state, the step's interpolant (t -> [q; v]), the
+    predicted singular instant and the states the step was built on, (t, q, v) oldest
+    first, up to the landing point (consistent, outside the band: an Adams solver started
+    at t_b can take them as its history)."""
+    t_b: float
+    q_b: np.ndarray
+    v_b: np.ndarray
+    interpolant: Callable
+    t_star: float
+    history: list
 
 
 class PassageBridge:
@@ -164,7 +179,7 @@ class PassageBridge:
 
     def cross(self, t_n, q_n, v_n, t_star, measure, iterations=4):
         """One Adams step from (q_n, v_n) at t_n over t*; `measure(q, t)` gives σ_min/σ_max.
-        Returns (t_b, q_b, v_b, interpolant, t*), or None: then the approach goes on with a
+        Returns the `Crossing`, or None: then the approach goes on with a
         shorter landing distance, or the bridge stands down for this passage."""
         n = self.problem.n
         H = SPAN * (t_star - t_n)
@@ -180,6 +195,7 @@ class PassageBridge:
             F.append(self._f(tk, q, v))
         F = np.array(F)
         y_n = np.concatenate([q_n, v_n])
+        history = [(tk, q, v) for tk, (q, v) in zip(ts[:0:-1], states[::-1])] + [(t_n, q_n, v_n)]
         for _ in range(6):                     # the end must be out of the band
             past = (ts - t_n) / H
             y_p = y_n + H * (integration_weights(past, 1.0)[0] @ F)
@@ -234,15 +250,15 @@ class PassageBridge:
                 return best_declined[1]
             if err <= FLOOR_ACCEPT:
                 self._declined = (err, self._finish(n, t_n, t_b, H, y_n, ys, best, nodes, F,
-                                                    t_star))
+                                                    t_star, history))
             return self._decline(err)
         if err > 1.0:
             self.over_tolerance += 1
         self.landing = self._declined = None
-        return self._finish(n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star)
+        return self._finish(n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history)
 
-    def _finish(self, n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star):
-        """The crossing (t_b, q_b, v_b, interpolant, t*) with the corrector of order `best`."""
+    def _finish(self, n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history):
+        """The `Crossing` with the corrector of order `best`."""
         k = best + 4                            # nodes of the kept corrector
         q_b, v_b = self._consistent(ys[best + 1][:n], ys[best + 1][n:], t_b)
         Fc = np.vstack([self._f(t_b, q_b, v_b), F[:k - 1]])
@@ -253,7 +269,7 @@ class PassageBridge:
             y = y_n[None, :] + H * (integration_weights(nodes, s) @ Fc)
             return y[0] if np.ndim(tk) == 0 else y.T
 
-        return t_b, q_b, v_b, interpolant, t_star
+        return Crossing(t_b, q_b, v_b, interpolant, t_star, history)
 
     def _floor(self):
         """The closest landing distance: σ_min/σ_max of 1.2 `EDGE` cuts at the present rate."""

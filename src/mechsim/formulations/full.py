@@ -32,6 +32,9 @@ class FullCoordinates(Formulation):
     def accelerations(self, t, q, v) -> np.ndarray:
         raise NotImplementedError
 
+    def derivative(self, t, q, v):
+        return np.concatenate([v, self.accelerations(t, q, v)])
+
     def rhs(self, t, y):
         n = self.n
         q, v = y[:n], y[n:]

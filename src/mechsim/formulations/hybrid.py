@@ -56,6 +56,9 @@ class Hybrid(Formulation):
     def state(self, t, y):
         return self.active.state(t, y)
 
+    def derivative(self, t, q, v):
+        return self.active.derivative(t, q, v)
+
     def _lu_ready(self, q, t) -> bool:
         """Would LU partitioning be well conditioned here? cond(Φ_u) of the set its pivoting
         picks, against a tenth of its re-partition threshold."""

@@ -384,6 +384,11 @@ class Partitioned(Formulation):
         qdd, _ = prob.accelerations(J, prob.forces(t, q, v), prob.gamma(q, v, t), q)
         return np.concatenate([y[self.basis.f:], self.basis.Bt(qdd)])
 
+    def derivative(self, t, q, v):
+        prob = self.problem
+        qdd, _ = prob.accelerations(prob.phi_q(q, t), prob.forces(t, q, v), prob.gamma(q, v, t), q)
+        return np.concatenate([self.basis.Bt(v), self.basis.Bt(qdd)])
+
     def after_step(self, t, y):
         q, v, J, n_fresh = self.full_state(t, y)
         self.layout_changed = False

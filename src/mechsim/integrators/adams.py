@@ -13,9 +13,12 @@ polynomials and, unlike Vandermonde solves, well conditioned for any spacing). T
 error is estimated by Milne's device ‖y_c − y_p‖ and the higher-order corrector is kept
 (local extrapolation, as in Shampine–Gordon). After each accepted step the estimates at
 orders k−1, k, k+1 (same f values, no extra evaluations) pick the order that allows the
-largest next step; the order rises by at most one per step, so a fresh start (t0 or a
-restart after a re-partition) climbs from order 1. Dense output integrates the corrector's
-interpolant to any point inside the step.
+largest next step; the order rises by at most one per step, so a fresh start climbs from
+order 1. After a change of coordinates (a re-partition, a switch of formulation, a bridge
+over a passage) the solver manager restarts warm instead: `seed_history` takes the
+derivatives at the last accepted states re-expressed in the new coordinates, and the new
+solver goes on at the old order. Dense output integrates the corrector's interpolant to any
+point inside the step.
 
 It is a scipy `OdeSolver`, so `solve_ivp(fun, span, y0, method=AdamsPECE)` works too.
 """
@@ -62,13 +65,16 @@ class AdamsPECE(OdeSolver):
     first_step; plus `max_order` (default 10). Exposes `order`, `n_rejected`.
     """
 
+    max_order_limit = 12
+
     def __init__(self, fun, t0, y0, t_bound, max_step=np.inf, rtol=1e-6, atol=1e-8,
                  first_step=None, max_order=10, vectorized=False, **extraneous):
         super().__init__(fun, t0, y0, t_bound, vectorized, support_complex=False)
         self.max_step = float(max_step)
         self.rtol, self.atol = float(rtol), atol
-        if not 1 <= int(max_order) <= 12:
-            raise ValueError(f"`max_order` must be in 1..12, got {max_order}")
+        if not 1 <= int(max_order) <= self.max_order_limit:
+            raise ValueError(f"`max_order` must be in 1..{self.max_order_limit}, "
+                             f"got {max_order}")
         self.max_order = int(max_order)
         self.f = self.fun(self.t, self.y)
         self.ts = [self.t]          # accepted times, newest last
@@ -158,6 +164,23 @@ class AdamsPECE(OdeSolver):
             self._same_h = 0
         self.h = h * factor
         return True, None
+
+    def seed_history(self, ts, fs, order: int, h: float):
+        """Continue a run from here as if these derivatives had been integrated: `ts`, `fs`
+        the earlier times (oldest first) and y' there in this solver's coordinates. The
+        order is at most what the history supports, and the next step is `h` (capped by
+        max_step). Used after a change of coordinates (a new partition, a switch of
+        formulation): the history is re-expressed in the new coordinates, so the start
+        need not climb from order 1 again."""
+        ts = [float(t) for t in ts]
+        if any(b <= a for a, b in zip(ts, ts[1:] + [self.t])):
+            raise ValueError("seed_history: the times must increase up to the present one")
+        self.ts = ts + [self.t]
+        self.fs = [np.asarray(f, float) for f in fs] + [self.f]
+        del self.ts[:-(self.max_order + 2)], self.fs[:-(self.max_order + 2)]
+        self.order = max(1, min(int(order), self.max_order, len(self.ts)))
+        self.h = min(float(h), self.max_step, abs(self.t_bound - self.t))
+        self._same_h = 0
 
     def correct(self, y):
         """Replace the current state by a corrected one (e.g. projected onto the constraint
