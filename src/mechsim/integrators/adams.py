@@ -241,6 +241,9 @@ class _AdamsDense(DenseOutput):
 
     def _call_impl(self, t):
         s = (np.atleast_1d(t) - self.t_old) / self.hh
-        w = np.array([self.weights(self.nodes, sk) for sk in s])     # (P, K)
+        if s.size > 1:             # several samples in one step: one quadrature for all
+            w = integration_weights(np.asarray(self.nodes, float), s)      # (P, K)
+        else:                      # one: its fraction may recur (a regular output grid)
+            w = np.array([self.weights(self.nodes, sk) for sk in s])
         out = self.y_old[None, :] + self.hh * (w @ self.F)          # (P, n)
         return out[0] if np.ndim(t) == 0 else out.T
