@@ -42,6 +42,13 @@ class FullCoordinates(Formulation):
         return np.concatenate([v, self.accelerations(t, q, v)])
 
     def after_step(self, t, y):
+        return self.project_now(t, y)
+
+    def project_now(self, t, y):
+        """The state projected onto the constraints (mass metric) where ‖Φ‖∞ exceeds
+        `projection_tol`, else None. The manager also hands this to an integrator that can
+        project inside its step, before its last evaluation (Adams: P E C, project, E),
+        so that the projection costs no extra evaluation of the right-hand side."""
         if not self.projection:
             return None
         prob, n = self.problem, self.n

@@ -59,6 +59,10 @@ class Hybrid(Formulation):
     def derivative(self, t, q, v):
         return self.active.derivative(t, q, v)
 
+    def project_now(self, t, y):
+        project = getattr(self.active, "project_now", None)
+        return None if project is None else project(t, y)
+
     def _lu_ready(self, q, t) -> bool:
         """Would LU partitioning be well conditioned here? cond(Φ_u) of the set its pivoting
         picks, against a tenth of its re-partition threshold."""

@@ -279,10 +279,13 @@ class Projection(FullCoordinates):
         where J̃ is clear of the band: the dense Cholesky factor, or the banded one of a
         long chain. On the double four-bar one Jacobian and one factorisation per
         projection instead of four of each."""
-        prob, n = self.problem, self.n
         self._far = self._far_from_band()
+        return self.project_now(t, y)
+
+    def project_now(self, t, y):
+        prob, n = self.problem, self.n
         if not self.projection or not prob.m:
-            return super().after_step(t, y)
+            return super().project_now(t, y)
         q, v = y[:n], y[n:]
         phi, J = prob.position_terms(q, t)
         if max(abs(phi).tolist()) <= self.projection_tol:
@@ -290,7 +293,7 @@ class Projection(FullCoordinates):
         solve = self._clear_solver(J, prob.mass_factor(q))
         done = None if solve is None else prob.project_state(
             q, v, t, 0.01 * self.projection_tol, solve=solve)
-        return super().after_step(t, y) if done is None else np.concatenate(done)
+        return super().project_now(t, y) if done is None else np.concatenate(done)
 
     def project_positions(self, q, t):
         prob = self.problem

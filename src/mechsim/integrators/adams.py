@@ -31,6 +31,9 @@ from scipy.integrate import DenseOutput, OdeSolver
 _GX, _GW = np.polynomial.legendre.leggauss(8)     # exact to degree 15 ≥ the highest order
 _GX = 0.5 * (_GX + 1.0)                            # on [0, 1]
 _GW = 0.5 * _GW
+# Weights by node pattern, shared by all solvers: the patterns of a run recur after each
+# restart (a bridge, a switch) and in the next run.
+_WEIGHTS: dict = {}
 
 
 def integration_weights(nodes: np.ndarray, s) -> np.ndarray:
@@ -84,8 +87,10 @@ class AdamsPECE(OdeSolver):
         self.h = self._initial_step() if first_step is None else min(float(first_step), self._initial_step(loose=True))
         self.h = min(self.h, self.max_step, abs(self.t_bound - self.t))
         self._dense = None
-        self._cache: dict = {}
         self._same_h = 0
+        # (t, y) -> y projected onto an invariant manifold, or None where y is on it:
+        # applied to an accepted corrector before its evaluation (P E C, project, E).
+        self.project = None
 
     def _weights(self, nodes, s=1.0):
         """Weights ∫_0^s of the Lagrange basis on `nodes`, cached by their pattern: the
@@ -93,13 +98,17 @@ class AdamsPECE(OdeSolver):
         stretch the nodes are the same integers step after step and the weights are computed
         once (for dense output on a regular grid, the fractions s recur as well)."""
         # Steps change by factors of two, so the nodes are dyadic up to the round-off of t:
-        # snapping the key to multiples of 2⁻³⁰ makes equal patterns hit the cache.
-        key = tuple(np.rint(np.append(nodes, s) * 2.0**30).astype(np.int64).tolist())
-        w = self._cache.get(key)
+        # snapping them to multiples of 2⁻⁴⁰ makes equal patterns hit the cache. The
+        # weights are those of the snapped nodes, so a run does not depend on what earlier
+        # runs left in the cache.
+        snapped = np.rint(np.append(nodes, s) * 2.0**40)
+        key = tuple(snapped.astype(np.int64).tolist())
+        w = _WEIGHTS.get(key)
         if w is None:
-            if len(self._cache) > 4096:
-                self._cache.clear()
-            w = self._cache[key] = integration_weights(np.asarray(nodes, float), s)[0]
+            if len(_WEIGHTS) > 20000:
+                _WEIGHTS.clear()
+            snapped *= 2.0**-40
+            w = _WEIGHTS[key] = integration_weights(snapped[:-1], snapped[-1])[0]
         return w
 
     def _norm(self, e, y_a, y_b):
@@ -145,6 +154,10 @@ class AdamsPECE(OdeSolver):
             h *= factor
             self._same_h = 0
             self.order = max(1, min(self.order, k) - (1 if not np.isfinite(err) else 0))
+        if self.project is not None:
+            projected = self.project(t + h, y_c)
+            if projected is not None:
+                y_c = np.asarray(projected, float)
         f_c = self.fun(t + h, y_c)
         # The step is accepted: keep the interpolant data for dense output.
         self._dense = (t, h, y.copy(), np.vstack([f_c, F]), self._nodes(k, h, True))
