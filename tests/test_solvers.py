@@ -269,6 +269,18 @@ def test_hybrid_with_adams_restarts_warm_after_switches_and_bridges():
     assert np.max(np.hypot(tip[:, 0] - np.cos(theta), tip[:, 1] - np.sin(theta))) < 1e-9
 
 
+def test_hybrid_with_adams_does_not_creep_up_to_a_passage():
+    """Ahead of a passage each LU step is held to half the way to the predicted entry; with
+    short Adams steps that used to go on until the 1 µs floor (the double four-bar's second
+    passage at 1.21 s: 20 steps halving to 1e-6 s, 20 more climbing back). After two held
+    steps the manager switches to projection instead."""
+    res = ms.examples.double_four_bar(2).simulate(t_end=1.6, method="hybrid", rtol=1e-8,
+                                                  atol=1e-10, integrator="adams")
+    assert res.status == "success" and len(res.switches) == 4 and res.stats["bridges"] == 2
+    h = np.diff(res.t)[res.t[1:] > 0.3]                 # past the start-up
+    assert h.min() > 1e-4 and res.stats["steps"] < 230, (h.min(), res.stats["steps"])
+
+
 def test_adams_runs_do_not_depend_on_the_runs_before_them():
     """The Adams weights are cached by node pattern across solvers and runs (the patterns
     recur after each restart); they are computed from the snapped pattern itself, so what

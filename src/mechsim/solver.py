@@ -72,22 +72,25 @@ def _correct_in_place(solver, y) -> bool:
     return False
 
 
-def _warm_start(solver, old, form, past) -> int:
+def _warm_start(solver, old, form, past, order=None, step=None) -> int:
     """After a change of coordinates at solver.t, give a fresh Adams solver the history the
     old one had, re-expressed in the new coordinates: y' at the last accepted states
     `past` ((t, q, v), oldest first, the present one excluded) from `form.derivative`, up
-    to the old order. Returns the right-hand sides spent (0 where not possible: then the
-    solver starts from order 1 as usual)."""
+    to the old order (or `order`), going on with the old solver's next step (or `step`).
+    Returns the right-hand sides spent (0 where not possible: then the solver starts from
+    order 1 as usual)."""
     if not (isinstance(solver, AdamsPECE) and isinstance(old, AdamsPECE)) or not past:
         return 0
-    recent = list(past)[-old.order:]
+    order = old.order if order is None else min(order, old.order)
+    recent = list(past)[-order:]
     try:
         fs = [form.derivative(t, q, v) for t, q, v in recent]
     except NotImplementedError:
         return 0
     if not all(np.all(np.isfinite(f)) for f in fs):
         return len(fs)
-    solver.seed_history([t for t, _, _ in recent], fs, old.order, _proposed_step(old))
+    solver.seed_history([t for t, _, _ in recent], fs, order,
+                        _proposed_step(old) if step is None else step)
     return len(fs)
 
 
@@ -312,7 +315,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                                       *form.state(t_new, y_here), max_step)
             if crossed is None:
                 continue
-            t_b, q_b, v_b, interp, t_star, history = crossed
+            t_b, q_b, v_b, interp, t_star, history = crossed[:6]
             bridges += 1
             if ts is not None:
                 record_within(t_new, t_b, True, interp,
@@ -333,7 +336,10 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             past.clear()
             past.extend(history)
             old, solver = solver, make(t_b, y_b, _proposed_step(solver))
-            nfev_done += _warm_start(solver, old, form, past)
+            # The bridge's own order and step: near the passage the accelerations carry
+            # round-off amplified by 1/σ_min², and its error estimate found which order
+            # still gains from them.
+            nfev_done += _warm_start(solver, old, form, past, crossed.order, crossed.step)
             past.append((t_b, np.array(q_b), np.array(v_b)))
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"

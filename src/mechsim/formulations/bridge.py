@@ -56,13 +56,16 @@ class Crossing(NamedTuple):
     """A bridge over a passage: the end state, the step's interpolant (t -> [q; v]), the
     predicted singular instant and the states the step was built on, (t, q, v) oldest
     first, up to the landing point (consistent, outside the band: an Adams solver started
-    at t_b can take them as its history)."""
+    at t_b can take them as its history), with the step's length and the order its
+    error estimate found reliable there."""
     t_b: float
     q_b: np.ndarray
     v_b: np.ndarray
     interpolant: Callable
     t_star: float
     history: list
+    step: float
+    order: int
 
 
 class PassageBridge:
@@ -269,7 +272,7 @@ class PassageBridge:
             y = y_n[None, :] + H * (integration_weights(nodes, s) @ Fc)
             return y[0] if np.ndim(tk) == 0 else y.T
 
-        return Crossing(t_b, q_b, v_b, interpolant, t_star, history)
+        return Crossing(t_b, q_b, v_b, interpolant, t_star, history, H, k - 1)
 
     def _floor(self):
         """The closest landing distance: σ_min/σ_max of 1.2 `EDGE` cuts at the present rate."""

@@ -33,6 +33,8 @@ class Hybrid(Formulation):
         self._stable = 0
         self._recent: list[int] = []      # steps at which LU re-partitioned
         self._step = 0
+        self._limit = None                # the step limit LU's last step was taken under
+        self._held = 0                    # consecutive LU steps held by that limit
 
     def initial_state(self, t, q, v):
         s = self.monitor.measure(q, t)[0] if self.monitor else 1.0
@@ -79,6 +81,7 @@ class Hybrid(Formulation):
         name_from = self.active.name
         self.active = to
         self._stable = 0
+        self._limit, self._held = None, 0
         self._recent.clear()
         self.switches.append(Switch(t, name_from, to.name, reason))
         self.problem.counters.switches += 1
@@ -101,7 +104,14 @@ class Hybrid(Formulation):
             # accelerates into the singularity (the seed's falling four-bar does).
             self.step_limit = max(0.5 * (s - mon.enter) / -mon.rate, 1e-6)
         if self.active is self.lu:
-            if mon and mon.predicted_within(self.last_step):
+            # Each step held by the limit covers half the rest of the way to the entry, so
+            # an integrator whose steps are short anyway (Adams) would creep up to it in
+            # steps halving down to the 1 µs floor, and then climb back from there (40
+            # steps a passage on the double four-bar): after two held steps it switches.
+            held = self._limit is not None and self.last_step >= 0.99 * self._limit
+            self._held = self._held + 1 if held else 0
+            self._limit = self.step_limit
+            if mon and (mon.predicted_within(self.last_step) or self._held >= 2):
                 if mon.inside:
                     why = (f"σ_min/σ_max at {s:.3g} of its peak (< {mon.enter:g}): near a "
                            f"singular configuration (joints {', '.join(mon._open[3])})")
