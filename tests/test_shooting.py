@@ -386,3 +386,22 @@ def test_shooting_pays_only_for_the_flows_it_needs():
     fresh = CoulombOscillator(**PAPER, mu=0.07)
     np.testing.assert_allclose(fresh.period_map(sol.x0), traj.x[-1], rtol=0, atol=1e-14)
     assert fresh._motion(sol.x0, monodromy=False)[2] is None
+
+
+def test_newton_xtol_stops_on_its_predicted_step():
+    """With `xtol` and the exact monodromy, Newton stops where its step predicts the state
+    within xtol, without a flow at the last iterate: one flow fewer than the residual test
+    that guarantees the same accuracy, and the state is still within xtol (here far
+    inside: the convergence is quadratic)."""
+    ref = ms.shooting.solve(CoulombOscillator(**PAPER, mu=0.07), (0.0, 0.0), method="newton",
+                            tol=1e-13, floquet=False).x0
+    by_g, by_step = CoulombOscillator(**PAPER, mu=0.07), CoulombOscillator(**PAPER, mu=0.07)
+    a = ms.shooting.solve(by_g, (0.0, 0.0), method="newton", tol=1e-6 / 24, floquet=False)
+    b = ms.shooting.solve(by_step, (0.0, 0.0), method="newton", tol=1e-6 / 24, xtol=1e-6,
+                          floquet=False)
+    assert a.converged and b.converged and "xtol" in b.message
+    assert by_step.flows == by_g.flows - 1 == b.iterations
+    assert np.max(np.abs(b.x0 - ref)) < 1e-9
+    assert b.residual > 1e-6 / 24                      # the last residual evaluated
+    with pytest.raises(ValueError, match="xtol"):
+        ms.shooting.solve(by_step, (0.0, 0.0), method="newton", xtol=0.0)

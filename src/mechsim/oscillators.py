@@ -34,6 +34,9 @@ class Trajectory:
 class PeriodicProblem:
     period: float
     n: int
+    # The residual's Jacobian is singular at the solutions (a continuous family of them,
+    # e.g. the impact pair shifted as a whole): Newton then takes minimum-norm steps.
+    singular_jacobian = False
 
     def initial_state(self, u) -> np.ndarray:
         return np.asarray(u, float)
@@ -114,11 +117,16 @@ class LinearOscillator(PeriodicProblem):
                  + e * ((-sig * c1 + wd * c2) * c + (-sig * c2 - wd * c1) * sn))
             return x, v
 
-        def transition(t):
+        def entries(t):
+            """The transition matrix at t as a row-major 4-tuple of floats."""
             tau = t - t0
             e, c, sn = math.exp(-sig * tau), math.cos(wd * tau), math.sin(wd * tau)
-            return e * np.array([[c + sig / wd * sn, sn / wd],
-                                 [-(wn * wn / wd) * sn, c - sig / wd * sn]])
+            return (e * (c + sig / wd * sn), e * sn / wd, -e * (wn * wn / wd) * sn,
+                    e * (c - sig / wd * sn))
+
+        def transition(t):
+            return np.array(entries(t)).reshape(2, 2)
+        transition.entries = entries
 
         def velocity(t):
             """ẋ at a scalar t (plain math: the root finder calls it ~20 times a stop)."""
@@ -286,7 +294,8 @@ class CoulombOscillator(LinearOscillator):
         t, t_end = t_span or (0.0, self.period)
         x, v = float(u[0]), float(u[1])
         pieces, events = [], []
-        M = np.eye(2) if self.closed_form and monodromy else None
+        # The monodromy as a row-major 4-tuple (2 × 2 products in plain floats).
+        M = (1.0, 0.0, 0.0, 1.0) if self.closed_form and monodromy else None
         self.flows += 1
         guard = 0
         while t < t_end - 1e-15 * max(1.0, t_end):
@@ -301,7 +310,7 @@ class CoulombOscillator(LinearOscillator):
                     pieces.append((t, t_leave, lambda tt, x=x: (x, 0.0), None))
                     events.append((t, "stick"))
                     if M is not None:
-                        M[1] = 0.0                           # diag(1, 0) M
+                        M = (M[0], M[1], 0.0, 0.0)           # diag(1, 0) M
                     t = t_leave
                     if t >= t_end:
                         break
@@ -314,7 +323,9 @@ class CoulombOscillator(LinearOscillator):
                 t_new, x, v, state, stopped, T = self._closed_slip(t, x, v, d, friction, t_end,
                                                                    M is not None)
                 if M is not None:
-                    M = T @ M
+                    a, b, c, d = T
+                    M = (a * M[0] + b * M[2], a * M[1] + b * M[3],
+                         c * M[0] + d * M[2], c * M[1] + d * M[3])
             else:
                 t_new, x, v, state, stopped = self._integrated_slip(t, x, v, d, friction, t_end)
             pieces.append((t, t_new, state, stopped))
@@ -328,10 +339,12 @@ class CoulombOscillator(LinearOscillator):
                     a_after = 0.0 if after == 0 else self._acceleration(
                         t, x, after * self.mu * self.g)
                     if abs(a_before) > 1e-9 * self.g:
-                        M[1] *= a_after / a_before           # diag(1, a⁺/a⁻) M
+                        r = a_after / a_before               # diag(1, a⁺/a⁻) M
+                        M = (M[0], M[1], r * M[2], r * M[3])
                     else:
                         M = None
-        return pieces, events, M, np.array([x, v])
+        return pieces, events, None if M is None else np.array(M).reshape(2, 2), \
+            np.array([x, v])
 
     def _acceleration(self, t, x, friction):
         """ẍ at rest (ẋ = 0) under the friction force `friction` (signed)."""
@@ -342,7 +355,7 @@ class CoulombOscillator(LinearOscillator):
         """Slip in direction d from (t, x, v) until ẋ = 0 or t_end, in closed form: the
         first stop is bracketed on a grid of 128 points per forcing or damped-oscillation
         period, whichever is shorter, and refined by brentq. The phase's transition matrix
-        comes last (None unless `transition`)."""
+        comes last, as a row-major 4-tuple (None unless `transition`)."""
         state, phase_transition = self._segment(t, x, v, friction)
         shortest = min(self.period, 2 * math.pi / self.omega_n)
         n = max(8, int(math.ceil(128 * (t_end - t) / shortest)))
@@ -361,7 +374,7 @@ class CoulombOscillator(LinearOscillator):
         else:
             t_new = t_end
         return t_new, state.position(t_new), state.velocity(t_new), state, stopped, \
-            (phase_transition(t_new) if transition else None)
+            (phase_transition.entries(t_new) if transition else None)
 
     def _integrated_slip(self, t, x, v, d, friction, t_end):
         """The same for ζ ≥ 1, with scipy's event location on the dense output."""
@@ -415,6 +428,7 @@ class ImpactPair(PeriodicProblem):
     """
 
     n = 4
+    singular_jacobian = True          # x1(0) is free: the pair may be shifted as a whole
 
     def __init__(self, m1, m2, clearance, amplitude, omega, restitution):
         _positive("ImpactPair", m1=m1, m2=m2, clearance=clearance, amplitude=amplitude,

@@ -101,14 +101,32 @@ def _forward_jacobian(problem, u, g, rel_step=1e-6):
     return J
 
 
-def _newton(problem, guess, tol, max_iter, max_halvings=30, **_):
+def _newton_step(J, g, singular):
+    """−J⁺g: the minimum-norm step where J is singular along a symmetry of the problem
+    (`singular_jacobian`: the impact pair may be shifted as a whole, a family of periodic
+    solutions) or turns out singular, else the plain solve (a third of the cost)."""
+    if not singular and J.shape[0] == J.shape[1]:
+        try:
+            return -np.linalg.solve(J, g)
+        except np.linalg.LinAlgError:
+            pass
+    return -np.linalg.lstsq(J, g, rcond=1e-10)[0]
+
+
+def _newton(problem, guess, tol, max_iter, max_halvings=30, xtol=None, **_):
     """Quasi-Newton shooting: the Jacobian ∂g/∂u by forward differences (n flows), then
     Broyden's rank-one updates (no extra flow) while they keep converging; a fresh Jacobian
     when a step had to be damped or reduced ‖g‖ by less than half. A problem that knows its
     monodromy (`residual_jacobian(u) -> (g, J)` or None) gives the exact Jacobian with each
-    flow instead. Steps are halved until ‖g‖ decreases."""
+    flow instead. Steps are halved until ‖g‖ decreases.
+
+    With `xtol` and the exact Jacobian, the iteration also stops where the full Newton step
+    predicts the next iterate within xtol of the solution (max norm): with contraction
+    Θ = ‖Δu‖/‖Δu_prev‖ < 1/2 that error is about Θ‖Δu‖/(1 − Θ). The next iterate is
+    returned without a flow of its own (the residual reported is the last one evaluated)."""
     u = np.array(guess, float)
     exact = getattr(problem, "residual_jacobian", None)
+    prev_step = None
 
     def evaluate(x):
         """(g, J) with the exact J when the problem has it (one flow), else (g, None)."""
@@ -119,13 +137,18 @@ def _newton(problem, guess, tol, max_iter, max_halvings=30, **_):
         return problem.residual(x), None
 
     g, J = evaluate(u)
+    J_exact = J is not None
     history = []
     for it in range(1, max_iter + 1):
         if J is None:
             J = _forward_jacobian(problem, u, g)
-        # Minimum-norm step: J is singular along any symmetry of the problem (the impact
-        # pair may be shifted as a whole: a family of periodic solutions).
-        du = -np.linalg.lstsq(J, g, rcond=1e-10)[0]
+        du = _newton_step(J, g, getattr(problem, "singular_jacobian", True))
+        size = float(np.max(np.abs(du)))
+        if xtol is not None and J_exact and prev_step is not None and size < 0.5 * prev_step:
+            theta = size / prev_step
+            if theta * size / (1.0 - theta) <= xtol:
+                return u + du, g, it, history, (f"converged: the Newton step predicts x0 "
+                                                f"within xtol = {xtol:g}")
         lam, norm = 1.0, np.linalg.norm(g)
         for _ in range(max_halvings):
             try:
@@ -136,7 +159,9 @@ def _newton(problem, guess, tol, max_iter, max_halvings=30, **_):
                 break
             lam *= 0.5
         step = lam * du
+        prev_step = size if lam == 1.0 else None
         good = lam == 1.0 and np.linalg.norm(g_new) < 0.5 * norm
+        J_exact = J_new is not None
         if J_new is not None:
             J = J_new
         elif good and np.all(np.isfinite(g_new)):
@@ -155,7 +180,7 @@ SHOOTING_METHODS = {"warner": _warner, "newton": _newton}
 
 def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: int = 50,
           scale: float = 1.01, guesses=None, floquet: bool = True,
-          max_halvings: int = 30) -> ShootingResult:
+          max_halvings: int = 30, xtol: float | None = None) -> ShootingResult:
     """Find u with g(u) = 0 for a periodic `problem` (see `mechsim.oscillators`).
 
     Parameters
@@ -165,6 +190,9 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
     tol : stop when max |g| < tol (the paper's eq. 8: 1e-6)
     max_halvings : "newton" halves a step at most this often looking for a smaller ‖g‖
         (fewer makes hopeless starts fail sooner, e.g. in a regime map)
+    xtol : "newton" with the exact monodromy also stops where its step predicts the
+        unknowns within xtol (max norm) of the solution, without a flow at the last
+        iterate (quadratic convergence makes that prediction conservative)
     floquet : compute the Floquet multipliers at the solution: eigenvalues of the state
         monodromy (`problem.floquet_matrix(u)` where the unknowns are not the state, else
         ∂x(T)/∂x(0) by finite differences)
@@ -175,9 +203,12 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
     if not tol > 0:
         raise ValueError(f"`tol` must be positive, got {tol!r}")
     guess = problem.check(guess)
+    if xtol is not None and not xtol > 0:
+        raise ValueError(f"`xtol` must be positive, got {xtol!r}")
     x, g, its, history, message = SHOOTING_METHODS[method](
-        problem, guess, tol, max_iter, scale=scale, guesses=guesses, max_halvings=max_halvings)
-    converged = message == "converged"
+        problem, guess, tol, max_iter, scale=scale, guesses=guesses, max_halvings=max_halvings,
+        xtol=xtol)
+    converged = message.startswith("converged")
     mults = None
     if floquet and converged:
         state_map = problem.floquet_matrix(x) if hasattr(problem, "floquet_matrix") \
