@@ -229,7 +229,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         next_out = 1
     solver = None
     t_reached = t_start
-    # Accepted states since the last passage (t, q, v), for a warm multistep restart.
+    # The last accepted states (t, q, v), for a warm Adams restart after a change of
+    # coordinates (after a bridge: the states the bridge was built on).
     keep_past = issubclass(solver_cls, AdamsPECE)
     past = collections.deque(maxlen=AdamsPECE.max_order_limit + 1)
     bridge = getattr(form, "bridge", None)
@@ -331,16 +332,16 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             t_reached = t_b
             retire(solver)
             restarts += 1
-            # The history goes on from the states the bridge was built on, all outside
-            # the passage's band.
-            past.clear()
-            past.extend(history)
             old, solver = solver, make(t_b, y_b, _proposed_step(solver))
-            # The bridge's own order and step: near the passage the accelerations carry
-            # round-off amplified by 1/σ_min², and its error estimate found which order
-            # still gains from them.
-            nfev_done += _warm_start(solver, old, form, past, crossed.order, crossed.step)
-            past.append((t_b, np.array(q_b), np.array(v_b)))
+            if keep_past:
+                # The history goes on from the states the bridge was built on, all outside
+                # the passage's band, with the bridge's own step and the order its error
+                # estimate found still gaining there (near the passage the accelerations
+                # carry round-off amplified by 1/σ_min²).
+                past.clear()
+                past.extend(history)
+                nfev_done += _warm_start(solver, old, form, past, crossed.order, crossed.step)
+                past.append((t_b, np.array(q_b), np.array(v_b)))
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
