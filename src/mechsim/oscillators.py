@@ -6,7 +6,10 @@ A periodic problem is anything with
     initial_state(u) -> full state at t = 0 from the unknowns u
     flow(u) -> Trajectory over one period (t, x, and the events it met)
     residual(u) -> g(u), zero at a periodic steady state
-so users can shoot their own problems by writing these.
+so users can shoot their own problems by writing these. Optional: `residual_jacobian(u) ->
+(g, ∂g/∂u)` from one flow (exact Newton, e.g. with a closed-form monodromy), and
+`singular_jacobian = True` where the solutions come in a continuous family (Newton then
+takes minimum-norm steps).
 
 Units as in the paper: mm and s for the single-degree-of-freedom problems (g = 9800 mm/s²).
 """
