@@ -326,9 +326,9 @@ class CoulombOscillator(LinearOscillator):
                 t_new, x, v, state, stopped, T = self._closed_slip(t, x, v, d, friction, t_end,
                                                                    M is not None)
                 if M is not None:
-                    a, b, c, d = T
-                    M = (a * M[0] + b * M[2], a * M[1] + b * M[3],
-                         c * M[0] + d * M[2], c * M[1] + d * M[3])
+                    t11, t12, t21, t22 = T
+                    M = (t11 * M[0] + t12 * M[2], t11 * M[1] + t12 * M[3],
+                         t21 * M[0] + t22 * M[2], t21 * M[1] + t22 * M[3])
             else:
                 t_new, x, v, state, stopped = self._integrated_slip(t, x, v, d, friction, t_end)
             pieces.append((t, t_new, state, stopped))
