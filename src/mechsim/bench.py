@@ -205,7 +205,7 @@ class ShootingRow:
     start: tuple
     accuracy: float          # both runs stop within this of the periodic state (max norm)
     shooting_time: float
-    shooting_flows: int      # one-period flows: Newton's iterates and its final check
+    shooting_flows: int      # one-period flows: one per Newton iterate evaluated
     shooting_error: float
     brute_time: float
     brute_periods: int
