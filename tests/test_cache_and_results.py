@@ -116,6 +116,19 @@ def test_cli_runs_each_shipped_scene(scene, tmp_path, capsys):
     assert np.max(np.abs(res.energy_drift)) < 1e-6
 
 
+def test_cli_bench_coulomb_writes_its_table(tmp_path, capsys):
+    """`mechsim bench coulomb`: one row per case and accuracy, CSV and plot written; a bad
+    accuracy list is an error naming it."""
+    assert main(["bench", "coulomb", "--accuracies", "1e-6", "--repeat", "1",
+                 "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    rows = [line for line in out.splitlines() if line.strip().startswith(("0.07", "0.08", "0.09"))]
+    assert len(rows) == 6 and all(line.endswith("×") for line in rows)
+    assert (tmp_path / "bench_coulomb.csv").exists() and (tmp_path / "bench_coulomb.png").exists()
+    assert main(["bench", "coulomb", "--accuracies", "fine", "--out", str(tmp_path)]) == 2
+    assert "`--accuracies` takes comma-separated positive numbers, got 'fine'" in capsys.readouterr().err
+
+
 def test_cli_reports_bad_scene(tmp_path, capsys):
     bad = tmp_path / "x.toml"
     bad.write_text("[simulation]\nt_end = 1\n[[body]]\nname = 'a'\n")

@@ -88,6 +88,19 @@ def _run(args) -> int:
     return 0 if res.success else 1
 
 
+def _numbers(text, option, default) -> list[float]:
+    """A comma-separated list of positive numbers (or the default when not given)."""
+    if not text:
+        return list(default)
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or not all(v > 0 for v in values):
+        raise ValueError(f"`{option}` takes comma-separated positive numbers, got {text!r}")
+    return values
+
+
 def _bench(args) -> int:
     from . import bench
 
@@ -95,10 +108,9 @@ def _bench(args) -> int:
     shooting = "coulomb" in problems
     problems = [p for p in problems if p != "coulomb"]
     methods = args.methods.split(",") if args.methods else list(bench.DEFAULT_METHODS)
-    rtols = [float(x) for x in args.rtols.split(",")] if args.rtols else list(bench.DEFAULT_RTOLS)
     try:
-        accuracies = ([float(x) for x in args.accuracies.split(",")] if args.accuracies
-                      else list(bench.DEFAULT_ACCURACIES))
+        rtols = _numbers(args.rtols, "--rtols", bench.DEFAULT_RTOLS)
+        accuracies = _numbers(args.accuracies, "--accuracies", bench.DEFAULT_ACCURACIES)
         written = []
         if problems:
             print(bench.HEADER)
