@@ -269,6 +269,20 @@ def test_hybrid_with_adams_restarts_warm_after_switches_and_bridges():
     assert np.max(np.hypot(tip[:, 0] - np.cos(theta), tip[:, 1] - np.sin(theta))) < 1e-9
 
 
+def test_a_run_stuck_at_a_passage_stops_early_naming_the_joints():
+    """LU alone at rtol 1e-8 cannot pass the flexible four-bar's first passage: its steps
+    collapse to a few 1e-12 s at 0.172 s. The run stops once 2000 steps have advanced less
+    than 1e-7 of its span, with its partial result and a message naming the joints, instead
+    of grinding on (it took 20001 steps and 23 s to reach a step limit)."""
+    res = ms.examples.flexible_four_bar().simulate(t_end=1.2, method="lu", rtol=1e-8,
+                                                   atol=1e-10, max_step=5e-4,
+                                                   integrator="adams")
+    assert res.status == "failed" and "the steps collapsed" in res.message
+    assert "joints A, B, C, D" in res.message
+    assert 0.17 < res.t[-1] < 0.175 and res.stats["steps"] < 3000
+    assert len(res.t) > 300                           # the work before the passage is kept
+
+
 def test_hybrid_with_adams_does_not_creep_up_to_a_passage():
     """Ahead of a passage each LU step is held to half the way to the predicted entry; with
     short Adams steps that used to go on until the 1 µs floor (the double four-bar's second
