@@ -115,7 +115,8 @@ def _bench(args) -> int:
         if problems:
             print(bench.HEADER)
             rows = bench.run(problems, methods, rtols, integrator=args.integrator,
-                             max_steps=args.max_steps, repeat=args.repeat or 1)
+                             max_steps=args.max_steps,
+                             repeat=1 if args.repeat is None else args.repeat)
             for rtol in rtols:
                 for name, r in bench.ratios(rows, rtol).items():
                     print(f"ratios at rtol {rtol:.0e}, {name}: " +
@@ -124,7 +125,8 @@ def _bench(args) -> int:
         if shooting:
             print("Coulomb oscillator: shooting against brute force to the same accuracy")
             print(bench.SHOOTING_HEADER)
-            srows = bench.shooting_run(accuracies=accuracies, repeat=args.repeat or 20)
+            srows = bench.shooting_run(accuracies=accuracies,
+                                       repeat=20 if args.repeat is None else args.repeat)
             written += bench.write_shooting(srows, args.out)
     except ValueError as exc:
         print(f"mechsim: {exc}", file=sys.stderr)
