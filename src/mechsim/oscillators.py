@@ -40,6 +40,7 @@ class PeriodicProblem:
     # The residual's Jacobian is singular at the solutions (a continuous family of them,
     # e.g. the impact pair shifted as a whole): Newton then takes minimum-norm steps.
     singular_jacobian = False
+    flows = 0                           # motions computed (one period or a t_span each)
 
     def initial_state(self, u) -> np.ndarray:
         return np.asarray(u, float)
@@ -83,7 +84,6 @@ class LinearOscillator(PeriodicProblem):
             raise ValueError(f"{type(self).__name__}: `zeta` must be non-negative, got {zeta!r}")
         self.zeta, self.omega_n, self.delta_st, self.omega = zeta, omega_n, delta_st, omega
         self.period = 2 * math.pi / omega
-        self.flows = 0                  # motions computed (one period or a t_span each)
 
     def rhs(self, t, y, friction=0.0):
         x, v = y
@@ -442,7 +442,6 @@ class ImpactPair(PeriodicProblem):
         self.A, self.omega, self.e = amplitude, omega, restitution
         self.u = m2 / m1
         self.period = 2 * math.pi / omega
-        self.flows = 0                  # motions computed (one period or a t_span each)
 
     def initial_state(self, u):
         x1, v1, v2, phi = self.check(u)

@@ -85,7 +85,7 @@ def _warm_start(solver, old, form, past, order=None, step=None) -> int:
     to the old order (or `order`), going on with the old solver's next step (or `step`).
     Returns the right-hand sides spent (0 where not possible: then the solver starts from
     order 1 as usual)."""
-    if not (isinstance(solver, AdamsPECE) and isinstance(old, AdamsPECE)) or not past:
+    if not past:
         return 0
     order = old.order if order is None else min(order, old.order)
     recent = list(past)[-order:]
@@ -320,7 +320,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                     retire(solver)
                     restarts += 1
                     old, solver = solver, make(t_new, corrected, solver.step_size)
-                    nfev_done += _warm_start(solver, old, form, list(past)[:-1])
+                    if keep_past:
+                        nfev_done += _warm_start(solver, old, form, list(past)[:-1])
             if bridge is None or solver.status != "running":
                 continue
             if not form.bridging:

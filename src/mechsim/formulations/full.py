@@ -36,10 +36,8 @@ class FullCoordinates(Formulation):
         return np.concatenate([v, self.accelerations(t, q, v)])
 
     def rhs(self, t, y):
-        n = self.n
-        q, v = y[:n], y[n:]
         self.problem.counters.rhs += 1
-        return np.concatenate([v, self.accelerations(t, q, v)])
+        return self.derivative(t, y[:self.n], y[self.n:])
 
     def after_step(self, t, y):
         return self.project_now(t, y)

@@ -381,13 +381,16 @@ class Partitioned(Formulation):
         except ConstraintSolveError:
             # A trial step too far for Newton: NaN makes the integrator reject and shrink it.
             return np.full(y.shape, np.nan)
-        qdd, _ = prob.accelerations(J, prob.forces(t, q, v), prob.gamma(q, v, t), q)
-        return np.concatenate([y[self.basis.f:], self.basis.Bt(qdd)])
+        return np.concatenate([y[self.basis.f:], self.basis.Bt(self._qdd(t, q, v, J))])
 
     def derivative(self, t, q, v):
-        prob = self.problem
-        qdd, _ = prob.accelerations(prob.phi_q(q, t), prob.forces(t, q, v), prob.gamma(q, v, t), q)
+        qdd = self._qdd(t, q, v, self.problem.phi_q(q, t))
         return np.concatenate([self.basis.Bt(v), self.basis.Bt(qdd)])
+
+    def _qdd(self, t, q, v, J):
+        """q̈ of the consistent state (q, v), Φ_q = J there."""
+        prob = self.problem
+        return prob.accelerations(J, prob.forces(t, q, v), prob.gamma(q, v, t), q)[0]
 
     def after_step(self, t, y):
         q, v, J, n_fresh = self.full_state(t, y)
