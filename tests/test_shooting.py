@@ -185,16 +185,22 @@ TABLE3_CASE3 = np.array([[.73580, 29.638, 47.147, -3.4026], [.73948, 29.786, 47.
                          [.75063, 30.235, 48.097, -3.4711]])
 
 
-def test_table_3_case_3_where_the_paper_failed_warner_converges():
+def test_table_3_case_3_where_the_paper_failed_warner_converges_by_chance():
     """The paper reports no convergence within 50 iterations from Case 3's guesses
-    (velocities five times too large). Our Warner iteration, from the same five vectors,
-    reaches Table 3's (3, 3) solution in 22 iterations (measured); quasi-Newton from the first
-    vector alone wanders into other modes and does not converge within 50."""
+    (velocities five times too large). From there Warner's iteration is at the mercy of
+    round-off: from the five vectors scaled by 1 + k·1e-9 (k = 0 … 15) it reached Table 3's
+    (3, 3) solution from 6 of the 16 (in 17–24 iterations, measured) and wandered through
+    other modes from the rest. It never converges to anything else."""
     pair = impact_pair()
-    sol = ms.shooting.solve(pair, TABLE3_CASE3[0], method="warner", guesses=TABLE3_CASE3,
-                            max_iter=50)
-    assert sol.converged and sol.iterations <= 30, sol.message
-    assert close(sol.x0[1:], TABLE3_TRUE[1:], [5e-4, 5e-4, 5e-5]) and sol.mode == (3, 3)
+    reached = 0
+    for k in range(16):
+        guesses = TABLE3_CASE3 * (1.0 + k * 1e-9)
+        sol = ms.shooting.solve(pair, guesses[0], method="warner", guesses=guesses,
+                                max_iter=50, floquet=False)
+        if sol.converged:
+            assert close(sol.x0[1:], TABLE3_TRUE[1:], [5e-4, 5e-4, 5e-5]) and sol.mode == (3, 3)
+            reached += 1
+    assert 2 <= reached <= 12
 
 
 def test_impact_pair_floquet_multipliers_match_the_growth_of_a_perturbation():

@@ -420,6 +420,10 @@ def equivalent_damping_amplitude(osc: CoulombOscillator) -> float:
     return (-b + math.sqrt(disc)) / (2 * a) if disc >= 0 and a > 0 else math.nan
 
 
+# Grid points of an impact pair's impact scan evaluated at a time (of 4000 a period).
+_SCAN_CHUNK = 250
+
+
 class ImpactPair(PeriodicProblem):
     """Seed 002, Fig. 5: m1 forced, m1 ẍ1 = −m1 ω² A cos(ωt + φ); m2 moves freely between two
     walls of m1 at clearance r and impacts when |x1 − x2| = r, with restitution e (eq. 17).
@@ -480,7 +484,7 @@ class ImpactPair(PeriodicProblem):
         """The motion from any state y0 = (x1, ẋ1, x2, ẋ2) at phase φ (|x1 − x2| ≤ r)."""
         t, t_end = t_span or (0.0, self.period)
         s = np.array(y0, float)
-        ts, xs, events = [t], [s.copy()], []
+        ts, xs, events = [np.array([t])], [s[None, :].copy()], []
         self.flows += 1
         dt = self.period / 4000
         A, w = self.A, self.omega
@@ -491,39 +495,45 @@ class ImpactPair(PeriodicProblem):
             c0 = s[0] - A * math.cos(w * t + phi) - c1 * t
             def d(tt, c0=c0, c1=c1, t0=t, x2=s[2], v2=s[3]):
                 return A * math.cos(w * tt + phi) + c0 + c1 * tt - x2 - v2 * (tt - t0)
-            # Scan the relative displacement on a grid (vectorized) for the first crossing of
-            # either wall from inside; right after an impact d sits on the wall and moves in.
-            grid = np.append(np.arange(t, t_end, dt), t_end)
-            states = seg(grid)
-            D = states[:, 0] - states[:, 2]
+            # Scan the relative displacement on a grid of step T/4000 for the first crossing
+            # of either wall from inside (right after an impact d sits on the wall and moves
+            # in), in chunks growing from `_SCAN_CHUNK` points: the next impact is usually
+            # near, and each chunk costs mostly numpy's per-call overhead.
             hit, wall = None, 0
-            for w_ in (1, -1):
-                f = w_ * D - self.r
-                idx = np.flatnonzero((f[:-1] < 0) & (f[1:] >= 0))
-                if idx.size:
-                    k = idx[0]
-                    tr = brentq(lambda tt: w_ * d(tt) - self.r, grid[k], grid[k + 1],
-                                xtol=1e-15, rtol=4 * np.finfo(float).eps)
-                    if hit is None or tr < hit:
-                        hit, wall = tr, w_
+            full = np.append(np.arange(t, t_end, dt), t_end)
+            last = full.size - 1
+            k0, size = 0, _SCAN_CHUNK
+            while hit is None and k0 < last:
+                k1 = min(k0 + size, last)
+                grid = full[k0:k1 + 1]
+                D = (A * np.cos(w * grid + phi) + c0 + c1 * grid) - (s[2] + s[3] * (grid - t))
+                inside = np.abs(D) < self.r
+                k = np.flatnonzero(inside[:-1] > inside[1:])
+                if k.size:
+                    k = k[0]
+                    wall = 1 if D[k + 1] > 0 else -1
+                    hit = brentq(lambda tt: wall * d(tt) - self.r, grid[k], grid[k + 1],
+                                 xtol=1e-15, rtol=4 * np.finfo(float).eps)
+                k0, size = k1, 2 * size
             end = hit if hit is not None else t_end
             tt = np.linspace(t, end, max(3, int(samples * (end - t) / self.period)))
-            part = seg(tt)
-            ts += list(tt[1:])
-            xs += list(part[1:])
+            part = seg(tt[1:])
+            ts.append(tt[1:])
+            xs.append(part)
             if hit is None:
                 break
-            s = seg(hit).copy()
-            s[0] = s[2] + wall * self.r           # exactly on the wall
-            v1, v2, uu, e = s[1], s[3], self.u, self.e
-            s[1] = (1 - uu * e) / (1 + uu) * v1 + (uu + uu * e) / (1 + uu) * v2      # eq. 17
-            s[3] = (1 + e) / (1 + uu) * v1 + (uu - e) / (1 + uu) * v2
-            xs[-1] = s.copy()
+            x2, v2 = s[2] + s[3] * (hit - t), s[3]
+            v1 = c1 - A * w * math.sin(w * hit + phi)
+            uu, e = self.u, self.e
+            s = np.array([x2 + wall * self.r,                   # exactly on the wall
+                          (1 - uu * e) / (1 + uu) * v1 + (uu + uu * e) / (1 + uu) * v2,  # eq. 17
+                          x2, (1 + e) / (1 + uu) * v1 + (uu - e) / (1 + uu) * v2])
+            part[-1] = s
             events.append((hit, "impact+" if wall > 0 else "impact-"))
             t = hit
         else:
             raise ValueError("ImpactPair: more than 10000 impacts in one period (chatter)")
-        return Trajectory(np.array(ts), np.array(xs), events)
+        return Trajectory(np.concatenate(ts), np.concatenate(xs), events)
 
     def residual(self, u):
         traj = self.flow(u)
