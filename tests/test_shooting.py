@@ -141,9 +141,9 @@ TABLE3_CASE1 = np.array([[.16188, 6.5203, 10.372, -.74856], [.16204, 6.5268, 10.
 TABLE3_TRUE = np.array([.14716, 5.9275, 9.4294, -.68051])
 
 
-def impact_pair(e=0.7):
-    return ms.oscillators.ImpactPair(m1=0.2799, m2=0.000545, clearance=0.028, amplitude=0.189,
-                                     omega=50.0, restitution=e)
+def impact_pair(e=0.7, amplitude=0.189):
+    return ms.oscillators.ImpactPair(m1=0.2799, m2=0.000545, clearance=0.028,
+                                     amplitude=amplitude, omega=50.0, restitution=e)
 
 
 def test_table_3_restitution_is_07_not_007():
@@ -227,6 +227,35 @@ def test_impact_pair_floquet_multipliers_match_the_growth_of_a_perturbation():
         assert (a - b) @ direction / eps == pytest.approx(vals[k].real ** periods, rel=1e-3)
 
 
+def test_impact_pair_stability_ignores_its_neutral_multipliers():
+    """The impact pair's double multiplier 1 (the pair shifted, or moving uniformly, as a
+    whole) says nothing about stability; the other two decide. Continued from Table 3's
+    point down to A = 0.175 in, the (3, 3) orbit is stable (multipliers −0.592, −0.023,
+    measured), and a perturbation of ẋ2 dies out in the relative motion, which both
+    symmetries leave alone, by 0.592 a period."""
+    u = TABLE3_TRUE
+    for A in (0.185, 0.18, 0.175):
+        pair = impact_pair(amplitude=A)
+        sol = ms.shooting.solve(pair, u, method="newton", tol=1e-10)
+        assert sol.converged and sol.mode == (3, 3)
+        u = sol.x0
+    assert sol.stable is True and sol.neutral == 2
+    mu = np.sort(sol.significant_multipliers.real)
+    assert mu == pytest.approx([-0.5917, -0.0234], abs=2e-4)
+    assert np.allclose(sol.floquet_multipliers.imag, 0.0, atol=1e-9)
+    y0, phi = pair.initial_state(u), u[3]
+    y = y0 + np.array([0.0, 0.0, 0.0, 1e-6])
+
+    def relative(y):
+        return np.array([y[0] - y[2], y[3] - y[1]]) - np.array([y0[0] - y0[2], y0[3] - y0[1]])
+    sizes = []
+    for k in range(1, 16):
+        y = pair.state_flow(y, phi, samples=3).x[-1]
+        if k in (10, 15):
+            sizes.append(np.max(np.abs(relative(y))))
+    assert sizes[1] / sizes[0] == pytest.approx(abs(mu[0]) ** 5, rel=0.02)
+
+
 def test_impact_pair_bad_input():
     with pytest.raises(ValueError, match="`restitution` must be in"):
         impact_pair(1.5)
@@ -279,6 +308,33 @@ def test_regime_map_machinery_recovers_the_seed_mode():
     assert tuple(par.modes[1, 1]) == (3, 3)
     np.testing.assert_array_equal(par.modes, ser.modes)
     assert np.array_equal(np.isnan(par.x0), np.isnan(ser.x0))
+    for name in ("stable", "periods", "cycle_modes"):
+        np.testing.assert_array_equal(getattr(par, name), getattr(ser, name))
+    assert np.all(par.periods == 1) and not par.stable.any()     # Table 3's (3, 3): unstable
+
+
+def test_simulation_finds_the_stable_orbit_and_the_irregular_band():
+    """Where continuation finds nothing, the map simulates (`settle`). Started from Table 3's
+    orbit, the pair at A = 0.175 in settles onto a (3, 3) motion of period 1 in 200
+    periods, and Newton from that state converges (3 iterations, measured) to a stable
+    orbit with the multipliers of the one continued from Table 3's point (the mirror
+    image: velocities reversed, phase moved by π). At A = 0.121 and 0.128 in the motion
+    repeats after no k ≤ 8 periods: irregular (it wanders between (2, 2), (3, 2) and
+    (2, 3) periods for at least 1000 periods, measured)."""
+    from mechsim.shooting.regime import _unknowns, settle
+    pair = impact_pair(amplitude=0.175)
+    k, cycle, y, phi = settle(pair, TABLE3_TRUE)
+    assert (k, cycle) == (1, (3, 3))
+    sol = ms.shooting.solve(pair, _unknowns(pair, y, phi), method="newton", tol=1e-10)
+    assert sol.converged and sol.iterations <= 5 and sol.mode == (3, 3) and sol.stable
+    assert np.sort(sol.significant_multipliers.real) == pytest.approx([-0.5917, -0.0234],
+                                                                     abs=2e-4)
+    _, v1, v2, phi = sol.x0
+    assert np.max(np.abs(pair.residual([0.0, -v1, -v2, phi - math.pi]))) < 1e-8
+    assert [-v1, -v2, phi - math.pi] == pytest.approx([6.0709, 9.0933, -0.7696], abs=2e-4)
+    for A in (0.121, 0.128):
+        k, cycle, _, _ = settle(impact_pair(amplitude=A), TABLE3_TRUE)
+        assert k == 0 and cycle is None
 
 
 def test_regime_map_finds_periodic_states_that_scale_with_frequency():
@@ -301,6 +357,12 @@ def test_regime_map_finds_periodic_states_that_scale_with_frequency():
         g = pair.residual(scaled)
         assert np.max(np.abs(g / [1, other / W[j], 1, other / W[j]])) < 2e-6, (A[i], W[j])
         assert pair.mode(scaled) == tuple(rm.modes[i, j])
+        # Stability too is the same at every ω: the scaled orbit's multipliers decide.
+        mu = np.linalg.eigvals(pair.floquet_matrix(scaled))
+        mu = mu[np.argsort(np.abs(mu - 1.0))[2:]]            # without the neutral pair
+        assert rm.stable[i, j] == bool(np.all(np.abs(mu) < 1.0)), (A[i], W[j], mu)
+    assert rm.stable[found].any() and not rm.stable[found].all()
+    assert np.all(rm.periods[found] == 1)
 
 
 def test_flexible_slider_crank_steady_state_and_its_modal_floquet_multipliers():

@@ -40,6 +40,9 @@ class PeriodicProblem:
     # The residual's Jacobian is singular at the solutions (a continuous family of them,
     # e.g. the impact pair shifted as a whole): Newton then takes minimum-norm steps.
     singular_jacobian = False
+    # Floquet multipliers fixed at 1 by a continuous symmetry of the motion (not by its
+    # stability): `ShootingResult.stable` judges the others.
+    neutral_multipliers = 0
     flows = 0                           # motions computed (one period or a t_span each)
 
     def initial_state(self, u) -> np.ndarray:
@@ -436,6 +439,9 @@ class ImpactPair(PeriodicProblem):
 
     n = 4
     singular_jacobian = True          # x1(0) is free: the pair may be shifted as a whole
+    # Shifting both masses, or giving both the same extra velocity, moves the whole motion
+    # along without changing it relative to m1: a double multiplier 1 (a Jordan block).
+    neutral_multipliers = 2
 
     def __init__(self, m1, m2, clearance, amplitude, omega, restitution):
         _positive("ImpactPair", m1=m1, m2=m2, clearance=clearance, amplitude=amplitude,

@@ -20,6 +20,7 @@ class ShootingResult:
     history: list = field(default_factory=list)   # (iteration, max|g|)
     mode: tuple | None = None        # (n, m) impacts per period, for problems that have modes
     flow: Callable | None = field(default=None, repr=False, compare=False)
+    neutral: int = 0                 # multipliers at 1 from the problem's symmetries
 
     @cached_property
     def trajectory(self):
@@ -29,10 +30,21 @@ class ShootingResult:
 
     @property
     def stable(self) -> bool | None:
-        """All Floquet multipliers inside the unit circle (None if not computed)."""
+        """All Floquet multipliers inside the unit circle, but for the `neutral` ones
+        that a symmetry of the problem fixes at 1 (None if not computed)."""
         if self.floquet_multipliers is None:
             return None
-        return bool(np.all(np.abs(self.floquet_multipliers) < 1.0))
+        return bool(np.all(np.abs(self.significant_multipliers) < 1.0))
+
+    @property
+    def significant_multipliers(self) -> np.ndarray | None:
+        """The Floquet multipliers without the `neutral` ones nearest 1."""
+        mu = self.floquet_multipliers
+        if mu is None or not self.neutral:
+            return mu
+        keep = np.ones(mu.size, bool)
+        keep[np.argsort(np.abs(mu - 1.0), kind="stable")[:self.neutral]] = False
+        return mu[keep]
 
 
 def central_jacobian(end, u, rel_step=1e-6):
@@ -216,4 +228,5 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
         mults = np.linalg.eigvals(state_map)
     mode = problem.mode(x) if hasattr(problem, "mode") else None
     return ShootingResult(converged, np.asarray(x), its, float(np.max(np.abs(g))), message,
-                          mults, history, mode, flow=lambda: problem.flow(x))
+                          mults, history, mode, flow=lambda: problem.flow(x),
+                          neutral=getattr(problem, "neutral_multipliers", 0))
