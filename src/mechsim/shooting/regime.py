@@ -105,13 +105,13 @@ class RegimeMap:
         return fig
 
 
-def _solve_point(params, A, w, guess):
+def _solve_point(params, A, w, guess, floquet=True):
     """(x0, mode, stable) of the periodic state at (A, ω) by shooting from `guess`, or
-    (None, None, None)."""
+    (None, None, None); stable is None without `floquet`."""
     pair = ImpactPair(amplitude=A, omega=w, **params)
     try:
         sol = solve(pair, guess, method=METHOD, tol=1e-6, max_iter=MAX_ITER, scale=1.001,
-                    floquet=True, max_halvings=6)
+                    floquet=floquet, max_halvings=6)
     except ValueError:
         return None, None, None
     if not sol.converged:
@@ -128,13 +128,15 @@ def settle(pair: ImpactPair, u, periods=SETTLE, max_period=MAX_PERIOD, tol=REPEA
     u = np.asarray(u, float)
     y, phi = pair.initial_state(u), float(u[3])
     scale = np.array([pair.r, pair.A * pair.omega])
+    watch = 2 * max_period
     rel, events = [], []
-    for _ in range(periods + 2 * max_period):
+    for k in range(periods + watch):
         tr = pair.state_flow(y, phi, samples=3)
         y = tr.x[-1]
-        rel.append(np.array([y[0] - y[2], y[3] - y[1]]) / scale)
-        events.append([kind for _, kind in tr.events])
-    rel = np.array(rel[-2 * max_period:])
+        if k >= periods:
+            rel.append(np.array([y[0] - y[2], y[3] - y[1]]) / scale)
+            events.append([kind for _, kind in tr.events])
+    rel = np.array(rel)
     for k in range(1, max_period + 1):
         if np.max(np.abs(rel[k:] - rel[:-k])) < tol:
             kinds = [kind for ev in events[-k:] for kind in ev]
@@ -203,6 +205,8 @@ def _row(args):
         periods[j] = k
         cycles[j] = cycle if cycle is not None else (-1, -1)
     return x0, modes, stable, periods, cycles
+
+
 def regime_map(amplitudes, omegas, seed, seed_amplitude, seed_omega, m1=0.2799,
                m2=0.000545, clearance=0.028, restitution=0.7, processes=None) -> RegimeMap:
     """Modes over `amplitudes` × `omegas`, continued from `seed` (a steady state
@@ -218,7 +222,8 @@ def regime_map(amplitudes, omegas, seed, seed_amplitude, seed_omega, m1=0.2799,
     for direction in (range(i0, len(amplitudes)), range(i0 - 1, -1, -1)):
         guess = np.asarray(seed, float)
         for i in direction:
-            x, _, _ = _solve_point(params, amplitudes[i], omegas[j0], guess)
+            x, _, _ = _solve_point(params, amplitudes[i], omegas[j0], guess,
+                                   floquet=False)
             if x is not None:
                 guess = x
             seeds[i] = guess
