@@ -202,6 +202,8 @@ def _row(args):
             if x is not None:
                 x0[j], modes[j], stable[j] = x, m, st
                 cycle = m
+            else:
+                stable[j] = True       # the simulation settled onto it; x0 stays nan
         periods[j] = k
         cycles[j] = cycle if cycle is not None else (-1, -1)
     return x0, modes, stable, periods, cycles
