@@ -414,3 +414,31 @@ def test_every_scipy_integrator_carries_the_projection_method_through_passages(m
     theta, _ = parallelogram_exact(res.t, math.pi / 2, -1.0, n=2)
     tip = res.point("crank1", (0.5, 0.0))
     assert np.max(np.hypot(tip[:, 0] - np.cos(theta), tip[:, 1] - np.sin(theta))) <= 300 * rtol
+
+
+def test_projection_with_the_seeds_svd_at_every_evaluation(parallelogram_runs, monkeypatch):
+    """`factorization="svd"`: the seed's projection method, an SVD of J̃ at every evaluation
+    and projection instead of the Cholesky factor of the Schur complement clear of the
+    band. Both are exact there, so the motion agrees with the default run to round-off
+    over the steps, while every evaluation pays an SVD."""
+    import mechsim.dense as dense
+    calls = []
+    svd = dense.svd
+    monkeypatch.setattr(dense, "svd", lambda A: calls.append(A.shape) or svd(A))
+    mech = ms.examples.four_bar()
+    res = mech.simulate(t_end=2.0, method="projection", rtol=1e-8, atol=1e-10, max_step=0.01,
+                        output_step=0.002, factorization="svd")
+    ref = parallelogram_runs["projection"]
+    assert res.status == "success", res.message
+    assert len(calls) >= res.stats["rhs_evaluations"] - res.stats["bridge_evaluations"]
+    n_svd = len(calls)
+    calls.clear()
+    mech.simulate(t_end=2.0, method="projection", rtol=1e-8, atol=1e-10, max_step=0.01,
+                  output_step=0.002)
+    assert len(calls) < 0.2 * n_svd                 # the default: SVDs near the passages only
+    np.testing.assert_allclose(res.coordinate("crank.angle"), ref.coordinate("crank.angle"),
+                               atol=1e-10)
+    assert [round(p.t_min, 3) for p in res.singular_passages] == \
+        [round(p.t_min, 3) for p in ref.singular_passages]
+    with pytest.raises(ValueError, match="factorization.*'qr'"):
+        mech.simulate(t_end=0.1, method="projection", factorization="qr")
