@@ -119,6 +119,13 @@ class Projection(FullCoordinates):
         mu2 = (self.rcond * sig[0]) ** 2
         return Vt.T, (U * (sig / (sig**2 + mu2))).T
 
+    @property
+    def _cholesky(self):
+        """May a Cholesky factor of the Schur complement stand in for the SVD where every
+        singular value is clear of the cut? Only when truncating (damping changes every
+        σ) and with the default `factorization`."""
+        return self.regularization == "truncate" and self.factorization == "auto"
+
     def _banded(self, J):
         """The banded Cholesky factor of Φ_q M⁻¹ Φ_qᵀ when the problem has one
         (`mechsim.banded`) and every singular value of J̃ is clear of the truncation cut
@@ -126,7 +133,7 @@ class Projection(FullCoordinates):
         nothing and the exact Schur complement is the projection method's q̈, at O(m) cost
         instead of an SVD's O(m³). None otherwise, and then the SVD decides."""
         band = self.problem.schur
-        if band is None or self.regularization != "truncate" or self.factorization == "svd":
+        if band is None or not self._cholesky:
             return None
         c = band.factor(J)
         if c is None:
@@ -143,7 +150,7 @@ class Projection(FullCoordinates):
         70 µs for the SVD. Truncation would drop σ ≤ rcond σ_max, i.e. λ ≤ rcond² λ_max of
         J̃J̃ᵀ; the estimate of 1/κ₁ ≤ 1/κ₂ must exceed max(100, m) rcond², margin for an
         estimate that may read high by a factor up to m."""
-        if self.regularization != "truncate" or self.factorization == "svd" or not Jt.shape[0]:
+        if not self._cholesky or not Jt.shape[0]:
             return None
         return dense.cholesky_conditioned(Jt @ Jt.T, max(100, Jt.shape[0]) * self.rcond ** 2)
 
@@ -174,8 +181,8 @@ class Projection(FullCoordinates):
         four-bar); a trial step that reaches the band anyway gets the untruncated q̈,
         which the error estimate judges like any other."""
         mon = self.monitor
-        return (mon is not None and self.regularization == "truncate"
-                and self.factorization == "auto" and mon.last >= mon.leave and mon.leave * mon.peak > 100.0 * self.rcond
+        return (mon is not None and self._cholesky
+                and mon.last >= mon.leave and mon.leave * mon.peak > 100.0 * self.rcond
                 and not mon.predicted_within(3.0 * self.last_step))
 
     def accelerations(self, t, q, v, far=None):
