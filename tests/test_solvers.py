@@ -442,3 +442,40 @@ def test_projection_with_the_seeds_svd_at_every_evaluation(parallelogram_runs, m
         [round(p.t_min, 3) for p in ref.singular_passages]
     with pytest.raises(ValueError, match="factorization.*'qr'"):
         mech.simulate(t_end=0.1, method="projection", factorization="qr")
+
+
+@pytest.mark.parametrize("method", ["lu", "qr", "svd"])
+@pytest.mark.parametrize("scene", ["double four-bar", "driven slider-crank"])
+def test_partitioned_output_samples_solved_together_match_one_by_one(method, scene,
+                                                                      monkeypatch):
+    """The output samples inside a step are solved for all at once (batch Φ, Φ_q and Φ_t
+    of the model, stacked velocity solves): the same positions and velocities as solving
+    for each sample alone, on the constraints, and the driver's speed exactly (Φ_t)."""
+    from mechsim.formulations.base import Formulation
+    from mechsim.formulations.partitioned import Partitioned
+    if scene == "double four-bar":
+        mech, t_end = ms.examples.double_four_bar(2), 1.0
+    else:                      # with a pendulum hanging from the slider: one free DOF
+        mech, t_end = ms.examples.slider_crank(driven=True, crank_speed=15.0), 0.5
+        slider = mech.body("slider")
+        x = float(slider.position[0])
+        bob = mech.add(ms.RigidBody.rod("bob", (x, 0.0), (x + 0.1, -0.2), 0.5))
+        mech.add(ms.Revolute(slider, bob, at=(x, 0.0), name="hang"))
+    kw = dict(t_end=t_end, method=method, rtol=1e-9, atol=1e-11, output_step=t_end / 400)
+    batches = []
+    together = Partitioned.states
+    monkeypatch.setattr(Partitioned, "states",
+                        lambda self, ts, Y: batches.append(len(ts)) or together(self, ts, Y))
+    res = mech.simulate(**kw)
+    assert res.problem.batched and sum(batches) >= 300
+    monkeypatch.setattr(Partitioned, "states", Formulation.states)
+    alone = mech.simulate(**kw)
+    assert res.status == alone.status == "success"
+    np.testing.assert_array_equal(res.t, alone.t)
+    np.testing.assert_allclose(res.q, alone.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(res.v, alone.v, rtol=0, atol=1e-9 * np.abs(alone.v).max())
+    assert np.max(np.abs(res.constraint_violation)) < 1e-11
+    if scene == "driven slider-crank":
+        np.testing.assert_allclose(res.coordinate("crank.angle"), 15.0 * res.t, atol=1e-11)
+        np.testing.assert_allclose(res.v[:, res.coordinate_names.index("crank.angle")], 15.0,
+                                   rtol=1e-12)

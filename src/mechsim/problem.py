@@ -10,6 +10,7 @@ dense block that depends on its angle and modal amplitudes (`mechsim.flexible.in
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -250,6 +251,23 @@ class NumericProblem:
     def gamma(self, q, v, t):
         return self.model.gamma(q, v, t, self.p)
 
+    @property
+    def batched(self) -> bool:
+        """Whether the model has batch functions (`phi_many`, ...: small models)."""
+        return hasattr(self.model, "phi_many")
+
+    def phi_many(self, Q, t):
+        """Φ at the k states of the columns of Q (n, k), t scalar or (k,): shape (m, k)."""
+        return self.model.phi_many(Q, t, self.p)
+
+    def phi_q_many(self, Q, t):
+        """Φ_q at k states: shape (k, m, n)."""
+        return self.model.phi_q_many(Q, t, self.p).transpose(2, 0, 1)
+
+    def phi_t_many(self, Q, t):
+        """Φ_t at k states: shape (k, m)."""
+        return self.model.phi_t_many(Q, t, self.p).T
+
     def position_terms(self, q, t):
         """(Φ, Φ_q) sharing their subexpressions."""
         return self.model.position_terms(q, t, self.p)
@@ -424,9 +442,9 @@ class NumericProblem:
         if band is not None:
             c = band.factor(J)
             return None if c is None else (lambda r: band.solve(c, r))
-        from .dense import cho_factor_or_none, cho_solve
-        c = cho_factor_or_none(self._complement(J, f))
-        return None if c is None else (lambda r: cho_solve(c, r))
+        dense = _dense()
+        c = dense.cho_factor_or_none(self._complement(J, f))
+        return None if c is None else (lambda r: dense.cho_solve(c, r))
 
     def project_state(self, q, v, t, tol, extra=0, max_iter=8, solve=None):
         """(q, v) with ‖Φ‖∞ ≤ tol (then `extra` further iterations) and Φ_q v + Φ_t = 0, by
@@ -498,8 +516,16 @@ def newton_stalled(err, prev, tol):
 
 
 def _solve_psd(S, r):
-    from .dense import solve_psd          # scipy: not needed to build a scene
-    return solve_psd(S, r)
+    return _dense().solve_psd(S, r)
+
+
+@functools.cache
+def _dense():
+    """`mechsim.dense`, imported on first use (scipy: not needed to build a scene). An
+    import statement in the function that solves would cost 2.7 µs a call, as much as the
+    Cholesky solve it imports."""
+    from . import dense
+    return dense
 
 
 def _moved(q, start, s, modal):

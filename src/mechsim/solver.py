@@ -41,6 +41,8 @@ def output_times(t0: float, t_end: float, output_step: float | None) -> np.ndarr
 # its span (LU alone at the flexible four-bar's passage: 2000 steps of 2e-12–7e-12 s).
 STALL_STEPS = 2000
 STALL_SPAN = 1e-7
+# What a formulation raises when a run cannot go on: the run stops with its partial result.
+FAILURES = (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError)
 
 
 def _correct_in_place(solver, y) -> bool:
@@ -214,17 +216,29 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         out_q.append(np.array(q, float))
         out_v.append(np.array(v, float))
 
-    def record_within(t_lo, t_hi, through, values, state):
+    def record_within(t_lo, t_hi, through, values, states):
         """Record the output samples in (t_lo, t_hi), or (t_lo, t_hi] with `through`, from
-        one call of the interpolant `values(times)` and `state(t, y) -> (q, v)`."""
+        one call of the interpolant `values(times)` and one of `states(times, Y) -> (Q, V)`
+        (rows: the samples)."""
         nonlocal next_out
         first = next_out
         while next_out < len(ts) and (ts[next_out] < t_hi or through and ts[next_out] == t_hi):
             next_out += 1
-        inside = [tk for tk in ts[first:next_out] if tk > t_lo]
-        if inside:
-            for tk, yk in zip(inside, np.atleast_2d(values(np.array(inside)).T)):
-                record(tk, *state(tk, yk))
+        inside = np.array([tk for tk in ts[first:next_out] if tk > t_lo])
+        if not inside.size:
+            return
+        Y = np.atleast_2d(values(inside).T)
+        try:
+            Q, V = states(inside, Y)
+        except FAILURES:
+            # One by one: the samples before the one that fails are kept (a run that
+            # cannot go on returns them).
+            for k in range(inside.size):
+                q, v = states(inside[k:k + 1], Y[k:k + 1])
+                record(inside[k], q[0], v[0])
+            return
+        for tk, q, v in zip(inside, Q, V):
+            record(tk, q, v)
 
     status, message = "success", "reached t_end"
     steps = restarts = rejected = corrections = 0
@@ -297,7 +311,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                 return interpolant[0](tk)
 
             if ts is not None:
-                record_within(t_old, t_new, False, dense, form.state)
+                record_within(t_old, t_new, False, dense, form.states)
             q_new, v_new = form.state(t_new, y_new)
             monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
                             t_old=t_old)
@@ -337,7 +351,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             bridges += 1
             if ts is not None:
                 record_within(t_new, t_b, True, interp,
-                              lambda tk, yk: (yk[:problem.n], yk[problem.n:]))
+                              lambda tk, Y: (Y[:, :problem.n], Y[:, problem.n:]))
             else:
                 record(t_b, q_b, v_b)
             monitor.crossed(t_new, t_b, t_star, interp(t_star)[:problem.n])
@@ -361,7 +375,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                 past.append((t_b, np.array(q_b), np.array(v_b)))
     except KeyboardInterrupt:
         status, message = "interrupted", "interrupted by the user"
-    except (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
+    except FAILURES as exc:
         t_reached = max(t_reached, out_t[-1] if out_t else t_start)
         status, message = "failed", f"{type(exc).__name__} after t = {t_reached:.9g}: {exc}"
     if status == "failed":

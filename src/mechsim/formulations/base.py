@@ -66,5 +66,12 @@ class Formulation:
     def state(self, t: float, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
 
+    def states(self, ts: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(Q, V) with rows (q, v) = state(t, y) for each time of `ts` and row of Y (the
+        output samples inside a step). One by one here; a formulation whose state takes
+        a solve overrides it to solve for all samples at once."""
+        pairs = [self.state(t, y) for t, y in zip(ts, Y)]
+        return np.array([q for q, _ in pairs]), np.array([v for _, v in pairs])
+
     def after_step(self, t: float, y: np.ndarray) -> np.ndarray | None:
         return None

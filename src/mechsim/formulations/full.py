@@ -29,6 +29,9 @@ class FullCoordinates(Formulation):
     def state(self, t, y):
         return y[:self.n], y[self.n:]
 
+    def states(self, ts, Y):
+        return Y[:, :self.n], Y[:, self.n:]
+
     def accelerations(self, t, q, v) -> np.ndarray:
         raise NotImplementedError
 

@@ -58,6 +58,9 @@ class Hybrid(Formulation):
     def state(self, t, y):
         return self.active.state(t, y)
 
+    def states(self, ts, Y):
+        return self.active.states(ts, Y)
+
     def derivative(self, t, q, v):
         return self.active.derivative(t, q, v)
 
