@@ -251,23 +251,6 @@ class NumericProblem:
     def gamma(self, q, v, t):
         return self.model.gamma(q, v, t, self.p)
 
-    @property
-    def batched(self) -> bool:
-        """Whether the model has batch functions (`phi_many`, ...: small models)."""
-        return hasattr(self.model, "phi_many")
-
-    def phi_many(self, Q, t):
-        """Φ at the k states of the columns of Q (n, k), t scalar or (k,): shape (m, k)."""
-        return self.model.phi_many(Q, t, self.p)
-
-    def phi_q_many(self, Q, t):
-        """Φ_q at k states: shape (k, m, n)."""
-        return self.model.phi_q_many(Q, t, self.p).transpose(2, 0, 1)
-
-    def phi_t_many(self, Q, t):
-        """Φ_t at k states: shape (k, m)."""
-        return self.model.phi_t_many(Q, t, self.p).T
-
     def position_terms(self, q, t):
         """(Φ, Φ_q) sharing their subexpressions."""
         return self.model.position_terms(q, t, self.p)

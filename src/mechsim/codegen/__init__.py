@@ -9,10 +9,6 @@
     position_terms(q, t, p)  -> (phi, phi_q)
     terms(q, v, t, p)        -> (phi, phi_q, phi_t, gamma)
     dynamics_terms(q, v, t, p) -> (phi_q, gamma)
-    phi_many, phi_q_many, phi_t_many (Q, t, p)   (models under 60 coordinates)
-
-with the batch functions taking Q of shape (n, k) (k states) and giving their output
-with a trailing axis of length k.
 
 where `q`, `v` are float arrays and `p` a sequence of parameter values. On a cache hit the
 module is imported from the cache directory and sympy is never imported. A large model's

@@ -376,14 +376,15 @@ class Partitioned(Formulation):
         return q, v
 
     def states(self, ts, Y):
-        """The output samples of a step, all at once where the model has batch functions
-        (`NumericProblem.phi_many`): the chord Newton on every sample together (one
-        evaluation of Φ for all of them per iteration), then Φ_q and the velocity solves
-        stacked. On the double four-bar a sample so costs a tenth of a `state` call. A
-        chord that stalls on any sample, a non-square Φ_q D (redundant constraints) or a
-        singular one leaves all samples to `state`, one by one."""
+        """The output samples of a step, solved for together: the chord Newton on all
+        samples at once (one product with the chord factor and one convergence test per
+        iteration for all of them), then the velocity solves stacked in one LAPACK call.
+        The model's functions still run once per sample: on a step's dozen samples numpy
+        ufuncs over all of them cost twice as much as the scalar kernels one by one. A
+        chord that stalls on any sample, a non-square Φ_q D (redundant constraints), a
+        singular or a sparse one (long chains) leaves the samples to `state`, one by one."""
         prob, bs = self.problem, self.basis
-        if len(ts) < 2 or not prob.batched or not self._square:
+        if len(ts) < 2 or not self._square or bs._csc is not None:
             return super().states(ts, Y)
         ts = np.asarray(ts, float)
         Z, Zd = Y[:, :bs.f].T, Y[:, bs.f:]                  # (f, k), (k, f)
@@ -392,8 +393,8 @@ class Partitioned(Formulation):
         base = self.q_ref[:, None]
         err_prev = np.inf
         for k in range(self.max_newton + 1):
-            Q = bs.combine(base, Z, W)
-            phi = prob.phi_many(Q, ts)
+            Q = bs.combine(base, Z, W).T                     # (k, n)
+            phi = np.array([prob.phi(q, t) for q, t in zip(Q, ts)]).T
             err = float(abs(phi).max()) if phi.size else 0.0
             if err <= self.newton_tol:
                 break
@@ -401,15 +402,15 @@ class Partitioned(Formulation):
                 return super().states(ts, Y)
             err_prev = err
             W = W - self._chord.chord(phi)
-        J = prob.phi_q_many(Q, ts)                           # (k, m, n)
+        J = np.array([prob.phi_q(q, t) for q, t in zip(Q, ts)])       # (k, m, n)
         r = -(bs.JB(J) @ Zd[:, :, None])[:, :, 0]
         if self._rheonomic:
-            r -= prob.phi_t_many(Q, ts)
+            r -= np.array([prob.phi_t(q, t) for q, t in zip(Q, ts)])
         try:
             Wd = np.linalg.solve(bs.JD(J), r[:, :, None])[:, :, 0]
         except np.linalg.LinAlgError:
             return super().states(ts, Y)
-        return Q.T, bs.assemble(Zd.T, Wd.T).T
+        return Q, bs.assemble(Zd.T, Wd.T).T
 
     def rhs(self, t, y):
         prob = self.problem
