@@ -161,6 +161,11 @@ class CoordinateBasis:
             indptr = np.searchsorted(new, np.arange(self.r + 1))
             self._csc = (rows, cols, rows.copy(), indptr)
 
+    @property
+    def sparse(self) -> bool:
+        """Whether Φ_q D is factored sparse (`block`)."""
+        return self._csc is not None
+
     def block(self, J):
         """Φ_q D at Φ_q = J, ready to solve with (`_DenseBlock` or `_SparseBlock`)."""
         if self._csc is None or J.shape[0] != self.r:
@@ -384,7 +389,7 @@ class Partitioned(Formulation):
         chord that stalls on any sample, a non-square Φ_q D (redundant constraints), a
         singular or a sparse one (long chains) leaves the samples to `state`, one by one."""
         prob, bs = self.problem, self.basis
-        if len(ts) < 2 or not self._square or bs._csc is not None:
+        if len(ts) < 2 or not self._square or bs.sparse:
             return super().states(ts, Y)
         ts = np.asarray(ts, float)
         Z, Zd = Y[:, :bs.f].T, Y[:, bs.f:]                  # (f, k), (k, f)
