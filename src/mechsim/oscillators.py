@@ -496,11 +496,12 @@ class ImpactPair(PeriodicProblem):
         A, w = self.A, self.omega
         for _ in range(10000):
             seg = self._segment(t, s, phi)
-            # x1 − x2 in closed form (scalar math: brentq calls it ~50 times per impact).
+            # x1 − x2 in closed form: scalar math for brentq (~50 calls per impact), numpy's
+            # cos for the scan's grid.
             c1 = s[1] + A * w * math.sin(w * t + phi)
             c0 = s[0] - A * math.cos(w * t + phi) - c1 * t
-            def d(tt, c0=c0, c1=c1, t0=t, x2=s[2], v2=s[3]):
-                return A * math.cos(w * tt + phi) + c0 + c1 * tt - x2 - v2 * (tt - t0)
+            def d(tt, cos=math.cos, c0=c0, c1=c1, t0=t, x2=s[2], v2=s[3]):
+                return A * cos(w * tt + phi) + c0 + c1 * tt - x2 - v2 * (tt - t0)
             # Scan the relative displacement on a grid of step T/4000 for the first crossing
             # of either wall from inside (right after an impact d sits on the wall and moves
             # in), in chunks growing from `_SCAN_CHUNK` points: the next impact is usually
@@ -512,7 +513,7 @@ class ImpactPair(PeriodicProblem):
             while hit is None and k0 < last:
                 k1 = min(k0 + size, last)
                 grid = full[k0:k1 + 1]
-                D = (A * np.cos(w * grid + phi) + c0 + c1 * grid) - (s[2] + s[3] * (grid - t))
+                D = d(grid, np.cos)
                 inside = np.abs(D) < self.r
                 k = np.flatnonzero(inside[:-1] > inside[1:])
                 if k.size:
@@ -528,8 +529,7 @@ class ImpactPair(PeriodicProblem):
             xs.append(part)
             if hit is None:
                 break
-            x2, v2 = s[2] + s[3] * (hit - t), s[3]
-            v1 = c1 - A * w * math.sin(w * hit + phi)
+            _, v1, x2, v2 = seg(hit).tolist()
             uu, e = self.u, self.e
             s = np.array([x2 + wall * self.r,                   # exactly on the wall
                           (1 - uu * e) / (1 + uu) * v1 + (uu + uu * e) / (1 + uu) * v2,  # eq. 17

@@ -249,12 +249,12 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         next_out = 1
     solver = None
     t_reached = t_start
-    # The last accepted states (t, q, v), for a warm Adams restart after a change of
-    # coordinates (after a bridge: the states the bridge was built on).
     # Stuck (at a singular configuration the formulation cannot pass): stop there with the
     # partial result instead of grinding on.
     recent = collections.deque([t_start], maxlen=STALL_STEPS + 1)
     stalled = STALL_SPAN * (t_end - t_start)
+    # The last accepted states (t, q, v), for a warm Adams restart after a change of
+    # coordinates (after a bridge: the states the bridge was built on).
     keep_past = issubclass(solver_cls, AdamsPECE)
     past = collections.deque(maxlen=AdamsPECE.max_order_limit + 1)
     bridge = getattr(form, "bridge", None)
