@@ -395,6 +395,33 @@ def test_bench_repeat_keeps_each_runs_shortest_time():
         bench.run(**kw, repeat=0)
 
 
+def test_bench_compares_methods_at_equal_error():
+    """The work–precision comparison at equal accuracy takes each method's cheapest
+    successful run within each decade of error, skips failed runs however accurate, gives
+    consecutive decades served by the same runs once, and stops where fewer than two
+    methods get there."""
+    from mechsim.bench import Row, equal_error, format_within
+
+    def row(method, rtol, error, wall, status="success"):
+        return Row("p", method, "DOP853", rtol, status, error, 0.0, wall, 10, 100, 1)
+
+    rows = [row("lu", 1e-5, 9e-3, 1.0), row("lu", 1e-7, 9e-6, 2.0),
+            row("projection", 1e-5, 9e-4, 0.5), row("projection", 1e-7, 9e-7, 3.0),
+            row("hybrid", 1e-5, 2e-3, 0.4), row("hybrid", 1e-7, 5e-7, 1.5),
+            row("hybrid", 1e-9, 1e-9, 0.1, status="failed")]
+    table = equal_error(rows)
+    assert [e for _, e, _ in table] == pytest.approx([1e-2, 1e-3, 1e-5, 1e-6])
+    assert [{m: r.wall_time for m, r in best.items()} for _, _, best in table] == [
+        {"lu": 1.0, "projection": 0.5, "hybrid": 0.4},
+        {"lu": 2.0, "projection": 0.5, "hybrid": 1.5},
+        {"lu": 2.0, "projection": 3.0, "hybrid": 1.5},
+        {"projection": 3.0, "hybrid": 1.5}]
+    line = format_within(*table[-1])
+    assert line == ("within error 1e-06, p: projection 3.000 s (rtol 1e-07), "
+                    "hybrid 1.500 s (rtol 1e-07), hybrid/projection = 0.50")
+    assert equal_error([row("lu", 1e-5, 9e-3, 1.0)]) == []
+
+
 @pytest.mark.parametrize("integrator", ["BDF", "LSODA", "Radau", "RK23"])
 @pytest.mark.parametrize("method", ["projection", "hybrid"])
 def test_every_scipy_integrator_carries_the_projection_method_through_passages(method,

@@ -156,6 +156,58 @@ def ratios(rows: list[Row], rtol: float) -> dict:
     return out
 
 
+def cheapest_within(rows: list[Row], error: float) -> dict:
+    """{problem: {method: row}}: each method's cheapest successful run whose error is within
+    `error`, for a comparison at equal accuracy. At equal rtol the methods' runs are not
+    equally accurate: on the double four-bar at rtol 1e-5 LU's crank tip strays up to 0.1 m,
+    the hybrid's 1.7e-3 m; and a method's error need not fall with its rtol (LU's does not
+    where it steps through a passage). A method with no such run is left out."""
+    out = {}
+    for r in rows:
+        if r.status != "success" or not r.error <= error:
+            continue
+        best = out.setdefault(r.problem, {}).get(r.method)
+        if best is None or r.wall_time < best.wall_time:
+            out[r.problem][r.method] = r
+    return out
+
+
+def equal_error(rows: list[Row]) -> list[tuple[str, float, dict]]:
+    """(problem, error, {method: row}) with `cheapest_within` at the decades of error from
+    each problem's largest error down, while at least two methods get there. Consecutive
+    decades served by the same runs are given once, at the smallest of them (those runs
+    serve every larger one too)."""
+    out = []
+    for name in dict.fromkeys(r.problem for r in rows):
+        mine = [r for r in rows if r.problem == name]
+        errors = [r.error for r in mine if r.status == "success" and np.isfinite(r.error)
+                  and r.error > 0.0]
+        if not errors:
+            continue
+        last = None                               # (error, best) of the open group
+        for k in range(math.ceil(math.log10(max(errors))),
+                       math.ceil(math.log10(min(errors))) - 1, -1):
+            best = cheapest_within(mine, 10.0 ** k).get(name, {})
+            if len(best) < 2:
+                break
+            if last is not None and best != last[1]:
+                out.append((name, *last))
+            last = (10.0 ** k, best)
+        if last is not None:
+            out.append((name, *last))
+    return out
+
+
+def format_within(name: str, error: float, best: dict) -> str:
+    """One line of `cheapest_within` for a problem: each method's time and the rtol that
+    reached `error`, then the hybrid's ratios to LU and projection where both reached it."""
+    parts = [f"{m} {r.wall_time:.3f} s (rtol {r.rtol:.0e})" for m, r in best.items()]
+    for other in ("lu", "projection"):
+        if "hybrid" in best and other in best:
+            parts.append(f"hybrid/{other} = {best['hybrid'].wall_time / best[other].wall_time:.2f}")
+    return f"within error {error:.0e}, {name}: " + ", ".join(parts)
+
+
 def write(rows: list[Row], out_dir) -> list[Path]:
     """CSV of all rows and one error-vs-time plot per problem."""
     from matplotlib.figure import Figure

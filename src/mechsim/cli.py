@@ -121,6 +121,8 @@ def _bench(args) -> int:
                 for name, r in bench.ratios(rows, rtol).items():
                     print(f"ratios at rtol {rtol:.0e}, {name}: " +
                           ", ".join(f"{k} = {v:.2f}" for k, v in r.items()))
+            for name, error, best in bench.equal_error(rows):      # at equal accuracy
+                print(bench.format_within(name, error, best))
             written += bench.write(rows, args.out)
         if shooting:
             print("Coulomb oscillator: shooting against brute force to the same accuracy")
