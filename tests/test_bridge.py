@@ -73,6 +73,7 @@ def test_double_four_bar_bridges_every_passage():
     assert res.stats["bridges"] == 10
     assert tip_error(res, 2) <= 5e-8
     assert np.max(np.abs(res.energy_drift)) <= 1e-8
+    assert np.max(np.abs(res.passage_drift())) <= 2e-9     # no passage gains or loses energy
     # The passages are recorded at the bridge's predicted instants.
     found = np.array([p.t_min for p in res.singular_passages])
     np.testing.assert_allclose(found, exact_crossings(10.0, 2), atol=1e-4)

@@ -89,6 +89,23 @@ def test_point_velocity_is_the_derivative_of_point():
     np.testing.assert_allclose(v[1:-1], fd, atol=1e-5)
 
 
+def test_passage_drift_is_the_energy_change_across_each_passage():
+    """`passage_drift`: the drift from the last sample before a passage to the first after
+    it; a passage reaching past either end of the run takes the end sample."""
+    from mechsim.results import EnergyLog, SimulationResult, SingularPassage
+
+    t = np.linspace(0.0, 1.0, 11)
+    kinetic = 1.0 + 0.01 * (t > 0.45) - 0.002 * (t > 0.95)     # jumps inside two passages
+    res = SimulationResult(t, np.zeros((11, 1)), np.zeros((11, 1)), ["x"],
+                           energy=EnergyLog(kinetic, np.zeros(11), np.zeros(11)),
+                           singular_passages=[SingularPassage(0.42, 0.48, 1e-6),
+                                              SingularPassage(0.7, 0.8, 1e-6),
+                                              SingularPassage(-0.1, 0.05, 1e-6),
+                                              SingularPassage(0.92, 1.3, 1e-6)])
+    np.testing.assert_allclose(res.passage_drift(), [0.01 / 1.01, 0.0, 0.0, -0.002 / 1.01],
+                               atol=1e-15)
+
+
 def test_energy_plot_is_written(tmp_path):
     res = ms.examples.pendulum().simulate(t_end=0.5, output_step=0.01)
     fig = res.plot_energy(path=tmp_path / "e.png")

@@ -195,6 +195,20 @@ class SimulationResult:
         forces and drivers, so a driven or damped mechanism has a meaningful drift too."""
         return self.energy.balance / self.energy_scale
 
+    def passage_drift(self) -> np.ndarray:
+        """The change of `energy_drift` across each singular passage, shape (number of
+        passages,): from the last output sample before `t_start` to the first after
+        `t_end`. A method that steps through a passage off its branch gains or loses energy
+        there (seed 001's Fig. 5 for LU partitioning), and this says at which passage;
+        outside the passages the drift changes by the integrator's error alone."""
+        drift = self.energy_drift
+        out = np.empty(len(self.singular_passages))
+        for k, p in enumerate(self.singular_passages):
+            before = max(int(np.searchsorted(self.t, p.t_start, side="right")) - 1, 0)
+            after = min(int(np.searchsorted(self.t, p.t_end, side="left")), len(self.t) - 1)
+            out[k] = drift[after] - drift[before]
+        return out
+
     @cached_property
     def constraint_violation(self) -> np.ndarray:
         """‖Φ(q(t), t)‖₂ at the output times, shape (n,)."""
