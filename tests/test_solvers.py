@@ -395,6 +395,26 @@ def test_bench_repeat_keeps_each_runs_shortest_time():
         bench.run(**kw, repeat=0)
 
 
+def test_bench_runs_the_seeds_projection_as_a_variant(monkeypatch):
+    """`projection-svd` in `mechsim bench` is the projection method with
+    factorization="svd": an SVD at almost every evaluation (all but the passage bridge's),
+    the motion of the default projection, and the hybrid's ratio to it printed."""
+    import mechsim.dense as dense
+    from mechsim import bench
+
+    calls = []
+    svd = dense.svd
+    monkeypatch.setattr(dense, "svd", lambda A: calls.append(A.shape) or svd(A))
+    [seed] = bench.run(["parallelogram"], ["projection-svd"], [1e-6], progress=None)
+    assert (seed.method, seed.status) == ("projection-svd", "success")
+    assert len(calls) >= 0.8 * seed.rhs
+    monkeypatch.setattr(dense, "svd", svd)
+    rows = bench.run(["parallelogram"], ["projection", "hybrid"], [1e-6], progress=None)
+    assert rows[0].steps == seed.steps and abs(rows[0].error - seed.error) < 1e-10
+    ratios = bench.ratios(rows + [seed], 1e-6)["parallelogram"]
+    assert ratios["hybrid/projection-svd"] == rows[1].wall_time / seed.wall_time
+
+
 def test_bench_compares_methods_at_equal_error():
     """The work–precision comparison at equal accuracy takes each method's cheapest
     successful run within each decade of error, skips failed runs however accurate, gives

@@ -152,7 +152,9 @@ def main(argv=None) -> int:
     bench.add_argument("problems", nargs="*",
                        help="parallelogram, double-four-bar, forty-window, flexible-four-bar, "
                             "coulomb (shooting against brute force; default: the first two)")
-    bench.add_argument("--methods", help="comma-separated (default: lu,projection,hybrid,baumgarte)")
+    bench.add_argument("--methods", help="comma-separated (default: lu,projection,"
+                       "projection-svd,hybrid,baumgarte; projection-svd is the projection "
+                       "method with factorization='svd', the seed's)")
     bench.add_argument("--rtols", help="comma-separated tolerances (default: 1e-5,…,1e-9)")
     bench.add_argument("--integrator", help="override every method's default integrator")
     bench.add_argument("--max-steps", type=int, default=20000,
