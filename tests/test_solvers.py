@@ -413,6 +413,8 @@ def test_bench_runs_the_seeds_projection_as_a_variant(monkeypatch):
     assert rows[0].steps == seed.steps and abs(rows[0].error - seed.error) < 1e-10
     ratios = bench.ratios(rows + [seed], 1e-6)["parallelogram"]
     assert ratios["hybrid/projection-svd"] == rows[1].wall_time / seed.wall_time
+    with pytest.raises(ValueError, match="'projektion'; methods: .*projection-svd"):
+        bench.run(["parallelogram"], ["lu", "projektion"], [1e-6], progress=None)
 
 
 def test_bench_compares_methods_at_equal_error():

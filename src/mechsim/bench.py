@@ -107,10 +107,16 @@ def run(problems=DEFAULT_PROBLEMS, methods=DEFAULT_METHODS, rtols=DEFAULT_RTOLS,
     side by side, and the minimum is the run least disturbed."""
     if int(repeat) < 1:
         raise ValueError(f"`repeat` must be a positive number of runs, got {repeat!r}")
-    rows = []
+    from .formulations import METHODS
+    for method in methods:
+        if method not in METHODS and method not in VARIANTS:
+            raise ValueError(f"unknown method {method!r}; methods: "
+                             f"{', '.join(sorted([*METHODS, *VARIANTS]))}")
     for name in problems:
         if name not in PROBLEMS:
             raise ValueError(f"unknown problem {name!r}; problems: {', '.join(PROBLEMS)}")
+    rows = []
+    for name in problems:
         prob = PROBLEMS[name]
         mech = prob.build()
         mech.simulate(t_end=min(0.05, prob.t_end), method="lu")
