@@ -163,10 +163,18 @@ def ratios(rows: list[Row], rtol: float) -> dict:
     out = {}
     for name in dict.fromkeys(r.problem for r in rows):
         wall = {r.method: r.wall_time for r in rows if r.problem == name and r.rtol == rtol}
-        for other in COMPARED:
-            if "hybrid" in wall and other in wall:
-                out.setdefault(name, {})[f"hybrid/{other}"] = wall["hybrid"] / wall[other]
+        found = _hybrid_ratios(wall)
+        if found:
+            out[name] = found
     return out
+
+
+def _hybrid_ratios(wall: dict) -> dict:
+    """{"hybrid/<method>": ratio} of the wall times {method: seconds} for each `COMPARED`
+    method there, when the hybrid is there too."""
+    if "hybrid" not in wall:
+        return {}
+    return {f"hybrid/{m}": wall["hybrid"] / wall[m] for m in COMPARED if m in wall}
 
 
 def cheapest_within(rows: list[Row], error: float) -> dict:
@@ -215,9 +223,8 @@ def format_within(name: str, error: float, best: dict) -> str:
     """One line of `cheapest_within` for a problem: each method's time and the rtol that
     reached `error`, then the hybrid's ratios to the `COMPARED` methods that reached it."""
     parts = [f"{m} {r.wall_time:.3f} s (rtol {r.rtol:.0e})" for m, r in best.items()]
-    for other in COMPARED:
-        if "hybrid" in best and other in best:
-            parts.append(f"hybrid/{other} = {best['hybrid'].wall_time / best[other].wall_time:.2f}")
+    ratios = _hybrid_ratios({m: r.wall_time for m, r in best.items()})
+    parts += [f"{k} = {v:.2f}" for k, v in ratios.items()]
     return f"within error {error:.0e}, {name}: " + ", ".join(parts)
 
 

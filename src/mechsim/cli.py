@@ -62,7 +62,8 @@ def _run(args) -> int:
             joints = f", joints {', '.join(p.joints)}" if p.joints else ""
             how = "; crossed by the passage bridge" if p.bridged else ""
             print(f"           {p.t_start:.4f} – {p.t_end:.4f} s, closest at {p.t_min:.4f} s "
-                  f"(σ_min/σ_max = {p.min_sigma:.3g}, energy drift {jump:+.1e} across){joints}{how}")
+                  f"(σ_min/σ_max = {p.min_sigma:.3g}, energy drift {jump:+.1e} across)"
+                  f"{joints}{how}")
     for sw in res.switches:
         print(f"switch     t = {sw.t:.4f} s: {sw.from_method} → {sw.to_method} ({sw.reason})")
     for body, local in scene.output.get("points", []):
