@@ -395,7 +395,7 @@ def test_bench_repeat_keeps_each_runs_shortest_time():
         bench.run(**kw, repeat=0)
 
 
-def test_bench_runs_the_seeds_projection_as_a_variant(monkeypatch):
+def test_bench_runs_the_seeds_projection_as_a_variant(monkeypatch, capsys):
     """`projection-svd` in `mechsim bench` is the projection method with
     factorization="svd": an SVD at almost every evaluation (all but the passage bridge's),
     the motion of the default projection, and the hybrid's ratio to it printed."""
@@ -415,6 +415,11 @@ def test_bench_runs_the_seeds_projection_as_a_variant(monkeypatch):
     assert ratios["hybrid/projection-svd"] == rows[1].wall_time / seed.wall_time
     with pytest.raises(ValueError, match="'projektion'; methods: .*projection-svd"):
         bench.run(["parallelogram"], ["lu", "projektion"], [1e-6], progress=None)
+    from mechsim.cli import main
+    capsys.readouterr()
+    assert main(["bench", "parallelogram", "--methods", "lu,projektion"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and "unknown method 'projektion'" in err      # refused before any run
 
 
 def test_bench_compares_methods_at_equal_error():

@@ -98,13 +98,9 @@ class Row:
     passages: int
 
 
-def run(problems=DEFAULT_PROBLEMS, methods=DEFAULT_METHODS, rtols=DEFAULT_RTOLS,
-        integrator=None, max_steps=20000, progress=print, repeat=1) -> list[Row]:
-    """Run every (problem, method, rtol); one warm-up run per problem first so that model
-    building and imports are not timed. With `repeat` > 1 every run is repeated in rounds
-    (each round runs all methods and tolerances once) and the shortest wall time is kept:
-    on a machine whose speed drifts over minutes, rounds keep the methods' times measured
-    side by side, and the minimum is the run least disturbed."""
+def check(problems, methods, repeat=1):
+    """ValueError naming the first unknown problem or method (a registry name or a
+    `VARIANTS` one), or a `repeat` below 1: before any run starts."""
     if int(repeat) < 1:
         raise ValueError(f"`repeat` must be a positive number of runs, got {repeat!r}")
     from .formulations import METHODS
@@ -115,6 +111,16 @@ def run(problems=DEFAULT_PROBLEMS, methods=DEFAULT_METHODS, rtols=DEFAULT_RTOLS,
     for name in problems:
         if name not in PROBLEMS:
             raise ValueError(f"unknown problem {name!r}; problems: {', '.join(PROBLEMS)}")
+
+
+def run(problems=DEFAULT_PROBLEMS, methods=DEFAULT_METHODS, rtols=DEFAULT_RTOLS,
+        integrator=None, max_steps=20000, progress=print, repeat=1) -> list[Row]:
+    """Run every (problem, method, rtol); one warm-up run per problem first so that model
+    building and imports are not timed. With `repeat` > 1 every run is repeated in rounds
+    (each round runs all methods and tolerances once) and the shortest wall time is kept:
+    on a machine whose speed drifts over minutes, rounds keep the methods' times measured
+    side by side, and the minimum is the run least disturbed."""
+    check(problems, methods, repeat)
     rows = []
     for name in problems:
         prob = PROBLEMS[name]

@@ -114,10 +114,11 @@ def _bench(args) -> int:
         accuracies = _numbers(args.accuracies, "--accuracies", bench.DEFAULT_ACCURACIES)
         written = []
         if problems:
+            repeat = 1 if args.repeat is None else args.repeat
+            bench.check(problems, methods, repeat)
             print(bench.HEADER)
             rows = bench.run(problems, methods, rtols, integrator=args.integrator,
-                             max_steps=args.max_steps,
-                             repeat=1 if args.repeat is None else args.repeat)
+                             max_steps=args.max_steps, repeat=repeat)
             for rtol in rtols:
                 for name, r in bench.ratios(rows, rtol).items():
                     print(f"ratios at rtol {rtol:.0e}, {name}: " +
