@@ -30,7 +30,7 @@ def attach(module, path: Path | None) -> bool:
     """Replace `module`'s functions by their compiled twins where it has them; True if it did."""
     module.COMPILED = False
     source = getattr(module, "C_SOURCE", None)
-    if not source or path is None or os.environ.get("MECHSIM_NO_COMPILE"):
+    if not source or not getattr(module, "C_REPLACE", True) or path is None or os.environ.get("MECHSIM_NO_COMPILE"):
         return False
     library = path.with_suffix(".so")
     if not library.is_file() and not _compile(source, library):

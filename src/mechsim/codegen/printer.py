@@ -19,14 +19,17 @@ class _Printer(PythonCodePrinter):
 
 
 class _ModuleWriter:
-    def __init__(self, system, c_kernels=False):
+    def __init__(self, system, c_kernels=(), c_replace=False):
         self.sys = system
         self.printer = _Printer()
         self.constants: dict[tuple, str] = {}
         self.functions: list[str] = []
         self.extra: list[str] = []
-        # C twins of the functions (`mechsim.codegen.compiled`): [(name, has_v, shapes)]
-        self.c_kernels = c_kernels
+        # C twins of the functions named in `c_kernels` (None: all), and whether they
+        # replace the Python functions on loading (`mechsim.codegen.compiled`; else only the
+        # compiled partitioned engine, `mechsim.codegen.engine`, calls them).
+        # c_signatures: [(name, has_v, shapes)]
+        self.c_kernels, self.c_replace = c_kernels, c_replace
         self.c_functions: list[str] = []
         self.c_signatures: list[tuple] = []
 
@@ -46,7 +49,7 @@ class _ModuleWriter:
             layout.append((mat.rows, mat.cols, nz))
             entries += [mat[i, j] for i, j in nz]
         repl, reduced = sp.cse(entries, symbols=sp.numbered_symbols("_c"))
-        if self.c_kernels:
+        if self.c_kernels is None or name in self.c_kernels:
             self._c_function(name, "_v" in args, layout, repl, reduced)
         lines = [f"def {name}({', '.join(args)}):", f'    """{doc}"""']
         used = set().union(*(e.free_symbols for e in reduced), *(r.free_symbols for _, r in repl)) \
@@ -125,7 +128,8 @@ class _ModuleWriter:
         if self.c_functions:
             c_source = "#include <math.h>\n\n" + "\n\n".join(self.c_functions) + "\n"
             constants += ["", f"C_SOURCE = {c_source!r}",
-                          f"C_SIGNATURES = {self.c_signatures!r}"]
+                          f"C_SIGNATURES = {self.c_signatures!r}",
+                          f"C_REPLACE = {self.c_replace!r}"]
         return "\n".join(header + self.extra + constants + [""] +
                          ["\n\n".join(self.functions), ""])
 
@@ -141,15 +145,18 @@ def kernel_source(q, v, p, functions, key: str, title: str) -> str:
     return w.module(key, title)
 
 
-# Mechanisms with at least this many coordinates get C twins of their functions: there the
+# Mechanisms with at least this many coordinates call C twins of their functions: there the
 # Python kernels cost 0.1–0.2 ms a call (the 40-window chain), against a few µs of ctypes
-# overhead; below it the Python kernels are as fast as a foreign call.
+# overhead; below it the Python kernels are as fast as a foreign call, and the C twins of
+# Φ, Φ_q, Φ_t and γ serve only inside the compiled partitioned engine.
 C_MIN_COORDINATES = 60
+ENGINE_KERNELS = ("phi", "phi_q", "phi_t", "gamma")
 
 
 def model_source(system, key: str, title: str) -> str:
     """The full module text for `system` (see `mechsim.codegen` for the functions)."""
-    w = _ModuleWriter(system, c_kernels=len(system.q) >= C_MIN_COORDINATES)
+    large = len(system.q) >= C_MIN_COORDINATES
+    w = _ModuleWriter(system, c_kernels=None if large else ENGINE_KERNELS, c_replace=large)
     s = system
     w.function("phi", ("_q", "t", "_p"), [s.phi], "Constraint residual Φ, shape (m,).")
     [nz] = w.function("phi_q", ("_q", "t", "_p"), [s.phi_q], "Jacobian Φ_q, shape (m, n).")

@@ -79,6 +79,10 @@ def _numerical_rank(J) -> int:
 # Dependent blocks Φ_q D at least this large are factored sparse (`_SparseBlock`).
 SPARSE_MIN = 40
 
+# In place of Φ_q D in `Partitioned._cache`: the state was computed by the compiled engine,
+# whose buffers still hold it.
+_COMPILED = "compiled"
+
 
 class _DenseBlock:
     """Φ_q D as a dense matrix. `solve` is LAPACK's (least squares when the block is not
@@ -234,6 +238,7 @@ class Partitioned(Formulation):
         self._cache = None
         self.independent = ()
         self._rheonomic = bool(problem.rheonomic_rows)      # Φ_t ≠ 0 (drivers)
+        self._engine = None                                  # see `_compiled_engine`
 
     # --- the hook ----------------------------------------------------------------------------
     def choose(self, J, rank=None) -> CoordinateBasis:
@@ -261,6 +266,7 @@ class Partitioned(Formulation):
         J = self.problem.phi_q(q, t)
         self.basis = bs = basis if basis is not None else self.choose(J)
         self.q_ref = np.array(q, float)
+        self._engine = self._compiled_engine(bs)
         self._accept(t, np.zeros(bs.f), bs.Bt(v), np.zeros(bs.r), bs.Dt(v), J, first=True)
         self._cache = None
         self.problem.counters.partitions += 1
@@ -292,6 +298,26 @@ class Partitioned(Formulation):
             cz = (z0 - z - zd * e) / e**2
         # [a0 a1 a2 G]: the prediction is one product with [1, d, d², z].
         self._P = np.column_stack([w - G @ z, wd - G @ zd, cw - G @ cz, G])
+        if self._engine is not None:
+            inverse = getattr(self._chord, "_inv", None) if self._square else None
+            self._engine.accept(t, self.q_ref, self._P,
+                                inverse if isinstance(inverse, np.ndarray) else None)
+
+    def _compiled_engine(self, basis):
+        """The compiled evaluation (`mechsim.codegen.engine`) for this partition where it
+        applies: a subset of coordinates with a square, dense Φ_q D (no redundant
+        constraints, no long chain), a constant diagonal mass and the dense Schur
+        complement; None elsewhere, or where nothing can be compiled."""
+        prob = self.problem
+        if (type(basis) is not CoordinateBasis or basis.sparse or not prob.m
+                or basis.r != prob.m or not prob.constant_mass or prob.schur is not None):
+            return None
+        from ..codegen import engine
+        lib = engine.library(prob.model)
+        if lib is None:
+            return None
+        return engine.PartitionedEngine(lib, prob, basis, self.newton_tol, self.max_newton,
+                                        self._rheonomic)
 
     def initial_state(self, t, q, v):
         return self.partition(t, q, v)
@@ -362,6 +388,13 @@ class Partitioned(Formulation):
         key = y.tobytes()
         if c is not None and c[0] == t and c[1] == key:
             return c[2]
+        engine = self._engine
+        if engine is not None and engine.ready:
+            done = engine.state(t, y)
+            if done is not None:
+                out = done + (0,)
+                self._cache = (t, key, out, _COMPILED)
+                return out
         bs = self.basis
         z, zd = y[:bs.f], y[bs.f:]
         q, n_fresh = self._positions(z, t)
@@ -391,6 +424,10 @@ class Partitioned(Formulation):
         prob, bs = self.problem, self.basis
         if len(ts) < 2 or not self._square or bs.sparse:
             return super().states(ts, Y)
+        if self._engine is not None and self._engine.ready:
+            done = self._engine.states(ts, Y)
+            if done is not None:
+                return done
         ts = np.asarray(ts, float)
         Z, Zd = Y[:, :bs.f].T, Y[:, bs.f:]                  # (f, k), (k, f)
         d = ts - self.t_last
@@ -425,6 +462,11 @@ class Partitioned(Formulation):
         except ConstraintSolveError:
             # A trial step too far for Newton: NaN makes the integrator reject and shrink it.
             return np.full(y.shape, np.nan)
+        if self._cache[3] is _COMPILED:
+            out = self._engine.accelerations(t, prob.forces(t, q, v))
+            if out is not None:
+                prob.counters.factorizations += 1
+                return out
         return np.concatenate([y[self.basis.f:], self.basis.Bt(self._qdd(t, q, v, J))])
 
     def derivative(self, t, q, v):
@@ -441,6 +483,8 @@ class Partitioned(Formulation):
         self.layout_changed = False
         bs = self.basis
         block = self._cache[3]                  # Φ_q D at this state, from full_state
+        if block is _COMPILED:
+            block = bs.block(J)
         if n_fresh >= 2 or block.condition() > self.cond_max:
             before = self.independent
             basis = self.choose(J)
