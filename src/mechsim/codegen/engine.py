@@ -40,12 +40,22 @@ SOURCE = r"""
 
 typedef void (*mechsim_gesv_t)(int *, int *, double *, int *, int *, double *, int *, int *);
 typedef void (*mechsim_posv_t)(char *, int *, int *, double *, int *, double *, int *, int *);
+typedef void (*mechsim_potrf_t)(char *, int *, double *, int *, int *);
+typedef void (*mechsim_pocon_t)(char *, int *, double *, int *, double *, double *, double *,
+                                int *, int *);
+typedef void (*mechsim_potrs_t)(char *, int *, int *, double *, int *, double *, int *, int *);
 static mechsim_gesv_t mechsim_dgesv = 0;
 static mechsim_posv_t mechsim_dposv = 0;
+static mechsim_potrf_t mechsim_dpotrf = 0;
+static mechsim_pocon_t mechsim_dpocon = 0;
+static mechsim_potrs_t mechsim_dpotrs = 0;
 
-void mechsim_engine_init(void *gesv, void *posv) {
+void mechsim_engine_init(void *gesv, void *posv, void *potrf, void *pocon, void *potrs) {
   mechsim_dgesv = (mechsim_gesv_t)gesv;
   mechsim_dposv = (mechsim_posv_t)posv;
+  mechsim_dpotrf = (mechsim_potrf_t)potrf;
+  mechsim_dpocon = (mechsim_pocon_t)pocon;
+  mechsim_dpotrs = (mechsim_potrs_t)potrs;
 }
 
 /* The partition and the last accepted step; buffers owned by the Python side. */
@@ -164,6 +174,63 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
   }
   return 0;
 }
+
+/* The projection method's accelerations where J W J^T is well conditioned (there they
+   are the exact constrained accelerations, as `Projection.accelerations` computes them by
+   Cholesky): qdd = W Q - W J^T lam, (J W J^T) lam = J W Q - gamma, with J = Phi_q and
+   gamma from the C twins. With min_rcond >= 0, 1 unless LAPACK's estimate of 1/cond_1 of
+   J W J^T (norm bounded by m max S_ii, as `dense.cholesky_conditioned`) exceeds it; 1
+   wherever the Cholesky factorisation fails. */
+typedef struct {
+  int64_t n, m;
+  const double *p, *winv;
+  double *q, *v, *Q, *out, *work;
+  int *iwork;
+} mechsim_projection;
+
+int mechsim_projection_accelerations(mechsim_projection *c, double t, double min_rcond) {
+  const int64_t n = c->n, m = c->m;
+  const double *winv = c->winv;
+  double *J = c->work, *g = J + m * n, *wq = g + m, *lam = wq + n, *S = lam + m;
+  double *cw = S + m * m;
+  memset(J, 0, m * n * sizeof(double));
+  mechsim_phi_q(c->q, t, c->p, J);
+  memset(g, 0, m * sizeof(double));
+  mechsim_gamma(c->q, c->v, t, c->p, g);
+  for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * c->Q[j];
+  double diag = 0.0;
+  for (int64_t i = 0; i < m; i++) {
+    const double *Ji = J + i * n;
+    double s = 0.0;
+    for (int64_t j = 0; j < n; j++) s += Ji[j] * wq[j];
+    lam[i] = s - g[i];
+    for (int64_t k = 0; k <= i; k++) {
+      const double *Jk = J + k * n;
+      double e = 0.0;
+      for (int64_t j = 0; j < n; j++) e += Ji[j] * winv[j] * Jk[j];
+      S[i + k * m] = e;
+      S[k + i * m] = e;
+    }
+    if (S[i + i * m] > diag) diag = S[i + i * m];
+  }
+  char uplo = 'U';
+  int M = (int)m, nrhs = 1, info = 0;
+  mechsim_dpotrf(&uplo, &M, S, &M, &info);
+  if (info != 0) return 1;
+  if (min_rcond >= 0.0) {
+    double anorm = (double)m * diag, rcond = 0.0;
+    mechsim_dpocon(&uplo, &M, S, &M, &anorm, &rcond, cw, c->iwork, &info);
+    if (info != 0 || !(rcond > min_rcond)) return 1;
+  }
+  mechsim_dpotrs(&uplo, &M, &nrhs, S, &M, lam, &M, &info);
+  if (info != 0) return 1;
+  for (int64_t j = 0; j < n; j++) {
+    double s = 0.0;
+    for (int64_t i = 0; i < m; i++) s += J[i * n + j] * lam[i];
+    c->out[j] = wq[j] - winv[j] * s;
+  }
+  return 0;
+}
 """
 
 _HASH = hashlib.sha256(SOURCE.encode()).hexdigest()[:12]
@@ -204,14 +271,18 @@ def library(model):
         return None
     try:
         lib = ctypes.CDLL(str(target))
-        lib.mechsim_engine_init.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
+        routines = ("dgesv", "dposv", "dpotrf", "dpocon", "dpotrs")
+        lib.mechsim_engine_init.argtypes = [ctypes.c_void_p] * len(routines)
         lib.mechsim_engine_init.restype = None
-        lib.mechsim_engine_init(_lapack("dgesv"), _lapack("dposv"))
+        lib.mechsim_engine_init(*map(_lapack, routines))
         for name in ("mechsim_lu_state", "mechsim_lu_accelerations"):
             fn = getattr(lib, name)
             fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_double], ctypes.c_int
         lib.mechsim_lu_states.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 5
         lib.mechsim_lu_states.restype = ctypes.c_int
+        fn = lib.mechsim_projection_accelerations
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]
+        fn.restype = ctypes.c_int
     except (OSError, AttributeError, KeyError):
         return None
     model._ENGINE = lib
@@ -286,3 +357,37 @@ class PartitionedEngine:
                         Vs.ctypes.data, self.J_samples.ctypes.data):
             return None
         return Qs, Vs
+
+
+class _ProjectionContext(ctypes.Structure):
+    _fields_ = [("n", ctypes.c_int64), ("m", ctypes.c_int64)] + [
+        (name, ctypes.c_void_p) for name in ("p", "winv", "q", "v", "Q", "out", "work", "iwork")]
+
+
+class ProjectionEngine:
+    """The projection method's accelerations clear of the truncation band (`library`): one
+    call instead of Φ_q, γ, the mass scaling, the Cholesky factor of J̃J̃ᵀ and its
+    condition estimate in numpy and LAPACK."""
+
+    def __init__(self, lib, problem):
+        n, m = problem.n, problem.m
+        self.p = np.ascontiguousarray(problem.p, dtype=float)
+        self.winv = np.ascontiguousarray(problem.inverse_mass_diagonal, dtype=float)
+        self.q, self.v, self.Q, self.out = (np.zeros(n) for _ in range(4))
+        self.work = np.zeros(m * n + m + n + m + m * m + 3 * m)
+        self.iwork = np.zeros(max(m, 1), dtype=np.intc)
+        self.ctx = _ProjectionContext(n=n, m=m, **{
+            name: getattr(self, name).ctypes.data
+            for name in ("p", "winv", "q", "v", "Q", "out", "work", "iwork")})
+        self._ptr = ctypes.addressof(self.ctx)
+        self._fn = lib.mechsim_projection_accelerations
+
+    def accelerations(self, t, q, v, Q, min_rcond):
+        """q̈ at (t, q, v) under the forces Q, or None where J W Jᵀ is not positive definite
+        or (min_rcond ≥ 0) its reciprocal condition estimate is not above min_rcond."""
+        self.q[:] = q
+        self.v[:] = v
+        self.Q[:] = Q
+        if self._fn(self._ptr, t, min_rcond):
+            return None
+        return self.out.copy()

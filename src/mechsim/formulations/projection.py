@@ -85,6 +85,7 @@ class Projection(FullCoordinates):
                              f"SVD near one) or 'svd' (the SVD at every evaluation, as the "
                              f"seed paper), got {self.factorization!r}")
         self._redundant = 0          # singular values found to stay at zero (redundancy)
+        self._compiled = self._compiled_engine()
         # Set after an accepted step far from any passage: until the next one, the
         # integrator's evaluations skip the condition estimate (see `_far_from_band`).
         self._far = False
@@ -118,6 +119,17 @@ class Projection(FullCoordinates):
             return Vt[:r].T, (U[:, :r] / sig[:r]).T
         mu2 = (self.rcond * sig[0]) ** 2
         return Vt.T, (U * (sig / (sig**2 + mu2))).T
+
+    def _compiled_engine(self):
+        """The compiled accelerations clear of the band (`mechsim.codegen.engine`) where
+        they apply: Cholesky allowed, a constant diagonal mass, the dense Schur complement
+        (not a long chain's banded one); None elsewhere or without a compiler."""
+        prob = self.problem
+        if not (self._cholesky and prob.m and prob.constant_mass and prob.schur is None):
+            return None
+        from ..codegen import engine
+        lib = engine.library(prob.model)
+        return None if lib is None else engine.ProjectionEngine(lib, prob)
 
     @property
     def _cholesky(self):
@@ -189,6 +201,13 @@ class Projection(FullCoordinates):
         """q̈ at (t, q, v); `far`: skip the condition estimate (default: as the last
         accepted step decided, `_far_from_band`)."""
         prob = self.problem
+        if self._compiled is not None:
+            clear = self._far if far is None else far
+            out = self._compiled.accelerations(t, q, v, prob.forces(t, q, v), -1.0 if clear
+                                               else max(100, prob.m) * self.rcond ** 2)
+            if out is not None:
+                prob.counters.factorizations += 1
+                return out
         J, gamma = prob.dynamics_terms(q, v, t)
         m = J.shape[0]
         banded = m and prob.schur is not None
