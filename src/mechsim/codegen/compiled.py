@@ -6,7 +6,9 @@ functions, their C source (`C_SOURCE`, the same common subexpressions) and signa
 shared library next to the cached module (once; atomically, like the module) and the
 functions are replaced by ctypes calls into it: on the 40-window chain `dynamics_terms`
 costs 22 µs so, against 134 µs in Python. The Python functions stay available in
-`PYTHON_KERNELS`.
+`PYTHON_KERNELS`. Smaller models carry C twins of Φ, Φ_q, Φ_t and γ only, with
+`C_REPLACE = False`: a foreign call would cost them as much as the Python kernel, and the
+twins serve inside the compiled evaluations of `mechsim.codegen.engine` instead.
 
 Nothing here is required: without a compiler (or with `MECHSIM_NO_COMPILE` set), or where
 compiling or loading fails, the Python functions serve and `COMPILED` is False. The compiler
