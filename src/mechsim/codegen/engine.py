@@ -138,16 +138,13 @@ int mechsim_lu_states(mechsim_lu *c, int64_t k, const double *ts, const double *
   return 0;
 }
 
-/* [zd; zdd] at the state mechsim_lu_state left in the buffers, with the forces c->Q:
-   qdd = W Q - W J^T lam, (J W J^T) lam = J W Q - gamma. 1: complement not positive
-   definite (redundant constraints: Python's least squares). */
-int mechsim_lu_accelerations(mechsim_lu *c, double t) {
-  const int64_t n = c->n, m = c->m, f = c->f, r = n - f;
-  const double *J = c->J, *winv = c->winv;
-  double *g = c->work + 2 * r + 2 * m + r * r, *wq = g + m, *lam = wq + n, *S = lam + m;
-  memset(g, 0, m * sizeof(double));
-  mechsim_gamma(c->q, c->v, t, c->p, g);
-  for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * c->Q[j];
+/* The Schur complement's terms: wq = W Q, lam = J wq - g (the right-hand side) and
+   S = J W J^T (both triangles, column-major); returns max S_ii. */
+static double schur_terms(int64_t n, int64_t m, const double *J, const double *winv,
+                          const double *Q, const double *g, double *wq, double *lam,
+                          double *S) {
+  double diag = 0.0;
+  for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * Q[j];
   for (int64_t i = 0; i < m; i++) {
     const double *Ji = J + i * n;
     double s = 0.0;
@@ -160,7 +157,21 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
       S[i + k * m] = e;
       S[k + i * m] = e;
     }
+    if (S[i + i * m] > diag) diag = S[i + i * m];
   }
+  return diag;
+}
+
+/* [zd; zdd] at the state mechsim_lu_state left in the buffers, with the forces c->Q:
+   qdd = W Q - W J^T lam, (J W J^T) lam = J W Q - gamma. 1: complement not positive
+   definite (redundant constraints: Python's least squares). */
+int mechsim_lu_accelerations(mechsim_lu *c, double t) {
+  const int64_t n = c->n, m = c->m, f = c->f, r = n - f;
+  const double *J = c->J, *winv = c->winv;
+  double *g = c->work + 2 * r + 2 * m + r * r, *wq = g + m, *lam = wq + n, *S = lam + m;
+  memset(g, 0, m * sizeof(double));
+  mechsim_gamma(c->q, c->v, t, c->p, g);
+  schur_terms(n, m, J, winv, c->Q, g, wq, lam, S);
   char uplo = 'U';
   int M = (int)m, nrhs = 1, info = 0;
   mechsim_dposv(&uplo, &M, &nrhs, S, &M, lam, &M, &info);
@@ -197,22 +208,7 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
   mechsim_phi_q(c->q, t, c->p, J);
   memset(g, 0, m * sizeof(double));
   mechsim_gamma(c->q, c->v, t, c->p, g);
-  for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * c->Q[j];
-  double diag = 0.0;
-  for (int64_t i = 0; i < m; i++) {
-    const double *Ji = J + i * n;
-    double s = 0.0;
-    for (int64_t j = 0; j < n; j++) s += Ji[j] * wq[j];
-    lam[i] = s - g[i];
-    for (int64_t k = 0; k <= i; k++) {
-      const double *Jk = J + k * n;
-      double e = 0.0;
-      for (int64_t j = 0; j < n; j++) e += Ji[j] * winv[j] * Jk[j];
-      S[i + k * m] = e;
-      S[k + i * m] = e;
-    }
-    if (S[i + i * m] > diag) diag = S[i + i * m];
-  }
+  const double diag = schur_terms(n, m, J, winv, c->Q, g, wq, lam, S);
   char uplo = 'U';
   int M = (int)m, nrhs = 1, info = 0;
   mechsim_dpotrf(&uplo, &M, S, &M, &info);
