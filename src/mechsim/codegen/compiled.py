@@ -32,10 +32,11 @@ def attach(module, path: Path | None) -> bool:
     """Replace `module`'s functions by their compiled twins where it has them; True if it did."""
     module.COMPILED = False
     source = getattr(module, "C_SOURCE", None)
-    if not source or not getattr(module, "C_REPLACE", True) or path is None or os.environ.get("MECHSIM_NO_COMPILE"):
+    if (not source or not getattr(module, "C_REPLACE", True) or path is None
+            or os.environ.get("MECHSIM_NO_COMPILE")):
         return False
     library = path.with_suffix(".so")
-    if not library.is_file() and not _compile(source, library):
+    if not library.is_file() and not build_library(source, library):
         return False
     try:
         lib = ctypes.CDLL(str(library))
@@ -54,7 +55,7 @@ def attach(module, path: Path | None) -> bool:
     return True
 
 
-def _compile(source: str, library: Path) -> bool:
+def build_library(source: str, library: Path) -> bool:
     """Compile `source` into `library`; False if there is no working compiler."""
     compiler = shlex.split(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
     try:

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .compiled import _compile
+from .compiled import build_library
 
 SOURCE = r"""
 #include <math.h>
@@ -252,6 +252,15 @@ def _lapack(name: str) -> int:
     return get_pointer(capsule, get_name(capsule))
 
 
+def for_problem(problem):
+    """The compiled engine for a NumericProblem whose evaluations it can take: constraints,
+    a constant diagonal mass (no flexible bodies) and the dense Schur complement (not a
+    long chain's banded one); None elsewhere or where there is no library."""
+    if not problem.m or not problem.constant_mass or problem.schur is not None:
+        return None
+    return library(problem.model)
+
+
 def library(model):
     """The compiled engine for `model` (a generated module), or None where there is none."""
     lib = getattr(model, "_ENGINE", False)
@@ -263,7 +272,7 @@ def library(model):
         return None
     path = Path(path)
     target = path.with_name(f"{path.stem}.lu-{_HASH}.so")
-    if not target.is_file() and not _compile(source + SOURCE, target):
+    if not target.is_file() and not build_library(source + SOURCE, target):
         return None
     try:
         lib = ctypes.CDLL(str(target))
@@ -319,7 +328,7 @@ class PartitionedEngine:
     def accept(self, t, q_ref, P, chord_inverse):
         """The last accepted step: its time, the prediction's matrix and the inverse of
         Φ_q D there (None: not available, the Python path serves until the next step)."""
-        if chord_inverse is None or chord_inverse.shape != self.C.shape:
+        if chord_inverse is None:
             self.ready = False
             return
         self.q_ref[:] = q_ref

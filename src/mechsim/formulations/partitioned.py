@@ -96,15 +96,18 @@ class _DenseBlock:
     def solve(self, b):
         return _solve(self.A, b)
 
-    def chord(self, b):
+    def inverse(self):
+        """A⁻¹, formed once; None if A is singular or not square."""
         if self._inv is False:
             self._inv = _inverse(self.A)
-        return self.solve(b) if self._inv is None else self._inv @ b
+        return self._inv
+
+    def chord(self, b):
+        inv = self.inverse()
+        return self.solve(b) if inv is None else inv @ b
 
     def condition(self) -> float:
-        if self._inv is False:
-            self._inv = _inverse(self.A)
-        return _condition(self.A, self._inv)
+        return _condition(self.A, self.inverse())
 
 
 class _SparseBlock:
@@ -298,22 +301,19 @@ class Partitioned(Formulation):
             cz = (z0 - z - zd * e) / e**2
         # [a0 a1 a2 G]: the prediction is one product with [1, d, d², z].
         self._P = np.column_stack([w - G @ z, wd - G @ zd, cw - G @ cz, G])
-        if self._engine is not None:
-            inverse = getattr(self._chord, "_inv", None) if self._square else None
+        if self._engine is not None:      # a dense Φ_q D: `_chord` is a `_DenseBlock`
             self._engine.accept(t, self.q_ref, self._P,
-                                inverse if isinstance(inverse, np.ndarray) else None)
+                                self._chord.inverse() if self._square else None)
 
     def _compiled_engine(self, basis):
         """The compiled evaluation (`mechsim.codegen.engine`) for this partition where it
         applies: a subset of coordinates with a square, dense Φ_q D (no redundant
-        constraints, no long chain), a constant diagonal mass and the dense Schur
-        complement; None elsewhere, or where nothing can be compiled."""
+        constraints, no long chain) in a problem the engine takes; None elsewhere."""
         prob = self.problem
-        if (type(basis) is not CoordinateBasis or basis.sparse or not prob.m
-                or basis.r != prob.m or not prob.constant_mass or prob.schur is not None):
+        if type(basis) is not CoordinateBasis or basis.sparse or basis.r != prob.m:
             return None
         from ..codegen import engine
-        lib = engine.library(prob.model)
+        lib = engine.for_problem(prob)
         if lib is None:
             return None
         return engine.PartitionedEngine(lib, prob, basis, self.newton_tol, self.max_newton,

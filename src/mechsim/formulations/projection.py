@@ -124,14 +124,12 @@ class Projection(FullCoordinates):
 
     def _compiled_engine(self):
         """The compiled accelerations clear of the band (`mechsim.codegen.engine`) where
-        they apply: Cholesky allowed, a constant diagonal mass, the dense Schur complement
-        (not a long chain's banded one); None elsewhere or without a compiler."""
-        prob = self.problem
-        if not (self._cholesky and prob.m and prob.constant_mass and prob.schur is None):
+        Cholesky may stand in for the SVD and the engine takes the problem; else None."""
+        if not self._cholesky:
             return None
         from ..codegen import engine
-        lib = engine.library(prob.model)
-        return None if lib is None else engine.ProjectionEngine(lib, prob)
+        lib = engine.for_problem(self.problem)
+        return None if lib is None else engine.ProjectionEngine(lib, self.problem)
 
     @property
     def _cholesky(self):
@@ -203,9 +201,10 @@ class Projection(FullCoordinates):
         """q̈ at (t, q, v); `far`: skip the condition estimate (default: as the last
         accepted step decided, `_far_from_band`)."""
         prob = self.problem
+        Q = prob.forces(t, q, v)
         if self._compiled is not None:
             clear = self._far if far is None else far
-            out = self._compiled.accelerations(t, q, v, prob.forces(t, q, v), -1.0 if clear
+            out = self._compiled.accelerations(t, q, v, Q, -1.0 if clear
                                                else max(100, prob.m) * self.rcond ** 2)
             if out is not None:
                 prob.counters.factorizations += 1
@@ -215,9 +214,9 @@ class Projection(FullCoordinates):
         banded = m and prob.schur is not None
         c = self._banded(J) if banded else None
         if c is not None:
-            return prob.accelerations(J, prob.forces(t, q, v), gamma, factor=c)[0]
+            return prob.accelerations(J, Q, gamma, factor=c)[0]
         f = prob.mass_factor(q)
-        x = f.left(prob.forces(t, q, v))                   # L⁻¹ Q
+        x = f.left(Q)                                      # L⁻¹ Q
         if m:
             Jt = f.cols(J)
             if banded:
