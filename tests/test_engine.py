@@ -145,3 +145,46 @@ def test_compiled_projection_accelerations_agree_with_the_python_path():
         taken += direct is not None
         declined += direct is None
     assert taken >= 20 and declined >= 2
+
+
+@needs_compiler
+def test_compiled_state_projection_agrees_with_the_python_path(rng):
+    """States pushed off the double four-bar's constraints by 1e-6 (as an integrator's
+    error would) projected by the compiled chord Newton and by
+    `NumericProblem.project_state`: the same (q, v) to round-off, Φ at the tolerance and
+    Φ_q v = 0; declined in the truncation band when asked for the condition estimate,
+    and untouched within the skip tolerance."""
+    from mechsim.formulations.projection import Projection
+
+    mech = ms.examples.double_four_bar(2)
+    res = mech.simulate(t_end=0.8, method="projection", rtol=1e-9, atol=1e-11,
+                        output_step=1e-3)
+    prob = res.problem
+    proj = Projection(prob, 1e-9, 1e-11)
+    eng = proj._compiled
+    assert eng is not None
+    min_rcond = max(100, prob.m) * proj.rcond ** 2
+    taken = declined = 0
+    for k in [*range(0, 600, 10), *range(600, len(res.t), 3)]:     # t* ≈ 0.714 s
+        t = res.t[k]
+        q = res.q[k] + 1e-6 * rng.normal(size=prob.n)
+        v = res.v[k] + 1e-6 * rng.normal(size=prob.n)
+        before = prob.counters.projections
+        fast = eng.project_state(t, q, v, 1e-13, min_rcond, extra=1)
+        if fast is None:
+            declined += 1
+            continue
+        taken += 1
+        iterations = prob.counters.projections - before
+        slow = prob.project_state(q, v, t, 1e-13, extra=1)
+        assert prob.counters.projections - before == 2 * iterations >= 4
+        # Round-off amplified by the complement's condition (≤ 1e6 where taken).
+        for x, z in zip(fast, slow):
+            np.testing.assert_allclose(x, z, rtol=0, atol=1e-10 * (1.0 + np.abs(z).max()))
+        qf, vf = fast
+        assert np.abs(prob.phi(qf, t)).max() <= 1e-13
+        # One factor at the given q: Φ_q v is left at (1e-6 change of Φ_q)² × its condition.
+        assert np.abs(prob.phi_q(qf, t) @ vf).max() <= 1e-10 * (1.0 + np.abs(vf).max())
+    assert taken >= 60 and declined >= 1
+    t, q, v = res.t[10], res.q[10], res.v[10]
+    assert eng.project_state(t, q, v, 1e-13, skip_tol=1e-9) is False

@@ -138,18 +138,12 @@ int mechsim_lu_states(mechsim_lu *c, int64_t k, const double *ts, const double *
   return 0;
 }
 
-/* The Schur complement's terms: wq = W Q, lam = J wq - g (the right-hand side) and
-   S = J W J^T (both triangles, column-major); returns max S_ii. */
-static double schur_terms(int64_t n, int64_t m, const double *J, const double *winv,
-                          const double *Q, const double *g, double *wq, double *lam,
-                          double *S) {
+/* S = J W J^T (both triangles, column-major); returns max S_ii. */
+static double complement(int64_t n, int64_t m, const double *J, const double *winv,
+                         double *S) {
   double diag = 0.0;
-  for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * Q[j];
   for (int64_t i = 0; i < m; i++) {
     const double *Ji = J + i * n;
-    double s = 0.0;
-    for (int64_t j = 0; j < n; j++) s += Ji[j] * wq[j];
-    lam[i] = s - g[i];
     for (int64_t k = 0; k <= i; k++) {
       const double *Jk = J + k * n;
       double e = 0.0;
@@ -160,6 +154,21 @@ static double schur_terms(int64_t n, int64_t m, const double *J, const double *w
     if (S[i + i * m] > diag) diag = S[i + i * m];
   }
   return diag;
+}
+
+/* The Schur complement's terms: wq = W Q, lam = J wq - g (the right-hand side) and
+   S = J W J^T; returns max S_ii. */
+static double schur_terms(int64_t n, int64_t m, const double *J, const double *winv,
+                          const double *Q, const double *g, double *wq, double *lam,
+                          double *S) {
+  for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * Q[j];
+  for (int64_t i = 0; i < m; i++) {
+    const double *Ji = J + i * n;
+    double s = 0.0;
+    for (int64_t j = 0; j < n; j++) s += Ji[j] * wq[j];
+    lam[i] = s - g[i];
+  }
+  return complement(n, m, J, winv, S);
 }
 
 /* [zd; zdd] at the state mechsim_lu_state left in the buffers, with the forces c->Q:
@@ -193,11 +202,28 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
    J W J^T (norm bounded by m max S_ii, as `dense.cholesky_conditioned`) exceeds it; 1
    wherever the Cholesky factorisation fails. */
 typedef struct {
-  int64_t n, m;
+  int64_t n, m, count;
   const double *p, *winv;
   double *q, *v, *Q, *out, *work;
   int *iwork;
 } mechsim_projection;
+
+/* The Cholesky factor of S = J W J^T in place (upper triangle); 1 where it fails or, with
+   min_rcond >= 0, LAPACK's estimate of 1/cond_1 (the norm bounded by m max S_ii, as
+   `dense.cholesky_conditioned`) is not above min_rcond. */
+static int cholesky(mechsim_projection *c, double *S, double diag, double *cw,
+                    double min_rcond) {
+  char uplo = 'U';
+  int M = (int)c->m, info = 0;
+  mechsim_dpotrf(&uplo, &M, S, &M, &info);
+  if (info != 0) return 1;
+  if (min_rcond >= 0.0) {
+    double anorm = (double)c->m * diag, rcond = 0.0;
+    mechsim_dpocon(&uplo, &M, S, &M, &anorm, &rcond, cw, c->iwork, &info);
+    if (info != 0 || !(rcond > min_rcond)) return 1;
+  }
+  return 0;
+}
 
 int mechsim_projection_accelerations(mechsim_projection *c, double t, double min_rcond) {
   const int64_t n = c->n, m = c->m;
@@ -211,13 +237,7 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
   const double diag = schur_terms(n, m, J, winv, c->Q, g, wq, lam, S);
   char uplo = 'U';
   int M = (int)m, nrhs = 1, info = 0;
-  mechsim_dpotrf(&uplo, &M, S, &M, &info);
-  if (info != 0) return 1;
-  if (min_rcond >= 0.0) {
-    double anorm = (double)m * diag, rcond = 0.0;
-    mechsim_dpocon(&uplo, &M, S, &M, &anorm, &rcond, cw, c->iwork, &info);
-    if (info != 0 || !(rcond > min_rcond)) return 1;
-  }
+  if (cholesky(c, S, diag, cw, min_rcond)) return 1;
   mechsim_dpotrs(&uplo, &M, &nrhs, S, &M, lam, &M, &info);
   if (info != 0) return 1;
   for (int64_t j = 0; j < n; j++) {
@@ -225,6 +245,86 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
     for (int64_t i = 0; i < m; i++) s += J[i * n + j] * lam[i];
     c->out[j] = wq[j] - winv[j] * s;
   }
+  return 0;
+}
+
+static double max_abs(int64_t m, const double *x) {
+  double e = 0.0;
+  for (int64_t i = 0; i < m; i++) {
+    const double a = fabs(x[i]);
+    if (isnan(a)) return NAN;
+    if (a > e) e = a;
+  }
+  return e;
+}
+
+/* x -= W J^T (S^-1 r), S the Cholesky factor in place; r is overwritten. */
+static int correct(mechsim_projection *c, const double *J, const double *S, double *r,
+                   double *x) {
+  const int64_t n = c->n, m = c->m;
+  char uplo = 'U';
+  int M = (int)m, nrhs = 1, info = 0;
+  mechsim_dpotrs(&uplo, &M, &nrhs, (double *)S, &M, r, &M, &info);
+  if (info != 0) return 1;
+  for (int64_t j = 0; j < n; j++) {
+    double s = 0.0;
+    for (int64_t i = 0; i < m; i++) s += J[i * n + j] * r[i];
+    x[j] -= c->winv[j] * s;
+  }
+  return 0;
+}
+
+/* (c->q, c->v) projected in place onto the constraints in the mass metric, as
+   `NumericProblem.project_state`: a chord Newton on Phi with the one Cholesky factor of
+   J W J^T at the given q (stopping at max|Phi| <= tol or where `newton_stalled` says
+   round-off, then `extra` further iterations), and the velocity projection
+   v -= W J^T S^-1 (J v + Phi_t) with J at the new q and the same factor. 0: projected,
+   c->count the Newton iterations; 2: max|Phi| <= skip_tol, left as it is; 1: declined
+   (the factor fails, or with min_rcond >= 0 its condition estimate is not above it; the
+   chord does not converge within max_iter). */
+int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, double tol,
+                          double min_rcond, int64_t extra, int64_t max_iter) {
+  const int64_t n = c->n, m = c->m;
+  double *q = c->q, *v = c->v;
+  double *J = c->work, *phi = J + m * n, *r = phi + m, *S = r + m, *cw = S + m * m;
+  mechsim_phi(q, t, c->p, phi);
+  double err = max_abs(m, phi);
+  if (err <= skip_tol) return 2;
+  memset(J, 0, m * n * sizeof(double));
+  mechsim_phi_q(q, t, c->p, J);
+  const double diag = complement(n, m, J, c->winv, S);
+  if (cholesky(c, S, diag, cw, min_rcond)) return 1;
+  double prev = INFINITY;
+  int64_t count = 0;
+  for (int64_t k = 0;; k++) {
+    if (isnan(err)) return 1;
+    if (err <= tol || (err > 0.5 * prev && err <= 1e3 * tol)) break;
+    if (k == max_iter) return 1;
+    prev = err;
+    memcpy(r, phi, m * sizeof(double));
+    if (correct(c, J, S, r, q)) return 1;
+    count++;
+    mechsim_phi(q, t, c->p, phi);
+    err = max_abs(m, phi);
+  }
+  for (int64_t k = 0; k < extra; k++) {
+    memcpy(r, phi, m * sizeof(double));
+    if (correct(c, J, S, r, q)) return 1;
+    count++;
+    mechsim_phi(q, t, c->p, phi);
+  }
+  memset(J, 0, m * n * sizeof(double));
+  mechsim_phi_q(q, t, c->p, J);        /* S keeps the factor at the given q */
+  memset(r, 0, m * sizeof(double));
+  mechsim_phi_t(q, t, c->p, r);
+  for (int64_t i = 0; i < m; i++) {
+    const double *Ji = J + i * n;
+    double s = 0.0;
+    for (int64_t j = 0; j < n; j++) s += Ji[j] * v[j];
+    r[i] += s;
+  }
+  if (correct(c, J, S, r, v)) return 1;
+  c->count = count;
   return 0;
 }
 """
@@ -287,6 +387,9 @@ def library(model):
         lib.mechsim_lu_states.restype = ctypes.c_int
         fn = lib.mechsim_projection_accelerations
         fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]
+        fn.restype = ctypes.c_int
+        fn = lib.mechsim_project_state
+        fn.argtypes = [ctypes.c_void_p] + [ctypes.c_double] * 4 + [ctypes.c_int64] * 2
         fn.restype = ctypes.c_int
     except (OSError, AttributeError, KeyError):
         return None
@@ -365,14 +468,15 @@ class PartitionedEngine:
 
 
 class _ProjectionContext(ctypes.Structure):
-    _fields_ = [("n", ctypes.c_int64), ("m", ctypes.c_int64)] + [
+    _fields_ = [(name, ctypes.c_int64) for name in ("n", "m", "count")] + [
         (name, ctypes.c_void_p) for name in ("p", "winv", "q", "v", "Q", "out", "work", "iwork")]
 
 
 class ProjectionEngine:
     """The projection method's accelerations clear of the truncation band (`library`): one
     call instead of Φ_q, γ, the mass scaling, the Cholesky factor of J̃J̃ᵀ and its
-    condition estimate in numpy and LAPACK."""
+    condition estimate in numpy and LAPACK; and the projection of a state onto the
+    constraints with one such factor (`project_state`)."""
 
     def __init__(self, lib, problem):
         n, m = problem.n, problem.m
@@ -386,6 +490,8 @@ class ProjectionEngine:
             for name in ("p", "winv", "q", "v", "Q", "out", "work", "iwork")})
         self._ptr = ctypes.addressof(self.ctx)
         self._fn = lib.mechsim_projection_accelerations
+        self._project = lib.mechsim_project_state
+        self.counters = problem.counters
 
     def accelerations(self, t, q, v, Q, min_rcond):
         """q̈ at (t, q, v) under the forces Q, or None where J W Jᵀ is not positive definite
@@ -396,3 +502,20 @@ class ProjectionEngine:
         if self._fn(self._ptr, t, min_rcond):
             return None
         return self.out.copy()
+
+    def project_state(self, t, q, v, tol, min_rcond=-1.0, skip_tol=-1.0, extra=0, max_iter=8):
+        """`NumericProblem.project_state` compiled: (q, v) with ‖Φ‖∞ ≤ tol (or at round-off;
+        then `extra` further chord iterations) and Φ_q v + Φ_t = 0, by the chord Newton
+        and velocity projection on one Cholesky factor of Φ_q M⁻¹ Φ_qᵀ at the given q.
+        False where ‖Φ‖∞ ≤ skip_tol already (nothing done); None where the Python path
+        must decide: the factor fails, its condition estimate is not above min_rcond
+        (when min_rcond ≥ 0), or the chord does not converge in max_iter iterations."""
+        self.q[:] = q
+        self.v[:] = v
+        status = self._project(self._ptr, t, skip_tol, tol, min_rcond, extra, max_iter)
+        if status == 2:
+            return False
+        if status:
+            return None
+        self.counters.projections += self.ctx.count
+        return self.q.copy(), self.v.copy()

@@ -41,7 +41,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from ..integrators.adams import error_norm, integration_weights
+from ..integrators.adams import error_norm, integration_weights, step_weights
 
 # The band's edge, in multiples of the truncation cut (σ_min/σ_max = rcond).
 EDGE = 3.0
@@ -72,12 +72,14 @@ class PassageBridge:
     """Plans the approach to a passage and crosses it.
 
     `accelerations(t, q, v)` must be exact outside the band (the projection method's);
-    `rcond` is its truncation cut.
+    `rcond` is its truncation cut; `engine`: the compiled projection of states onto the
+    constraints (`mechsim.codegen.engine.ProjectionEngine`), if there is one.
     """
 
-    def __init__(self, problem, accelerations, rcond, rtol, atol, order=10):
+    def __init__(self, problem, accelerations, rcond, rtol, atol, order=10, engine=None):
         self.problem = problem
         self.accelerations = accelerations
+        self.engine = engine
         self.edge = EDGE * rcond
         self.rtol, self.atol = rtol, atol
         self.order = order
@@ -152,7 +154,10 @@ class PassageBridge:
         prob = self.problem
         # Close to the configuration a residual of Φ is amplified by 1/σ_min² in q̈: one
         # Newton step past 1e-13 takes it to round-off.
-        done = prob.project_state(q, v, t, 1e-13, extra=1)
+        done = None if self.engine is None else self.engine.project_state(t, q, v, 1e-13,
+                                                                          extra=1)
+        if done is None:
+            done = prob.project_state(q, v, t, 1e-13, extra=1)
         if done is not None:
             return done
         q, _, _ = prob.project_positions(q, t, tol=1e-13)
@@ -201,7 +206,7 @@ class PassageBridge:
         history = [(tk, q, v) for tk, (q, v) in zip(ts[:0:-1], states[::-1])] + [(t_n, q_n, v_n)]
         for _ in range(6):                     # the end must be out of the band
             past = (ts - t_n) / H
-            y_p = y_n + H * (integration_weights(past, 1.0)[0] @ F)
+            y_p = y_n + H * (step_weights(past) @ F)
             if measure(y_p[:n], t_n + H) > 2.0 * self.edge:
                 break
             H *= 1.3
@@ -209,7 +214,7 @@ class PassageBridge:
             return self._decline(np.inf)
         t_b = t_n + H
         nodes = np.concatenate([[1.0], past])
-        w = integration_weights(nodes, 1.0)[0]
+        w = step_weights(nodes)
         y_c = y_p
         for _ in range(iterations):
             q, v = self._consistent(y_c[:n], y_c[n:], t_b)
@@ -230,7 +235,7 @@ class PassageBridge:
         # noise (on the double four-bar at rtol 1e-9 it read 20× the corrector difference,
         # which itself read 6–100× the true error of the crank's rate).
         Fb = np.vstack([f_b, F])
-        ys = [y_n + H * (integration_weights(nodes[:k], 1.0)[0] @ Fb[:k])
+        ys = [y_n + H * (step_weights(nodes[:k]) @ Fb[:k])
               for k in range(3, nodes.size + 1)]
         errs = [self._norm(hi - lo, y_n, hi) for lo, hi in zip(ys, ys[1:])]
         best = int(np.argmin(errs))

@@ -93,7 +93,7 @@ class Projection(FullCoordinates):
         self._far = False
         if self.regularization == "truncate" and self.bridge_passages:
             self.bridge = PassageBridge(problem, lambda t, q, v: self.accelerations(t, q, v, False),
-                                        self.rcond, rtol, atol)
+                                        self.rcond, rtol, atol, engine=self._compiled)
             self.bridging = True
 
     @staticmethod
@@ -326,6 +326,14 @@ class Projection(FullCoordinates):
         if not self.projection or not prob.m:
             return super().project_now(t, y)
         q, v = y[:n], y[n:]
+        if self._compiled is not None:
+            done = self._compiled.project_state(
+                t, q, v, 0.01 * self.projection_tol, max(100, prob.m) * self.rcond ** 2,
+                skip_tol=self.projection_tol)
+            if done is False:
+                return None
+            if done is not None:
+                return np.concatenate(done)
         phi, J = prob.position_terms(q, t)
         if max(abs(phi).tolist()) <= self.projection_tol:
             return None

@@ -53,6 +53,24 @@ def integration_weights(nodes: np.ndarray, s) -> np.ndarray:
     return np.einsum("g,pgk->pk", _GW, L) * s[:, None]
 
 
+def step_weights(nodes, s=1.0) -> np.ndarray:
+    """`integration_weights(nodes, s)[0]` for a scalar s, cached by the pattern of the
+    nodes: patterns recur within a run and after each restart (a bridge, a switch)."""
+    # Steps change by factors of two, so the nodes are dyadic up to the round-off of t:
+    # snapping them to multiples of 2⁻⁴⁰ makes equal patterns hit the cache. The
+    # weights are those of the snapped nodes, so a run does not depend on what earlier
+    # runs left in the cache.
+    snapped = np.rint(np.append(nodes, s) * 2.0**40)
+    key = tuple(snapped.astype(np.int64).tolist())
+    w = _WEIGHTS.get(key)
+    if w is None:
+        if len(_WEIGHTS) > 20000:
+            _WEIGHTS.clear()
+        snapped *= 2.0**-40
+        w = _WEIGHTS[key] = integration_weights(snapped[:-1], snapped[-1])[0]
+    return w
+
+
 def error_norm(e, y_a, y_b, rtol, atol) -> float:
     """RMS of the error e scaled by atol + rtol·max(|y_a|, |y_b|): ≤ 1 meets the tolerance."""
     if not e.size:
@@ -92,24 +110,13 @@ class AdamsPECE(OdeSolver):
         # applied to an accepted corrector before its evaluation (P E C, project, E).
         self.project = None
 
-    def _weights(self, nodes, s=1.0):
-        """Weights ∫_0^s of the Lagrange basis on `nodes`, cached by their pattern: the
-        controller keeps h unchanged unless a real change is called for, so on a steady
-        stretch the nodes are the same integers step after step and the weights are computed
-        once (for dense output on a regular grid, the fractions s recur as well)."""
-        # Steps change by factors of two, so the nodes are dyadic up to the round-off of t:
-        # snapping them to multiples of 2⁻⁴⁰ makes equal patterns hit the cache. The
-        # weights are those of the snapped nodes, so a run does not depend on what earlier
-        # runs left in the cache.
-        snapped = np.rint(np.append(nodes, s) * 2.0**40)
-        key = tuple(snapped.astype(np.int64).tolist())
-        w = _WEIGHTS.get(key)
-        if w is None:
-            if len(_WEIGHTS) > 20000:
-                _WEIGHTS.clear()
-            snapped *= 2.0**-40
-            w = _WEIGHTS[key] = integration_weights(snapped[:-1], snapped[-1])[0]
-        return w
+    @staticmethod
+    def _weights(nodes, s=1.0):
+        """`step_weights`: the controller keeps h unchanged unless a real change is called
+        for, so on a steady stretch the nodes are the same integers step after step and
+        the weights are computed once (for dense output on a regular grid, the fractions s
+        recur as well)."""
+        return step_weights(nodes, s)
 
     def _norm(self, e, y_a, y_b):
         return error_norm(e, y_a, y_b, self.rtol, self.atol)
