@@ -188,3 +188,59 @@ def test_compiled_state_projection_agrees_with_the_python_path(rng):
     assert taken >= 60 and declined >= 1
     t, q, v = res.t[10], res.q[10], res.v[10]
     assert eng.project_state(t, q, v, 1e-13, skip_tol=1e-9) is False
+
+
+@needs_compiler
+def test_compiled_singularity_measure_agrees_with_the_python_path():
+    """The monitor's measurement over the double four-bar's first passage (t* ≈ 0.714 s),
+    compiled (one dgesdd and two Jacobians in C) and in Python: σ_min/σ_max and σ_min to
+    round-off, the rate (a difference quotient over 1e-7 of motion) to 1e-6 of its
+    scale, the same left singular vector (up to sign) and the same J̃."""
+    from mechsim.formulations.monitor import SingularityMonitor
+
+    mech = ms.examples.double_four_bar(2)
+    res = mech.simulate(t_end=0.8, method="projection", rtol=1e-9, atol=1e-11,
+                        output_step=1e-3)
+    prob = res.problem
+    fast, slow = SingularityMonitor(prob), SingularityMonitor(prob)
+    slow._engine = None
+    assert fast._engine is not None
+    rate_scale = 0.0
+    pairs = []
+    for k in range(0, len(res.t), 5):
+        t, q, v = res.t[k], res.q[k], res.v[k]
+        a, b = fast._measure(q, t, v), slow._measure(q, t, v)
+        pairs.append((a, b))
+        rate_scale = max(rate_scale, abs(b[1]))
+    assert min(b[0] for _, b in pairs) < 1e-3            # the passage is among them
+    for a, b in pairs:
+        assert a[0] == pytest.approx(b[0], rel=1e-9, abs=1e-14)
+        assert a[3] == pytest.approx(b[3], rel=1e-9, abs=1e-14)
+        assert abs(a[1] - b[1]) <= 1e-6 * rate_scale
+        if b[0] > 1e-6:                      # the vector is defined away from the passage
+            assert abs(abs(a[2] @ b[2]) - 1.0) < 1e-8
+        np.testing.assert_allclose(a[5], b[5], rtol=0, atol=1e-14)
+
+
+@needs_compiler
+def test_compiled_lu_condition_agrees_with_the_python_path():
+    """The hybrid's test for a return to LU (`Hybrid._lu_ready`): cond₁ of the block LU
+    pivoting picks, compiled and from `Partitioned.choose`, over the double four-bar's
+    first passage, to round-off; with the block it picks near the passage
+    ill-conditioned enough to matter (cond ≥ 1e3 there)."""
+    from mechsim.formulations.hybrid import Hybrid
+
+    mech = ms.examples.double_four_bar(2)
+    res = mech.simulate(t_end=0.8, method="projection", rtol=1e-9, atol=1e-11,
+                        output_step=1e-3)
+    prob = res.problem
+    hybrid = Hybrid(prob, 1e-8, 1e-10)
+    assert hybrid._compiled is not None
+    conds = []
+    for k in range(0, len(res.t), 4):
+        t, q = res.t[k], res.q[k]
+        J = prob.phi_q(q, t)
+        slow = hybrid.lu.choose(J, prob.m).block(J).condition()
+        assert hybrid._compiled.lu_condition(t, q) == pytest.approx(slow, rel=1e-9)
+        conds.append(slow)
+    assert max(conds) >= 1e3 and min(conds) < 100

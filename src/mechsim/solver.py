@@ -198,7 +198,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     def make(t, y, step, bound=max_step):
         step = first_step if h is not None else step      # a fixed step stays fixed
         kw = {"first_step": min(step, t_end - t, bound)} if step else {}
-        solver = solver_cls(form.rhs, t, y, t_end, rtol=rtol, atol=atol, max_step=bound, **kw)
+        solver = solver_cls(form.integrand, t, y, t_end, rtol=rtol, atol=atol, max_step=bound, **kw)
         if isinstance(solver, AdamsPECE):
             # Project inside the step, before its last evaluation: after_step then finds
             # the state on the constraints and the projection costs no extra evaluation.

@@ -44,18 +44,26 @@ typedef void (*mechsim_potrf_t)(char *, int *, double *, int *, int *);
 typedef void (*mechsim_pocon_t)(char *, int *, double *, int *, double *, double *, double *,
                                 int *, int *);
 typedef void (*mechsim_potrs_t)(char *, int *, int *, double *, int *, double *, int *, int *);
+typedef void (*mechsim_getrf_t)(int *, int *, double *, int *, int *, int *);
+typedef void (*mechsim_gesdd_t)(char *, int *, int *, double *, int *, double *, double *, int *,
+                                double *, int *, double *, int *, int *, int *);
 static mechsim_gesv_t mechsim_dgesv = 0;
 static mechsim_posv_t mechsim_dposv = 0;
 static mechsim_potrf_t mechsim_dpotrf = 0;
 static mechsim_pocon_t mechsim_dpocon = 0;
 static mechsim_potrs_t mechsim_dpotrs = 0;
+static mechsim_gesdd_t mechsim_dgesdd = 0;
+static mechsim_getrf_t mechsim_dgetrf = 0;
 
-void mechsim_engine_init(void *gesv, void *posv, void *potrf, void *pocon, void *potrs) {
+void mechsim_engine_init(void *gesv, void *posv, void *potrf, void *pocon, void *potrs,
+                         void *gesdd, void *getrf) {
   mechsim_dgesv = (mechsim_gesv_t)gesv;
   mechsim_dposv = (mechsim_posv_t)posv;
   mechsim_dpotrf = (mechsim_potrf_t)potrf;
   mechsim_dpocon = (mechsim_pocon_t)pocon;
   mechsim_dpotrs = (mechsim_potrs_t)potrs;
+  mechsim_dgesdd = (mechsim_gesdd_t)gesdd;
+  mechsim_dgetrf = (mechsim_getrf_t)getrf;
 }
 
 /* The partition and the last accepted step; buffers owned by the Python side. */
@@ -198,7 +206,7 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
 /* The projection method's accelerations where J W J^T is well conditioned (there they
    are the exact constrained accelerations, as `Projection.accelerations` computes them by
    Cholesky): qdd = W Q - W J^T lam, (J W J^T) lam = J W Q - gamma, with J = Phi_q and
-   gamma from the C twins. With min_rcond >= 0, 1 unless LAPACK's estimate of 1/cond_1 of
+   gamma from the C twins, into c->out as [v; qdd]. With min_rcond >= 0, 1 unless LAPACK's estimate of 1/cond_1 of
    J W J^T (norm bounded by m max S_ii, as `dense.cholesky_conditioned`) exceeds it; 1
    wherever the Cholesky factorisation fails. */
 typedef struct {
@@ -240,10 +248,11 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
   if (cholesky(c, S, diag, cw, min_rcond)) return 1;
   mechsim_dpotrs(&uplo, &M, &nrhs, S, &M, lam, &M, &info);
   if (info != 0) return 1;
+  memcpy(c->out, c->v, n * sizeof(double));
   for (int64_t j = 0; j < n; j++) {
     double s = 0.0;
     for (int64_t i = 0; i < m; i++) s += J[i * n + j] * lam[i];
-    c->out[j] = wq[j] - winv[j] * s;
+    c->out[n + j] = wq[j] - winv[j] * s;
   }
   return 0;
 }
@@ -327,6 +336,100 @@ int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, doub
   c->count = count;
   return 0;
 }
+
+/* J~ = Phi_q W^(1/2) at (q, t) into Jt (row-major m x n). */
+static void scaled_jacobian(mechsim_projection *c, const double *q, double t, double *Jt) {
+  const int64_t n = c->n, m = c->m;
+  memset(Jt, 0, m * n * sizeof(double));
+  mechsim_phi_q(q, t, c->p, Jt);
+  for (int64_t i = 0; i < m; i++)
+    for (int64_t j = 0; j < n; j++) Jt[i * n + j] *= sqrt(c->winv[j]);
+}
+
+/* The singularity monitor's measurement (`SingularityMonitor._measure`, m <= n): the
+   extreme singular values of J~ = Phi_q W^(1/2) at c->q by LAPACK's dgesdd and, with
+   eps > 0, their derivatives along the motion, u^T dJ~ v with dJ~ from J~ at
+   (q + eps v, t + eps). out: [s_min, s_max, ds_min, ds_max, u_min (m)]; J~ in Jt.
+   1 where the SVD fails. */
+int mechsim_measure(mechsim_projection *c, double t, double eps, double *out, double *Jt,
+                    double *svd_work, int64_t lwork) {
+  const int64_t n = c->n, m = c->m;
+  double *A = c->work, *sig = A + m * n, *U = sig + m, *VT = U + n * m, *J1 = VT + m * m;
+  double *q1 = J1 + m * n;
+  scaled_jacobian(c, c->q, t, Jt);
+  memcpy(A, Jt, m * n * sizeof(double));
+  /* Row-major J~ is J~^T column-major (n x m): J~^T = U S VT, so the left singular
+     vectors of J~ are the rows of VT and its right ones the columns of U. */
+  char jobz = 'S';
+  int N = (int)n, M = (int)m, LW = (int)lwork, info = 0;
+  mechsim_dgesdd(&jobz, &N, &M, A, &N, sig, U, &N, VT, &M, svd_work, &LW, c->iwork, &info);
+  if (info != 0) return 1;
+  const int64_t k = m - 1;
+  out[0] = sig[k];
+  out[1] = sig[0];
+  out[2] = out[3] = 0.0;
+  for (int64_t i = 0; i < m; i++) out[4 + i] = VT[k + i * m];
+  if (eps > 0.0) {
+    for (int64_t j = 0; j < n; j++) q1[j] = c->q[j] + eps * c->v[j];
+    scaled_jacobian(c, q1, t + eps, J1);
+    double dmin = 0.0, dmax = 0.0;
+    for (int64_t i = 0; i < m; i++) {
+      double smin = 0.0, smax = 0.0;
+      for (int64_t j = 0; j < n; j++) {
+        const double d = J1[i * n + j] - Jt[i * n + j];
+        smin += d * U[j + k * n];
+        smax += d * U[j];
+      }
+      dmin += VT[k + i * m] * smin;
+      dmax += VT[i * m] * smax;
+    }
+    out[2] = dmin / eps;
+    out[3] = dmax / eps;
+  }
+  return 0;
+}
+
+/* ||A||_1 ||A^-1||_1 of the block A = Phi_q D that `Partitioned.choose` picks at (c->q, t)
+   for a Phi_q of full row rank (m <= n): the dependent coordinates are the first m of
+   the row permutation of LU with partial pivoting of Phi_q^T. INFINITY where the
+   pivoting or the block is singular. */
+double mechsim_lu_condition(mechsim_projection *c, double t) {
+  const int64_t n = c->n, m = c->m;
+  double *J = c->work, *F = J + m * n, *A = F + m * n, *X = A + m * m;
+  int64_t *perm = (int64_t *)(X + m * m);
+  memset(J, 0, m * n * sizeof(double));
+  mechsim_phi_q(c->q, t, c->p, J);
+  memcpy(F, J, m * n * sizeof(double));
+  /* Row-major J is J^T column-major (n x m), the matrix `choose` factors. */
+  int N = (int)n, M = (int)m, info = 0;
+  mechsim_dgetrf(&N, &M, F, &N, c->iwork, &info);
+  if (info < 0) return INFINITY;
+  for (int64_t j = 0; j < n; j++) perm[j] = j;
+  for (int64_t i = 0; i < m; i++) {
+    const int64_t p = c->iwork[i] - 1, s = perm[i];
+    perm[i] = perm[p];
+    perm[p] = s;
+  }
+  double norm = 0.0, inorm = 0.0;
+  for (int64_t k = 0; k < m; k++) {
+    double col = 0.0;
+    for (int64_t i = 0; i < m; i++) {
+      const double a = J[i * n + perm[k]];
+      A[i + k * m] = a;                       /* column-major */
+      X[i + k * m] = i == k ? 1.0 : 0.0;
+      col += fabs(a);
+    }
+    if (col > norm) norm = col;
+  }
+  mechsim_dgesv(&M, &M, A, &M, c->iwork, X, &M, &info);
+  if (info != 0) return INFINITY;
+  for (int64_t k = 0; k < m; k++) {
+    double col = 0.0;
+    for (int64_t i = 0; i < m; i++) col += fabs(X[i + k * m]);
+    if (col > inorm) inorm = col;
+  }
+  return norm * inorm;
+}
 """
 
 _HASH = hashlib.sha256(SOURCE.encode()).hexdigest()[:12]
@@ -376,7 +479,7 @@ def library(model):
         return None
     try:
         lib = ctypes.CDLL(str(target))
-        routines = ("dgesv", "dposv", "dpotrf", "dpocon", "dpotrs")
+        routines = ("dgesv", "dposv", "dpotrf", "dpocon", "dpotrs", "dgesdd", "dgetrf")
         lib.mechsim_engine_init.argtypes = [ctypes.c_void_p] * len(routines)
         lib.mechsim_engine_init.restype = None
         lib.mechsim_engine_init(*map(_lapack, routines))
@@ -390,6 +493,12 @@ def library(model):
         fn.restype = ctypes.c_int
         fn = lib.mechsim_project_state
         fn.argtypes = [ctypes.c_void_p] + [ctypes.c_double] * 4 + [ctypes.c_int64] * 2
+        fn.restype = ctypes.c_int
+        fn = lib.mechsim_lu_condition
+        fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_double], ctypes.c_double
+        fn = lib.mechsim_measure
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double] + \
+            [ctypes.c_void_p] * 3 + [ctypes.c_int64]
         fn.restype = ctypes.c_int
     except (OSError, AttributeError, KeyError):
         return None
@@ -482,15 +591,22 @@ class ProjectionEngine:
         n, m = problem.n, problem.m
         self.p = np.ascontiguousarray(problem.p, dtype=float)
         self.winv = np.ascontiguousarray(problem.inverse_mass_diagonal, dtype=float)
-        self.q, self.v, self.Q, self.out = (np.zeros(n) for _ in range(4))
-        self.work = np.zeros(m * n + m + n + m + m * m + 3 * m)
-        self.iwork = np.zeros(max(m, 1), dtype=np.intc)
+        self.y, self.Q, self.out = np.zeros(2 * n), np.zeros(n), np.zeros(2 * n)
+        self.q, self.v = self.y[:n], self.y[n:]
+        self.work = np.zeros(3 * m * n + 2 * m * m + 5 * m + 2 * n)
+        self.iwork = np.zeros(max(8 * m, 1), dtype=np.intc)
+        k = min(m, n)
+        self.svd_work = np.zeros(3 * k + max(max(m, n), 5 * k * k + 4 * k) + 64)
+        self.measured, self.Jt = np.zeros(4 + m), np.zeros((m, n))
         self.ctx = _ProjectionContext(n=n, m=m, **{
             name: getattr(self, name).ctypes.data
             for name in ("p", "winv", "q", "v", "Q", "out", "work", "iwork")})
+        self.n = n
         self._ptr = ctypes.addressof(self.ctx)
         self._fn = lib.mechsim_projection_accelerations
         self._project = lib.mechsim_project_state
+        self._measure = lib.mechsim_measure
+        self._lu_condition = lib.mechsim_lu_condition
         self.counters = problem.counters
 
     def accelerations(self, t, q, v, Q, min_rcond):
@@ -498,6 +614,14 @@ class ProjectionEngine:
         or (min_rcond ≥ 0) its reciprocal condition estimate is not above min_rcond."""
         self.q[:] = q
         self.v[:] = v
+        self.Q[:] = Q
+        if self._fn(self._ptr, t, min_rcond):
+            return None
+        return self.out[self.n:].copy()
+
+    def rhs(self, t, y, Q, min_rcond):
+        """`accelerations` as the right-hand side [v; q̈] at y = [q; v]."""
+        self.y[:] = y
         self.Q[:] = Q
         if self._fn(self._ptr, t, min_rcond):
             return None
@@ -519,3 +643,24 @@ class ProjectionEngine:
             return None
         self.counters.projections += self.ctx.count
         return self.q.copy(), self.v.copy()
+
+    def measure(self, t, q, v=None, eps=0.0):
+        """The extreme singular values of J̃ = Φ_q M^{-1/2} at (q, t) and, with eps > 0,
+        their rates along v (from J̃ at (q + eps v, t + eps)): (σ_min, σ_max, σ̇_min,
+        σ̇_max, left singular vector of σ_min, J̃); None where the SVD fails. Needs
+        m ≤ n (else σ_min is 0 by count)."""
+        self.q[:] = q
+        if eps > 0.0:
+            self.v[:] = v
+        out = self.measured
+        if self._measure(self._ptr, t, eps, out.ctypes.data, self.Jt.ctypes.data,
+                         self.svd_work.ctypes.data, self.svd_work.size):
+            return None
+        smin, smax, dmin, dmax = out[:4].tolist()
+        return smin, smax, dmin, dmax, out[4:].copy(), self.Jt.copy()
+
+    def lu_condition(self, t, q):
+        """cond₁ of the dependent block Φ_q D that LU partitioning (`Partitioned.choose`)
+        picks at (q, t), for Φ_q of full row rank; inf where it is singular."""
+        self.q[:] = q
+        return self._lu_condition(self._ptr, t)

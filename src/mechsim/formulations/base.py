@@ -63,6 +63,13 @@ class Formulation:
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
+    @property
+    def integrand(self):
+        """The right-hand side the integrator about to start calls: `rhs` (a manager of
+        formulations hands over its active one's, a call less per evaluation; it restarts
+        the integrator at every switch)."""
+        return self.rhs
+
     def state(self, t: float, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from ..results import Switch
 from .base import Formulation
-from .partitioned import Partitioned
+from .partitioned import SPARSE_MIN, Partitioned
 from .projection import Projection
 
 
@@ -35,6 +35,8 @@ class Hybrid(Formulation):
         self._step = 0
         self._limit = None                # the step limit LU's last step was taken under
         self._held = 0                    # consecutive LU steps held by that limit
+        # The compiled condition of LU's block (`_lu_ready`) where the block is dense.
+        self._compiled = self.proj._compiled if problem.m < SPARSE_MIN else None
 
     def initial_state(self, t, q, v):
         s = self.monitor.measure(q, t)[0] if self.monitor else 1.0
@@ -55,6 +57,10 @@ class Hybrid(Formulation):
     def rhs(self, t, y):
         return self.active.rhs(t, y)
 
+    @property
+    def integrand(self):
+        return self.active.rhs
+
     def state(self, t, y):
         return self.active.state(t, y)
 
@@ -71,11 +77,13 @@ class Hybrid(Formulation):
     def _lu_ready(self, q, t) -> bool:
         """Would LU partitioning be well conditioned here? cond(Φ_u) of the set its pivoting
         picks, against a tenth of its re-partition threshold."""
-        J = self.problem.phi_q(q, t)
         mon = self.monitor
         # Asked only where the monitor finds σ_min/σ_max clear of a passage: Φ_q has full
         # row rank there, unless that ratio is itself at round-off (redundant constraints).
         full = mon is not None and mon.last * mon.peak > 1e-6
+        if full and self._compiled is not None:
+            return self._compiled.lu_condition(t, q) < 0.1 * self.lu.cond_max
+        J = self.problem.phi_q(q, t)
         basis = self.lu.choose(J, J.shape[0] if full else None)
         return basis.block(J).condition() < 0.1 * self.lu.cond_max
 

@@ -54,6 +54,7 @@ class SingularityMonitor:
         self._skipped = 0            # steps skipped since that observation
         self.peak_rate = 0.0         # fastest |ṡ|/peak seen
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
+        self._engine = _compiled(problem)
 
     def _jacobian(self, q, t):
         """J̃ = Φ_q L⁻ᵀ, the mass-scaled Jacobian."""
@@ -61,32 +62,42 @@ class SingularityMonitor:
 
     def measure(self, q, t, v=None):
         """(s, ṡ, left singular vector of σ_min); ṡ = 0 when v is None."""
-        return self._measure(q, t, v, self._jacobian(q, t))[:3]
+        return self._measure(q, t, v)[:3]
 
-    def _measure(self, q, t, v, J):
-        """`measure` at J = J̃(q), also returning (σ_min, σ_max) (σ_max = 0: rank lost)."""
+    def _measure(self, q, t, v, J=None):
+        """`measure`, also returning σ_min, σ_max (σ_max = 0: rank lost) and J̃ = J̃(q)
+        (`J` if the caller has it)."""
+        speed = float(np.max(np.abs(v))) if v is not None and v.size else 0.0
+        eps = 1e-7 / speed if speed > 0.0 else 0.0
+        if self._engine is not None:
+            got = self._engine.measure(t, q, v, eps)
+            if got is not None:
+                smin, smax, d_min, d_max, u_min, J = got
+                if not smax > 0.0:
+                    return 0.0, 0.0, u_min, 0.0, 0.0, J
+                rate = (d_min * smax - smin * d_max) / smax ** 2 if eps else 0.0
+                return smin / smax, rate, u_min, smin, smax, J
+        if J is None:
+            J = self._jacobian(q, t)
         m = J.shape[0]
         if m == 0:
-            return 1.0, 0.0, np.zeros(0), 1.0, 1.0
+            return 1.0, 0.0, np.zeros(0), 1.0, 1.0, J
         pair = self._banded(J)
         if pair is None:
             U, sig, Vt = dense.svd(J)
             k = m - 1
             if k >= sig.size or sig[0] <= 0.0:
-                return 0.0, 0.0, U[:, -1], 0.0, 0.0
+                return 0.0, 0.0, U[:, -1], 0.0, 0.0, J
             pair = (sig[k], U[:, k], Vt[k]), (sig[0], U[:, 0], Vt[0])
         (smin, u_min, v_min), (smax, u_max, v_max) = pair
         s = float(smin / smax)
         rate = 0.0
-        if v is not None:
-            speed = float(np.max(np.abs(v)))
-            if speed > 0.0:
-                eps = 1e-7 / speed
-                dJ = (self._jacobian(q + eps * v, t + eps) - J) / eps
-                d_min = u_min @ dJ @ v_min
-                d_max = u_max @ dJ @ v_max
-                rate = float((d_min * smax - smin * d_max) / smax ** 2)
-        return s, rate, u_min, float(smin), float(smax)
+        if eps:
+            dJ = (self._jacobian(q + eps * v, t + eps) - J) / eps
+            d_min = u_min @ dJ @ v_min
+            d_max = u_max @ dJ @ v_max
+            rate = float((d_min * smax - smin * d_max) / smax ** 2)
+        return s, rate, u_min, float(smin), float(smax), J
 
     def _banded(self, J):
         """((σ_min, u, v), (σ_max, u, v)) of J̃ from the banded Schur complement of a large
@@ -139,9 +150,7 @@ class SingularityMonitor:
         if skip:
             self._skipped += 1
             return self.last
-        if J is None:
-            J = self._jacobian(q, t)
-        raw, rate, u, smin, smax = self._measure(q, t, v, J)
+        raw, rate, u, smin, smax, J = self._measure(q, t, v, J)
         self._measured = (J, smin, smax) if smax > 0.0 else None
         self.peak = max(self.peak, raw)
         s, rate = (raw / self.peak, rate / self.peak) if self.peak > 0 else (0.0, 0.0)
@@ -206,3 +215,13 @@ class SingularityMonitor:
             t0, tmin, smin, joints, bridged = self._open
             self.passages.append(SingularPassage(t0, t, smin, joints, tmin, bridged))
             self._open = None
+
+
+def _compiled(problem):
+    """The compiled measurement (`mechsim.codegen.engine`) where the problem has it and
+    σ_min is a singular value of J̃ (m ≤ n); else None."""
+    if problem.m > problem.n:
+        return None
+    from ..codegen import engine
+    lib = engine.for_problem(problem)
+    return None if lib is None else engine.ProjectionEngine(lib, problem)

@@ -88,6 +88,8 @@ class Projection(FullCoordinates):
                              f"seed paper), got {self.factorization!r}")
         self._redundant = 0          # singular values found to stay at zero (redundancy)
         self._compiled = self._compiled_engine()
+        # The compiled path's bound on LAPACK's estimate of 1/cond₁ of J̃J̃ᵀ (see `_clear`).
+        self._min_rcond = max(100, problem.m) * self.rcond ** 2
         # Set after an accepted step far from any passage: until the next one, the
         # integrator's evaluations skip the condition estimate (see `_far_from_band`).
         self._far = False
@@ -197,6 +199,20 @@ class Projection(FullCoordinates):
                 and mon.last >= mon.leave and mon.leave * mon.peak > 100.0 * self.rcond
                 and not mon.predicted_within(3.0 * self.last_step))
 
+    def rhs(self, t, y):
+        """[v; q̈], in one compiled call where it takes the evaluation."""
+        if self._compiled is None:
+            return super().rhs(t, y)
+        prob, n = self.problem, self.n
+        prob.counters.rhs += 1
+        q, v = y[:n], y[n:]
+        Q = prob.forces(t, q, v)
+        out = self._compiled.rhs(t, y, Q, -1.0 if self._far else self._min_rcond)
+        if out is not None:
+            prob.counters.factorizations += 1
+            return out
+        return np.concatenate([v, self._accelerations(t, q, v, Q, None)])
+
     def accelerations(self, t, q, v, far=None):
         """q̈ at (t, q, v); `far`: skip the condition estimate (default: as the last
         accepted step decided, `_far_from_band`)."""
@@ -204,11 +220,15 @@ class Projection(FullCoordinates):
         Q = prob.forces(t, q, v)
         if self._compiled is not None:
             clear = self._far if far is None else far
-            out = self._compiled.accelerations(t, q, v, Q, -1.0 if clear
-                                               else max(100, prob.m) * self.rcond ** 2)
+            out = self._compiled.accelerations(t, q, v, Q, -1.0 if clear else self._min_rcond)
             if out is not None:
                 prob.counters.factorizations += 1
                 return out
+        return self._accelerations(t, q, v, Q, far)
+
+    def _accelerations(self, t, q, v, Q, far):
+        """`accelerations` in Python, under the applied forces Q."""
+        prob = self.problem
         J, gamma = prob.dynamics_terms(q, v, t)
         m = J.shape[0]
         banded = m and prob.schur is not None
@@ -327,9 +347,8 @@ class Projection(FullCoordinates):
             return super().project_now(t, y)
         q, v = y[:n], y[n:]
         if self._compiled is not None:
-            done = self._compiled.project_state(
-                t, q, v, 0.01 * self.projection_tol, max(100, prob.m) * self.rcond ** 2,
-                skip_tol=self.projection_tol)
+            done = self._compiled.project_state(t, q, v, 0.01 * self.projection_tol,
+                                                self._min_rcond, skip_tol=self.projection_tol)
             if done is False:
                 return None
             if done is not None:
