@@ -122,29 +122,46 @@ def test_the_engine_applies_only_where_its_assumptions_hold(tmp_path, monkeypatc
 
 @needs_compiler
 def test_compiled_projection_accelerations_agree_with_the_python_path():
-    """Across the double four-bar's first passage (t* ≈ 0.714 s): clear of the truncation
-    band the compiled accelerations equal the Python path's to round-off amplified by the
-    complement's condition (≤ 1e6 there); in the band the compiled path declines and the
-    SVD decides, as in Python."""
+    """Across the double four-bar's first passage (t* ≈ 0.714 s, sampled every 1 µs
+    around it): clear of the truncation band the compiled accelerations equal the Python
+    path's to round-off amplified by the condition (≤ 1e6 for the Cholesky factor); where
+    LAPACK's condition estimate declines the Cholesky factor, the compiled SVD takes
+    them; in the band (a singular value under the cut) the compiled path declines and
+    Python truncates and interpolates."""
+    from mechsim.formulations.monitor import SingularityMonitor
     from mechsim.formulations.projection import Projection
+    from mechsim.solver import simulate
 
     mech = ms.examples.double_four_bar(2)
-    res = mech.simulate(t_end=0.8, method="projection", rtol=1e-9, atol=1e-11,
-                        output_step=1e-3)
+    run = dict(method="projection", rtol=1e-9, atol=1e-11)
+    res = mech.simulate(t_end=0.8, output_step=1e-3, **run)
     prob = res.problem
+    k = int(np.searchsorted(res.t, 0.712))
+    near = simulate(prob, res.q[k], res.v[k], t_start=res.t[k], t_end=res.t[k] + 4e-3,
+                    output_step=1e-6, **run)
     fast, slow = Projection(prob, 1e-9, 1e-11), Projection(prob, 1e-9, 1e-11)
     slow._compiled = None
     assert fast._compiled is not None
     min_rcond = max(100, prob.m) * fast.rcond ** 2
-    taken = declined = 0
-    for k in range(600, len(res.t), 3):
-        t, q, v = res.t[k], res.q[k], res.v[k]
-        a, b = fast.accelerations(t, q, v, far=False), slow.accelerations(t, q, v, far=False)
-        np.testing.assert_allclose(a, b, rtol=0, atol=1e-9 * np.abs(b).max())
-        direct = fast._compiled.accelerations(t, q, v, prob.forces(t, q, v), min_rcond)
-        taken += direct is not None
-        declined += direct is None
-    assert taken >= 20 and declined >= 2
+    monitor = SingularityMonitor(prob)
+    counts = {"cholesky": 0, "svd": 0, "band": 0}
+    samples = [(res, range(600, len(res.t), 3)), (near, range(0, len(near.t), 7))]
+    for run_, ks in samples:
+        for k in ks:
+            t, q, v = run_.t[k], run_.q[k], run_.v[k]
+            a = fast.accelerations(t, q, v, far=False)
+            b = slow.accelerations(t, q, v, far=False)
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-9 * np.abs(b).max())
+            Q = prob.forces(t, q, v)
+            if fast._compiled.accelerations(t, q, v, Q, min_rcond) is not None:
+                counts["cholesky"] += 1
+            elif fast._compiled.accelerations(t, q, v, Q, min_rcond, fast.rcond) is not None:
+                counts["svd"] += 1
+                assert monitor.measure(q, t)[0] > fast.rcond
+            else:
+                counts["band"] += 1
+                assert monitor.measure(q, t)[0] <= fast.rcond
+    assert counts["cholesky"] >= 20 and counts["svd"] >= 20 and counts["band"] >= 2, counts
 
 
 @needs_compiler

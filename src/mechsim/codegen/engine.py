@@ -207,13 +207,16 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
    are the exact constrained accelerations, as `Projection.accelerations` computes them by
    Cholesky): qdd = W Q - W J^T lam, (J W J^T) lam = J W Q - gamma, with J = Phi_q and
    gamma from the C twins, into c->out as [v; qdd]. With min_rcond >= 0, 1 unless LAPACK's estimate of 1/cond_1 of
-   J W J^T (norm bounded by m max S_ii, as `dense.cholesky_conditioned`) exceeds it; 1
-   wherever the Cholesky factorisation fails. */
+   J W J^T (norm bounded by m max S_ii, as `dense.cholesky_conditioned`) exceeds it, or
+   the Cholesky factorisation fails; then, with cut > 0, the SVD decides
+   (`svd_accelerations`). */
 typedef struct {
   int64_t n, m, count;
   const double *p, *winv;
   double *q, *v, *Q, *out, *work;
   int *iwork;
+  double *svd_work;
+  int64_t lwork;
 } mechsim_projection;
 
 /* The Cholesky factor of S = J W J^T in place (upper triangle); 1 where it fails or, with
@@ -233,7 +236,44 @@ static int cholesky(mechsim_projection *c, double *S, double diag, double *cw,
   return 0;
 }
 
-int mechsim_projection_accelerations(mechsim_projection *c, double t, double min_rcond) {
+/* The projection method's accelerations by the SVD of J~ = J W^(1/2) (m <= n), as
+   `Projection.accelerations` computes them where truncation drops nothing: every
+   singular value above cut * sigma_max. x = W^(1/2) Q, x -= V V^T x - V S^-1 U^T g,
+   qdd = W^(1/2) x into c->out as [v; qdd]. 1 where some singular value is at or below
+   the cut (the band: Python truncates and interpolates) or the SVD fails. */
+static int svd_accelerations(mechsim_projection *c, const double *J, const double *g,
+                             double cut, double *buf) {
+  const int64_t n = c->n, m = c->m;
+  double *A = buf, *sig = A + m * n, *U = sig + m, *VT = U + n * m, *x = VT + m * m;
+  double *y = x + n;
+  if (m > n) return 1;
+  for (int64_t i = 0; i < m; i++)
+    for (int64_t j = 0; j < n; j++) A[i * n + j] = J[i * n + j] * sqrt(c->winv[j]);
+  /* Row-major J~ is J~^T column-major (n x m) = U S VT: the right singular vectors of
+     J~ are the columns of U, the left ones the rows of VT. */
+  char jobz = 'S';
+  int N = (int)n, M = (int)m, LW = (int)c->lwork, info = 0;
+  mechsim_dgesdd(&jobz, &N, &M, A, &N, sig, U, &N, VT, &M, c->svd_work, &LW, c->iwork,
+                 &info);
+  if (info != 0 || !(sig[0] > 0.0) || !(sig[m - 1] > cut * sig[0])) return 1;
+  for (int64_t j = 0; j < n; j++) x[j] = sqrt(c->winv[j]) * c->Q[j];
+  for (int64_t k = 0; k < m; k++) {            /* y_k = V_k^T x - (U^T g)_k / sigma_k */
+    double vx = 0.0, ug = 0.0;
+    for (int64_t j = 0; j < n; j++) vx += U[j + k * n] * x[j];
+    for (int64_t i = 0; i < m; i++) ug += VT[k + i * m] * g[i];
+    y[k] = vx - ug / sig[k];
+  }
+  memcpy(c->out, c->v, n * sizeof(double));
+  for (int64_t j = 0; j < n; j++) {
+    double s = 0.0;
+    for (int64_t k = 0; k < m; k++) s += U[j + k * n] * y[k];
+    c->out[n + j] = sqrt(c->winv[j]) * (x[j] - s);
+  }
+  return 0;
+}
+
+int mechsim_projection_accelerations(mechsim_projection *c, double t, double min_rcond,
+                                     double cut) {
   const int64_t n = c->n, m = c->m;
   const double *winv = c->winv;
   double *J = c->work, *g = J + m * n, *wq = g + m, *lam = wq + n, *S = lam + m;
@@ -245,7 +285,8 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
   const double diag = schur_terms(n, m, J, winv, c->Q, g, wq, lam, S);
   char uplo = 'U';
   int M = (int)m, nrhs = 1, info = 0;
-  if (cholesky(c, S, diag, cw, min_rcond)) return 1;
+  if (cholesky(c, S, diag, cw, min_rcond))
+    return cut > 0.0 ? svd_accelerations(c, J, g, cut, cw + 3 * m) : 1;
   mechsim_dpotrs(&uplo, &M, &nrhs, S, &M, lam, &M, &info);
   if (info != 0) return 1;
   memcpy(c->out, c->v, n * sizeof(double));
@@ -489,7 +530,7 @@ def library(model):
         lib.mechsim_lu_states.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 5
         lib.mechsim_lu_states.restype = ctypes.c_int
         fn = lib.mechsim_projection_accelerations
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_double]
         fn.restype = ctypes.c_int
         fn = lib.mechsim_project_state
         fn.argtypes = [ctypes.c_void_p] + [ctypes.c_double] * 4 + [ctypes.c_int64] * 2
@@ -578,7 +619,8 @@ class PartitionedEngine:
 
 class _ProjectionContext(ctypes.Structure):
     _fields_ = [(name, ctypes.c_int64) for name in ("n", "m", "count")] + [
-        (name, ctypes.c_void_p) for name in ("p", "winv", "q", "v", "Q", "out", "work", "iwork")]
+        (name, ctypes.c_void_p) for name in ("p", "winv", "q", "v", "Q", "out", "work", "iwork",
+                                             "svd_work")] + [("lwork", ctypes.c_int64)]
 
 
 class ProjectionEngine:
@@ -593,14 +635,15 @@ class ProjectionEngine:
         self.winv = np.ascontiguousarray(problem.inverse_mass_diagonal, dtype=float)
         self.y, self.Q, self.out = np.zeros(2 * n), np.zeros(n), np.zeros(2 * n)
         self.q, self.v = self.y[:n], self.y[n:]
-        self.work = np.zeros(3 * m * n + 2 * m * m + 5 * m + 2 * n)
+        self.work = np.zeros(3 * m * n + 2 * m * m + 8 * m + 2 * n)
         self.iwork = np.zeros(max(8 * m, 1), dtype=np.intc)
         k = min(m, n)
         self.svd_work = np.zeros(3 * k + max(max(m, n), 5 * k * k + 4 * k) + 64)
         self.measured, self.Jt = np.zeros(4 + m), np.zeros((m, n))
         self.ctx = _ProjectionContext(n=n, m=m, **{
             name: getattr(self, name).ctypes.data
-            for name in ("p", "winv", "q", "v", "Q", "out", "work", "iwork")})
+            for name in ("p", "winv", "q", "v", "Q", "out", "work", "iwork", "svd_work")},
+            lwork=self.svd_work.size)
         self.n = n
         self._ptr = ctypes.addressof(self.ctx)
         self._fn = lib.mechsim_projection_accelerations
@@ -609,21 +652,23 @@ class ProjectionEngine:
         self._lu_condition = lib.mechsim_lu_condition
         self.counters = problem.counters
 
-    def accelerations(self, t, q, v, Q, min_rcond):
-        """q̈ at (t, q, v) under the forces Q, or None where J W Jᵀ is not positive definite
-        or (min_rcond ≥ 0) its reciprocal condition estimate is not above min_rcond."""
+    def accelerations(self, t, q, v, Q, min_rcond, cut=0.0):
+        """q̈ at (t, q, v) under the forces Q by the Cholesky factor of J W Jᵀ where it is
+        positive definite and (min_rcond ≥ 0) its reciprocal condition estimate is above
+        min_rcond; else, with cut > 0, by the SVD of J̃ where every singular value is
+        above cut σ_max (truncation drops nothing); else None."""
         self.q[:] = q
         self.v[:] = v
         self.Q[:] = Q
-        if self._fn(self._ptr, t, min_rcond):
+        if self._fn(self._ptr, t, min_rcond, cut):
             return None
         return self.out[self.n:].copy()
 
-    def rhs(self, t, y, Q, min_rcond):
+    def rhs(self, t, y, Q, min_rcond, cut=0.0):
         """`accelerations` as the right-hand side [v; q̈] at y = [q; v]."""
         self.y[:] = y
         self.Q[:] = Q
-        if self._fn(self._ptr, t, min_rcond):
+        if self._fn(self._ptr, t, min_rcond, cut):
             return None
         return self.out.copy()
 

@@ -207,7 +207,7 @@ class Projection(FullCoordinates):
         prob.counters.rhs += 1
         q, v = y[:n], y[n:]
         Q = prob.forces(t, q, v)
-        out = self._compiled.rhs(t, y, Q, -1.0 if self._far else self._min_rcond)
+        out = self._compiled.rhs(t, y, Q, -1.0 if self._far else self._min_rcond, self.rcond)
         if out is not None:
             prob.counters.factorizations += 1
             return out
@@ -220,7 +220,8 @@ class Projection(FullCoordinates):
         Q = prob.forces(t, q, v)
         if self._compiled is not None:
             clear = self._far if far is None else far
-            out = self._compiled.accelerations(t, q, v, Q, -1.0 if clear else self._min_rcond)
+            out = self._compiled.accelerations(t, q, v, Q, -1.0 if clear else self._min_rcond,
+                                               self.rcond)
             if out is not None:
                 prob.counters.factorizations += 1
                 return out
