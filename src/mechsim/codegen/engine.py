@@ -1,4 +1,4 @@
-"""The partitioned formulations' right-hand side, compiled with the model's C twins.
+"""The evaluations of small rigid mechanisms, compiled with the model's C twins.
 
 An evaluation of "lu" or "qr" on a small rigid mechanism is about twenty small numpy and
 LAPACK calls (the chord Newton on the dependent coordinates, Φ_q, the velocity solve, γ
@@ -10,12 +10,24 @@ between them crosses into Python), with LAPACK's dgesv and dposv taken from scip
 LAPACK (the function pointers `scipy.linalg.cython_lapack` exports). Python keeps the
 forces, which may be any user code, between the state and the accelerations.
 
+The same library serves the projection method and the solver manager:
+
+- the projection method's accelerations (`ProjectionEngine.accelerations`, `rhs`): by the
+  Cholesky factor of J W Jᵀ where LAPACK's condition estimate clears it, else by the SVD
+  of J̃ where no singular value is under the truncation cut;
+- the projection of a state onto the constraints (`project_state`), one Cholesky factor
+  for the positions' chord Newton and the velocities;
+- the singularity monitor's σ_min, σ_max and their rates (`measure`);
+- the hybrid's test for a return to LU, cond₁ of the block LU pivoting picks
+  (`lu_condition`).
+
 The compiled path takes only the plain case: a chord Newton converging by the same rule as
 `Partitioned._newton` (residual max|Φ| ≤ newton_tol, each iteration at least four times
-smaller), a nonsingular square Φ_q D and a positive definite Schur complement. Anything
-else (a stalled chord that needs fresh Jacobians, redundant constraints, Newton failing
-altogether) returns a status and the Python path takes the evaluation from the start, so
-the two agree on every decision and differ only in the rounding of their sums.
+smaller), a nonsingular square Φ_q D and a positive definite Schur complement; for the
+projection method, a state outside the truncation band. Anything else (a stalled chord
+that needs fresh Jacobians, redundant constraints, Newton failing altogether, a singular
+value under the cut) returns a status and the Python path takes the evaluation from the
+start, so the two agree on every decision and differ only in the rounding of their sums.
 
 The library is built beside the cached model module on first use (`library`); without a
 compiler, with `MECHSIM_NO_COMPILE` set, or for a model kept in memory only, there is none

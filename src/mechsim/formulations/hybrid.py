@@ -1,8 +1,9 @@
 """The hybrid solver manager of seed 001, section 3 (steps 1–13).
 
 LU coordinate partitioning is cheap per step but may jump branch at a singular
-configuration; the projection method passes singular configurations but costs an SVD per
-evaluation. The manager integrates with LU, switches to projection when the singularity
+configuration; the projection method passes singular configurations but, as the seed
+computes it, costs an SVD per evaluation (mechsim's takes a Cholesky factor clear of the
+band and is about as cheap as LU; see `mechsim.formulations.projection`). The manager integrates with LU, switches to projection when the singularity
 monitor reports that Φ_q is nearly rank-deficient (σ_min/σ_max below its `enter` threshold) —
 or on the paper's symptom of the independent set changing `repartition_burst` times within
 `burst_steps` steps — and switches back to LU after `stable_steps` consecutive steps with the

@@ -38,11 +38,12 @@ minimum-norm (row-space) correction −I_R Φ — whenever ‖Φ‖ exceeds `pro
 
 `factorization="svd"` is the seed's own method: the SVD at every evaluation and projection,
 also clear of the band. Same steps and motion (the parallelogram's crank to 1e-10 over 2 s);
-on the double four-bar (10 s, rtol 1e-8) a run takes 0.465 s against 0.137 s for this one
-with its compiled accelerations (`mechsim.codegen.engine`; 1946 M against 870 M
-instructions in Python), which is where the seed's Table 2 finds projection dear: with
-the SVD every time, the hybrid (0.162 s) costs 0.35× the projection method; against this
-one, 1.18×.
+on the double four-bar (10 s, rtol 1e-8) a run takes 1918 M instructions against 436 M
+for this one with its compiled evaluations and projections (`mechsim.codegen.engine`:
+Cholesky clear of the band, the SVD in C near it, Python only inside it), 0.585 s
+against 0.097 s in one `mechsim bench`. That is where the seed's Table 2 finds projection
+dear: with the SVD every time, the hybrid (450 M) costs 0.23× the projection method;
+against this one, 1.03×.
 """
 
 from __future__ import annotations
