@@ -218,10 +218,10 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
 /* The projection method's accelerations where J W J^T is well conditioned (there they
    are the exact constrained accelerations, as `Projection.accelerations` computes them by
    Cholesky): qdd = W Q - W J^T lam, (J W J^T) lam = J W Q - gamma, with J = Phi_q and
-   gamma from the C twins, into c->out as [v; qdd]. With min_rcond >= 0, 1 unless LAPACK's estimate of 1/cond_1 of
-   J W J^T (norm bounded by m max S_ii, as `dense.cholesky_conditioned`) exceeds it, or
-   the Cholesky factorisation fails; then, with cut > 0, the SVD decides
-   (`svd_accelerations`). */
+   gamma from the C twins, into c->out as [v; qdd]. The Cholesky factor serves unless it
+   fails or, with min_rcond >= 0, LAPACK's estimate of 1/cond_1 of J W J^T (norm bounded
+   by m max S_ii, as `dense.cholesky_conditioned`) is not above min_rcond; then, with
+   cut > 0, the SVD decides (`svd_accelerations`), else 1. */
 typedef struct {
   int64_t n, m, count;
   const double *p, *winv;
@@ -248,6 +248,24 @@ static int cholesky(mechsim_projection *c, double *S, double diag, double *cw,
   return 0;
 }
 
+/* A = J W^(1/2) (row-major m x n; A may be J). */
+static void scale_columns(const mechsim_projection *c, const double *J, double *A) {
+  for (int64_t i = 0; i < c->m; i++)
+    for (int64_t j = 0; j < c->n; j++) A[i * c->n + j] = J[i * c->n + j] * sqrt(c->winv[j]);
+}
+
+/* The thin SVD of A = J~ (row-major m x n, m <= n; destroyed) by LAPACK's dgesdd: the
+   singular values sig (largest first), the right singular vectors of J~ as the columns
+   of U (n x m, column-major) and the left ones as the rows of VT (m x m, column-major):
+   row-major J~ is J~^T column-major, and J~^T = U S VT. 1 where dgesdd fails. */
+static int scaled_svd(mechsim_projection *c, double *A, double *sig, double *U, double *VT) {
+  char jobz = 'S';
+  int N = (int)c->n, M = (int)c->m, LW = (int)c->lwork, info = 0;
+  mechsim_dgesdd(&jobz, &N, &M, A, &N, sig, U, &N, VT, &M, c->svd_work, &LW, c->iwork,
+                 &info);
+  return info != 0;
+}
+
 /* The projection method's accelerations by the SVD of J~ = J W^(1/2) (m <= n), as
    `Projection.accelerations` computes them where truncation drops nothing: every
    singular value above cut * sigma_max. x = W^(1/2) Q, x -= V V^T x - V S^-1 U^T g,
@@ -259,15 +277,9 @@ static int svd_accelerations(mechsim_projection *c, const double *J, const doubl
   double *A = buf, *sig = A + m * n, *U = sig + m, *VT = U + n * m, *x = VT + m * m;
   double *y = x + n;
   if (m > n) return 1;
-  for (int64_t i = 0; i < m; i++)
-    for (int64_t j = 0; j < n; j++) A[i * n + j] = J[i * n + j] * sqrt(c->winv[j]);
-  /* Row-major J~ is J~^T column-major (n x m) = U S VT: the right singular vectors of
-     J~ are the columns of U, the left ones the rows of VT. */
-  char jobz = 'S';
-  int N = (int)n, M = (int)m, LW = (int)c->lwork, info = 0;
-  mechsim_dgesdd(&jobz, &N, &M, A, &N, sig, U, &N, VT, &M, c->svd_work, &LW, c->iwork,
-                 &info);
-  if (info != 0 || !(sig[0] > 0.0) || !(sig[m - 1] > cut * sig[0])) return 1;
+  scale_columns(c, J, A);
+  if (scaled_svd(c, A, sig, U, VT) || !(sig[0] > 0.0) || !(sig[m - 1] > cut * sig[0]))
+    return 1;
   for (int64_t j = 0; j < n; j++) x[j] = sqrt(c->winv[j]) * c->Q[j];
   for (int64_t k = 0; k < m; k++) {            /* y_k = V_k^T x - (U^T g)_k / sigma_k */
     double vx = 0.0, ug = 0.0;
@@ -392,11 +404,9 @@ int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, doub
 
 /* J~ = Phi_q W^(1/2) at (q, t) into Jt (row-major m x n). */
 static void scaled_jacobian(mechsim_projection *c, const double *q, double t, double *Jt) {
-  const int64_t n = c->n, m = c->m;
-  memset(Jt, 0, m * n * sizeof(double));
+  memset(Jt, 0, c->m * c->n * sizeof(double));
   mechsim_phi_q(q, t, c->p, Jt);
-  for (int64_t i = 0; i < m; i++)
-    for (int64_t j = 0; j < n; j++) Jt[i * n + j] *= sqrt(c->winv[j]);
+  scale_columns(c, Jt, Jt);
 }
 
 /* The singularity monitor's measurement (`SingularityMonitor._measure`, m <= n): the
@@ -404,19 +414,13 @@ static void scaled_jacobian(mechsim_projection *c, const double *q, double t, do
    eps > 0, their derivatives along the motion, u^T dJ~ v with dJ~ from J~ at
    (q + eps v, t + eps). out: [s_min, s_max, ds_min, ds_max, u_min (m)]; J~ in Jt.
    1 where the SVD fails. */
-int mechsim_measure(mechsim_projection *c, double t, double eps, double *out, double *Jt,
-                    double *svd_work, int64_t lwork) {
+int mechsim_measure(mechsim_projection *c, double t, double eps, double *out, double *Jt) {
   const int64_t n = c->n, m = c->m;
   double *A = c->work, *sig = A + m * n, *U = sig + m, *VT = U + n * m, *J1 = VT + m * m;
   double *q1 = J1 + m * n;
   scaled_jacobian(c, c->q, t, Jt);
   memcpy(A, Jt, m * n * sizeof(double));
-  /* Row-major J~ is J~^T column-major (n x m): J~^T = U S VT, so the left singular
-     vectors of J~ are the rows of VT and its right ones the columns of U. */
-  char jobz = 'S';
-  int N = (int)n, M = (int)m, LW = (int)lwork, info = 0;
-  mechsim_dgesdd(&jobz, &N, &M, A, &N, sig, U, &N, VT, &M, svd_work, &LW, c->iwork, &info);
-  if (info != 0) return 1;
+  if (scaled_svd(c, A, sig, U, VT)) return 1;
   const int64_t k = m - 1;
   out[0] = sig[k];
   out[1] = sig[0];
@@ -551,7 +555,7 @@ def library(model):
         fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_double], ctypes.c_double
         fn = lib.mechsim_measure
         fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double] + \
-            [ctypes.c_void_p] * 3 + [ctypes.c_int64]
+            [ctypes.c_void_p] * 2
         fn.restype = ctypes.c_int
     except (OSError, AttributeError, KeyError):
         return None
@@ -710,8 +714,7 @@ class ProjectionEngine:
         if eps > 0.0:
             self.v[:] = v
         out = self.measured
-        if self._measure(self._ptr, t, eps, out.ctypes.data, self.Jt.ctypes.data,
-                         self.svd_work.ctypes.data, self.svd_work.size):
+        if self._measure(self._ptr, t, eps, out.ctypes.data, self.Jt.ctypes.data):
             return None
         smin, smax, dmin, dmax = out[:4].tolist()
         return smin, smax, dmin, dmax, out[4:].copy(), self.Jt.copy()

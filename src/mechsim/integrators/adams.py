@@ -55,7 +55,10 @@ def integration_weights(nodes: np.ndarray, s) -> np.ndarray:
 
 def step_weights(nodes, s=1.0) -> np.ndarray:
     """`integration_weights(nodes, s)[0]` for a scalar s, cached by the pattern of the
-    nodes: patterns recur within a run and after each restart (a bridge, a switch)."""
+    nodes: the controller keeps h unchanged unless a real change is called for, so on a
+    steady stretch the nodes are the same integers step after step and the weights are
+    computed once (for dense output on a regular grid, the fractions s recur as well);
+    patterns recur after each restart too (a bridge, a switch)."""
     # Steps change by factors of two, so the nodes are dyadic up to the round-off of t:
     # snapping them to multiples of 2⁻⁴⁰ makes equal patterns hit the cache. The
     # weights are those of the snapped nodes, so a run does not depend on what earlier
@@ -110,14 +113,6 @@ class AdamsPECE(OdeSolver):
         # applied to an accepted corrector before its evaluation (P E C, project, E).
         self.project = None
 
-    @staticmethod
-    def _weights(nodes, s=1.0):
-        """`step_weights`: the controller keeps h unchanged unless a real change is called
-        for, so on a steady stretch the nodes are the same integers step after step and
-        the weights are computed once (for dense output on a regular grid, the fractions s
-        recur as well)."""
-        return step_weights(nodes, s)
-
     def _norm(self, e, y_a, y_b):
         return error_norm(e, y_a, y_b, self.rtol, self.atol)
 
@@ -145,11 +140,11 @@ class AdamsPECE(OdeSolver):
             if h < 10 * np.abs(np.nextafter(t, np.inf) - t):
                 return False, self.TOO_SMALL_STEP
             F = np.array(self.fs[-k:][::-1])                        # f_n, f_{n−1}, …
-            a = self._weights(self._nodes(k, h, False))
+            a = step_weights(self._nodes(k, h, False))
             y_p = y + h * (a @ F)
             f_p = self.fun(t + h, y_p)
             Fc = np.vstack([f_p, F])
-            b = self._weights(self._nodes(k, h, True))
+            b = step_weights(self._nodes(k, h, True))
             y_c = y + h * (b @ Fc)
             err = self._norm(y_c - y_p, y, y_c)
             if err <= 1.0:
@@ -234,8 +229,8 @@ class AdamsPECE(OdeSolver):
             if F is None:                              # need one more past derivative
                 F = np.array(self.fs[-(j + 1):-1][::-1])
             past = (np.array(self.ts[-(j + 1):-1][::-1]) - self.ts[-2]) / h
-            yp = y + h * (self._weights(past) @ F)
-            yc = y + h * (self._weights(np.concatenate([[1.0], past])) @ np.vstack([Fc[0], F]))
+            yp = y + h * (step_weights(past) @ F)
+            yc = y + h * (step_weights(np.concatenate([[1.0], past])) @ np.vstack([Fc[0], F]))
             e = self._norm(yc - yp, y, yc)
             factor = 0.9 * e ** (-1.0 / (j + 1)) if e > 0 else 5.0
             if factor > 1.1 * best:
@@ -250,7 +245,7 @@ class AdamsPECE(OdeSolver):
 
     def _dense_output_impl(self):
         t, h, y, F, nodes = self._dense
-        return _AdamsDense(t, t + h, y, h, F, nodes, self._weights)
+        return _AdamsDense(t, t + h, y, h, F, nodes, step_weights)
 
 
 class _AdamsDense(DenseOutput):
