@@ -4,12 +4,13 @@ LU coordinate partitioning is cheap per step but may jump branch at a singular
 configuration; the projection method passes singular configurations but, as the seed
 computes it, costs an SVD per evaluation (mechsim's takes a Cholesky factor clear of the
 band and is about as cheap as LU; see `mechsim.formulations.projection`). The manager
-integrates with LU, switches to projection when the singularity monitor reports that Φ_q is nearly rank-deficient (σ_min/σ_max below its `enter` threshold) —
-or on the paper's symptom of the independent set changing `repartition_burst` times within
-`burst_steps` steps — and switches back to LU after `stable_steps` consecutive steps with the
-monitor above `leave`, steps not shrinking, and an unchanged LU choice of independent
-coordinates (the paper: 5 steps at the largest step with a stable set). Each switch is
-recorded with its time and reason.
+integrates with LU, switches to projection when the singularity monitor reports that Φ_q is
+nearly rank-deficient (σ_min/σ_max below its `enter` threshold) — or on the paper's symptom
+of the independent set changing `repartition_burst` times within `burst_steps` steps — and
+switches back to LU after `stable_steps` consecutive steps with the monitor above `leave`,
+steps not shrinking, and an unchanged LU choice of independent coordinates (the paper: 5
+steps at the largest step with a stable set). Each switch is recorded with its time and
+reason.
 """
 
 from __future__ import annotations
