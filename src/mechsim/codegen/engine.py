@@ -640,10 +640,11 @@ class _ProjectionContext(ctypes.Structure):
 
 
 class ProjectionEngine:
-    """The projection method's accelerations clear of the truncation band (`library`): one
-    call instead of Φ_q, γ, the mass scaling, the Cholesky factor of J̃J̃ᵀ and its
-    condition estimate in numpy and LAPACK; and the projection of a state onto the
-    constraints with one such factor (`project_state`)."""
+    """The projection method's accelerations outside the truncation band (`library`): one
+    call instead of Φ_q, γ, the mass scaling, the Cholesky factor of J̃J̃ᵀ with its
+    condition estimate (or the SVD of J̃) in numpy and LAPACK; the projection of a state
+    onto the constraints with one such factor (`project_state`); the singularity
+    monitor's measurement (`measure`) and the hybrid's LU test (`lu_condition`)."""
 
     def __init__(self, lib, problem):
         n, m = problem.n, problem.m
@@ -675,18 +676,17 @@ class ProjectionEngine:
         above cut σ_max (truncation drops nothing); else None."""
         self.q[:] = q
         self.v[:] = v
-        self.Q[:] = Q
-        if self._fn(self._ptr, t, min_rcond, cut):
-            return None
-        return self.out[self.n:].copy()
+        return None if self._evaluate(t, Q, min_rcond, cut) else self.out[self.n:].copy()
 
     def rhs(self, t, y, Q, min_rcond, cut=0.0):
         """`accelerations` as the right-hand side [v; q̈] at y = [q; v]."""
         self.y[:] = y
+        return None if self._evaluate(t, Q, min_rcond, cut) else self.out.copy()
+
+    def _evaluate(self, t, Q, min_rcond, cut):
+        """[v; q̈] into `out` at the state in the buffers; nonzero where declined."""
         self.Q[:] = Q
-        if self._fn(self._ptr, t, min_rcond, cut):
-            return None
-        return self.out.copy()
+        return self._fn(self._ptr, t, min_rcond, cut)
 
     def project_state(self, t, q, v, tol, min_rcond=-1.0, skip_tol=-1.0, extra=0, max_iter=8):
         """`NumericProblem.project_state` compiled: (q, v) with ‖Φ‖∞ ≤ tol (or at round-off;

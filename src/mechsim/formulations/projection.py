@@ -89,7 +89,8 @@ class Projection(FullCoordinates):
                              f"seed paper), got {self.factorization!r}")
         self._redundant = 0          # singular values found to stay at zero (redundancy)
         self._compiled = self._compiled_engine()
-        # The compiled path's bound on LAPACK's estimate of 1/cond₁ of J̃J̃ᵀ (see `_clear`).
+        # The bound on LAPACK's estimate of 1/cond₁ of J̃J̃ᵀ above which the Cholesky
+        # factor stands in for the SVD (see `_clear`).
         self._min_rcond = max(100, problem.m) * self.rcond ** 2
         # Set after an accepted step far from any passage: until the next one, the
         # integrator's evaluations skip the condition estimate (see `_far_from_band`).
@@ -167,7 +168,7 @@ class Projection(FullCoordinates):
         estimate that may read high by a factor up to m."""
         if not self._cholesky or not Jt.shape[0]:
             return None
-        return dense.cholesky_conditioned(Jt @ Jt.T, max(100, Jt.shape[0]) * self.rcond ** 2)
+        return dense.cholesky_conditioned(Jt @ Jt.T, self._min_rcond)
 
     def _clear_solver(self, J, f):
         """r ↦ (J̃J̃ᵀ)⁻¹ r from the banded or the dense Cholesky factor where every singular
