@@ -69,16 +69,12 @@ def test_unknown_method_lists_the_valid_ones():
         mech.simulate(t_end=1.0, rtol=-1.0)
 
 
-def test_driver_expression_errors():
-    mech = ms.examples.pendulum()
-    pin = mech.joint("pivot")
-    mech.add(ms.Driver(pin, "omega*t", name="spin"))
-    with pytest.raises(ms.ModelError, match="driver 'spin'.*t only.*omega"):
-        mech.problem()
-    mech2 = ms.examples.pendulum()
-    mech2.add(ms.Driver(mech2.joint("pivot"), "2*t +* 3", name="typo"))
+def test_driver_expression_errors_come_when_the_driver_is_made():
+    pin = ms.examples.pendulum().joint("pivot")
+    with pytest.raises(ms.ModelError, match="driver 'spin'.*unknown name 'omega'"):
+        ms.Driver(pin, "omega*t", name="spin")
     with pytest.raises(ms.ModelError, match="driver 'typo'.*cannot parse"):
-        mech2.problem()
+        ms.Driver(pin, "2*t +* 3", name="typo")
 
 
 def test_unassemblable_four_bar_names_the_joint():
@@ -148,5 +144,5 @@ def test_scene_errors_name_file_table_and_key(tmp_path):
     with pytest.raises(ms.ModelError, match=r"\[parameters\] L: unknown name 'M'"):
         ms.load_scene(bad)
     bad.write_text('[parameters]\nL = "__import__(\'os\')"\n')
-    with pytest.raises(ms.ModelError, match="unsupported expression"):
+    with pytest.raises(ms.ModelError, match=r"\[parameters\] L: unknown function '__import__'"):
         ms.load_scene(bad)

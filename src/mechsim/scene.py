@@ -58,13 +58,12 @@ a scene cannot run code.
 
 from __future__ import annotations
 
-import ast
 import math
-import operator
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .model.expressions import ExpressionError, parse
 from .model import (Driver, FlexibleBeam, Force, Mechanism, ModelError, Prismatic, Revolute,
                     RigidBody, Spring, Torque)
 
@@ -73,52 +72,19 @@ class SceneError(ModelError):
     """A scene file is malformed; the message names the file, the table and the key."""
 
 
-_FUNCS = {name: getattr(math, name) for name in
-          ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sqrt", "exp", "log", "hypot",
-           "radians", "degrees")}
-_CONSTS = {"pi": math.pi, "e": math.e}
-_BINOPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
-           ast.Div: operator.truediv, ast.Pow: operator.pow}
-
-
 def evaluate(text, names: dict, where: str) -> float:
-    """Value of a number or an arithmetic expression string over `names`."""
-    if isinstance(text, bool):
-        raise SceneError(f"{where}: expected a number, got {text!r}")
-    if isinstance(text, (int, float)):
-        return float(text)
-    if not isinstance(text, str):
-        raise SceneError(f"{where}: expected a number or an expression, got {text!r}")
-
-    def ev(node):
-        if isinstance(node, ast.Expression):
-            return ev(node.body)
-        if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)):
-            return float(node.value)
-        if isinstance(node, ast.Name):
-            if node.id in names:
-                return names[node.id]
-            if node.id in _CONSTS:
-                return _CONSTS[node.id]
-            raise SceneError(f"{where}: unknown name {node.id!r} in {text!r}; known: "
-                             f"{', '.join(sorted(set(names) | set(_CONSTS)))}")
-        if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
-            return _BINOPS[type(node.op)](ev(node.left), ev(node.right))
-        if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
-            return -ev(node.operand) if isinstance(node.op, ast.USub) else ev(node.operand)
-        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
-                and node.func.id in _FUNCS and not node.keywords):
-            return _FUNCS[node.func.id](*(ev(a) for a in node.args))
-        raise SceneError(f"{where}: unsupported expression {text!r}")
-
+    """Value of a number or an arithmetic expression string over `names` (parsed by
+    `mechsim.model.expressions`, never by `eval`)."""
+    if isinstance(text, bool) or not isinstance(text, (int, float, str)):
+        raise SceneError(f"{where}: expected a number or an expression, got "
+                         f"{type(text).__name__} {text!r:.80}")
     try:
-        return float(ev(ast.parse(text, mode="eval")))
-    except SyntaxError:
-        raise SceneError(f"{where}: cannot parse {text!r}") from None
-    except (ArithmeticError, ValueError, TypeError) as exc:
-        if isinstance(exc, SceneError):
-            raise
-        raise SceneError(f"{where}: {text!r} cannot be evaluated: {exc}") from None
+        expression = parse(text, set(names), where)
+        return expression.value(**{k: names[k] for k in expression.names})
+    except ExpressionError as exc:
+        raise SceneError(str(exc)) from None
+    except (ArithmeticError, ValueError) as exc:
+        raise SceneError(f"{where}: {text!r:.200} cannot be evaluated: {exc}") from None
 
 
 @dataclass

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ._checks import ModelError
+from .expressions import parse
 from .joints import Joint
 
 
@@ -13,8 +14,11 @@ class Driver:
         coordinate(q) − coordinate(q₀) = f(t)
 
     so `Driver(crank_pivot, "150*t")` turns the crank at 150 rad/s from where it was drawn. If
-    f(0) ≠ 0, `Mechanism.assemble` moves the joint there. `expression` is any sympy-parsable
-    string in `t` (or a number).
+    f(0) ≠ 0, `Mechanism.assemble` moves the joint there. `expression` is a number or an
+    arithmetic expression in `t` (`mechsim.model.expressions`: numbers, t, pi, e,
+    + − * / **, parentheses and sin, cos, tan, asin, acos, atan, atan2, sinh, cosh, tanh,
+    exp, log, sqrt, abs, hypot, radians, degrees). It is parsed here, not evaluated by
+    Python: anything else, an unknown name among them, is a ModelError naming the driver.
     """
 
     kind = "driver"
@@ -27,14 +31,17 @@ class Driver:
         if type(joint).coordinate is Joint.coordinate:
             raise ModelError(f"driver on joint '{joint.name}': a {joint.kind} joint has no "
                              "coordinate to prescribe")
-        if isinstance(expression, (int, float)):
-            expression = repr(float(expression))
-        if not isinstance(expression, str) or not expression.strip():
-            raise ModelError(f"driver on joint '{joint.name}': `expression` must be a "
-                             f"non-empty string in t, got {expression!r}")
+        if name is not None and (not isinstance(name, str) or not name.strip()):
+            raise ModelError(f"driver on joint '{joint.name}': `name` must be a non-empty "
+                             f"string, got {name!r:.80}")
         self.joint = joint
-        self.expression = expression.strip()
         self.name = name or f"driver({joint.name})"
+        self.law = parse(expression, {"t"}, f"driver '{self.name}' `expression`")
+        self.expression = self.law.text
+
+    def value(self, t: float) -> float:
+        """f(t), the prescribed change of the joint's coordinate (float arithmetic)."""
+        return self.law.value(t=t)
 
     @property
     def n_equations(self) -> int:
@@ -44,11 +51,11 @@ class Driver:
         return (self.joint.initial_coordinate(),)
 
     def equations(self, ctx, p):
-        f = ctx.time_function(self.expression, owner=f"driver '{self.name}'")
+        f = self.law.to_sympy({"t": ctx.t})
         return [self.joint.coordinate(ctx, ctx.parameters(self.joint)) - p["offset"] - f]
 
     def structure(self) -> tuple:
-        return (self.kind, self.name, self.joint.name, self.expression)
+        return (self.kind, self.name, self.joint.name, self.law.canonical)
 
     def __repr__(self):
         return f"Driver({self.joint.name!r}, {self.expression!r})"

@@ -12,10 +12,6 @@ import re
 from functools import cached_property
 
 import sympy as sp
-from sympy.parsing.sympy_parser import (implicit_multiplication_application, parse_expr,
-                                        standard_transformations)
-
-from ..model._checks import ModelError
 
 
 def identifier(name: str, taken: set[str]) -> str:
@@ -31,8 +27,8 @@ def identifier(name: str, taken: set[str]) -> str:
 
 
 class SymbolicContext:
-    """What a joint sees while writing its equations: the symbols of the bodies' frames, the
-    parameter symbols of every constraint item, and a parser for time functions."""
+    """What a joint sees while writing its equations: the symbols of the bodies' frames and
+    the parameter symbols of every constraint item."""
 
     def __init__(self, bodies, items):
         self.t = sp.Symbol("t", real=True)
@@ -89,20 +85,6 @@ class SymbolicContext:
 
     def parameters(self, item) -> dict:
         return self._params[id(item)]
-
-    def time_function(self, expression: str, owner: str):
-        transformations = standard_transformations + (implicit_multiplication_application,)
-        try:
-            f = parse_expr(expression, local_dict={"t": self.t, "pi": sp.pi, "E": sp.E},
-                           transformations=transformations)
-        except Exception as exc:  # sympy raises many types for malformed text
-            raise ModelError(f"{owner}: cannot parse expression {expression!r}: {exc}") from None
-        f = sp.sympify(f)
-        unknown = sorted(str(s) for s in f.free_symbols - {self.t})
-        if unknown:
-            raise ModelError(f"{owner}: expression {expression!r} may depend on t only, "
-                             f"it also uses {', '.join(unknown)}")
-        return f
 
 
 class SymbolicSystem:

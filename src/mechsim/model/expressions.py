@@ -1,0 +1,263 @@
+"""Arithmetic expressions that users write (driver laws, scene numbers), parsed without `eval`.
+
+A text is parsed by Python's `ast` into a syntax tree and only the nodes listed here are
+accepted: numbers, the names the caller allows, `+ − * / **`, unary signs, parentheses and
+calls of the functions in `FUNCTIONS`. Anything else (attributes, subscripts, keywords,
+lambdas, comparisons, strings, …) is an `ExpressionError` naming the owner and the offending
+token. The accepted tree is kept as plain tuples and evaluated by this module (floats) or
+turned into sympy by `to_sympy`: nothing a user writes is executed.
+
+Limits keep a hostile or careless text from hanging the parser or sympy: at most
+`MAX_LENGTH` characters and `MAX_NODES` nodes nested at most `MAX_DEPTH` deep, integer
+exponents of at most `MAX_EXPONENT` in magnitude, and every sub-expression made of numbers
+alone must have a finite value of magnitude at most `MAX_CONSTANT` (so `9**9**9*t` is an
+error, not an exact integer with 370 million digits).
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+
+from ._checks import ModelError
+
+MAX_LENGTH = 2000
+MAX_NODES = 2000
+MAX_DEPTH = 200
+MAX_EXPONENT = 64
+MAX_CONSTANT = 1e300
+
+# name: (number of arguments, float function, sympy function name)
+FUNCTIONS = {
+    "sin": (1, math.sin, "sin"), "cos": (1, math.cos, "cos"), "tan": (1, math.tan, "tan"),
+    "asin": (1, math.asin, "asin"), "acos": (1, math.acos, "acos"),
+    "atan": (1, math.atan, "atan"), "atan2": (2, math.atan2, "atan2"),
+    "sinh": (1, math.sinh, "sinh"), "cosh": (1, math.cosh, "cosh"),
+    "tanh": (1, math.tanh, "tanh"), "exp": (1, math.exp, "exp"), "log": (1, math.log, "log"),
+    "sqrt": (1, math.sqrt, "sqrt"), "abs": (1, abs, "Abs"),
+    "hypot": (2, math.hypot, None), "radians": (1, math.radians, None),
+    "degrees": (1, math.degrees, None),
+}
+CONSTANTS = {"pi": math.pi, "e": math.e}
+
+_BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**"}
+_HINTS = {ast.BitXor: "`^` is not a power here: write `**`",
+          ast.Mod: "`%` is not supported", ast.FloorDiv: "`//` is not supported"}
+
+
+class ExpressionError(ModelError):
+    """A user's expression is not one mechsim accepts; the message names its owner."""
+
+
+class Expression:
+    """A parsed expression: `text` (as given), `tree` (nested tuples), `names` (the free
+    names it uses). Evaluate with `value(**names)`; `to_sympy(symbols)` gives the sympy
+    expression, `symbols` mapping each free name to a sympy object."""
+
+    __slots__ = ("text", "tree", "names")
+
+    def __init__(self, text: str, tree: tuple, names: frozenset):
+        self.text, self.tree, self.names = text, tree, names
+
+    @property
+    def canonical(self) -> str:
+        """The tree written out with full parentheses: equal for texts that differ only in
+        spacing or redundant parentheses (a cache key's part)."""
+        return _canonical(self.tree)
+
+    def value(self, **values) -> float:
+        """The float value with the free names bound to `values`; ArithmeticError or
+        ValueError where it is undefined (log of a negative number, overflow)."""
+        return float(_evaluate(self.tree, values))
+
+    def to_sympy(self, symbols: dict):
+        import sympy as sp
+        return _sympy(self.tree, symbols, sp)
+
+    def __repr__(self):
+        return f"Expression({self.text!r})"
+
+
+def parse(text, names, owner: str) -> Expression:
+    """Parse `text` (a str, or an int/float taken as a constant) allowing the free names in
+    `names` besides `CONSTANTS`; raise ExpressionError naming `owner` where it is not a
+    plain arithmetic expression of those names."""
+    if isinstance(text, bool) or not isinstance(text, (str, int, float)):
+        raise ExpressionError(f"{owner}: expected a number or an expression string, "
+                              f"got {type(text).__name__} {text!r:.80}")
+    if not isinstance(text, str):
+        value = float(text)
+        if not math.isfinite(value):
+            raise ExpressionError(f"{owner}: expected a finite number, got {value}")
+        return Expression(repr(value), ("num", value), frozenset())
+    if not text.strip():
+        raise ExpressionError(f"{owner}: the expression is empty")
+    if len(text) > MAX_LENGTH:
+        raise ExpressionError(f"{owner}: the expression has {len(text)} characters; at most "
+                              f"{MAX_LENGTH} are accepted")
+    try:
+        node = ast.parse(text.strip(), mode="eval").body
+    except (SyntaxError, ValueError, RecursionError, MemoryError) as exc:
+        detail = getattr(exc, "msg", None) or type(exc).__name__
+        raise ExpressionError(f"{owner}: cannot parse {text!r:.200}: {detail}") from None
+    builder = _Builder(text, frozenset(names), owner)
+    tree = builder.build(node, 0)
+    return Expression(text.strip(), tree, frozenset(builder.used))
+
+
+class _Builder:
+    """Turns an `ast` tree into the tuple tree, checking each node against the whitelist."""
+
+    def __init__(self, text, names, owner):
+        self.text, self.names, self.owner = text, names, owner
+        self.count = 0
+        self.used: set[str] = set()
+
+    def fail(self, what: str):
+        raise ExpressionError(f"{self.owner}: {what} in {self.text!r:.200}")
+
+    def build(self, node, depth):
+        self.count += 1
+        if self.count > MAX_NODES:
+            self.fail(f"more than {MAX_NODES} terms")
+        if depth > MAX_DEPTH:
+            self.fail(f"nesting deeper than {MAX_DEPTH}")
+        tree = self._node(node, depth + 1)
+        if _is_constant(tree) and tree[0] != "num":
+            self._check_constant(tree)
+        return tree
+
+    def _node(self, node, depth):
+        if isinstance(node, ast.Constant):
+            v = node.value
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                self.fail(f"unsupported literal {v!r:.40}")
+            if abs(v) > MAX_CONSTANT or not (isinstance(v, int) or math.isfinite(v)):
+                self.fail(f"number {str(v)[:40]} out of range (magnitude up to "
+                          f"{MAX_CONSTANT:g})")
+            return ("num", float(v) if isinstance(v, int) and abs(v) > 2 ** 53 else v)
+        if isinstance(node, ast.Name):
+            if node.id in self.names:
+                self.used.add(node.id)
+                return ("name", node.id)
+            if node.id in CONSTANTS:
+                return ("const", node.id)
+            known = sorted(self.names | set(CONSTANTS))
+            self.fail(f"unknown name {node.id!r} (known: {', '.join(known)})")
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
+            operand = self.build(node.operand, depth)
+            return ("neg", operand) if isinstance(node.op, ast.USub) else operand
+        if isinstance(node, ast.BinOp):
+            op = _BINARY.get(type(node.op))
+            if op is None:
+                self.fail(_HINTS.get(type(node.op), f"unsupported operator "
+                                                     f"{type(node.op).__name__}"))
+            left, right = self.build(node.left, depth), self.build(node.right, depth)
+            if op == "**" and _is_constant(right):
+                exponent = _evaluate(right, {})
+                if exponent == int(exponent) and abs(exponent) > MAX_EXPONENT:
+                    self.fail(f"exponent {exponent:g} too large (at most {MAX_EXPONENT})")
+            return ("op", op, left, right)
+        if isinstance(node, ast.Call):
+            if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS:
+                what = node.func.id if isinstance(node.func, ast.Name) else \
+                    ast.get_source_segment(self.text.strip(), node.func) or "call"
+                self.fail(f"unknown function {what!r:.60} (known: {', '.join(FUNCTIONS)})")
+            name = node.func.id
+            arity = FUNCTIONS[name][0]
+            if node.keywords or len(node.args) != arity or \
+                    any(isinstance(a, ast.Starred) for a in node.args):
+                self.fail(f"{name} takes {arity} argument(s)")
+            return ("call", name, *(self.build(a, depth) for a in node.args))
+        segment = ast.get_source_segment(self.text.strip(), node) or type(node).__name__
+        self.fail(f"unsupported syntax {segment!r:.60}")
+
+    def _check_constant(self, tree):
+        try:
+            value = _evaluate(tree, {})
+        except OverflowError:
+            self.fail(f"{_canonical(tree)} overflows")
+        except (ArithmeticError, ValueError) as exc:
+            self.fail(f"{_canonical(tree)} cannot be evaluated ({exc})")
+        if isinstance(value, complex) or not math.isfinite(value) or abs(value) > MAX_CONSTANT:
+            self.fail(f"{_canonical(tree)} is out of range (magnitude up to {MAX_CONSTANT:g})")
+
+
+def _is_constant(tree) -> bool:
+    kind = tree[0]
+    if kind in ("num", "const"):
+        return True
+    if kind == "name":
+        return False
+    if kind == "neg":
+        return _is_constant(tree[1])
+    if kind == "op":
+        return _is_constant(tree[2]) and _is_constant(tree[3])
+    return all(_is_constant(a) for a in tree[2:])
+
+
+def _evaluate(tree, values):
+    kind = tree[0]
+    if kind == "num":
+        return float(tree[1])
+    if kind == "const":
+        return CONSTANTS[tree[1]]
+    if kind == "name":
+        return values[tree[1]]
+    if kind == "neg":
+        return -_evaluate(tree[1], values)
+    if kind == "op":
+        a, b = _evaluate(tree[2], values), _evaluate(tree[3], values)
+        op = tree[1]
+        if op == "+":
+            return a + b
+        if op == "-":
+            return a - b
+        if op == "*":
+            return a * b
+        if op == "/":
+            return a / b
+        out = a ** b
+        if isinstance(out, complex):
+            raise ValueError(f"({a:g})**({b:g}) is not real")
+        return out
+    return FUNCTIONS[tree[1]][1](*(_evaluate(a, values) for a in tree[2:]))
+
+
+def _sympy(tree, symbols, sp):
+    kind = tree[0]
+    if kind == "num":
+        v = tree[1]
+        return sp.Integer(v) if isinstance(v, int) else sp.Float(v)
+    if kind == "const":
+        return {"pi": sp.pi, "e": sp.E}[tree[1]]
+    if kind == "name":
+        return symbols[tree[1]]
+    if kind == "neg":
+        return -_sympy(tree[1], symbols, sp)
+    if kind == "op":
+        a, b = _sympy(tree[2], symbols, sp), _sympy(tree[3], symbols, sp)
+        return {"+": lambda: a + b, "-": lambda: a - b, "*": lambda: a * b,
+                "/": lambda: a / b, "**": lambda: a ** b}[tree[1]]()
+    args = [_sympy(a, symbols, sp) for a in tree[2:]]
+    name = tree[1]
+    if name == "hypot":
+        return sp.sqrt(args[0] ** 2 + args[1] ** 2)
+    if name == "radians":
+        return args[0] * sp.pi / 180
+    if name == "degrees":
+        return args[0] * 180 / sp.pi
+    return getattr(sp, FUNCTIONS[name][2])(*args)
+
+
+def _canonical(tree) -> str:
+    kind = tree[0]
+    if kind == "num":
+        return repr(tree[1])
+    if kind in ("const", "name"):
+        return tree[1]
+    if kind == "neg":
+        return f"(-{_canonical(tree[1])})"
+    if kind == "op":
+        return f"({_canonical(tree[2])} {tree[1]} {_canonical(tree[3])})"
+    return f"{tree[1]}({', '.join(_canonical(a) for a in tree[2:])})"
