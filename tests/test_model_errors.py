@@ -61,7 +61,7 @@ def test_unknown_method_lists_the_valid_ones():
         mech.simulate(t_end=1.0, method="rk99")
     with pytest.raises(ValueError, match="unknown integrator 'Euler'; valid integrators: adams, RK45"):
         mech.simulate(t_end=1.0, integrator="Euler")
-    with pytest.raises(ValueError, match="does not take option.*gamma"):
+    with pytest.raises(ValueError, match="does not take .gamma.*valid names: atol"):
         mech.simulate(t_end=1.0, gamma=3.0)
     # Names are matched in any letter case.
     assert mech.simulate(t_end=0.05, integrator="radau").stats["integrator"] == "Radau"

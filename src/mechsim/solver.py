@@ -11,15 +11,17 @@ from __future__ import annotations
 
 import collections
 import math
+import os
 import time
 
 import numpy as np
 
-from .formulations import formulation_class
+from .formulations import METHODS, formulation_class
 from .formulations.monitor import SingularityMonitor
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
 from .integrators import AdamsPECE, integrator_class
+from .options import Option, check_all, unknown_names
 from .problem import NumericProblem
 from .results import SimulationResult
 
@@ -138,11 +140,108 @@ def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step):
     return None
 
 
-def _positive(value, what):
-    x = float(value)
-    if not (x > 0 and math.isfinite(x)):
-        raise ValueError(f"`{what}` must be a positive number, got {value!r}")
-    return x
+# What `simulate` takes besides `t_end`, `method` and the method's own options (each
+# formulation's `options`), checked before any work (`mechsim.options`).
+SETTINGS = {
+    "t_start": Option.real(0.0),
+    "rtol": Option.positive(1e-6, high=0.1),
+    "atol": Option.positive(1e-8),
+    "max_step": Option.positive(math.inf, infinite=True),
+    "output_step": Option.positive(None, optional=True),
+    "first_step": Option.positive(None, optional=True),
+    "singular_thresholds": Option((0.07, 0.14), "pair"),
+    "max_steps": Option.integer(None, low=1, optional=True),
+    "h": Option.positive(None, optional=True),
+}
+# An output grid is refused where its arrays would take more than this share of the
+# machine's memory.
+OUTPUT_MEMORY_SHARE = 0.5
+
+
+def check_settings(n, t_end, method, integrator, settings: dict, options: dict):
+    """The formulation class, the integrator class and every setting of a run of a problem
+    with `n` coordinates checked, before any work: a ValueError names the argument and
+    says what is wrong (an unknown name gets the closest valid one, or the methods that
+    take it). Returns (formulation class, integrator class, t_end, settings)."""
+    cls = formulation_class(method)
+    valid = {**SETTINGS, **cls.options, "t_end": None, "method": None, "integrator": None}
+    message = unknown_names(options, valid, f"simulate (method {cls.name!r})")
+    if message:
+        elsewhere = {name: [m for m, c in METHODS.items() if name in c.options]
+                     for name in options if name not in valid}
+        message += "".join(f"; {name!r} is an option of method(s) {', '.join(ms)}"
+                           for name, ms in elsewhere.items() if ms)
+        raise ValueError(message)
+    checked = check_all(SETTINGS, settings)
+    for name, value in options.items():
+        cls.options[name].check(value, name, f"method {cls.name!r}")
+    t0 = checked["t_start"]
+    t_end = Option.real(None).check(t_end, "t_end")
+    if not t_end > t0:
+        raise ValueError(f"`t_end` must be after t_start = {t0}, got {t_end!r}")
+    solver_cls = integrator_class(integrator or cls.default_integrator)
+    if checked["h"] is None and solver_cls.__name__ == "Trapezoidal":
+        raise ValueError(f"method {cls.name!r} steps at a fixed size: give `h`, e.g. h=1e-3")
+    if checked["output_step"] is not None:
+        _check_output_size(n, t_end - t0, checked["output_step"])
+    return cls, solver_cls, t_end, checked
+
+
+def check_simulate_arguments(n, t_end, method=None, options=None):
+    """`check_settings` for the keyword arguments as `Mechanism.simulate` takes them."""
+    options = dict(options or {})
+    integrator = options.pop("integrator", None)
+    settings = {k: options.pop(k) for k in list(options) if k in SETTINGS}
+    return check_settings(n, t_end, method, integrator, settings, options)
+
+
+def _check_output_size(n, span, step):
+    """Refuse an output grid whose samples of n coordinates would not fit in memory."""
+    samples = math.floor(span / step) + 2
+    size = samples * (1 + 2 * n) * 8.0
+    try:
+        memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        memory = 16 * 2.0 ** 30
+    if size > OUTPUT_MEMORY_SHARE * memory:
+        raise ValueError(f"`output_step` = {step:g} over {span:g} s asks for {samples:.3g} "
+                         f"samples of {n} coordinates and velocities, "
+                         f"{size / 2**30:.3g} GiB, more than {OUTPUT_MEMORY_SHARE:.0%} of this "
+                         f"machine's {memory / 2**30:.3g} GiB; choose a larger output_step")
+
+
+def check_initial_state(problem, q0, v0, t0):
+    """(q0, v0) as float arrays of the problem's size, finite and consistent with the
+    constraints (positions to 1e-6, velocities to 1e-6 of their scale), or a ValueError
+    saying which and how to fix it."""
+    n = problem.n
+    out = []
+    for name, x in (("q0", q0), ("v0", v0)):
+        try:
+            a = np.array(x, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise ValueError(f"`{name}` must be {n} numbers, got {x!r:.80}") from None
+        if a.size != n:
+            raise ValueError(f"`{name}` must have {n} entries (the coordinates "
+                             f"{', '.join(problem.coordinate_names[:6])}…), got {a.size}")
+        bad = np.flatnonzero(~np.isfinite(a))
+        if bad.size:
+            raise ValueError(f"`{name}` must be finite, got {a[bad[0]]} for "
+                             f"'{problem.coordinate_names[bad[0]]}'")
+        out.append(a)
+    q0, v0 = out
+    if problem.m:
+        phi = problem.phi(q0, t0)
+        if np.max(np.abs(phi)) > 1e-6 * max(1.0, np.max(np.abs(q0))):
+            raise ValueError(f"`q0` does not satisfy the constraints: residual "
+                             f"{problem.worst_constraint(phi)}; start from an assembled "
+                             "state (Mechanism.assemble)")
+        r = problem.phi_q(q0, t0) @ v0 + problem.phi_t(q0, t0)
+        if np.max(np.abs(r)) > 1e-6 * max(1.0, np.max(np.abs(v0))):
+            raise ValueError(f"`v0` does not satisfy the velocity constraints: residual "
+                             f"{problem.worst_constraint(r)}; start from an assembled "
+                             "state (Mechanism.assemble)")
+    return q0, v0
 
 
 def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | None = None,
@@ -168,19 +267,16 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     h : fixed step for the fixed-step methods ("ss-newmark"); required by them
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
-    cls = formulation_class(method)
-    t_end = float(t_end)
-    if not (math.isfinite(t_end) and t_end > t_start):
-        raise ValueError(f"`t_end` must be a finite time after t_start = {t_start}, got {t_end!r}")
-    rtol, atol = _positive(rtol, "rtol"), _positive(atol, "atol")
-    max_step = _positive(max_step, "max_step") if max_step != math.inf else math.inf
-    if output_step is not None:
-        output_step = _positive(output_step, "output_step")
-    solver_cls = integrator_class(integrator or cls.default_integrator)
-    if h is not None:
-        first_step = _positive(h, "h")
-    elif solver_cls.__name__ == "Trapezoidal":
-        raise ValueError(f"method {cls.name!r} steps at a fixed size: give `h`, e.g. h=1e-3")
+    cls, solver_cls, t_end, checked = check_settings(
+        problem.n, t_end, method, integrator,
+        dict(t_start=t_start, rtol=rtol, atol=atol, max_step=max_step, output_step=output_step,
+             first_step=first_step, singular_thresholds=singular_thresholds,
+             max_steps=max_steps, h=h), options)
+    t_start, rtol, atol = checked["t_start"], checked["rtol"], checked["atol"]
+    max_step, output_step, h = checked["max_step"], checked["output_step"], checked["h"]
+    max_steps, singular_thresholds = checked["max_steps"], checked["singular_thresholds"]
+    first_step = checked["first_step"] if h is None else h
+    q0, v0 = check_initial_state(problem, q0, v0, t_start)
     problem.start_run()
     form = cls(problem, rtol, atol, **options)
     monitor = form.monitor = SingularityMonitor(problem, *singular_thresholds)
@@ -191,7 +287,6 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     start = time.perf_counter()
     ts = output_times(t_start, t_end, output_step)
     out_t, out_q, out_v = [], [], []
-    q0, v0 = np.asarray(q0, float), np.asarray(v0, float)
     y = form.initial_state(t_start, q0, v0)
     monitor.observe(t_start, q0, v0)
 

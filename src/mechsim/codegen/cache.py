@@ -21,7 +21,7 @@ from types import ModuleType
 from .compiled import attach
 
 # Bump when the generated code changes meaning, so stale cache entries are not used.
-CODEGEN_VERSION = 6
+CODEGEN_VERSION = 7
 
 
 def cache_dir() -> Path:

@@ -71,7 +71,7 @@ def _source(k: int, key: str) -> str:
         ("mass_block", ("_q", "_p"), [M], "Mass matrix of the beam's block."),
         ("forces", ("_q", "_v", "_p"), [Q],
          "Quadratic-velocity, gravity, elastic and modal damping forces of the block."),
-    ], key, f"beam kernel, {k} modes")
+    ], key)
 
 
 def load_kernel(k: int):

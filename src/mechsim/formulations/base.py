@@ -11,14 +11,17 @@ A formulation holds a NumericProblem and exposes a first-order ODE y' = f(t, y).
    it (a new partition, a switch of formulation) must set `self.layout_changed = True`, and
    the manager restarts the integrator there.
 
-`options` are the keyword arguments of `simulate` that the formulation accepts; anything it
-does not know is an error naming the option.
+`options` declares the keyword arguments of `simulate` that the formulation accepts, each an
+`mechsim.options.Option` (default, type, range); they are checked before any work and set
+as attributes. Anything it does not know is an error naming the option and the closest
+valid name.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..options import check_all, unknown_names
 from ..problem import NumericProblem
 
 
@@ -45,15 +48,13 @@ class Formulation:
         return self.initial_state(t, q, v)
 
     def __init__(self, problem: NumericProblem, rtol: float, atol: float, **options):
-        unknown = sorted(set(options) - set(self.options))
-        if unknown:
-            raise ValueError(f"method {self.name!r} does not take option(s) "
-                             f"{', '.join(unknown)}; it takes: "
-                             f"{', '.join(sorted(self.options)) or '(none)'}")
+        message = unknown_names(options, self.options, f"method {self.name!r}")
+        if message:
+            raise ValueError(message)
         self.problem = problem
         self.rtol, self.atol = rtol, atol
-        for key, default in self.options.items():
-            setattr(self, key, options.get(key, default))
+        for key, value in check_all(self.options, options, f"method {self.name!r}").items():
+            setattr(self, key, value)
         self.singular_passages: list = []
         self.switches: list = []
 

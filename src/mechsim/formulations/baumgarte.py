@@ -11,13 +11,15 @@ singular: this formulation may stall or jump branch there (the reason for "proje
 
 from __future__ import annotations
 
+from ..options import Option
 from .full import FullCoordinates
 
 
 class Baumgarte(FullCoordinates):
     name = "baumgarte"
     default_integrator = "DOP853"
-    options = {**FullCoordinates.options, "alpha": 5.0, "beta": 5.0}
+    options = {**FullCoordinates.options, "alpha": Option.real(5.0, low=0.0),
+               "beta": Option.real(5.0, low=0.0)}
 
     def accelerations(self, t, q, v):
         prob = self.problem

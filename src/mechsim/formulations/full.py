@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..options import Option
 from .base import Formulation
 from .partitioned import ConstraintSolveError
 
 
 class FullCoordinates(Formulation):
-    options = {"projection": True, "projection_tol": None}
+    options = {"projection": Option.flag(True),
+               "projection_tol": Option.positive(None, optional=True)}
 
     def __init__(self, problem, rtol, atol, **options):
         super().__init__(problem, rtol, atol, **options)

@@ -15,6 +15,7 @@ reason.
 
 from __future__ import annotations
 
+from ..options import Option
 from ..results import Switch
 from .base import Formulation
 from .partitioned import SPARSE_MIN, Partitioned
@@ -24,7 +25,9 @@ from .projection import Projection
 class Hybrid(Formulation):
     name = "hybrid"
     default_integrator = "DOP853"    # fastest measured; "adams" (the paper's PECE) on request
-    options = {"stable_steps": 5, "repartition_burst": 3, "burst_steps": 10}
+    options = {"stable_steps": Option.integer(5, low=1),
+               "repartition_burst": Option.integer(3, low=1),
+               "burst_steps": Option.integer(10, low=1)}
 
     def __init__(self, problem, rtol, atol, **options):
         super().__init__(problem, rtol, atol, **options)

@@ -31,6 +31,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .. import dense
+from ..options import Option
 from .base import Formulation
 
 
@@ -231,7 +232,9 @@ class MatrixBasis(CoordinateBasis):
 class Partitioned(Formulation):
     name = "lu"
     default_integrator = "DOP853"    # fastest measured; "adams" (the paper's PECE) on request
-    options = {"cond_max": 1e4, "newton_tol": None, "max_newton": 12}
+    options = {"cond_max": Option.real(1e4, low=1.0),
+               "newton_tol": Option.positive(None, optional=True),
+               "max_newton": Option.integer(12, low=1)}
 
     def __init__(self, problem, rtol, atol, **options):
         super().__init__(problem, rtol, atol, **options)

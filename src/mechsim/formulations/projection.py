@@ -53,6 +53,7 @@ import numpy as np
 from .. import dense
 from ..problem import newton_stalled
 from .bridge import PassageBridge
+from ..options import Option
 from .full import FullCoordinates
 
 # Singular values below this multiple of the truncation cut join the crossing cluster.
@@ -70,9 +71,11 @@ _MAX_CLUSTER = 4
 class Projection(FullCoordinates):
     name = "projection"
     default_integrator = "DOP853"
-    options = {**FullCoordinates.options, "rcond": 1e-4, "exact_projection": True,
-               "regularization": "truncate", "bridge_passages": True,
-               "factorization": "auto"}
+    options = {**FullCoordinates.options, "rcond": Option.positive(1e-4, high=0.5),
+               "exact_projection": Option.flag(True),
+               "regularization": Option.choice("truncate", ("truncate", "damp")),
+               "bridge_passages": Option.flag(True),
+               "factorization": Option.choice("auto", ("auto", "svd"))}
 
     def __init__(self, problem, rtol, atol, **options):
         if options.get("projection_tol") is None:
@@ -82,11 +85,6 @@ class Projection(FullCoordinates):
             # take the projected state in place, without a restart.)
             options["projection_tol"] = max(1e-13, 1e-3 * atol)
         super().__init__(problem, rtol, atol, **options)
-        if self.factorization not in ("auto", "svd"):
-            raise ValueError(f"`factorization` of method 'projection' must be 'auto' (Cholesky "
-                             f"of the Schur complement clear of a singular configuration, the "
-                             f"SVD near one) or 'svd' (the SVD at every evaluation, as the "
-                             f"seed paper), got {self.factorization!r}")
         self._redundant = 0          # singular values found to stay at zero (redundancy)
         self._compiled = self._compiled_engine()
         # The bound on LAPACK's estimate of 1/cond₁ of J̃J̃ᵀ above which the Cholesky

@@ -183,8 +183,7 @@ class Mechanism:
             def build() -> str:
                 from ..codegen.printer import model_source
                 from ..symbolic import build_system
-                return model_source(build_system(self.bodies, items), structure_key(structure),
-                                    self.name)
+                return model_source(build_system(self.bodies, items), structure_key(structure))
 
             model, self.from_cache = load_model(structure, build)
             starts = self._body_starts()
@@ -310,7 +309,8 @@ class Mechanism:
     def simulate(self, t_end: float, method: str | None = None, **options):
         """Simulate from the assembled initial state to `t_end`; see `mechsim.solver.simulate`
         for the options. Returns a SimulationResult (partial, with a status, on failure)."""
-        from ..solver import simulate
+        from ..solver import check_simulate_arguments, simulate
+        check_simulate_arguments(len(self.coordinate_names), t_end, method, options)
         report = self._assembled or self.assemble(t=options.get("t_start", 0.0))
         return simulate(self.problem(), report.q, report.v, t_end=t_end, method=method,
                         **options)

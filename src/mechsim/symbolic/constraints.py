@@ -9,20 +9,27 @@ Only Φ is stored; the derivatives are computed on first use and cached (sympy's
 from __future__ import annotations
 
 import re
+import unicodedata
 from functools import cached_property
 
 import sympy as sp
 
 
-def identifier(name: str, taken: set[str]) -> str:
-    """A Python identifier that reads like `name` and is not in `taken` (which it joins)."""
-    base = re.sub(r"\W+", "_", name).strip("_") or "item"
+def identifier(name: str, suffixes, taken: set[str]) -> str:
+    """A stem for the symbols `<stem>_<suffix>` of the model object called `name`: ASCII
+    letters, digits and underscores that read like the name (accents and ligatures
+    decomposed, anything else dropped), made unique so that no symbol it forms is in
+    `taken` (which gains them). A user's name is never written into generated code as it
+    is: two names that Python would read as one identifier ("ﬁ" and "fi") or that are no
+    identifier at all ("x²", a quote) still get distinct, valid stems."""
+    ascii_name = unicodedata.normalize("NFKD", name).encode("ascii", "ignore").decode()
+    base = re.sub(r"[^A-Za-z0-9]+", "_", ascii_name).strip("_")[:40] or "item"
     if not base[0].isalpha():
         base = "b" + base
     out, k = base, 2
-    while out in taken or out in {"t", "math"}:
+    while any(f"{out}_{s}" in taken for s in suffixes):
         out, k = f"{base}{k}", k + 1
-    taken.add(out)
+    taken.update(f"{out}_{s}" for s in suffixes)
     return out
 
 
@@ -37,7 +44,8 @@ class SymbolicContext:
         self.v: list[sp.Symbol] = []
         self._frames = {}
         for body in bodies:
-            stem = identifier(body.name, taken)
+            names = list(body.coordinate_names)
+            stem = identifier(body.name, names + [f"{c}_dot" for c in names], taken)
             syms = [sp.Symbol(f"{stem}_{c}", real=True) for c in body.coordinate_names]
             self.q += syms
             self.v += [sp.Symbol(f"{stem}_{c}_dot", real=True) for c in body.coordinate_names]
@@ -45,7 +53,7 @@ class SymbolicContext:
         self.p: list[sp.Symbol] = []
         self._params = {}
         for item in items:
-            stem = identifier(item.name, taken)
+            stem = identifier(item.name, item.parameter_names, taken)
             syms = {n: sp.Symbol(f"{stem}_{n}", real=True) for n in item.parameter_names}
             self.p += list(syms.values())
             self._params[id(item)] = syms
