@@ -60,7 +60,7 @@ def test_corrupt_cache_entry_is_rebuilt(tmp_path, monkeypatch):
     entry.write_text("this is not python")
     cache.clear_memory_cache()
     again = ms.examples.pendulum()
-    with pytest.warns(UserWarning, match="unreadable cache entry"):
+    with pytest.warns(UserWarning, match="does not match its digest"):
         again.problem()
     assert not again.from_cache
     assert np.allclose(again.problem().phi(again.initial_coordinates(), 0.0), 0.0)

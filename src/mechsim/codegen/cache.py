@@ -1,16 +1,29 @@
-"""On-disk cache of generated model modules, keyed by a hash of the model's structure.
+"""On-disk cache of generated model modules and their compiled libraries, keyed by a hash of
+the model's structure.
 
 The cache directory is `$MECHSIM_CACHE_DIR` if set, else `$XDG_CACHE_HOME/mechsim` or
-`~/.cache/mechsim`. Files are written atomically (temporary file, then rename) so parallel
-runs of the same scene never read a half-written module. This module must not import sympy.
+`~/.cache/mechsim`. Every entry (a generated module, a shared library) is written
+atomically (temporary file, then rename) with a digest beside it (`<file>.sha256`: its
+SHA-256 and its name), written when it was built; before an entry is imported or loaded it
+is read back and checked against that digest, so a truncated, zero-byte, foreign or edited
+file is rebuilt instead of crashing the process (a truncated library is a SIGBUS) or giving
+another model's numbers. A module is compiled from the bytes that were checked, not read
+again.
+
+A cache directory that other users can write to (group or world writable, or owned by
+someone else) is not trusted: mechsim warns once and keeps this process's entries in a
+private temporary directory instead. So is a directory it cannot write. This module must not
+import sympy.
 """
 
 from __future__ import annotations
 
+import atexit
 import hashlib
-import importlib.util
 import json
 import os
+import shutil
+import stat
 import sys
 import tempfile
 import warnings
@@ -18,13 +31,12 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
-from .compiled import attach
-
 # Bump when the generated code changes meaning, so stale cache entries are not used.
 CODEGEN_VERSION = 7
 
 
 def cache_dir() -> Path:
+    """The configured cache directory (it may not exist yet, nor be trusted; see `store`)."""
     env = os.environ.get("MECHSIM_CACHE_DIR")
     if env:
         return Path(env).expanduser()
@@ -38,14 +50,122 @@ def structure_key(structure) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
-def _import_source(name: str, path: Path | None, source: str | None = None) -> ModuleType:
-    if path is not None:
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    else:
-        module = ModuleType(name)
-        exec(compile(source, f"<mechsim model {name}>", "exec"), module.__dict__)
+def env_flag(name: str) -> bool:
+    """An environment switch: set to anything but "", "0", "false", "no" or "off"."""
+    return os.environ.get(name, "").strip().lower() not in ("", "0", "false", "no", "off")
+
+
+_warned: set = set()
+
+
+def warn_once(key, message: str) -> None:
+    """A UserWarning the first time `key` is seen in this process."""
+    if key not in _warned:
+        _warned.add(key)
+        warnings.warn(message, stacklevel=3)
+
+
+def _private(st: os.stat_result) -> bool:
+    """Owned by this user and writable by nobody else."""
+    if not hasattr(os, "getuid"):
+        return True
+    return st.st_uid == os.getuid() and not st.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
+
+
+_fallback: dict[str, Path] = {}
+
+
+def store() -> Path:
+    """The directory this process keeps its entries in: the configured one where it is
+    private to this user and writable (created, mode 0700, if missing), else a private
+    temporary directory removed at exit, with a warning saying why."""
+    configured = cache_dir()
+    try:
+        configured.mkdir(mode=0o700, parents=True, exist_ok=True)
+        st = configured.stat()
+        problem = None
+        if not stat.S_ISDIR(st.st_mode):
+            problem = "is not a directory"
+        elif not _private(st):
+            problem = "is writable by other users (or owned by another user)"
+        elif not os.access(configured, os.W_OK | os.X_OK):
+            problem = "is not writable"
+    except OSError as exc:
+        problem = f"cannot be used ({exc.strerror or exc})"
+    if problem is None:
+        return configured
+    key = str(configured)
+    if key not in _fallback:
+        tmp = Path(tempfile.mkdtemp(prefix="mechsim-cache-"))
+        atexit.register(shutil.rmtree, tmp, ignore_errors=True)
+        _fallback[key] = tmp
+        warn_once(("store", key), f"mechsim: the model cache {configured} {problem}; models "
+                  f"are built for this process only (in {tmp})")
+    return _fallback[key]
+
+
+# --- verified entries --------------------------------------------------------------------------
+def _digest_path(path: Path) -> Path:
+    return path.with_name(path.name + ".sha256")
+
+
+def write_entry(path: Path, data: bytes) -> None:
+    """Write `data` to `path` and its digest beside it, each atomically."""
+    _atomic_write(path, data)
+    record = f"{hashlib.sha256(data).hexdigest()}  {path.name}\n".encode()
+    _atomic_write(_digest_path(path), record)
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def adopt(path: Path) -> None:
+    """Write the digest of a file that is in place already (a library the compiler wrote
+    into `path` by rename)."""
+    data = path.read_bytes()
+    _atomic_write(_digest_path(path), f"{hashlib.sha256(data).hexdigest()}  "
+                                      f"{path.name}\n".encode())
+
+
+def read_verified(path: Path) -> bytes | None:
+    """The bytes of the entry at `path` if it matches the digest written when it was built
+    and no other user could have written it; None otherwise (missing, truncated, foreign,
+    edited: the caller rebuilds it)."""
+    try:
+        with open(path, "rb") as f:
+            st = os.fstat(f.fileno())
+            data = f.read()
+        record = _digest_path(path).read_text().split()
+        st_digest = _digest_path(path).stat()
+    except (OSError, UnicodeDecodeError):
+        return None
+    if not (_private(st) and _private(st_digest)) or len(record) != 2:
+        return None
+    digest, name = record
+    if name != path.name or digest != hashlib.sha256(data).hexdigest():
+        return None
+    return data
+
+
+def verified_file(path: Path) -> bool:
+    """Whether the entry at `path` passes `read_verified` (for files loaded by path)."""
+    return read_verified(path) is not None
+
+
+# --- generated modules -------------------------------------------------------------------------
+def _module(name: str, source: str, path: Path | None) -> ModuleType:
+    module = ModuleType(name)
+    module.__file__ = None if path is None else str(path)
+    code = compile(source, str(path) if path else f"<mechsim model {name}>", "exec")
+    exec(code, module.__dict__)
     return module
 
 
@@ -53,34 +173,38 @@ _loaded: dict[str, ModuleType] = {}
 
 
 def load_model(structure, build: Callable[[], str]) -> tuple[ModuleType, bool]:
-    """Return (module, from_cache). `build()` produces the module source on a miss."""
+    """Return (module, from_cache). `build()` produces the module source on a miss (or where
+    the cached entry fails its digest, or does not import: then it is rebuilt with a
+    warning)."""
+    from .compiled import attach
+
     key = structure_key(structure)
     if key in _loaded:
         return _loaded[key], True
     name = f"mechsim_model_{key}"
-    path = cache_dir() / f"{name}.py"
-    if path.is_file():
+    path = store() / f"{name}.py"
+    data = read_verified(path)
+    if data is not None:
         try:
-            module = _import_source(name, path)
+            module = _module(name, data.decode(), path)
             if getattr(module, "KEY", None) == key:
                 attach(module, path)
                 _loaded[key] = module
                 return module, True
-        except Exception as exc:  # a corrupt entry is rebuilt, not fatal
+            raise ImportError(f"it holds the model {getattr(module, 'KEY', None)!r}")
+        except Exception as exc:  # a damaged entry is rebuilt, never fatal
             warnings.warn(f"mechsim: ignoring unreadable cache entry {path}: {exc}")
+    elif path.exists():
+        warnings.warn(f"mechsim: cache entry {path} does not match its digest; rebuilding it")
     source = build()
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=name, suffix=".tmp")
-        with os.fdopen(fd, "w") as f:
-            f.write(source)
-        os.replace(tmp, path)
-        module = _import_source(name, path)
-        attach(module, path)
+        write_entry(path, source.encode())
+        module = _module(name, source, path)
     except OSError as exc:
-        warnings.warn(f"mechsim: model cache {path.parent} is not writable ({exc}); "
-                      "the model is compiled in memory for this run only")
-        module = _import_source(name, None, source)
+        warn_once(("write", str(path.parent)), f"mechsim: model cache {path.parent} is not "
+                  f"writable ({exc}); the model is compiled in memory for this run only")
+        module = _module(name, source, None)
+    attach(module, None if module.__file__ is None else path)
     _loaded[key] = module
     return module, False
 
@@ -88,5 +212,6 @@ def load_model(structure, build: Callable[[], str]) -> tuple[ModuleType, bool]:
 def clear_memory_cache() -> None:
     """Forget modules loaded in this process (tests use it to force a disk read)."""
     _loaded.clear()
+    _fallback.clear()
     for name in [m for m in sys.modules if m.startswith("mechsim_model_")]:
         del sys.modules[name]

@@ -10,16 +10,20 @@ costs 22 µs so, against 134 µs in Python. The Python functions stay available 
 `C_REPLACE = False`: a foreign call would cost them as much as the Python kernel, and the
 twins serve inside the compiled evaluations of `mechsim.codegen.engine` instead.
 
-Nothing here is required: without a compiler (or with `MECHSIM_NO_COMPILE` set), or where
-compiling or loading fails, the Python functions serve and `COMPILED` is False. The compiler
-is `$CC`, else the one Python was built with, else `cc`. This module must not import sympy.
+Nothing here is required: without a compiler (or with `MECHSIM_NO_COMPILE` set to a true
+value), or where compiling or loading fails, the Python functions serve and `COMPILED` is
+False; a failure is remembered in the cache and said once per process (`shared_library`).
+The compiler is `$CC`, else the one Python was built with, else `cc`. This module must not
+import sympy.
 """
 
 from __future__ import annotations
 
 import ctypes
+import json
 import os
 import shlex
+import shutil
 import subprocess
 import sysconfig
 import tempfile
@@ -27,22 +31,25 @@ from pathlib import Path
 
 import numpy as np
 
+from .cache import adopt, env_flag, read_verified, verified_file, warn_once, write_entry
+
+# Why the compiled path does not serve, by library path (see `status`).
+_declined: dict[str, str] = {}
+
 
 def attach(module, path: Path | None) -> bool:
     """Replace `module`'s functions by their compiled twins where it has them; True if it did."""
     module.COMPILED = False
     source = getattr(module, "C_SOURCE", None)
-    if (not source or not getattr(module, "C_REPLACE", True) or path is None
-            or os.environ.get("MECHSIM_NO_COMPILE")):
+    if not source or not getattr(module, "C_REPLACE", True) or path is None:
         return False
-    library = path.with_suffix(".so")
-    if not library.is_file() and not build_library(source, library):
+    lib = shared_library(source, path.with_suffix(".so"))
+    if lib is None:
         return False
     try:
-        lib = ctypes.CDLL(str(library))
         kernels = {name: (getattr(lib, f"mechsim_{name}"), has_v, shapes)
                    for name, has_v, shapes in module.C_SIGNATURES}
-    except (OSError, AttributeError):
+    except AttributeError:
         return False
     module.PYTHON_KERNELS = {}
     for name, (cfun, has_v, shapes) in kernels.items():
@@ -55,22 +62,90 @@ def attach(module, path: Path | None) -> bool:
     return True
 
 
-def build_library(source: str, library: Path) -> bool:
-    """Compile `source` into `library`; False if there is no working compiler."""
-    compiler = shlex.split(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
+def compiler() -> list[str]:
+    """The C compiler command: `$CC`, else the one Python was built with, else `cc`."""
+    return shlex.split(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
+
+
+def _compiler_identity(command: list[str]) -> str:
+    """What a remembered failure is valid for: the compiler's path, size and time (a new
+    or updated compiler is tried again)."""
+    found = shutil.which(command[0]) if command else None
+    if found is None:
+        return f"missing {command[0] if command else '(none)'}"
+    st = Path(found).stat()
+    return f"{found} {st.st_size} {st.st_mtime_ns}"
+
+
+def shared_library(source: str, target: Path):
+    """The ctypes library compiled from `source` at `target`: loaded where the file there
+    passes its digest (`mechsim.codegen.cache`), else built (once: a failure is remembered
+    beside it, `<target>.failed`, for the same compiler, and said in one warning per
+    process naming the compiler and its error). None where compiling is switched off
+    (`MECHSIM_NO_COMPILE`) or fails: the Python path serves."""
+    if env_flag("MECHSIM_NO_COMPILE"):
+        _declined[str(target)] = "MECHSIM_NO_COMPILE is set"
+        return None
+    if verified_file(target):
+        try:
+            return ctypes.CDLL(str(target))
+        except OSError:
+            pass                              # rebuilt below
+    command = compiler()
+    identity = _compiler_identity(command)
+    failed = target.with_name(target.name + ".failed")
+    record = read_verified(failed)
+    error = None
+    if record is not None:
+        try:
+            memo = json.loads(record)
+            if memo.get("compiler") == identity:
+                error = memo.get("error", "")
+        except ValueError:
+            pass
+    if error is None:
+        error = build_library(source, target, command)
+        if error is None:
+            adopt(target)
+            failed.unlink(missing_ok=True)
+            _declined.pop(str(target), None)
+            return ctypes.CDLL(str(target))
+        try:
+            write_entry(failed, json.dumps({"compiler": identity, "error": error}).encode())
+        except OSError:
+            pass
+    message = f"the C compiler {shlex.join(command)!r} failed: {error}"
+    _declined[str(target)] = message
+    warn_once(("compiler", identity), f"mechsim: {message}; models run on the Python path "
+              f"(slower). The failure is remembered in {target.parent}/*.failed until the "
+              f"compiler (or CC) changes")
+    return None
+
+
+def build_library(source: str, library: Path, command: list[str]) -> str | None:
+    """Compile `source` into `library` with `command`; None on success, else the error (the
+    compiler's last lines)."""
     try:
         with tempfile.TemporaryDirectory(dir=library.parent) as tmp:
             c_file, out = Path(tmp) / "model.c", Path(tmp) / "model.so"
             c_file.write_text(source)
-            done = subprocess.run(compiler + ["-O2", "-shared", "-fPIC", "-o", str(out),
-                                              str(c_file), "-lm"],
+            done = subprocess.run(command + ["-O2", "-shared", "-fPIC", "-o", str(out),
+                                             str(c_file), "-lm"],
                                   capture_output=True, timeout=600)
             if done.returncode != 0 or not out.is_file():
-                return False
-            os.replace(out, library)
-    except (OSError, subprocess.SubprocessError):
-        return False
-    return True
+                text = (done.stderr or done.stdout).decode(errors="replace").strip()
+                return " ".join(text.splitlines()[-3:])[:400] or f"exit status {done.returncode}"
+            out.replace(library)
+    except subprocess.TimeoutExpired:
+        return "timed out after 600 s"
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    return None
+
+
+def declined(target: Path) -> str | None:
+    """Why the library at `target` does not serve (None: it does, or was not asked for)."""
+    return _declined.get(str(target))
 
 
 def _kernel(cfun, has_v: bool, shapes):
@@ -98,3 +173,48 @@ def _kernel(cfun, has_v: bool, shapes):
             q = np.ascontiguousarray(q, dtype=float)
             return call((q.ctypes.data,), t, p)
     return kernel
+
+
+class Compilation:
+    """Whether compiled code serves a model (`Mechanism.compilation()`):
+
+    kernels : bool
+        the model's generated functions run as C (models of `printer.C_MIN_COORDINATES`
+        coordinates or more);
+    engine : bool
+        the compiled evaluations of `mechsim.codegen.engine` serve its LU, QR, projection
+        and hybrid runs (small rigid mechanisms);
+    reason : str
+        why neither serves, or "" where one does."""
+
+    __slots__ = ("kernels", "engine", "reason")
+
+    def __init__(self, kernels: bool, engine: bool, reason: str):
+        self.kernels, self.engine, self.reason = kernels, engine, reason
+
+    @property
+    def serves(self) -> bool:
+        return self.kernels or self.engine
+
+    def __repr__(self):
+        return f"Compilation(kernels={self.kernels}, engine={self.engine}, reason={self.reason!r})"
+
+
+def compilation(problem) -> Compilation:
+    """What compiled code serves `problem` (a NumericProblem); builds what is missing."""
+    from . import engine
+    model = problem.model
+    kernels = bool(getattr(model, "COMPILED", False))
+    served = engine.for_problem(problem) is not None
+    path = getattr(model, "__file__", None)
+    reason = ""
+    if not (kernels or served):
+        if env_flag("MECHSIM_NO_COMPILE"):
+            reason = "MECHSIM_NO_COMPILE is set"
+        elif path is None:
+            reason = "the model is kept in memory only (its cache could not be written)"
+        else:
+            why = [declined(Path(path).with_suffix(".so")),
+                   declined(engine.library_path(Path(path)))]
+            reason = next((w for w in why if w), "") or engine.why_not(problem)
+    return Compilation(kernels, served, reason)

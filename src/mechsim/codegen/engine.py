@@ -38,12 +38,11 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
-import os
 from pathlib import Path
 
 import numpy as np
 
-from .compiled import build_library
+from .compiled import shared_library
 
 SOURCE = r"""
 #include <math.h>
@@ -521,6 +520,23 @@ def for_problem(problem):
     return library(problem.model)
 
 
+def library_path(module_path: Path) -> Path:
+    """Where the engine library of the model module at `module_path` is cached."""
+    return module_path.with_name(f"{module_path.stem}.lu-{_HASH}.so")
+
+
+def why_not(problem) -> str:
+    """Why `for_problem` gives no engine for a problem it does not take ("" if it takes it)."""
+    if not problem.m:
+        return "the mechanism has no constraints: nothing to compile"
+    if not problem.constant_mass:
+        return ("flexible bodies: the compiled evaluations take rigid mechanisms "
+                "(constant diagonal mass) only")
+    if problem.schur is not None:
+        return "a long chain: its banded Schur complement runs on the Python path"
+    return ""
+
+
 def library(model):
     """The compiled engine for `model` (a generated module), or None where there is none."""
     lib = getattr(model, "_ENGINE", False)
@@ -528,14 +544,12 @@ def library(model):
         return lib
     model._ENGINE = None
     source, path = getattr(model, "C_SOURCE", None), getattr(model, "__file__", None)
-    if not source or not path or os.environ.get("MECHSIM_NO_COMPILE"):
+    if not source or not path:
         return None
-    path = Path(path)
-    target = path.with_name(f"{path.stem}.lu-{_HASH}.so")
-    if not target.is_file() and not build_library(source + SOURCE, target):
+    lib = shared_library(source + SOURCE, library_path(Path(path)))
+    if lib is None:
         return None
     try:
-        lib = ctypes.CDLL(str(target))
         routines = ("dgesv", "dposv", "dpotrf", "dpocon", "dpotrs", "dgesdd", "dgetrf")
         lib.mechsim_engine_init.argtypes = [ctypes.c_void_p] * len(routines)
         lib.mechsim_engine_init.restype = None

@@ -278,6 +278,14 @@ class Mechanism:
                     involved.append(prob.constraint_owners[i])
         return DofReport(n, m, rank, n - rank, m - rank, involved, s)
 
+    def compilation(self):
+        """Whether compiled C serves this mechanism's runs: a `Compilation` with `kernels`
+        (its generated functions run as C), `engine` (compiled evaluations of the rigid
+        formulations) and the `reason` where neither does (no compiler and the compiler's
+        error, `MECHSIM_NO_COMPILE`, flexible bodies, …). Builds what is missing."""
+        from ..codegen.compiled import compilation
+        return compilation(self.problem())
+
     def assemble(self, t: float = 0.0, tol: float = 1e-10, max_iter: int = 50) -> AssemblyReport:
         """Make the initial state consistent: positions by Newton with the smallest change
         (kinetic metric), then velocities by projection in the mass metric. Consistent input is
