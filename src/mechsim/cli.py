@@ -17,30 +17,71 @@ def _run(args) -> int:
     t0 = time.perf_counter()
     try:
         scene = load_scene(args.scene)
+        out_dir, targets = _output_paths(args, scene)
     except ModelError as exc:
         print(f"mechsim: {exc}", file=sys.stderr)
         return 2
     mech = scene.mechanism
-    try:
-        mech.problem()
-        t_build = time.perf_counter() - t0
-        report = mech.dof()
-        assembly = mech.assemble(t=scene.simulation.get("t_start", 0.0))
-    except ModelError as exc:
-        print(f"mechsim: {exc}", file=sys.stderr)
-        return 2
     overrides = {}
     if args.method:
         overrides["method"] = args.method
     if args.t_end is not None:
         overrides["t_end"] = args.t_end
     try:
+        if overrides:
+            from .solver import check_simulate_arguments
+            settings = {**scene.simulation, **overrides}
+            check_simulate_arguments(len(mech.coordinate_names), settings.pop("t_end"),
+                                     settings.pop("method", None), settings)
+        mech.problem()
+        t_build = time.perf_counter() - t0
+        report = mech.dof()
+        assembly = mech.assemble(t=scene.simulation.get("t_start", 0.0))
         res = scene.simulate(**overrides)
     except (ModelError, ValueError) as exc:
         print(f"mechsim: {exc}", file=sys.stderr)
         return 2
+    _summary(scene, mech, res, report, assembly, t_build)
+    written = []
+    if targets:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    for kind, path in targets:
+        if kind == "energy":
+            res.plot_energy(path=path)
+            written.append(path)
+        elif kind == "save":
+            written.append(res.save(path))
+        else:
+            written.append(res.export(path))
+    for w in written:
+        print(f"wrote      {w}")
+    return 0 if res.success else 1
 
-    out_dir = Path(args.out or scene.output.get("directory") or Path("out") / scene.path.stem)
+
+def _output_paths(args, scene):
+    """(output directory, [(what, path)]) of a run, checked before anything is built: the
+    scene's files stay inside its output directory (`--out`, else its `directory`, else
+    out/<scene name>), symbolic links included."""
+    from .scene import SceneError
+    out = scene.output
+    out_dir = Path(args.out or out.get("directory") or Path("out") / scene.path.stem)
+    stem = scene.path.stem
+    targets = [] if args.no_plots else [(name, out_dir / f"{stem}_{name}.png")
+                                        for name in out.get("plots", [])]
+    if out.get("save"):
+        targets.append(("save", out_dir / f"{stem}.npz"))
+    if out.get("export"):
+        targets.append(("export", out_dir / out["export"]))
+    base = out_dir.resolve()
+    for _, path in targets:
+        if not path.resolve().is_relative_to(base):
+            raise SceneError(f"{scene.path.name}: [output] {path} leaves the output directory "
+                             f"{out_dir} (through a link); choose a path inside it")
+    return out_dir, targets
+
+
+def _summary(scene, mech, res, report, assembly, t_build) -> None:
+    """The run's summary on standard output."""
     print(f"scene      {scene.path}  ({mech.name})")
     print(f"model      {'loaded from cache' if mech.from_cache else 'compiled and cached'} "
           f"in {t_build:.3f} s; {report}")
@@ -69,24 +110,6 @@ def _run(args) -> int:
     for body, local in scene.output.get("points", []):
         p = res.point(body, local)[-1]
         print(f"point      {body} {tuple(local)} at t = {res.t[-1]:g}: ({p[0]:.6f}, {p[1]:.6f})")
-    plots = [] if args.no_plots else scene.output.get("plots", [])
-    written = []
-    if plots or scene.output.get("save") or scene.output.get("export"):
-        out_dir.mkdir(parents=True, exist_ok=True)
-    for name in plots:
-        if name != "energy":
-            print(f"mechsim: unknown plot {name!r} in [output] plots; known: energy",
-                  file=sys.stderr)
-            return 2
-        written.append(out_dir / f"{scene.path.stem}_energy.png")
-        res.plot_energy(path=written[-1])
-    if scene.output.get("save"):
-        written.append(res.save(out_dir / f"{scene.path.stem}.npz"))
-    if scene.output.get("export"):
-        written.append(res.export(out_dir / str(scene.output["export"])))
-    for w in written:
-        print(f"wrote      {w}")
-    return 0 if res.success else 1
 
 
 def _numbers(text, option, default) -> list[float]:

@@ -51,9 +51,15 @@
     export = "motion.xdmf"       # meshio time series of the bodies (ParaView)
     points = [["coupler", [0.5, 0.0]]]   # final positions printed in the summary
 
+    directory = "out/four_bar"   # relative, inside the working directory
+
 Numbers may be given as expressions (+ − * / **, pi, sin, cos, tan, sqrt, radians, degrees,
-…) of the parameters; they are evaluated by a small arithmetic evaluator, not by `eval`, so
-a scene cannot run code.
+…) of the parameters; they are parsed by `mechsim.model.expressions`, not by `eval`, so a
+scene cannot run code. Every table and key is checked against one schema (`SCHEMA`, and
+for `[simulation]` the settings of `mechsim.solver.simulate` and of every method) before
+anything is built or run: an unknown key (with the closest valid one), a value of the wrong
+type, a missing key, an output path leaving the output directory or an unknown plot is a
+`SceneError` naming the file, the table and the key.
 """
 
 from __future__ import annotations
@@ -61,15 +67,20 @@ from __future__ import annotations
 import math
 import tomllib
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePath
 
-from .model.expressions import ExpressionError, parse
 from .model import (Driver, FlexibleBeam, Force, Mechanism, ModelError, Prismatic, Revolute,
                     RigidBody, Spring, Torque)
+from .model.expressions import ExpressionError, parse
+from .options import unknown_names
 
 
 class SceneError(ModelError):
     """A scene file is malformed; the message names the file, the table and the key."""
+
+
+MAX_SCENE_BYTES = 4 * 2 ** 20
+PLOTS = ("energy",)
 
 
 def evaluate(text, names: dict, where: str) -> float:
@@ -77,19 +88,30 @@ def evaluate(text, names: dict, where: str) -> float:
     `mechsim.model.expressions`, never by `eval`)."""
     if isinstance(text, bool) or not isinstance(text, (int, float, str)):
         raise SceneError(f"{where}: expected a number or an expression, got "
-                         f"{type(text).__name__} {text!r:.80}")
+                         f"{_kind(text)} {_show(text)}")
     try:
         expression = parse(text, set(names), where)
         return expression.value(**{k: names[k] for k in expression.names})
     except ExpressionError as exc:
         raise SceneError(str(exc)) from None
     except (ArithmeticError, ValueError) as exc:
-        raise SceneError(f"{where}: {text!r:.200} cannot be evaluated: {exc}") from None
+        raise SceneError(f"{where}: {_show(text)} cannot be evaluated: {exc}") from None
+
+
+def _show(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _kind(value) -> str:
+    return {dict: "a table", list: "an array", str: "a string", bool: "a boolean"}.get(
+        type(value), type(value).__name__)
 
 
 @dataclass
 class Scene:
-    """A loaded scene: the mechanism plus what to do with it."""
+    """A loaded scene: the mechanism, its simulation settings (keyword arguments of
+    `Mechanism.simulate`) and its checked `[output]` table."""
     path: Path
     mechanism: Mechanism
     simulation: dict = field(default_factory=dict)
@@ -100,213 +122,327 @@ class Scene:
         return self.mechanism.simulate(**settings)
 
 
-_KEYS = {
-    "body": {"name", "mass", "inertia", "position", "angle", "velocity", "angular_velocity",
-             "rod", "type"},
-    "flexible_beam": {"type", "name", "start", "end", "length", "angle", "youngs_modulus",
-                      "density", "area", "second_moment", "n_elements", "n_modes", "boundary",
-                      "damping_ratio", "velocity", "angular_velocity"},
-    "joint": {"type", "name", "bodies", "at", "local_a", "local_b", "axis"},
-    "driver": {"joint", "expression", "name"},
-    "spring": {"bodies", "at_a", "at_b", "stiffness", "rest_length", "damping", "name"},
-    "force": {"body", "force", "at", "name"},
-    "torque": {"body", "torque", "name"},
+# --- the schema ------------------------------------------------------------------------------
+# Each key's kind: "name" (a non-empty string), "text" (a string), "number" (a number or an
+# expression of the parameters), "vector" ([number, number]), "segment" ([vector, vector]),
+# "bodies" ([name, name]), "count" (a whole number ≥ 1), a tuple of allowed strings, "flag"
+# (true or false). A key in REQUIRED must be given.
+SCHEMA = {
+    "body": {"name": "name", "type": ("rigid", "flexible_beam"), "mass": "number",
+             "inertia": "number", "position": "vector", "angle": "number",
+             "velocity": "vector", "angular_velocity": "number", "rod": "segment"},
+    "flexible_beam": {"type": ("flexible_beam",), "name": "name", "start": "vector",
+                      "end": "vector", "length": "number", "angle": "number",
+                      "youngs_modulus": "number", "density": "number", "area": "number",
+                      "second_moment": "number", "n_elements": "count", "n_modes": "count",
+                      "boundary": ("pinned-pinned", "clamped-free", "free-free"),
+                      "damping_ratio": "number", "velocity": "vector",
+                      "angular_velocity": "number"},
+    "joint": {"type": ("revolute", "prismatic"), "name": "name", "bodies": "bodies",
+              "at": "vector", "local_a": "vector", "local_b": "vector", "axis": "vector"},
+    "driver": {"joint": "name", "expression": "driver", "name": "name"},
+    "spring": {"bodies": "bodies", "at_a": "vector", "at_b": "vector", "stiffness": "number",
+               "rest_length": "number", "damping": "number", "name": "name"},
+    "force": {"body": "name", "force": "vector", "at": "vector", "name": "name"},
+    "torque": {"body": "name", "torque": "number", "name": "name"},
+    "output": {"plots": "plots", "save": "flag", "points": "points", "directory": "path",
+               "export": "path"},
 }
-_SIMULATION_KEYS = {"t_end", "method", "rtol", "atol", "max_step", "output_step", "integrator",
-                    "first_step", "t_start", "alpha", "beta", "projection", "projection_tol",
-                    "h", "max_steps", "rcond", "regularization", "exact_projection"}
-_OUTPUT_KEYS = {"plots", "save", "points", "directory", "export"}
-_TOP_KEYS = {"name", "gravity", "parameters", "simulation", "output"} | set(_KEYS) - \
-    {"flexible_beam"}
+REQUIRED = {
+    "body": ("name",), "flexible_beam": ("name", "start", "youngs_modulus", "density", "area",
+                                         "second_moment"),
+    "joint": ("type", "bodies"), "driver": ("joint", "expression"),
+    "spring": ("bodies", "at_a", "at_b", "stiffness"), "force": ("body", "force"),
+    "torque": ("body", "torque"), "output": (),
+}
+_ARRAYS = ("body", "joint", "driver", "spring", "force", "torque")
+_TOP = {"name": "name", "gravity": "vector", "parameters": "table", "simulation": "table",
+        "output": "table", **{k: "array" for k in _ARRAYS}}
+
+
+class _Reader:
+    """Reads values of the schema's kinds from one scene, with the parameters in scope."""
+
+    def __init__(self, file: str):
+        self.file = file
+        self.names: dict[str, float] = {}
+
+    def error(self, where, message):
+        return SceneError(f"{self.file}: {where}: {message}")
+
+    def value(self, kind, value, where):
+        if isinstance(kind, tuple):
+            if value not in kind:
+                raise self.error(where, f"must be one of {', '.join(map(repr, kind))}, got "
+                                        f"{_show(value)}")
+            return value
+        if kind == "driver":
+            return value          # a number or a string: `Driver` parses it, naming itself
+        if kind in ("name", "text", "path"):
+            if not isinstance(value, str) or (kind != "text" and not value.strip()):
+                raise self.error(where, f"expected a non-empty string, got {_kind(value)} "
+                                        f"{_show(value)}")
+            if kind == "path":
+                self._path(value, where)
+            return value
+        if kind == "number":
+            return evaluate(value, self.names, f"{self.file}: {where}")
+        if kind == "count":
+            x = self.value("number", value, where)
+            if x != int(x) or x < 1:
+                raise self.error(where, f"must be a whole number ≥ 1, got {x:g}")
+            return int(x)
+        if kind == "flag":
+            if not isinstance(value, bool):
+                raise self.error(where, f"must be true or false, got {_kind(value)} "
+                                        f"{_show(value)}")
+            return value
+        if kind in ("vector", "segment", "bodies"):
+            if not isinstance(value, list) or len(value) != 2:
+                what = {"vector": "two numbers", "segment": "two points [[x, y], [x, y]]",
+                        "bodies": "two body names"}[kind]
+                raise self.error(where, f"expected an array of {what}, got {_show(value)}")
+            item = {"vector": "number", "segment": "vector", "bodies": "name"}[kind]
+            return tuple(self.value(item, v, where) for v in value)
+        if kind == "plots":
+            if not isinstance(value, list):
+                raise self.error(where, f"expected an array of plot names, got {_show(value)}")
+            return [self.value(PLOTS, v, where) for v in value]
+        if kind == "points":
+            if not isinstance(value, list) or not all(isinstance(p, list) and len(p) == 2
+                                                      for p in value):
+                raise self.error(where, "expected an array of [body name, [x, y]] pairs, got "
+                                        f"{_show(value)}")
+            return [(self.value("name", b, where), self.value("vector", p, where))
+                    for b, p in value]
+        raise AssertionError(kind)
+
+    def _path(self, value, where):
+        """A relative path that stays where it is put: no `..`, not absolute."""
+        path = PurePath(value)
+        if path.is_absolute() or path.drive or ".." in path.parts or "\0" in value \
+                or not path.parts:
+            raise self.error(where, f"must be a relative path inside the output directory "
+                                    f"(no '..', not absolute), got {_show(value)}")
+
+    def table(self, raw, schema_name, where):
+        """The keys of one table, each read by its kind; unknown and missing keys named."""
+        if not isinstance(raw, dict):
+            raise self.error(where, f"expected a table, got {_kind(raw)} {_show(raw)}")
+        schema = SCHEMA[schema_name]
+        message = unknown_names(raw, schema, "this table")
+        if message:
+            raise self.error(where, message.replace("this table does not take",
+                                                    "unknown key(s)"))
+        for key in REQUIRED[schema_name]:
+            if key not in raw:
+                raise self.error(where, f"needs `{key}`")
+        return {key: self.value(schema[key], value, f"{where} {key}")
+                for key, value in raw.items()}
 
 
 def load_scene(path) -> Scene:
-    """Build the mechanism described by the TOML file at `path`."""
+    """Build the mechanism described by the TOML file at `path`, checking every table and
+    key first (see the module docstring); a malformed scene is a SceneError."""
     path = Path(path)
+    f = path.name
+    data = _read_toml(path)
+    r = _Reader(f)
+    message = unknown_names(data, _TOP, "a scene")
+    if message:
+        raise SceneError(f"{f}: " + message.replace("a scene does not take",
+                                                    "unknown top-level key(s)"))
+    for key, kind in _TOP.items():
+        if key in data and kind == "table" and not isinstance(data[key], dict):
+            raise SceneError(f"{f}: `{key}` must be a table [{key}], got {_kind(data[key])} "
+                             f"{_show(data[key])}")
+        if key in data and kind == "array" and not (
+                isinstance(data[key], list) and all(isinstance(t, dict) for t in data[key])):
+            raise SceneError(f"{f}: `{key}` must be an array of tables [[{key}]], got "
+                             f"{_kind(data[key])} {_show(data[key])}")
+    for key, value in data.get("parameters", {}).items():
+        if not key.isidentifier():
+            raise SceneError(f"{f}: [parameters] {key!r} is not a valid name (letters, digits "
+                             "and underscores, not starting with a digit)")
+        r.names[key] = evaluate(value, r.names, f"{f}: [parameters] {key}")
+    name = r.value("name", data.get("name", path.stem), "name")
+    gravity = r.value("vector", data.get("gravity", [0.0, -9.81]), "gravity")
+    tables = {key: [] for key in _ARRAYS}
+    for key in _ARRAYS:
+        for i, raw in enumerate(data.get(key, [])):
+            label = raw.get("name") if isinstance(raw.get("name"), str) else None
+            where = f"{key}[{i}]" + (f" ({label!r})" if label else "")
+            schema = key
+            if key == "body" and raw.get("type") == "flexible_beam":
+                schema = "flexible_beam"
+            tables[key].append((where, r.table(raw, schema, where)))
+    output = r.table(data.get("output", {}), "output", "[output]")
+    if "export" in output:
+        from .results.export import check_format
+        try:
+            check_format(output["export"])
+        except ValueError as exc:
+            raise r.error("[output] export", str(exc)) from None
+    mech = _build(r, name, gravity, tables)
+    for body, _ in output.get("points", []):
+        _body(r, mech, body, "[output] points")
+    simulation = _simulation(r, data.get("simulation", {}), mech)
+    return Scene(path, mech, simulation, output)
+
+
+def _read_toml(path: Path) -> dict:
+    f = path.name
     try:
-        data = tomllib.loads(path.read_text())
+        if path.stat().st_size > MAX_SCENE_BYTES:
+            raise SceneError(f"{f}: the scene file is larger than {MAX_SCENE_BYTES} bytes")
+        text = path.read_bytes().decode("utf-8")
     except FileNotFoundError:
         raise SceneError(f"scene file {str(path)!r} does not exist") from None
+    except IsADirectoryError:
+        raise SceneError(f"{str(path)!r} is a directory, not a scene file") from None
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"{f}: not UTF-8 text (byte {exc.start}); save the scene as "
+                         "UTF-8") from None
+    except OSError as exc:
+        raise SceneError(f"scene file {str(path)!r} cannot be read: "
+                         f"{exc.strerror or exc}") from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path.name}: not valid TOML: {exc}") from None
-    f = path.name
-    _check_keys(data, _TOP_KEYS, f"{f}")
-    names: dict[str, float] = {}
-    for key, value in data.get("parameters", {}).items():
-        names[key] = evaluate(value, names, f"{f}: [parameters] {key}")
+        raise SceneError(f"{f}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise SceneError(f"{f}: nested too deeply to read") from None
 
-    def num(value, where):
-        return evaluate(value, names, where)
 
-    def vec(value, where):
-        if not isinstance(value, list) or len(value) != 2:
-            raise SceneError(f"{where}: expected a list of two numbers, got {value!r}")
-        return (num(value[0], where), num(value[1], where))
+def _body(r, mech, name, where):
+    try:
+        return mech.body(name)
+    except KeyError:
+        raise r.error(where, f"no body named {name!r}; bodies: "
+                             f"{', '.join(b.name for b in [mech.ground] + mech.bodies)}") from None
 
-    def opt(table, key, where, conv):
-        return {} if key not in table else {key: conv(table[key], f"{where} {key}")}
 
-    mech = Mechanism(data.get("name", path.stem),
-                     gravity=vec(data.get("gravity", [0.0, -9.81]), f"{f}: gravity"))
-    by_name = {}
-
-    def body_named(name, where):
-        if name == "ground":
-            return mech.ground
-        if name not in by_name:
-            raise SceneError(f"{where}: no body named {name!r}; bodies: "
-                             f"{', '.join(['ground'] + list(by_name))}")
-        return by_name[name]
-
-    def wrap(where, build):
+def _build(r, name, gravity, tables) -> Mechanism:
+    """The Mechanism from the checked tables; a ModelError is re-raised naming the table."""
+    def make(where, build):
         try:
             return build()
         except SceneError:
             raise
         except ModelError as exc:
-            raise SceneError(f"{where}: {exc}") from None
+            raise r.error(where, str(exc)) from None
 
-    for i, t in enumerate(data.get("body", [])):
-        where = f"{f}: body[{i}]" + (f" ({t['name']!r})" if "name" in t else "")
-        kind = t.get("type", "rigid")
-        if kind not in ("rigid", "flexible_beam"):
-            raise SceneError(f"{where}: `type` must be 'rigid' or 'flexible_beam', got {kind!r}")
-        _check_keys(t, _KEYS["body" if kind == "rigid" else kind], where)
-        if "name" not in t:
-            raise SceneError(f"{where}: needs a `name`")
-        kw = {**opt(t, "velocity", where, vec), **opt(t, "angular_velocity", where, num)}
-        if kind == "flexible_beam":
-            body = wrap(where, lambda: _beam(t, where, num, vec, opt, kw))
-        elif "rod" in t:
-            rod = t["rod"]
-            if not isinstance(rod, list) or len(rod) != 2:
-                raise SceneError(f"{where}: `rod` must be [start, end]")
-            if "inertia" in t or "position" in t or "angle" in t:
-                raise SceneError(f"{where}: a `rod` body takes its inertia, position and angle "
-                                 "from its end points; remove them")
-            body = wrap(where, lambda: RigidBody.rod(
-                t["name"], vec(rod[0], f"{where} rod start"), vec(rod[1], f"{where} rod end"),
-                num(t.get("mass"), f"{where} mass"), **kw))
-        else:
-            for key in ("mass", "inertia"):
-                if key not in t:
-                    raise SceneError(f"{where}: needs `{key}` (or give a `rod`)")
-            body = wrap(where, lambda: RigidBody(
-                t["name"], num(t["mass"], f"{where} mass"), num(t["inertia"], f"{where} inertia"),
-                **opt(t, "position", where, vec), **opt(t, "angle", where, num), **kw))
-        wrap(where, lambda: mech.add(body))
-        by_name[body.name] = body
-
+    mech = make("name", lambda: Mechanism(name, gravity=gravity))
+    for where, t in tables["body"]:
+        body = make(where, lambda: _body_from(r, t, where))
+        make(where, lambda: mech.add(body))
     joints = {}
-    for i, t in enumerate(data.get("joint", [])):
-        where = f"{f}: joint[{i}]" + (f" ({t['name']!r})" if "name" in t else "")
-        _check_keys(t, _KEYS["joint"], where)
-        bodies = t.get("bodies")
-        if not isinstance(bodies, list) or len(bodies) != 2:
-            raise SceneError(f"{where}: `bodies` must name two bodies")
-        a, b = (body_named(n, where) for n in bodies)
-        kind = t.get("type")
-        if kind == "revolute":
-            kw = {**opt(t, "at", where, vec), **opt(t, "local_a", where, vec),
-                  **opt(t, "local_b", where, vec)}
-            joint = wrap(where, lambda: Revolute(a, b, name=t.get("name"), **kw))
-        elif kind == "prismatic":
-            if "axis" not in t or "at" not in t:
-                raise SceneError(f"{where}: a prismatic joint needs `axis` and `at`")
-            joint = wrap(where, lambda: Prismatic(a, b, axis=vec(t["axis"], f"{where} axis"),
-                                                  at=vec(t["at"], f"{where} at"),
-                                                  name=t.get("name")))
+    for where, t in tables["joint"]:
+        a, b = (_body(r, mech, n, where) for n in t["bodies"])
+        if t["type"] == "revolute":
+            if "axis" in t:
+                raise r.error(where, "a revolute joint has no `axis`")
+            kw = {k: t[k] for k in ("at", "local_a", "local_b") if k in t}
+            joint = make(where, lambda: Revolute(a, b, name=t.get("name"), **kw))
         else:
-            raise SceneError(f"{where}: `type` must be 'revolute' or 'prismatic', got {kind!r}")
-        wrap(where, lambda: mech.add(joint))
+            if "axis" not in t or "at" not in t:
+                raise r.error(where, "a prismatic joint needs `axis` and `at`")
+            joint = make(where, lambda: Prismatic(a, b, axis=t["axis"], at=t["at"],
+                                                  name=t.get("name")))
+        make(where, lambda: mech.add(joint))
         joints[joint.name] = joint
-
-    for i, t in enumerate(data.get("driver", [])):
-        where = f"{f}: driver[{i}]"
-        _check_keys(t, _KEYS["driver"], where)
-        if t.get("joint") not in joints:
-            raise SceneError(f"{where}: no joint named {t.get('joint')!r}; joints: "
-                             f"{', '.join(joints) or '(none)'}")
-        wrap(where, lambda: mech.add(Driver(joints[t["joint"]], t.get("expression", ""),
+    for where, t in tables["driver"]:
+        if t["joint"] not in joints:
+            raise r.error(where, f"no joint named {t['joint']!r}; joints: "
+                                 f"{', '.join(joints) or '(none)'}")
+        make(where, lambda: mech.add(Driver(joints[t["joint"]], t["expression"],
                                             name=t.get("name"))))
-
-    for i, t in enumerate(data.get("spring", [])):
-        where = f"{f}: spring[{i}]"
-        _check_keys(t, _KEYS["spring"], where)
-        bodies = t.get("bodies")
-        if not isinstance(bodies, list) or len(bodies) != 2:
-            raise SceneError(f"{where}: `bodies` must name two bodies")
-        a, b = (body_named(n, where) for n in bodies)
-        kw = {**opt(t, "rest_length", where, num), **opt(t, "damping", where, num)}
-        wrap(where, lambda: mech.add(Spring(
-            a, b, vec(t.get("at_a"), f"{where} at_a"), vec(t.get("at_b"), f"{where} at_b"),
-            num(t.get("stiffness"), f"{where} stiffness"), name=t.get("name"), **kw)))
-
-    for i, t in enumerate(data.get("force", [])):
-        where = f"{f}: force[{i}]"
-        _check_keys(t, _KEYS["force"], where)
-        body = body_named(t.get("body"), where)
-        wrap(where, lambda: mech.add(Force(body, vec(t.get("force"), f"{where} force"),
-                                           **opt(t, "at", where, vec), name=t.get("name"))))
-
-    for i, t in enumerate(data.get("torque", [])):
-        where = f"{f}: torque[{i}]"
-        _check_keys(t, _KEYS["torque"], where)
-        body = body_named(t.get("body"), where)
-        wrap(where, lambda: mech.add(Torque(body, num(t.get("torque"), f"{where} torque"),
-                                            name=t.get("name"))))
-
-    simulation = dict(data.get("simulation", {}))
-    _check_keys(simulation, _SIMULATION_KEYS, f"{f}: [simulation]")
-    for key, value in simulation.items():
-        if key == "max_steps":
-            simulation[key] = int(num(value, f"{f}: [simulation] {key}"))
-        elif key not in ("method", "integrator", "projection", "regularization",
-                         "exact_projection"):
-            simulation[key] = num(value, f"{f}: [simulation] {key}")
-    if "t_end" not in simulation:
-        raise SceneError(f"{f}: [simulation] needs `t_end`")
-    output = dict(data.get("output", {}))
-    _check_keys(output, _OUTPUT_KEYS, f"{f}: [output]")
-    return Scene(path, mech, simulation, output)
+    for where, t in tables["spring"]:
+        a, b = (_body(r, mech, n, where) for n in t["bodies"])
+        kw = {k: t[k] for k in ("rest_length", "damping", "name") if k in t}
+        make(where, lambda: mech.add(Spring(a, b, t["at_a"], t["at_b"], t["stiffness"], **kw)))
+    for where, t in tables["force"]:
+        body = _body(r, mech, t["body"], where)
+        kw = {k: t[k] for k in ("at", "name") if k in t}
+        make(where, lambda: mech.add(Force(body, t["force"], **kw)))
+    for where, t in tables["torque"]:
+        body = _body(r, mech, t["body"], where)
+        make(where, lambda: mech.add(Torque(body, t["torque"], name=t.get("name"))))
+    return mech
 
 
-def _beam(t, where, num, vec, opt, kw) -> FlexibleBeam:
-    """A FlexibleBeam from its scene table: `start` plus `end`, or `length` and `angle`."""
-    if "start" not in t:
-        raise SceneError(f"{where}: a flexible beam needs `start`")
-    start = vec(t["start"], f"{where} start")
+def _body_from(r, t, where):
+    """A rigid body (from `mass` and `inertia`, or a `rod`) or a flexible beam."""
+    if t.get("type") == "flexible_beam":
+        return _beam(r, t, where)
+    if "rod" in t:
+        for key in ("inertia", "position", "angle"):
+            if key in t:
+                raise r.error(where, "a `rod` body takes its inertia, position and angle from "
+                                     f"its end points; remove `{key}`")
+        if "mass" not in t:
+            raise r.error(where, "needs `mass`")
+        kw = {k: t[k] for k in ("velocity", "angular_velocity") if k in t}
+        return RigidBody.rod(t["name"], *t["rod"], t["mass"], **kw)
+    for key in ("mass", "inertia"):
+        if key not in t:
+            raise r.error(where, f"needs `{key}` (or give a `rod`)")
+    kw = {k: t[k] for k in ("position", "angle", "velocity", "angular_velocity") if k in t}
+    return RigidBody(t["name"], t["mass"], t["inertia"], **kw)
+
+
+def _beam(r, t, where) -> FlexibleBeam:
+    """A FlexibleBeam from its checked table: `start` plus `end`, or `length` and `angle`."""
+    kw = {k: t[k] for k in ("youngs_modulus", "density", "area", "second_moment", "n_elements",
+                            "n_modes", "boundary", "damping_ratio", "velocity",
+                            "angular_velocity") if k in t}
+    start = t["start"]
     if "end" in t:
         if "length" in t or "angle" in t:
-            raise SceneError(f"{where}: give `end`, or `length` and `angle`, not both")
-        end = vec(t["end"], f"{where} end")
+            raise r.error(where, "give `end`, or `length` and `angle`, not both")
+        end = t["end"]
         kw["length"] = math.hypot(end[0] - start[0], end[1] - start[1])
         kw["angle"] = math.atan2(end[1] - start[1], end[0] - start[0])
     elif "length" in t:
-        kw["length"] = num(t["length"], f"{where} length")
-        kw.update(opt(t, "angle", where, num))
+        kw["length"] = t["length"]
+        if "angle" in t:
+            kw["angle"] = t["angle"]
     else:
-        raise SceneError(f"{where}: a flexible beam needs `end` or `length`")
-    for key in ("youngs_modulus", "density", "area", "second_moment"):
-        if key not in t:
-            raise SceneError(f"{where}: a flexible beam needs `{key}`")
-        kw[key] = num(t[key], f"{where} {key}")
-    for key in ("n_elements", "n_modes"):
-        if key in t:
-            value = num(t[key], f"{where} {key}")
-            if value != int(value):
-                raise SceneError(f"{where}: `{key}` must be a whole number, got {value}")
-            kw[key] = int(value)
-    kw.update(opt(t, "damping_ratio", where, num))
-    if "boundary" in t:
-        kw["boundary"] = t["boundary"]
+        raise r.error(where, "a flexible beam needs `end` or `length`")
     return FlexibleBeam(t["name"], start=start, **kw)
 
 
-def _check_keys(table, allowed, where):
-    if not isinstance(table, dict):
-        raise SceneError(f"{where}: expected a table, got {table!r}")
-    unknown = sorted(set(table) - allowed)
-    if unknown:
-        raise SceneError(f"{where}: unknown key(s) {', '.join(map(repr, unknown))}; valid keys: "
-                         f"{', '.join(sorted(allowed))}")
+def _simulation(r, raw, mech) -> dict:
+    """The [simulation] table as keyword arguments of `Mechanism.simulate`, each value read
+    by the kind its `Option` declares and checked by `mechsim.solver`'s own checks."""
+    from .formulations import METHODS
+    from .options import Option
+    from .solver import SETTINGS, check_simulate_arguments
+
+    where = "[simulation]"
+    if "t_end" not in raw:
+        raise r.error(where, "needs `t_end`")
+    options = {k: o for c in METHODS.values() for k, o in c.options.items()}
+    kinds = {**SETTINGS, **options, "t_end": Option.real(None),
+             "method": Option.choice(None, tuple(METHODS)), "integrator": Option.choice(None, ())}
+    message = unknown_names(raw, kinds, "[simulation]")
+    if message:
+        raise r.error(where, message.replace("[simulation] does not take", "unknown key(s)"))
+    out = {}
+    for key, value in raw.items():
+        kind, at = kinds[key].kind, f"{where} {key}"
+        if kind in ("real", "integer"):
+            out[key] = r.value("number", value, at)
+        elif kind == "pair":
+            out[key] = r.value("vector", value, at)
+        elif kind == "flag":
+            out[key] = r.value("flag", value, at)
+        else:
+            out[key] = r.value("text", value, at)
+    method = out.get("method")
+    rest = {k: v for k, v in out.items() if k not in ("t_end", "method")}
+    try:
+        check_simulate_arguments(len(mech.coordinate_names), out["t_end"], method, rest)
+    except ValueError as exc:
+        raise r.error(where, str(exc)) from None
+    return out

@@ -4,6 +4,8 @@
 here, and an unknown name lists the valid ones.
 """
 
+import difflib
+
 from .base import Formulation
 from .baumgarte import Baumgarte
 from .hybrid import Hybrid
@@ -24,7 +26,9 @@ def formulation_class(name: str | None) -> type[Formulation]:
     try:
         return METHODS[name]
     except (KeyError, TypeError):
-        raise ValueError(f"unknown method {name!r}; valid methods: "
+        close = difflib.get_close_matches(str(name), list(METHODS), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ValueError(f"unknown method {name!r}{hint}; valid methods: "
                          f"{', '.join(sorted(METHODS))}") from None
 
 

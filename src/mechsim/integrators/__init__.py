@@ -6,6 +6,8 @@ Every entry follows scipy's `OdeSolver` interface (`step()`, `dense_output()`, `
 
 from __future__ import annotations
 
+import difflib
+
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
 from .adams import AdamsPECE
@@ -21,7 +23,9 @@ def integrator_class(name: str):
         for key, cls in INTEGRATORS.items():
             if key.lower() == name.lower():
                 return cls
-    raise ValueError(f"unknown integrator {name!r}; valid integrators: "
+    close = difflib.get_close_matches(str(name).lower(), [k.lower() for k in INTEGRATORS], n=1)
+    hint = "".join(f" (did you mean {k!r}?)" for k in INTEGRATORS if close and k.lower() == close[0])
+    raise ValueError(f"unknown integrator {name!r}{hint}; valid integrators: "
                      f"{', '.join(INTEGRATORS)}")
 
 

@@ -22,11 +22,23 @@ import numpy as np
 
 from ..problem import frame_point, frame_point_velocity
 
+# The formats written: ones whose meshio writers take line cells and point data per time.
+FORMATS = (".xdmf", ".vtu", ".vtk")
+
+
+def check_format(path) -> None:
+    """ValueError unless `path` ends in one of `FORMATS`."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in FORMATS:
+        raise ValueError(f"cannot export to {str(path)!r}: the file must end in one of "
+                         f"{', '.join(FORMATS)}, got {suffix or 'no suffix'!r}")
+
 
 def export(result, path, drawing) -> Path:
     """Write `result` to `path` (.xdmf: one time series file; any other meshio format: one
     file per output time, `<stem>_<i><suffix>`). `drawing` is the problem's list of
     `(body name, start index, local points (p, 2), modal shapes (p, 2, k) or None)`."""
+    check_format(path)
     import meshio
 
     path = Path(path)
