@@ -12,7 +12,7 @@ simulation starts, matplotlib when a plot is drawn, meshio when a result is expo
 
 from importlib import import_module
 
-from .model import (AssemblyError, Body, DofReport, Driver, FlexibleBeam, Force, Ground, Joint,
+from .model import (AssemblyError, Body, LoadError, DofReport, Driver, FlexibleBeam, Force, Ground, Joint,
                     Mechanism, ModelError, Prismatic, Revolute, RigidBody, Spring, Torque)
 
 __version__ = "0.1.0"
@@ -34,7 +34,7 @@ def __getattr__(name):
     raise AttributeError(f"module 'mechsim' has no attribute {name!r}")
 
 
-__all__ = ["AssemblyError", "Body", "DofReport", "Driver", "FlexibleBeam", "Force", "Ground", "Joint",
+__all__ = ["AssemblyError", "Body", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Ground", "Joint",
            "LinearSystem", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody",
            "SimulationResult",
            "Spring", "Torque", "load_result", "load_scene"]

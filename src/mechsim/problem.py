@@ -152,12 +152,14 @@ class NumericProblem:
         only nominal values there, and the rigid-body terms skip them)
     drawing : list of (body name, start, local points (p, 2), modal shapes (p, 2, k) or
         None): the polylines `SimulationResult.export` draws
+    driver_laws : list of (driver name, `mechsim.model.expressions.Expression` in t): what
+        each driver prescribes, for the failure messages of a run
     """
 
     def __init__(self, model, parameters, mass_diagonal, gravity, body_starts,
                  coordinate_names, constraint_names, constraint_owners,
                  springs=(), loads=(), title="mechanism", constraint_kinds=None,
-                 flexible=(), drawing=()):
+                 flexible=(), drawing=(), driver_laws=()):
         self.model = model
         self.p = tuple(float(x) for x in parameters)
         self.mass_diagonal = np.asarray(mass_diagonal, float)
@@ -174,6 +176,7 @@ class NumericProblem:
         self.loads = tuple(loads)
         self.title = title
         self.drawing = list(drawing)
+        self.driver_laws = list(driver_laws)
         self.counters = Counters()
         self.flexible = tuple(flexible)
         self.constant_mass = not self.flexible

@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 from .formulations import METHODS, formulation_class
+from .formulations.bridge import SPAN
 from .formulations.monitor import SingularityMonitor
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
@@ -45,6 +46,38 @@ STALL_STEPS = 2000
 STALL_SPAN = 1e-7
 # What a formulation raises when a run cannot go on: the run stops with its partial result.
 FAILURES = (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError)
+
+
+class NonFiniteState(RuntimeError):
+    """The motion became infinite or NaN: the run stops there with its partial result."""
+
+
+def check_finite(problem, t, q, v) -> None:
+    """NonFiniteState where q or v holds an infinite or NaN value, naming the coordinate
+    and, where one is the cause, the driver whose prescribed motion is not finite there."""
+    for name, x in (("position", q), ("velocity", v)):
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            break
+    else:
+        return
+    raise NonFiniteState(f"the motion became non-finite at t = {t:.9g} ({name} of "
+                         f"'{problem.coordinate_names[bad[0]]}' = {x[bad[0]]})"
+                         f"{overflowing_drivers(problem, t)}")
+
+
+def overflowing_drivers(problem, t) -> str:
+    """"; driver 'd' prescribes … = inf there" for each driver whose law is not finite (or
+    beyond 1e100) at t: the likely cause of an overflow; "" where there is none."""
+    out = ""
+    for driver, law in problem.driver_laws:
+        try:
+            value = law.value(t=t)
+        except (ArithmeticError, ValueError):
+            value = math.inf
+        if not abs(value) < 1e100:
+            out += f"; driver '{driver}' prescribes {law.text} = {value:.3g} there"
+    return out
 
 
 def _correct_in_place(solver, y) -> bool:
@@ -120,10 +153,11 @@ def _proposed_step(solver):
     return h or solver.step_size
 
 
-def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step):
+def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step, t_end):
     """Approach and cross a singular passage ahead with the formulation's bridge
     (`mechsim.formulations.bridge`): its `Crossing` when crossed, else None,
-    with the next step limited to the landing point while approaching."""
+    with the next step limited to the landing point while approaching. A crossing that
+    would end after t_end is not taken: the formulation steps to the end on its own."""
     s, rate = monitor.last * monitor.peak, monitor.rate * monitor.peak
     h_free = _proposed_step(solver)
     if not h_free:                   # a restarted integrator that has not stepped yet
@@ -131,7 +165,13 @@ def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step):
     h_next = min(h_free, max_step)
     plan = bridge.plan(s, rate, t, h_next, max_step_bound=h_free >= max_step)
     if plan is not None and plan[0] == "cross":
+        if t + SPAN * (plan[1] - t) >= t_end:
+            bridge.stand_down()
+            return None
         crossed = bridge.cross(t, q, v, plan[1], lambda qk, tk: monitor.measure(qk, tk)[0])
+        if crossed is not None and crossed.t_b >= t_end:
+            bridge.stand_down()
+            return None
         if crossed is not None:
             return crossed
         plan = bridge.plan(s, rate, t, h_next, h_free >= max_step)   # land closer, or stand down
@@ -307,6 +347,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     bound_at_start = max_step if solver_cls.__name__ == "LSODA" else None
 
     def record(t, q, v):
+        check_finite(problem, t, q, v)
         out_t.append(t)
         out_q.append(np.array(q, float))
         out_v.append(np.array(v, float))
@@ -335,7 +376,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         for tk, q, v in zip(inside, Q, V):
             record(tk, q, v)
 
-    status, message = "success", "reached t_end"
+    status, message, exception = "success", "reached t_end", None
     steps = restarts = rejected = corrections = 0
     nfev_done = njev_done = nlu_done = 0
     next_out = 0
@@ -408,6 +449,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             if ts is not None:
                 record_within(t_old, t_new, False, dense, form.states)
             q_new, v_new = form.state(t_new, y_new)
+            check_finite(problem, t_new, q_new, v_new)
             monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
                             t_old=t_old)
             form.last_step = t_new - t_old
@@ -439,7 +481,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                     bridge.note_step(min(h_free, max_step), h_free >= max_step)
                 continue
             crossed = _bridge_passage(form, bridge, monitor, solver, t_new,
-                                      *form.state(t_new, y_here), max_step)
+                                      *form.state(t_new, y_here), max_step, t_end)
             if crossed is None:
                 continue
             t_b, q_b, v_b, interp, t_star, history = crossed[:6]
@@ -473,6 +515,9 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     except FAILURES as exc:
         t_reached = max(t_reached, out_t[-1] if out_t else t_start)
         status, message = "failed", f"{type(exc).__name__} after t = {t_reached:.9g}: {exc}"
+        if isinstance(exc, (OverflowError, FloatingPointError)):
+            message += overflowing_drivers(problem, t_reached if solver is None else solver.t)
+        exception = exc
     if status == "failed":
         if form.failure and form.failure not in message:
             message += f"; last trouble: {form.failure}"
@@ -509,4 +554,5 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     return SimulationResult(np.array(out_t), np.array(out_q).reshape(len(out_t), -1),
                             np.array(out_v).reshape(len(out_t), -1), problem.coordinate_names,
                             problem=problem, status=status, message=message, stats=stats,
-                            singular_passages=monitor.passages, switches=form.switches)
+                            singular_passages=monitor.passages, switches=form.switches,
+                            exception=exception)

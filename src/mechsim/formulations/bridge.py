@@ -182,6 +182,11 @@ class PassageBridge:
             return None
         return [self._consistent(y[:n], y[n:], tk) for tk, y in zip(ts, sol.y.T)]
 
+    def stand_down(self):
+        """Leave the present passage to the formulation (a crossing would end past the
+        run's end)."""
+        self.landing, self.standing_down, self._declined = None, True, None
+
     def _norm(self, e, a, b):
         return error_norm(e, a, b, self.rtol, self.atol)
 

@@ -1,6 +1,6 @@
 """The declarative model: what the user builds. Imports nothing heavier than numpy."""
 
-from ._checks import ModelError
+from ._checks import LoadError, ModelError
 from .bodies import Body, Ground, RigidBody
 from .drivers import Driver
 from .flexible_beam import FlexibleBeam
@@ -8,6 +8,6 @@ from .forces import Force, Spring, Torque
 from .joints import Joint, Prismatic, Revolute
 from .mechanism import AssemblyError, AssemblyReport, DofReport, Mechanism
 
-__all__ = ["AssemblyError", "AssemblyReport", "Body", "DofReport", "Driver", "FlexibleBeam", "Force", "Ground",
+__all__ = ["AssemblyError", "LoadError", "AssemblyReport", "Body", "DofReport", "Driver", "FlexibleBeam", "Force", "Ground",
            "Joint", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody", "Spring",
            "Torque"]

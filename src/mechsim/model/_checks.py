@@ -16,6 +16,20 @@ class ModelError(ValueError):
     """A mechanism was described inconsistently; the message names the object at fault."""
 
 
+class LoadError(ModelError):
+    """A user's load function failed or gave an unusable value during a run; the message
+    names the load, and the user's own exception is its `__cause__` (with its traceback)."""
+
+
+def call_user(function, args, owner: str):
+    """`function(*args)`, any exception it raises turned into a LoadError naming `owner`."""
+    try:
+        return function(*args)
+    except Exception as exc:
+        raise LoadError(f"{owner}: its function raised {type(exc).__name__}: {exc} "
+                        f"(at t = {args[0]:.9g})") from exc
+
+
 def scalar(value, what: str, owner: str, *, positive: bool = False,
            nonnegative: bool = False) -> float:
     """Return `value` as a finite float, or raise naming `owner` and `what`."""

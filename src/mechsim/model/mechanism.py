@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._checks import ModelError, vector2
+from ._checks import LoadError, ModelError, call_user, vector2
 from .bodies import Body, Ground
 from .drivers import Driver
 from .flexible_beam import FlexibleBeam
@@ -225,7 +226,8 @@ class Mechanism:
                                            self.coordinate_names, names, owners,
                                            springs, loads, title=self.name,
                                            constraint_kinds=kinds, flexible=flexible,
-                                           drawing=self._drawing(starts))
+                                           drawing=self._drawing(starts),
+                                           driver_laws=[(d.name, d.law) for d in self.drivers])
         return self._problem
 
     def _drawing(self, starts) -> list:
@@ -351,27 +353,39 @@ def _load_points(ld):
 
 
 def _checked_force(ld: Force):
+    """A constant force, or its function wrapped so that a failure or a bad value is a
+    LoadError naming the force."""
     if not callable(ld.force):
         return ld.force
-    f = ld.force
+    f, owner = ld.force, f"force '{ld.name}'"
 
     def value(t):
-        out = np.asarray(f(t), float)
-        if out.shape != (2,) or not np.all(np.isfinite(out)):
-            raise ModelError(f"force '{ld.name}': the function returned {out!r} at t = {t}; "
-                             "expected two finite numbers")
+        given = call_user(f, (t,), owner)
+        try:
+            out = np.asarray(given, float)
+        except (TypeError, ValueError):
+            out = None
+        if out is None or out.shape != (2,) or not np.all(np.isfinite(out)):
+            raise LoadError(f"{owner}: the function returned {given!r:.60} at t = "
+                            f"{t:.9g}; expected two finite numbers")
         return out
     return value
 
 
 def _checked_torque(ld: Torque):
+    """A constant torque, or its function wrapped as `_checked_force`'s."""
     if not callable(ld.torque):
         return ld.torque
-    f = ld.torque
+    f, owner = ld.torque, f"torque '{ld.name}'"
 
     def value(t):
-        out = float(f(t))
-        if not np.isfinite(out):
-            raise ModelError(f"torque '{ld.name}': the function returned {out} at t = {t}")
+        given = call_user(f, (t,), owner)
+        try:
+            out = float(given)
+        except (TypeError, ValueError):
+            out = math.nan
+        if not math.isfinite(out):
+            raise LoadError(f"{owner}: the function returned {given!r:.60} at t = {t:.9g}; "
+                            "expected a finite number")
         return out
     return value

@@ -76,13 +76,16 @@ class SimulationResult:
     ----------
     t : ndarray (n,);  q, v : ndarray (n, nq);  coordinate_names : list of str
     status : "success", "failed" or "interrupted";  message : str
+    exception : the exception that ended a failed run (a user's own, such as one raised by a
+        load function, is its `__cause__`, with the traceback), else None
     stats : dict (steps, rhs_evaluations, partitions, wall_time, …)
     singular_passages : list of SingularPassage;  switches : list of Switch
     """
 
     def __init__(self, t, q, v, coordinate_names, *, problem=None, status="success",
                  message="", stats=None, singular_passages=(), switches=(),
-                 energy: EnergyLog | None = None, constraint_violation=None):
+                 energy: EnergyLog | None = None, constraint_violation=None,
+                 exception: BaseException | None = None):
         self.t = np.asarray(t, float)
         self.q = np.asarray(q, float)
         self.v = np.asarray(v, float)
@@ -90,6 +93,7 @@ class SimulationResult:
         self.problem = problem
         self.status = status
         self.message = message
+        self.exception = exception
         self.stats = dict(stats or {})
         self.singular_passages = list(singular_passages)
         self.switches = list(switches)
