@@ -67,15 +67,34 @@ def monodromy(problem, u, rel_step=1e-6):
     return central_jacobian(lambda x: problem.flow(x).x[-1], u, rel_step)
 
 
-def _warner(problem, guess, tol, max_iter, scale, guesses, **_):
-    """Seed 002, appendix, steps 1–7."""
+def _residual_or_none(problem, x):
+    """g(x), or None where the flow from x fails (chatter, an event the problem cannot
+    resolve, a non-finite state): a bad iterate, not the end of the search."""
+    try:
+        g = problem.residual(x)
+    except (ValueError, ArithmeticError, RuntimeError):
+        return None
+    return g if np.all(np.isfinite(g)) else None
+
+
+def _warner(problem, guess, tol, max_iter, scale, guesses, max_halvings=30, **_):
+    """Seed 002, appendix, steps 1–7. Where the flow from a new guess fails, the guess is
+    moved halfway back towards the best vector until a flow succeeds (at most
+    `max_halvings` times), as Newton's steps are damped."""
     n = problem.n
     X = (np.array(guesses, float) if guesses is not None
          else np.array([guess * scale**k for k in range(n + 1)]))         # step 1
     if X.shape != (n + 1, n):
         raise ValueError(f"Warner's algorithm needs {n + 1} guess vectors of length {n}, "
                          f"got shape {X.shape}")
-    G = np.array([problem.residual(x) for x in X])                        # step 2
+    G = []
+    for k, x in enumerate(X):                                             # step 2
+        g = _residual_or_none(problem, x)
+        if g is None:
+            return x, np.full(n, np.inf), 0, [], (f"the flow from guess vector {k} fails; "
+                                                   "give other guesses")
+        G.append(g)
+    G = np.array(G)
     history = []
     best = int(np.argmin(np.max(np.abs(G), axis=1)))
     x, g = X[best], G[best]
@@ -90,7 +109,15 @@ def _warner(problem, guess, tol, max_iter, scale, guesses, **_):
         x = c @ X                                                          # step 4
         if not np.all(np.isfinite(x)):
             return X[best], G[best], it, history, "the new guess is not finite"
-        g = problem.residual(x)
+        g = _residual_or_none(problem, x)
+        for _ in range(max_halvings):
+            if g is not None:
+                break
+            x = 0.5 * (x + X[best])
+            g = _residual_or_none(problem, x)
+        if g is None:
+            return X[best], G[best], it, history, ("the flow fails from every guess between "
+                                                   "the new one and the best so far")
         history.append((it, float(np.max(np.abs(g)))))
         if np.max(np.abs(g)) < tol:                                        # step 7
             return x, g, it, history, "converged"
@@ -201,7 +228,8 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
         `guess · scale^k`, as in the paper's tables, unless `guesses` gives all n+1)
     tol : stop when max |g| < tol (the paper's eq. 8: 1e-6)
     max_halvings : "newton" halves a step at most this often looking for a smaller ‖g‖
-        (fewer makes hopeless starts fail sooner, e.g. in a regime map)
+        (fewer makes hopeless starts fail sooner, e.g. in a regime map); "warner" halves a
+        new guess back towards the best one at most this often where its flow fails
     xtol : "newton" with the exact monodromy also stops where its step predicts the
         unknowns within xtol (max norm) of the solution, without a flow at the last
         iterate (quadratic convergence makes that prediction conservative)
