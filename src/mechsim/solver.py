@@ -19,9 +19,8 @@ import numpy as np
 from .formulations import METHODS, formulation_class
 from .formulations.bridge import SPAN
 from .formulations.monitor import SingularityMonitor
-from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
-
 from .integrators import AdamsPECE, integrator_class
+from .integrators.adapters import correct_in_place, proposed_step
 from .options import Option, check_all, unknown_names
 from .problem import NumericProblem
 from .results import SimulationResult
@@ -80,41 +79,6 @@ def overflowing_drivers(problem, t) -> str:
     return out
 
 
-def _correct_in_place(solver, y) -> bool:
-    """Put a projected state into a running integrator without restarting it, where that is
-    sound: the one-step methods (RK, Radau) need only y and f(t, y), Radau's previous
-    collocation polynomial serving as before for its Newton start; the multistep methods
-    (Adams, BDF, LSODA) keep their history with the newest point replaced (a projected
-    multistep method)."""
-    if isinstance(solver, AdamsPECE):
-        solver.correct(y)
-        return True
-    if isinstance(solver, BDF):
-        # Its history is the backward differences ∇ᵏyₙ (rows 0 … order + 1 of D), each of
-        # which holds yₙ with coefficient 1: replacing yₙ shifts them all by the correction
-        # and keeps the older points (a projected multistep method, as for Adams).
-        delta = np.asarray(y, float) - solver.y
-        solver.D[:solver.order + 2] += delta
-        solver.y = np.array(y, float)
-        return True
-    if isinstance(solver, LSODA):
-        # ODEPACK's documented workspace: the Nordsieck array YH starts at RWORK(21), its
-        # first column the current y; replacing it keeps the history (as for BDF).
-        rwork = _lsoda_workspace(solver)
-        n = solver.y.size
-        if rwork is None or rwork.size < 20 + n:
-            return False
-        rwork[20:20 + n] = y
-        solver.y = np.array(y, float)
-        solver._lsoda_solver._y = solver.y.copy()
-        return True
-    if isinstance(solver, (RK23, RK45, DOP853, Radau)):
-        solver.y = np.array(y, float)
-        solver.f = solver.fun(solver.t, solver.y)
-        return True
-    return False
-
-
 def _warm_start(solver, old, form, past, order=None, step=None) -> int:
     """After a change of coordinates at solver.t, give a fresh Adams solver the history the
     old one had, re-expressed in the new coordinates: y' at the last accepted states
@@ -133,24 +97,8 @@ def _warm_start(solver, old, form, past, order=None, step=None) -> int:
     if not all(np.all(np.isfinite(f)) for f in fs):
         return len(fs)
     solver.seed_history([t for t, _, _ in recent], fs, order,
-                        _proposed_step(old) if step is None else step)
+                        proposed_step(old) if step is None else step)
     return len(fs)
-
-
-def _lsoda_workspace(solver):
-    """LSODA's RWORK array (ODEPACK's documented layout), or None."""
-    ode = getattr(solver, "_lsoda_solver", None)
-    return getattr(getattr(ode, "_integrator", None), "rwork", None)
-
-
-def _proposed_step(solver):
-    """The step size the integrator proposes next (scipy's RK, BDF, Radau: h_abs; Adams: h;
-    LSODA: HCUR, RWORK(12))."""
-    h = getattr(solver, "h_abs", None) or getattr(solver, "h", None)
-    if h is None and isinstance(solver, LSODA):
-        rwork = _lsoda_workspace(solver)
-        h = float(rwork[11]) if rwork is not None and rwork.size > 11 else None
-    return h or solver.step_size
 
 
 def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step, t_end):
@@ -159,7 +107,7 @@ def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step, t_end):
     with the next step limited to the landing point while approaching. A crossing that
     would end after t_end is not taken: the formulation steps to the end on its own."""
     s, rate = monitor.last * monitor.peak, monitor.rate * monitor.peak
-    h_free = _proposed_step(solver)
+    h_free = proposed_step(solver)
     if not h_free:                   # a restarted integrator that has not stepped yet
         return None
     h_next = min(h_free, max_step)
@@ -412,7 +360,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                 # Restart only where the bound decides the next step: a tighter one below
                 # the step LSODA would take, or a looser one where the old bound held it.
                 want = getattr(solver, "max_step", bound_at_start)
-                h_next = _proposed_step(solver) or 0.0
+                h_next = proposed_step(solver) or 0.0
                 if (want < bound_at_start and h_next > want) or \
                         (want > bound_at_start and h_next >= 0.9 * bound_at_start):
                     bound_at_start = want
@@ -465,7 +413,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                 record(t_new, *form.state(t_new, y_here))
                 next_out += 1
             if corrected is not None and solver.status == "running":
-                if not form.layout_changed and _correct_in_place(solver, corrected):
+                if not form.layout_changed and correct_in_place(solver, corrected):
                     corrections += 1
                 else:
                     retire(solver)
@@ -476,7 +424,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             if bridge is None or solver.status != "running":
                 continue
             if not form.bridging:
-                h_free = _proposed_step(solver)
+                h_free = proposed_step(solver)
                 if h_free:
                     bridge.note_step(min(h_free, max_step), h_free >= max_step)
                 continue
@@ -500,7 +448,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             t_reached = t_b
             retire(solver)
             restarts += 1
-            old, solver = solver, make(t_b, y_b, _proposed_step(solver))
+            old, solver = solver, make(t_b, y_b, proposed_step(solver))
             if keep_past:
                 # The history goes on from the states the bridge was built on, all outside
                 # the passage's band, with the bridge's own step and the order its error

@@ -1,0 +1,85 @@
+"""Everything mechsim does with the private state of scipy's integrators, in one place.
+
+scipy's `OdeSolver` has no public way to replace the state of a running solver. After a
+projection onto the constraints mechsim puts the projected state into the running solver
+where that is sound, keeping its history (a projected multistep method) instead of
+restarting it at order one after every step. That writes attributes scipy does not
+document: `y` and `f` of the Runge–Kutta methods and Radau, the backward differences `D`
+of BDF, ODEPACK's work array of LSODA (whose layout ODEPACK does document). Each adapter
+checks the layout it relies on and declines (the manager then restarts the solver) where
+it does not find it, so a scipy release that changes them costs speed, not correctness.
+`tests/test_adapters.py` runs `mechsim.integrators.adapter_check` against the oldest and
+the newest scipy that pyproject allows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
+
+from .adams import AdamsPECE
+
+
+def correct_in_place(solver, y) -> bool:
+    """Put a projected state into a running integrator without restarting it, where that is
+    sound: the one-step methods (RK, Radau) need only y and f(t, y), Radau's previous
+    collocation polynomial serving as before for its Newton start; the multistep methods
+    (Adams, BDF, LSODA) keep their history with the newest point replaced (a projected
+    multistep method)."""
+    if isinstance(solver, AdamsPECE):
+        solver.correct(y)
+        return True
+    y = np.array(y, float)
+    if isinstance(solver, BDF):
+        # Its history is the backward differences ∇ᵏyₙ (rows 0 … order + 1 of D), each of
+        # which holds yₙ with coefficient 1: replacing yₙ shifts them all by the correction
+        # and keeps the older points (a projected multistep method, as for Adams). Row 0
+        # is yₙ itself (to round-off): the layout is checked by that.
+        D = getattr(solver, "D", None)
+        order = getattr(solver, "order", None)
+        if not isinstance(D, np.ndarray) or not isinstance(order, (int, np.integer)) or \
+                D.ndim != 2 or D.shape[0] < order + 2 or \
+                not np.allclose(D[0], solver.y, rtol=1e-12, atol=1e-300):
+            return False
+        D[:order + 2] += y - solver.y
+        solver.y = y
+        return True
+    if isinstance(solver, LSODA):
+        # ODEPACK's documented workspace: the Nordsieck array YH starts at RWORK(21), its
+        # first column the current y (checked); replacing it keeps the history (as for BDF).
+        rwork = lsoda_workspace(solver)
+        ode = getattr(solver, "_lsoda_solver", None)
+        n = solver.y.size
+        if rwork is None or rwork.size < 20 + n or not hasattr(ode, "_y") or \
+                not np.allclose(rwork[20:20 + n], solver.y, rtol=1e-15, atol=0.0):
+            return False
+        rwork[20:20 + n] = y
+        solver.y = y
+        ode._y = y.copy()
+        return True
+    if isinstance(solver, (RK23, RK45, DOP853, Radau)):
+        f = getattr(solver, "f", None)
+        if not isinstance(f, np.ndarray) or f.shape != y.shape:
+            return False
+        solver.y = y
+        solver.f = solver.fun(solver.t, y)
+        return True
+    return False
+
+
+def lsoda_workspace(solver):
+    """LSODA's RWORK array (ODEPACK's documented layout), or None."""
+    ode = getattr(solver, "_lsoda_solver", None)
+    return getattr(getattr(ode, "_integrator", None), "rwork", None)
+
+
+def proposed_step(solver):
+    """The step size the integrator proposes next (scipy's RK, BDF, Radau: h_abs; Adams: h;
+    LSODA: HCUR, RWORK(12))."""
+    h = getattr(solver, "h_abs", None) or getattr(solver, "h", None)
+    if h is None and isinstance(solver, LSODA):
+        rwork = lsoda_workspace(solver)
+        h = float(rwork[11]) if rwork is not None and rwork.size > 11 else None
+    return h or solver.step_size
+
+

@@ -1,0 +1,59 @@
+"""The adapters that put a projected state into a running scipy integrator
+(`mechsim.integrators.adapters`) write attributes scipy does not document, so they are
+checked against this scipy and against the oldest that pyproject allows
+(`mechsim.integrators.adapter_check`: the state moved by 1e-3 mid-run must carry over,
+with the history, to the exact solution through the moved state)."""
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+import mechsim
+from mechsim.integrators import adapter_check
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize("cls", [RK23, RK45, DOP853, Radau, BDF, LSODA],
+                         ids=lambda c: c.__name__)
+def test_a_moved_state_carries_over_on_this_scipy(cls):
+    ok, what = adapter_check.check_one(cls)
+    assert ok, what
+
+
+def _lowest(requirement_name):
+    deps = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["dependencies"]
+    for dep in deps:
+        m = re.fullmatch(rf"{requirement_name}>=([0-9.]+)(,<[0-9.]+)?", dep.replace(" ", ""))
+        if m:
+            return m.group(1)
+    raise AssertionError(f"pyproject gives no lower bound for {requirement_name}")
+
+
+def test_a_moved_state_carries_over_on_the_oldest_allowed_scipy(tmp_path):
+    """A virtual environment with the lowest numpy and scipy of pyproject's ranges and a
+    copy of this mechsim; skipped where the package registry cannot be reached."""
+    numpy, scipy = _lowest("numpy"), _lowest("scipy")
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
+    python = venv / "bin" / "python"
+    done = subprocess.run([str(python), "-m", "pip", "install", "-q",
+                           "--disable-pip-version-check", f"numpy=={numpy}", f"scipy=={scipy}"],
+                          capture_output=True, text=True, timeout=600)
+    if done.returncode != 0:
+        pytest.skip(f"cannot install numpy {numpy} and scipy {scipy}: "
+                    f"{done.stderr.strip().splitlines()[-1:]}")
+    shutil.copytree(Path(mechsim.__file__).parent, tmp_path / "pkg" / "mechsim",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**os.environ, "PYTHONPATH": str(tmp_path / "pkg")}
+    out = subprocess.run([str(python), "-m", "mechsim.integrators.adapter_check"],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert f"scipy {scipy}" in out.stdout
+    assert out.returncode == 0, out.stdout + out.stderr
