@@ -62,21 +62,36 @@ def check_finite(problem, t, q, v) -> None:
         return
     raise NonFiniteState(f"the motion became non-finite at t = {t:.9g} ({name} of "
                          f"'{problem.coordinate_names[bad[0]]}' = {x[bad[0]]})"
-                         f"{overflowing_drivers(problem, t)}")
+                         f"{troubled_drivers(problem, (t,))}")
 
 
-def overflowing_drivers(problem, t) -> str:
-    """"; driver 'd' prescribes … = inf there" for each driver whose law is not finite (or
-    beyond 1e100) at t: the likely cause of an overflow; "" where there is none."""
-    out = ""
+# A driver moving faster than this (rad/s or m/s) is named where a run fails.
+DRIVER_RATE_LIMIT = 1e8
+
+
+def troubled_drivers(problem, times) -> str:
+    """"; driver 'd' …" for each driver whose law at one of `times` is undefined, not finite
+    (or beyond 1e100) or changing faster than `DRIVER_RATE_LIMIT`: the likely cause of a
+    failed run; "" where there is none."""
+    out = []
     for driver, law in problem.driver_laws:
-        try:
-            value = law.value(t=t)
-        except (ArithmeticError, ValueError):
-            value = math.inf
-        if not abs(value) < 1e100:
-            out += f"; driver '{driver}' prescribes {law.text} = {value:.3g} there"
-    return out
+        for t in times:
+            dt = 1e-9 * max(1.0, abs(t))
+            try:
+                value, ahead = law.value(t=t), law.value(t=t + dt)
+            except (ArithmeticError, ValueError) as exc:
+                out.append(f"driver '{driver}' prescribes {law.text}, undefined at "
+                           f"t ≈ {t:.9g} ({exc})")
+                break
+            if not (abs(value) < 1e100 and abs(ahead) < 1e100):
+                out.append(f"driver '{driver}' prescribes {law.text} = {value:.3g} at "
+                           f"t = {t:.9g}")
+                break
+            if abs(ahead - value) > DRIVER_RATE_LIMIT * dt:
+                out.append(f"driver '{driver}' prescribes {law.text}, changing at "
+                           f"{(ahead - value) / dt:.3g}/s at t = {t:.9g}")
+                break
+    return "".join(f"; {o}" for o in out)
 
 
 def _warm_start(solver, old, form, past, order=None, step=None) -> int:
@@ -463,12 +478,14 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     except FAILURES as exc:
         t_reached = max(t_reached, out_t[-1] if out_t else t_start)
         status, message = "failed", f"{type(exc).__name__} after t = {t_reached:.9g}: {exc}"
-        if isinstance(exc, (OverflowError, FloatingPointError)):
-            message += overflowing_drivers(problem, t_reached if solver is None else solver.t)
         exception = exc
     if status == "failed":
         if form.failure and form.failure not in message:
             message += f"; last trouble: {form.failure}"
+        if "driver '" not in message and problem.driver_laws:
+            h = proposed_step(solver) if solver is not None else None
+            trial = min(t_end, t_reached + (h if h else t_end - t_reached))
+            message += troubled_drivers(problem, (t_reached, trial))
         if monitor.inside or monitor.last < monitor.enter:   # (relative to the peak)
             s, _, u = monitor.measure(out_q[-1], out_t[-1])
             message += (f"; Φ_q is nearly singular there (σ_min/σ_max = {s:.3g}, joints "

@@ -32,11 +32,14 @@ def call_user(function, args, owner: str):
 
 def scalar(value, what: str, owner: str, *, positive: bool = False,
            nonnegative: bool = False) -> float:
-    """Return `value` as a finite float, or raise naming `owner` and `what`."""
+    """Return `value` as a finite float, or raise naming `owner` and `what` (a string or a
+    boolean is not a number here, even where float() would read it)."""
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise ModelError(f"{owner}: `{what}` must be a number, got {value!r:.60}")
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ModelError(f"{owner}: `{what}` must be a number, got {value!r}") from None
+        raise ModelError(f"{owner}: `{what}` must be a number, got {value!r:.60}") from None
     if not math.isfinite(x):
         raise ModelError(f"{owner}: `{what}` must be finite, got {x}")
     if positive and not x > 0.0:
@@ -46,12 +49,26 @@ def scalar(value, what: str, owner: str, *, positive: bool = False,
     return x
 
 
+def name_or_default(name, default: str, what: str) -> str:
+    """A model object's name: `name` if given (a non-empty string), else `default`."""
+    if name is None:
+        return default
+    if not isinstance(name, str) or not name.strip():
+        raise ModelError(f"{what} {default!r}: `name` must be a non-empty string, got "
+                         f"{name!r:.60}")
+    return name
+
+
 def vector2(value, what: str, owner: str) -> np.ndarray:
     """Return `value` as a finite float array of shape (2,), or raise naming `owner`."""
+    if isinstance(value, (str, bytes)) or (isinstance(value, (list, tuple)) and any(
+            isinstance(x, (str, bytes, bool)) for x in value)):
+        raise ModelError(f"{owner}: `{what}` must be a 2-vector of numbers, got {value!r:.60}")
     try:
         a = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise ModelError(f"{owner}: `{what}` must be a 2-vector of numbers, got {value!r}") from None
+        raise ModelError(f"{owner}: `{what}` must be a 2-vector of numbers, got "
+                         f"{value!r:.60}") from None
     if a.shape != (2,):
         raise ModelError(f"{owner}: `{what}` must have length 2, got shape {a.shape}")
     if not np.all(np.isfinite(a)):

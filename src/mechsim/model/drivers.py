@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._checks import ModelError
+from ._checks import ModelError, name_or_default
 from .expressions import parse
 from .joints import Joint
 
@@ -31,11 +31,8 @@ class Driver:
         if type(joint).coordinate is Joint.coordinate:
             raise ModelError(f"driver on joint '{joint.name}': a {joint.kind} joint has no "
                              "coordinate to prescribe")
-        if name is not None and (not isinstance(name, str) or not name.strip()):
-            raise ModelError(f"driver on joint '{joint.name}': `name` must be a non-empty "
-                             f"string, got {name!r:.80}")
         self.joint = joint
-        self.name = name or f"driver({joint.name})"
+        self.name = name_or_default(name, f"driver({joint.name})", "driver")
         self.law = parse(expression, {"t"}, f"driver '{self.name}' `expression`")
         self.expression = self.law.text
 
@@ -54,8 +51,9 @@ class Driver:
         f = self.law.to_sympy({"t": ctx.t})
         return [self.joint.coordinate(ctx, ctx.parameters(self.joint)) - p["offset"] - f]
 
-    def structure(self) -> tuple:
-        return (self.kind, self.name, self.joint.name, self.law.canonical)
+    def structure(self, index) -> tuple:
+        """Its kind, the driven joint's position `index(joint)` and its law."""
+        return (self.kind, index(self.joint), self.law.canonical)
 
     def __repr__(self):
         return f"Driver({self.joint.name!r}, {self.expression!r})"

@@ -162,5 +162,3 @@ class FlexibleBeam(Body):
         return np.concatenate([[self.mass, self.mass, self.mass * self.length**2 / 3.0],
                                np.ones(self.n_modes)])
 
-    def structure(self) -> tuple:
-        return (type(self).__name__, self.name, list(self.coordinate_names))

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import ModelError, scalar, scalar_or_function, vector2
+from ._checks import ModelError, name_or_default, scalar, scalar_or_function, vector2
 from .bodies import Body
 
 
@@ -27,7 +27,8 @@ class Spring:
     def __init__(self, body_a: Body, body_b: Body, at_a, at_b, stiffness: float,
                  rest_length: float | None = None, damping: float = 0.0,
                  name: str | None = None):
-        self.name = name or f"spring({getattr(body_a, 'name', '?')},{getattr(body_b, 'name', '?')})"
+        self.name = name_or_default(
+            name, f"spring({getattr(body_a, 'name', '?')},{getattr(body_b, 'name', '?')})", "spring")
         owner = f"spring '{self.name}'"
         self.body_a = _check_body(body_a, "body_a", owner)
         self.body_b = _check_body(body_b, "body_b", owner)
@@ -50,7 +51,7 @@ class Force:
     """
 
     def __init__(self, body: Body, force, at=None, name: str | None = None):
-        self.name = name or f"force({getattr(body, 'name', '?')})"
+        self.name = name_or_default(name, f"force({getattr(body, 'name', '?')})", "force")
         owner = f"force '{self.name}'"
         self.body = _check_body(body, "body", owner)
         self.force = force if callable(force) else vector2(force, "force", owner)
@@ -65,7 +66,7 @@ class Torque:
     """A torque on `body` (N·m, counter-clockwise positive): a constant or a callable of t."""
 
     def __init__(self, body: Body, torque, name: str | None = None):
-        self.name = name or f"torque({getattr(body, 'name', '?')})"
+        self.name = name_or_default(name, f"torque({getattr(body, 'name', '?')})", "torque")
         owner = f"torque '{self.name}'"
         self.body = _check_body(body, "body", owner)
         self.torque = scalar_or_function(torque, "torque", owner)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import ModelError, vector2
+from ._checks import ModelError, name_or_default, vector2
 from .bodies import Body
 
 
@@ -36,7 +36,8 @@ class Joint:
         if body_a is body_b:
             raise ModelError(f"{self.kind} joint: connects body '{body_a.name}' to itself")
         self.body_a, self.body_b = body_a, body_b
-        self.name = name or f"{self.kind}({body_a.name},{body_b.name})"
+        self.name = name_or_default(name, f"{self.kind}({body_a.name},{body_b.name})",
+                                    f"{self.kind} joint")
         self.parameter_names = type(self).parameter_names + \
             body_a.attachment_parameter_names("a") + body_b.attachment_parameter_names("b")
 
@@ -67,8 +68,10 @@ class Joint:
     def initial_coordinate(self) -> float:
         raise ModelError(f"joint '{self.name}' ({self.kind}) has no coordinate a driver can prescribe")
 
-    def structure(self) -> tuple:
-        return (self.kind, self.name, self.body_a.name, self.body_b.name)
+    def structure(self, index) -> tuple:
+        """What this joint's generated equations depend on: its kind and its bodies'
+        positions `index(body)` (−1: the ground), with its parameter names."""
+        return (self.kind, index(self.body_a), index(self.body_b), list(self.parameter_names))
 
     def __repr__(self):
         return f"{type(self).__name__}({self.name!r})"

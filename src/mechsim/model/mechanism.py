@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._checks import LoadError, ModelError, call_user, vector2
+from ._checks import LoadError, ModelError, call_user, name_or_default, vector2
 from .bodies import Body, Ground
 from .drivers import Driver
 from .flexible_beam import FlexibleBeam
@@ -67,7 +67,7 @@ class Mechanism:
     """
 
     def __init__(self, name: str = "mechanism", gravity=(0.0, -9.81)):
-        self.name = name
+        self.name = name_or_default(name, "mechanism", "mechanism")
         self.gravity = vector2(gravity, "gravity", f"mechanism '{name}'")
         self.ground = Ground()
         self.bodies: list[Body] = []          # moving bodies, in coordinate order
@@ -166,9 +166,13 @@ class Mechanism:
         return self.joints + self.drivers
 
     def structure(self) -> dict:
-        """What the generated code depends on (not parameter values): the cache key."""
-        return {"bodies": [(type(b).__name__, b.name, list(b.coordinate_names)) for b in self.bodies],
-                "constraints": [list(item.structure()) for item in self._constraint_items()]}
+        """What the generated code depends on (not parameter values, not names): the cache
+        key. Bodies and joints are referred to by position."""
+        index = {id(self.ground): -1, **{id(b): i for i, b in enumerate(self.bodies)},
+                 **{id(j): k for k, j in enumerate(self.joints)}}
+        return {"bodies": [(type(b).__name__, list(b.coordinate_names)) for b in self.bodies],
+                "constraints": [list(item.structure(lambda x: index[id(x)]))
+                                for item in self._constraint_items()]}
 
     def problem(self):
         """The NumericProblem of this mechanism (compiled once; from the disk cache if seen)."""

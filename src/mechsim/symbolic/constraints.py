@@ -8,52 +8,34 @@ Only Φ is stored; the derivatives are computed on first use and cached (sympy's
 
 from __future__ import annotations
 
-import re
-import unicodedata
 from functools import cached_property
 
 import sympy as sp
 
 
-def identifier(name: str, suffixes, taken: set[str]) -> str:
-    """A stem for the symbols `<stem>_<suffix>` of the model object called `name`: ASCII
-    letters, digits and underscores that read like the name (accents and ligatures
-    decomposed, anything else dropped), made unique so that no symbol it forms is in
-    `taken` (which gains them). A user's name is never written into generated code as it
-    is: two names that Python would read as one identifier ("ﬁ" and "fi") or that are no
-    identifier at all ("x²", a quote) still get distinct, valid stems."""
-    ascii_name = unicodedata.normalize("NFKD", name).encode("ascii", "ignore").decode()
-    base = re.sub(r"[^A-Za-z0-9]+", "_", ascii_name).strip("_")[:40] or "item"
-    if not base[0].isalpha():
-        base = "b" + base
-    out, k = base, 2
-    while any(f"{out}_{s}" in taken for s in suffixes):
-        out, k = f"{base}{k}", k + 1
-    taken.update(f"{out}_{s}" for s in suffixes)
-    return out
-
-
 class SymbolicContext:
     """What a joint sees while writing its equations: the symbols of the bodies' frames and
-    the parameter symbols of every constraint item."""
+    the parameter symbols of every constraint item.
+
+    Symbols are named by position, never by the user's names (`b<i>_<coordinate>` for the
+    i-th body, `c<k>_<parameter>` for the k-th joint or driver): nothing a user wrote
+    reaches generated code, and models that differ only in names share one cache entry."""
 
     def __init__(self, bodies, items):
         self.t = sp.Symbol("t", real=True)
-        taken: set[str] = set()
         self.q: list[sp.Symbol] = []
         self.v: list[sp.Symbol] = []
         self._frames = {}
-        for body in bodies:
-            names = list(body.coordinate_names)
-            stem = identifier(body.name, names + [f"{c}_dot" for c in names], taken)
+        for i, body in enumerate(bodies):
+            stem = f"b{i}"
             syms = [sp.Symbol(f"{stem}_{c}", real=True) for c in body.coordinate_names]
             self.q += syms
             self.v += [sp.Symbol(f"{stem}_{c}_dot", real=True) for c in body.coordinate_names]
             self._frames[id(body)] = syms
         self.p: list[sp.Symbol] = []
         self._params = {}
-        for item in items:
-            stem = identifier(item.name, item.parameter_names, taken)
+        for k, item in enumerate(items):
+            stem = f"c{k}"
             syms = {n: sp.Symbol(f"{stem}_{n}", real=True) for n in item.parameter_names}
             self.p += list(syms.values())
             self._params[id(item)] = syms
