@@ -190,27 +190,51 @@ static double schur_terms(int64_t n, int64_t m, const double *J, const double *w
   return complement(n, m, J, winv, S);
 }
 
-/* [zd; zdd] at the state mechsim_lu_state left in the buffers, with the forces c->Q:
-   qdd = W Q - W J^T lam, (J W J^T) lam = J W Q - gamma. 1: complement not positive
-   definite (redundant constraints: Python's least squares). */
+/* [zd; zdd] at the state mechsim_lu_state left in the buffers, with the forces c->Q, by
+   the partition's reduced equations (as `Partitioned._qdd`): with A = J D, X = A^-1 J B
+   and s = A^-1 gamma (one LU of A with f + 1 right-hand sides),
+   (M_B + X^T M_D X) zdd = Q_B - X^T (Q_D - M_D s). 1: A or the reduced mass is singular
+   (Python decides). */
 int mechsim_lu_accelerations(mechsim_lu *c, double t) {
   const int64_t n = c->n, m = c->m, f = c->f, r = n - f;
-  const double *J = c->J, *winv = c->winv;
-  double *g = c->work + 2 * r + 2 * m + r * r, *wq = g + m, *lam = wq + n, *S = lam + m;
+  const double *J = c->J, *winv = c->winv, *Q = c->Q;
+  double *g = c->work + 2 * r + 2 * m + r * r, *A = g + m, *X = A + r * r, *Mh = X + r * (f + 1);
+  double *Qh = Mh + f * f, *s = X + r * f;
   memset(g, 0, m * sizeof(double));
   mechsim_gamma(c->q, c->v, t, c->p, g);
-  schur_terms(n, m, J, winv, c->Q, g, wq, lam, S);
-  char uplo = 'U';
-  int M = (int)m, nrhs = 1, info = 0;
-  mechsim_dposv(&uplo, &M, &nrhs, S, &M, lam, &M, &info);
-  if (info != 0) return 1;
-  memcpy(c->out, c->y + f, f * sizeof(double));
-  for (int64_t k = 0; k < f; k++) {
-    const int64_t j = c->ind[k];
-    double s = 0.0;
-    for (int64_t i = 0; i < m; i++) s += J[i * n + j] * lam[i];
-    c->out[f + k] = wq[j] - winv[j] * s;
+  for (int64_t i = 0; i < r; i++) {                      /* column-major A and [J B, gamma] */
+    const double *Ji = J + i * n;
+    for (int64_t j = 0; j < r; j++) A[i + j * r] = Ji[c->dep[j]];
+    for (int64_t k = 0; k < f; k++) X[i + k * r] = Ji[c->ind[k]];
+    s[i] = g[i];
   }
+  int R = (int)r, nrhs = (int)(f + 1), info = 0;
+  mechsim_dgesv(&R, &nrhs, A, &R, c->ipiv, X, &R, &info);
+  if (info != 0) return 1;
+  for (int64_t k = 0; k < f; k++) {
+    const double *Xk = X + k * r;
+    double qk = Q[c->ind[k]];
+    for (int64_t i = 0; i < r; i++) {
+      const int64_t d = c->dep[i];
+      qk -= Xk[i] * (Q[d] - s[i] / winv[d]);
+    }
+    Qh[k] = qk;
+    for (int64_t l = 0; l <= k; l++) {
+      const double *Xl = X + l * r;
+      double e = l == k ? 1.0 / winv[c->ind[k]] : 0.0;
+      for (int64_t i = 0; i < r; i++) e += Xk[i] * Xl[i] / winv[c->dep[i]];
+      Mh[k + l * f] = e;
+      Mh[l + k * f] = e;
+    }
+  }
+  char uplo = 'U';
+  int F = (int)f, one = 1;
+  if (f > 0) {
+    mechsim_dposv(&uplo, &F, &one, Mh, &F, Qh, &F, &info);
+    if (info != 0) return 1;
+  }
+  memcpy(c->out, c->y + f, f * sizeof(double));
+  memcpy(c->out + f, Qh, f * sizeof(double));
   return 0;
 }
 
@@ -596,7 +620,8 @@ class PartitionedEngine:
         self.y, self.out = np.zeros(2 * f), np.zeros(2 * f)
         self.q, self.v, self.Q = np.zeros(n), np.zeros(n), np.zeros(n)
         self.J, self.J_samples = np.zeros((m, n)), np.zeros((m, n))
-        self.work = np.zeros(2 * r + 2 * m + r * r + m + n + m + m * m)
+        self.work = np.zeros(2 * r + 2 * m + r * r + m + n + m + m * m + r * r + r * (f + 1)
+                             + f * f + f)
         self.ipiv = np.zeros(max(r, 1), dtype=np.intc)
         addr = {name: getattr(self, name).ctypes.data for name in (
             "p", "q_ref", "P", "C", "winv", "ind", "dep", "y", "q", "v", "J", "Q", "out",

@@ -72,15 +72,16 @@ class PassageBridge:
     """Plans the approach to a passage and crosses it.
 
     `accelerations(t, q, v)` must be exact outside the band (the projection method's);
-    `rcond` is its truncation cut; `engine`: the compiled projection of states onto the
-    constraints (`mechsim.codegen.engine.ProjectionEngine`), if there is one.
+    `cut()` gives its truncation cut (relative to σ_max); `engine`: the compiled projection
+    of states onto the constraints (`mechsim.codegen.engine.ProjectionEngine`), if there
+    is one.
     """
 
-    def __init__(self, problem, accelerations, rcond, rtol, atol, order=10, engine=None):
+    def __init__(self, problem, accelerations, cut, rtol, atol, order=10, engine=None):
         self.problem = problem
         self.accelerations = accelerations
         self.engine = engine
-        self.edge = EDGE * rcond
+        self._cut = cut
         self.rtol, self.atol = rtol, atol
         self.order = order
         self.free_step = None                   # step size before the approach
@@ -181,6 +182,11 @@ class PassageBridge:
         if sol.status != 0:
             return None
         return [self._consistent(y[:n], y[n:], tk) for tk, y in zip(ts, sol.y.T)]
+
+    @property
+    def edge(self) -> float:
+        """The band's edge: `EDGE` truncation cuts."""
+        return EDGE * self._cut()
 
     def stand_down(self):
         """Leave the present passage to the formulation (a crossing would end past the

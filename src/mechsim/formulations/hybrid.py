@@ -45,7 +45,10 @@ class Hybrid(Formulation):
 
     def initial_state(self, t, q, v):
         s = self.monitor.measure(q, t)[0] if self.monitor else 1.0
-        if s < 1e-8:          # starts on a singular configuration: no partition is safe
+        # Starts on a singular configuration, or with redundant constraints: no partition
+        # is safe. (A small σ_min/σ_max alone may come from very unequal masses, with Φ_q
+        # of full rank and a well-conditioned partition, which LU's reduced equations take.)
+        if s < 1e-8 and not self._full_rank_partition(q, t):
             self.active = self.proj
             self.switches.append(Switch(t, "lu", "projection",
                                         f"starts near a singular configuration (σ ratio {s:.3g})"))
@@ -91,6 +94,12 @@ class Hybrid(Formulation):
         J = self.problem.phi_q(q, t)
         basis = self.lu.choose(J, J.shape[0] if full else None)
         return basis.block(J).condition() < 0.1 * self.lu.cond_max
+
+    def _full_rank_partition(self, q, t) -> bool:
+        """Does Φ_q have full row rank at (q, t), with a well-conditioned LU partition?"""
+        J = self.problem.phi_q(q, t)
+        basis = self.lu.choose(J)
+        return basis.r == J.shape[0] and basis.block(J).condition() < 0.1 * self.lu.cond_max
 
     def _switch(self, t, y, to, reason):
         q, v = self.active.state(t, y)

@@ -470,16 +470,45 @@ class Partitioned(Formulation):
             if out is not None:
                 prob.counters.factorizations += 1
                 return out
-        return np.concatenate([y[self.basis.f:], self.basis.Bt(self._qdd(t, q, v, J))])
+        block = self._cache[3] if self._cache[3] is not _COMPILED else None
+        return np.concatenate([y[self.basis.f:], self.basis.Bt(self._qdd(t, q, v, J, block))])
 
     def derivative(self, t, q, v):
         qdd = self._qdd(t, q, v, self.problem.phi_q(q, t))
         return np.concatenate([self.basis.Bt(v), self.basis.Bt(qdd)])
 
-    def _qdd(self, t, q, v, J):
-        """q̈ of the consistent state (q, v), Φ_q = J there."""
-        prob = self.problem
-        return prob.accelerations(J, prob.forces(t, q, v), prob.gamma(q, v, t), q)[0]
+    def _qdd(self, t, q, v, J, block=None):
+        """q̈ of the consistent state (q, v), Φ_q = J there (`block`: Φ_q D there, factored,
+        if the caller has it), from the partition's reduced equations
+
+            (Rᵀ M R) z̈ = Rᵀ (Q − M s),    q̈ = R z̈ + s,
+
+        R = B − D A⁻¹ Φ_q B spanning the motions the constraints allow, s = D A⁻¹ γ, A = Φ_q D
+        (Wehage and Haug's partitioned equations). Their conditioning is that of the
+        partition (A, kept below `cond_max`) and of the mechanism's reduced inertia, not
+        that of the constraint forces' Schur complement Φ_q M⁻¹ Φ_qᵀ, which grows with the
+        ratio of the masses: a 1 kg point mass (inertia 1e-9 kg·m²) on a 0.5 m link makes
+        it 1e8, a 1e20 kg body with unit inertia 1e20. Redundant constraints (A not
+        square) take the least-squares Schur path."""
+        prob, bs = self.problem, self.basis
+        Q, gamma = prob.forces(t, q, v), prob.gamma(q, v, t)
+        if not self._square:
+            return prob.accelerations(J, Q, gamma, q)[0]
+        if block is None:
+            block = bs.block(J)
+        sol = block.solve(np.column_stack([bs.JB(J), gamma]))
+        X, s_dep = sol[:, :-1], sol[:, -1]
+        R = bs.assemble(np.eye(bs.f), -X)                    # n × f
+        s = bs.assemble(np.zeros(bs.f), s_dep)
+        if prob.constant_mass:
+            m = prob.mass_diagonal
+            MR, Ms = R * m[:, None], m * s
+        else:
+            M = prob.mass(q)
+            MR, Ms = M @ R, M @ s
+        prob.counters.factorizations += 1
+        zdd = dense.solve_psd(R.T @ MR, R.T @ (Q - Ms))
+        return R @ zdd + s
 
     def after_step(self, t, y):
         q, v, J, n_fresh = self.full_state(t, y)

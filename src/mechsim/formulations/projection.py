@@ -66,6 +66,8 @@ _CLUSTER = 10.0
 # obstacle, but the interpolation is no smoother: the first 5.4 s at rtol 1e-7 took 22969
 # in-band evaluations with every cluster interpolated, against 3428 with this limit.
 _MAX_CLUSTER = 4
+# The truncation cut follows a mechanism's own level of σ_min/σ_max below this (`cut`).
+SCALE_REF = 1e-3
 
 
 class Projection(FullCoordinates):
@@ -89,14 +91,34 @@ class Projection(FullCoordinates):
         self._compiled = self._compiled_engine()
         # The bound on LAPACK's estimate of 1/cond₁ of J̃J̃ᵀ above which the Cholesky
         # factor stands in for the SVD (see `_clear`).
-        self._min_rcond = max(100, problem.m) * self.rcond ** 2
         # Set after an accepted step far from any passage: until the next one, the
         # integrator's evaluations skip the condition estimate (see `_far_from_band`).
         self._far = False
         if self.regularization == "truncate" and self.bridge_passages:
             self.bridge = PassageBridge(problem, lambda t, q, v: self.accelerations(t, q, v, False),
-                                        self.rcond, rtol, atol, engine=self._compiled)
+                                        lambda: self.cut, rtol, atol, engine=self._compiled)
             self.bridging = True
+
+    @property
+    def cut(self) -> float:
+        """The truncation cut, relative to σ_max: `rcond`, scaled down for a mechanism
+        whose σ_min/σ_max has never risen above `SCALE_REF` in the run (its peak, from
+        the singularity monitor). There the ratio is small because the masses are very
+        unequal (a point mass on a link, a heavy body of small inertia), not because the
+        configuration is singular: a 1 kg point mass of inertia 1e-9 kg·m² pinned 0.5 m
+        from its centre has σ_min/σ_max = 6e-5 everywhere, and a fixed cut at 1e-4 dropped
+        one of its pin's equations (its motion was off by 0.6 rad after 2 s). The cut keeps
+        its place relative to the mechanism's own level; for every mechanism whose ratio
+        reaches SCALE_REF it is `rcond`."""
+        mon = self.monitor
+        peak = mon.peak if mon is not None and mon.peak > 0.0 else 1.0
+        return self.rcond * min(1.0, max(peak, 1e-12) / SCALE_REF)
+
+    @property
+    def _min_rcond(self) -> float:
+        """The bound on LAPACK's estimate of 1/cond₁ of J̃J̃ᵀ above which the Cholesky
+        factor stands in for the SVD (see `_clear`)."""
+        return max(100, self.problem.m) * self.cut ** 2
 
     @staticmethod
     def _pinv_exact(Jt):
@@ -119,9 +141,9 @@ class Projection(FullCoordinates):
         if not sig.size:
             return Vt.T, U.T
         if self.regularization == "truncate":
-            r = int(np.sum(sig > self.rcond * sig[0]))
+            r = int(np.sum(sig > self.cut * sig[0]))
             return Vt[:r].T, (U[:, :r] / sig[:r]).T
-        mu2 = (self.rcond * sig[0]) ** 2
+        mu2 = (self.cut * sig[0]) ** 2
         return Vt.T, (U * (sig / (sig**2 + mu2))).T
 
     def _compiled_engine(self):
@@ -153,7 +175,7 @@ class Projection(FullCoordinates):
         if c is None:
             return None
         low = band.smallest(c)
-        if low is None or not low[0] > (2.0 * self.rcond) ** 2 * band.largest_bound():
+        if low is None or not low[0] > (2.0 * self.cut) ** 2 * band.largest_bound():
             return None
         return c
 
@@ -196,7 +218,7 @@ class Projection(FullCoordinates):
         which the error estimate judges like any other."""
         mon = self.monitor
         return (mon is not None and self._cholesky
-                and mon.last >= mon.leave and mon.leave * mon.peak > 100.0 * self.rcond
+                and mon.last >= mon.leave and mon.leave * mon.peak > 100.0 * self.cut
                 and not mon.predicted_within(3.0 * self.last_step))
 
     def rhs(self, t, y):
@@ -207,7 +229,7 @@ class Projection(FullCoordinates):
         prob.counters.rhs += 1
         q, v = y[:n], y[n:]
         Q = prob.forces(t, q, v)
-        out = self._compiled.rhs(t, y, Q, -1.0 if self._far else self._min_rcond, self.rcond)
+        out = self._compiled.rhs(t, y, Q, -1.0 if self._far else self._min_rcond, self.cut)
         if out is not None:
             prob.counters.factorizations += 1
             return out
@@ -221,7 +243,7 @@ class Projection(FullCoordinates):
         if self._compiled is not None:
             clear = self._far if far is None else far
             out = self._compiled.accelerations(t, q, v, Q, -1.0 if clear else self._min_rcond,
-                                               self.rcond)
+                                               self.cut)
             if out is not None:
                 prob.counters.factorizations += 1
                 return out
@@ -287,7 +309,7 @@ class Projection(FullCoordinates):
             # null space is arbitrary (it may mix in the motion's own direction); a hair
             # along the motion they are the directions being lost.
             U, sig, Vt = dense.svd(J1)
-        cut = self.rcond * sig[0]
+        cut = self.cut * sig[0]
         zero = 1e-12 * sig[0]
         # δ takes every σ of the cluster at least 2 cuts out of the band. A σ that does not
         # move (a redundant constraint's stays at zero) is no crossing and stays dropped,
