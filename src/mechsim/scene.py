@@ -11,24 +11,14 @@
     name = "crank"
     rod = [[0, 0], ["L*cos(tilt)", "L*sin(tilt)"]]
     mass = 1.0
-    [[body]]                     # … or a general rigid body
-    name = "slider"
-    mass = 0.1
-    inertia = 1e-5
-    position = [0.45, 0]
+    [[body]]                     # … or a general rigid body (mass, inertia, position)
     [[body]]                     # … or an elastic beam with modal coordinates
     type = "flexible_beam"
     name = "coupler"
     start = [0, 0]
     end = [1, 0]                 # or `length` and `angle`
-    youngs_modulus = 117e9
-    density = 8910
-    area = 1e-4
-    second_moment = "1e-8/12"
-    n_elements = 10
-    n_modes = 2
-    boundary = "pinned-pinned"   # default; also "clamped-free", "free-free"
-    damping_ratio = 0.0
+    youngs_modulus = 117e9       # and density, area, second_moment, n_elements,
+    n_modes = 2                  # boundary ("pinned-pinned", …), damping_ratio
 
     [[joint]]
     type = "revolute"            # or "prismatic" (with `axis`)
@@ -50,7 +40,6 @@
     save = true                  # result as <scene>.npz
     export = "motion.xdmf"       # meshio time series of the bodies (ParaView)
     points = [["coupler", [0.5, 0.0]]]   # final positions printed in the summary
-
     directory = "out/four_bar"   # relative, inside the working directory
 
 Numbers may be given as expressions (+ − * / **, pi, sin, cos, tan, sqrt, radians, degrees,
