@@ -139,3 +139,14 @@ def test_a_noise_limited_bridge_takes_its_best_declined_attempt():
     assert res.stats["bridge_evaluations"] < 500
     from mechsim.bench import PROBLEMS
     assert PROBLEMS["parallelogram"].error(res) < 1e-10
+
+
+@pytest.mark.parametrize("t_end", [1.571, 1.6, 1.7])
+def test_a_bridge_never_carries_a_run_past_its_end(t_end):
+    """A passage just before t_end (the zero-gravity parallelogram turning at 1 rad/s aligns
+    at t = π/2): a crossing that would end after t_end is left to the formulation, and the
+    run ends at t_end on the exact motion (θ = π/2 − t)."""
+    mech = ms.examples.double_four_bar(1, gravity=(0.0, 0.0), crank_speed=-1.0)
+    res = mech.simulate(t_end, rtol=1e-8, atol=1e-10)
+    assert res.status == "success" and res.t[-1] == t_end
+    assert abs(res.coordinate("crank1.angle")[-1] - (math.pi / 2 - t_end)) < 1e-6
