@@ -401,6 +401,15 @@ class NumericProblem:
             U = U + fb.invariants.strain(q[..., fb.slice])
         return U
 
+    def degrees_of_freedom(self, q, t) -> int:
+        """n − rank Φ_q at (q, t) (the rank from the SVD, as `Mechanism.dof`)."""
+        if self.m == 0:
+            return self.n
+        J = self.phi_q(q, t)
+        s = _dense().svdvals(J)
+        tol = max(J.shape) * np.finfo(float).eps * 1e3 * (s[0] if s.size else 1.0)
+        return self.n - int(np.sum(s > tol))
+
     # --- projections onto the constraint manifold (mass metric) -------------------------------
     def project_positions(self, q, t, tol=1e-12, max_iter=20):
         """Newton steps Δq = −W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ Φ with W = M⁻¹: the smallest correction in

@@ -23,7 +23,7 @@ from .integrators import AdamsPECE, integrator_class
 from .integrators.adapters import correct_in_place, proposed_step
 from .options import Option, check_all, unknown_names
 from .problem import NumericProblem
-from .results import SimulationResult
+from .results import SimulationResult, Switch
 
 
 def output_times(t0: float, t_end: float, output_step: float | None) -> np.ndarray | None:
@@ -281,7 +281,17 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     first_step = checked["first_step"] if h is None else h
     q0, v0 = check_initial_state(problem, q0, v0, t_start)
     problem.start_run()
-    form = cls(problem, rtol, atol, **options)
+    if cls.needs_freedom and problem.m >= problem.n and \
+            problem.degrees_of_freedom(q0, t_start) == 0:
+        # A fully driven mechanism: no independent coordinate to integrate. Its motion is
+        # the drivers' kinematics, which the projection method follows on its branch with
+        # the integrator's error control (a partitioned run took one step for the whole
+        # run and landed on the mirror branch).
+        form = METHODS["projection"](problem, rtol, atol)
+        form.switches.append(Switch(t_start, cls.name, form.name, "0 degrees of freedom: the "
+                                    "drivers' motion, followed by the projection method"))
+    else:
+        form = cls(problem, rtol, atol, **options)
     monitor = form.monitor = SingularityMonitor(problem, *singular_thresholds)
 
     counters = problem.counters

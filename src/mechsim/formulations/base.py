@@ -36,6 +36,9 @@ class Formulation:
     step_limit = None       # largest next step the formulation can take safely (None: any)
     bridge = None           # a PassageBridge when the formulation can cross passages by one
     bridging = False        # whether the manager may use it at the present step
+    # Whether it integrates independent coordinates (partitioning): a mechanism with no
+    # degree of freedom has none, and the manager runs it by the projection method instead.
+    needs_freedom = False
 
     def derivative(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """y' in the present layout at a consistent full state (q, v): what `rhs` gives at

@@ -231,6 +231,7 @@ class MatrixBasis(CoordinateBasis):
 
 class Partitioned(Formulation):
     name = "lu"
+    needs_freedom = True
     default_integrator = "DOP853"    # fastest measured; "adams" (the paper's PECE) on request
     options = {"cond_max": Option.real(1e4, low=1.0),
                "newton_tol": Option.positive(None, optional=True),
