@@ -121,7 +121,7 @@ def test_a_driven_change_point_four_bar_crosses_its_dead_centres(method):
     res = mech.simulate(3.0, method=method, rtol=1e-8, atol=1e-10, output_step=0.01)
     if method == "baumgarte":
         assert res.status == "failed" and "nearly singular" in res.message
-        assert abs(res.t[-1] - th0 / 2.0) < 2e-3
+        assert th0 / 2.0 - 0.011 < res.t[-1] <= th0 / 2.0      # the last sample before it
         return
     assert res.status == "success", res.message
     assert np.max(np.abs(res.coordinate("rocker.angle") - (th0 - 2.0 * res.t))) < 1e-6
