@@ -101,7 +101,7 @@ class RigidBody(Body):
         if not length > 0.0:
             raise ModelError(f"{owner}: rod `start` and `end` coincide at {a.tolist()}")
         m = scalar(mass, "mass", owner, positive=True)
-        return cls(name, mass=m, inertia=m * length**2 / 12.0, position=(a + b) / 2.0,
+        return cls(name, mass=m, inertia=m * length * length / 12.0, position=(a + b) / 2.0,
                    angle=math.atan2(b[1] - a[1], b[0] - a[0]), velocity=velocity,
                    angular_velocity=angular_velocity)
 

@@ -159,6 +159,6 @@ class FlexibleBeam(Body):
     @property
     def mass_diagonal(self) -> np.ndarray:
         """Nominal scales only (M depends on the state): m, m, ml²/3, 1 …"""
-        return np.concatenate([[self.mass, self.mass, self.mass * self.length**2 / 3.0],
+        return np.concatenate([[self.mass, self.mass, self.mass * self.length * self.length / 3.0],
                                np.ones(self.n_modes)])
 
