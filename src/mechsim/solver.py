@@ -501,6 +501,12 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             message += (f"; Φ_q is nearly singular there (σ_min/σ_max = {s:.3g}, joints "
                         f"{', '.join(monitor.joints_of(u))})")
     monitor.close(t_reached)
+    if monitor.passages and not form.resolves_passages and status == "success":
+        message += (f"; the run passed {len(monitor.passages)} singular configuration(s) "
+                    f"(first at t = {monitor.passages[0].t_min or monitor.passages[0].t_start:.6g}) "
+                    f"that method {form.name!r} does not resolve: its motion may have left "
+                    "its branch there (see singular_passages and passage_drift(); methods "
+                    "'hybrid' and 'projection' follow the branch)")
 
     wall = time.perf_counter() - start
     bridge_evals = bridge.evaluations - bridge_evals_before if bridge is not None else 0

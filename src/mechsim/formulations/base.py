@@ -39,6 +39,9 @@ class Formulation:
     # Whether it integrates independent coordinates (partitioning): a mechanism with no
     # degree of freedom has none, and the manager runs it by the projection method instead.
     needs_freedom = False
+    # Whether it resolves singular passages (follows the branch through them); where it
+    # does not, a run that meets one says its motion may have left the branch there.
+    resolves_passages = False
 
     def derivative(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """y' in the present layout at a consistent full state (q, v): what `rhs` gives at

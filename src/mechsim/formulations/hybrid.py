@@ -25,6 +25,7 @@ from .projection import Projection
 class Hybrid(Formulation):
     name = "hybrid"
     needs_freedom = True
+    resolves_passages = True
     default_integrator = "DOP853"    # fastest measured; "adams" (the paper's PECE) on request
     options = {"stable_steps": Option.integer(5, low=1),
                "repartition_burst": Option.integer(3, low=1),

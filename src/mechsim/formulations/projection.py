@@ -72,6 +72,7 @@ SCALE_REF = 1e-3
 
 class Projection(FullCoordinates):
     name = "projection"
+    resolves_passages = True
     default_integrator = "DOP853"
     options = {**FullCoordinates.options, "rcond": Option.positive(1e-4, high=0.5),
                "exact_projection": Option.flag(True),
