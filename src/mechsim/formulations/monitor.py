@@ -160,15 +160,25 @@ class SingularityMonitor:
             (t_old is None or prev[0] == t_old)
         self._skipped = 0
         self.last, self.rate = s, rate
-        if self._open is None and contiguous and s >= self.enter and state_at is not None:
-            self._hidden_minimum(prev, (t, s, rate), state_at)
-        if self._open is None and s < self.enter:
-            self._open = [t, t, raw, self.joints_of(u), False]
-        elif self._open is not None:
+        if self._open is not None:
             if raw < self._open[2]:
                 self._open[1:4] = [t, raw, self.joints_of(u)]
             if s > self.leave:
                 self.close(t)
+            return s
+        hidden = []
+        if contiguous and prev[1] >= self.enter and state_at is not None:
+            hidden = self._hidden_minimum(prev, (t, s, rate), state_at)
+        if s < self.enter:
+            self._open = [t, t, raw, self.joints_of(u), False]
+            if hidden and self._same_dip(hidden[-1][0], t, state_at):
+                # The step ends inside a passage whose minimum it passed: the open one.
+                tm, sm, joints, t_start = hidden.pop()
+                if sm < raw:
+                    self._open = [t_start, tm, sm, joints, False]
+        for tm, sm, joints, t_start in hidden:
+            self.passages.append(SingularPassage(t_start, min(t, 2.0 * tm - t_start), sm,
+                                                 joints, tm))
         return s
 
     def crossed(self, t0, t1, tm, qm):
@@ -182,29 +192,67 @@ class SingularityMonitor:
             self.passages.append(SingularPassage(t0, t1, sm, self.joints_of(um), tm, True))
 
     def _hidden_minimum(self, a, b, state_at):
-        t0, _, d0 = a
-        t1, _, d1 = b
+        """The passages hidden inside the step from a = (t0, s0/peak, rate) to b, as
+        (t_min, σ ratio there, joints, t_start), in time order:
+        every interval of the step's dense output where s could fall below `enter`, given
+        that |ṡ| is at most R (twice the fastest rate seen, or the ends' rates), is bisected
+        until s is shown to stay above it (s ≥ (s_a + s_b − R (t_b − t_a))/2 between two
+        values) or found under it; each dip found is refined to its minimum. A step that
+        crosses several passages (a partitioned method striding through a uniformly
+        turning parallelogram took 7 passages in 5 steps) reports every one. Steps clear of
+        any passage cost nothing: their ends already exclude it."""
+        t0, s0, d0 = a
+        t1, s1, d1 = b
         h = t1 - t0
-        if not (h > 0.0 and d0 < 0.0 < d1):
-            return
-        # A local minimum of s lies inside the step. s is V-shaped near a singular
-        # configuration (≈ |angle to it|) and curved by the motion's acceleration, so neither
-        # a cubic model nor the tangents' intersection tells reliably how deep it goes: look
-        # on the dense output itself (once per local minimum, ~20 evaluations).
-        from scipy.optimize import minimize_scalar
+        peak, enter = self.peak, self.enter * self.peak
+        rate_bound = 2.0 * peak * max(self.peak_rate, abs(d0), abs(d1))
+        if not h > 0.0 or (s0 + s1) * peak - rate_bound * h >= 2.0 * enter:
+            return []
 
         def s_at(tk):
             return self.measure(state_at(tk)[0], tk)[0]
 
-        found = minimize_scalar(s_at, bounds=(t0, t1), method="bounded",
-                                options={"xatol": 1e-5 * h})
-        tm, sm = float(found.x), float(found.fun)
-        if sm < self.enter * self.peak:
-            qm, _ = state_at(tm)
-            _, _, um = self.measure(qm, tm)
-            width = self.enter * self.peak / max(-d0, d1) / self.peak
-            self.passages.append(SingularPassage(max(t0, tm - width), min(t1, tm + width), sm,
-                                                 self.joints_of(um), tm))
+        lows, stack, budget = [], [(t0, s0 * peak, t1, s1 * peak)], 64
+        while stack and budget > 0:
+            ta, sa, tb, sb = stack.pop()
+            if (sa + sb) - rate_bound * (tb - ta) >= 2.0 * enter or tb - ta < 1e-9 * h:
+                continue
+            tm = 0.5 * (ta + tb)
+            sm = s_at(tm)
+            budget -= 1
+            if sm < enter:
+                lows.append((ta, tb))
+            else:
+                stack += [(ta, sa, tm, sm), (tm, sm, tb, sb)]
+        found = []
+        for ta, tb in sorted(lows):
+            tm, sm = self._refine(s_at, ta, tb)
+            if found and (tm - found[-1][0] < 1e-9 * h or
+                          self._same_dip(found[-1][0], tm, state_at)):
+                if sm < found[-1][1]:
+                    found[-1] = (tm, sm)          # the same dip, seen from two intervals
+                continue
+            found.append((tm, sm))
+        width = enter / max(rate_bound / 2.0, 1e-300)
+        out = []
+        for tm, sm in found:
+            _, _, um = self.measure(state_at(tm)[0], tm)
+            out.append((tm, sm, self.joints_of(um), max(t0, tm - width)))
+        return out
+
+    def _same_dip(self, ta, tb, state_at) -> bool:
+        """Does s stay under `enter` between ta and tb (one dip, not two)? At the middle."""
+        tm = 0.5 * (ta + tb)
+        return self.measure(state_at(tm)[0], tm)[0] < self.enter * self.peak
+
+    @staticmethod
+    def _refine(s_at, ta, tb):
+        """(t, s) at the minimum of s on [ta, tb] (s is V-shaped near a singular
+        configuration: a bounded scalar search, about 20 evaluations)."""
+        from scipy.optimize import minimize_scalar
+        found = minimize_scalar(s_at, bounds=(ta, tb), method="bounded",
+                                options={"xatol": 1e-5 * (tb - ta)})
+        return float(found.x), float(found.fun)
 
     @property
     def inside(self) -> bool:
