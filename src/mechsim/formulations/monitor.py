@@ -29,6 +29,8 @@ while large steps, which move J̃ a lot, are measured every time.
 
 from __future__ import annotations
 
+import collections
+
 import numpy as np
 
 from .. import dense
@@ -54,6 +56,7 @@ class SingularityMonitor:
         self._skipped = 0            # steps skipped since that observation
         self.peak_rate = 0.0         # fastest |ṡ|/peak seen
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
+        self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
         self._engine = _compiled(problem)
 
     def _jacobian(self, q, t):
@@ -152,6 +155,7 @@ class SingularityMonitor:
             return self.last
         raw, rate, u, smin, smax, J = self._measure(q, t, v, J)
         self._measured = (J, smin, smax) if smax > 0.0 else None
+        speed_before, self._ratio_speed = self._ratio_speed, self._speed(q, v, t, J, smax)
         self.peak = max(self.peak, raw)
         s, rate = (raw / self.peak, rate / self.peak) if self.peak > 0 else (0.0, 0.0)
         self.peak_rate = max(self.peak_rate, abs(rate))
@@ -168,7 +172,8 @@ class SingularityMonitor:
             return s
         hidden = []
         if contiguous and prev[1] >= self.enter and state_at is not None:
-            hidden = self._hidden_minimum(prev, (t, s, rate), state_at)
+            hidden = self._hidden_minimum(prev, (t, s, rate), state_at,
+                                          max(speed_before, self._ratio_speed))
         if s < self.enter:
             self._open = [t, t, raw, self.joints_of(u), False]
             if hidden and self._same_dip(hidden[-1][0], t, state_at):
@@ -191,11 +196,25 @@ class SingularityMonitor:
         elif sm < self.enter * self.peak:
             self.passages.append(SingularPassage(t0, t1, sm, self.joints_of(um), tm, True))
 
-    def _hidden_minimum(self, a, b, state_at):
+    def _speed(self, q, v, t, J, smax) -> float:
+        """A bound on how fast σ_min/σ_max can change at (q, v): every singular value of J̃
+        moves at most ‖dJ̃/dt‖ (Weyl), so |d(σ_min/σ_max)/dt| ≤ 2 ‖dJ̃/dt‖_F / σ_max. Unlike
+        the rates of s seen so far it holds near a passage, where s turns sharply."""
+        if v is None or not smax > 0.0 or not v.size:
+            return 0.0
+        speed = float(np.max(np.abs(v)))
+        if speed == 0.0:
+            return 0.0
+        eps = 1e-7 / speed
+        dJ = (self._jacobian(q + eps * v, t + eps) - J) / eps
+        return 2.0 * float(np.linalg.norm(dJ)) / smax
+
+    def _hidden_minimum(self, a, b, state_at, ratio_speed=0.0):
         """The passages hidden inside the step from a = (t0, s0/peak, rate) to b, as
         (t_min, σ ratio there, joints, t_start), in time order:
         every interval of the step's dense output where s could fall below `enter`, given
-        that |ṡ| is at most R (twice the fastest rate seen, or the ends' rates), is bisected
+        that |ṡ| is at most R (twice the larger of the ends' bounds from `_speed`, or of the
+        rates seen), is bisected
         until s is shown to stay above it (s ≥ (s_a + s_b − R (t_b − t_a))/2 between two
         values) or found under it; each dip found is refined to its minimum. A step that
         crosses several passages (a partitioned method striding through a uniformly
@@ -205,16 +224,19 @@ class SingularityMonitor:
         t1, s1, d1 = b
         h = t1 - t0
         peak, enter = self.peak, self.enter * self.peak
-        rate_bound = 2.0 * peak * max(self.peak_rate, abs(d0), abs(d1))
+        rate_bound = 2.0 * max(peak * self.peak_rate, peak * abs(d0), peak * abs(d1),
+                               ratio_speed)
         if not h > 0.0 or (s0 + s1) * peak - rate_bound * h >= 2.0 * enter:
             return []
 
         def s_at(tk):
             return self.measure(state_at(tk)[0], tk)[0]
 
-        lows, stack, budget = [], [(t0, s0 * peak, t1, s1 * peak)], 64
+        # Enough evaluations to cover the step with intervals the bound can clear.
+        budget = int(min(4000, 16 + 4 * rate_bound * h / max((s0 + s1) * peak, enter)))
+        lows, stack = [], collections.deque([(t0, s0 * peak, t1, s1 * peak)])
         while stack and budget > 0:
-            ta, sa, tb, sb = stack.pop()
+            ta, sa, tb, sb = stack.popleft()
             if (sa + sb) - rate_bound * (tb - ta) >= 2.0 * enter or tb - ta < 1e-9 * h:
                 continue
             tm = 0.5 * (ta + tb)
