@@ -131,7 +131,8 @@ def _bridge_passage(form, bridge, monitor, solver, t, q, v, max_step, t_end):
         if t + SPAN * (plan[1] - t) >= t_end:
             bridge.stand_down()
             return None
-        crossed = bridge.cross(t, q, v, plan[1], lambda qk, tk: monitor.measure(qk, tk)[0])
+        crossed = bridge.cross(t, q, v, plan[1], lambda qk, tk: monitor.measure(qk, tk)[0],
+                               t_floor=monitor.clear_since)
         if crossed is not None and crossed.t_b >= t_end:
             bridge.stand_down()
             return None

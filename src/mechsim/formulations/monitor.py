@@ -37,6 +37,12 @@ from .. import dense
 from ..results import SingularPassage
 
 
+# Mechanisms with more constraint equations than this bound the search for passages inside
+# a step by the rates of σ_min/σ_max seen, not by ‖dJ̃/dt‖ (whose Frobenius norm grows with
+# the rows and made the 40-window chain's 20 s search every step), and search more briefly.
+SEARCH_MAX_ROWS = 60
+
+
 class SingularityMonitor:
     """Records singular passages; `last` and `rate` are s/peak and its rate after the latest
     observation, `inside` tells whether a passage is open."""
@@ -57,6 +63,7 @@ class SingularityMonitor:
         self.peak_rate = 0.0         # fastest |ṡ|/peak seen
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
         self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
+        self.t_first = -np.inf       # the first observation's time
         self._engine = _compiled(problem)
 
     def _jacobian(self, q, t):
@@ -149,6 +156,8 @@ class SingularityMonitor:
         """Take the state at an accepted step that began at `t_old`. `state_at(t) -> (q, v)`
         evaluates the step's dense output, used to confirm a minimum hidden inside the
         step. Returns s/peak (the latest measured value when this step was skipped)."""
+        if self._prev is None:
+            self.t_first = t
         skip, J = self._may_skip(q, t, t_old)
         if skip:
             self._skipped += 1
@@ -189,18 +198,20 @@ class SingularityMonitor:
     def crossed(self, t0, t1, tm, qm):
         """A passage was crossed in one step from t0 to t1 without observations inside
         (`mechsim.formulations.bridge`), its singular instant predicted at tm where the
-        configuration is qm: recorded with the open passage, or as a passage of its own."""
+        configuration is qm: recorded with the open passage, or opened as a passage of its
+        own, which the next observation closes once s is above `leave` (closing it at t1
+        counted the rest of the same dip, observed after the bridge, a second time)."""
         sm, _, um = self.measure(qm, tm)
         if self._open is not None:
             self._open[1:5] = [tm, sm, self.joints_of(um), True]
         elif sm < self.enter * self.peak:
-            self.passages.append(SingularPassage(t0, t1, sm, self.joints_of(um), tm, True))
+            self._open = [t0, tm, sm, self.joints_of(um), True]
 
     def _speed(self, q, v, t, J, smax) -> float:
         """A bound on how fast σ_min/σ_max can change at (q, v): every singular value of J̃
         moves at most ‖dJ̃/dt‖ (Weyl), so |d(σ_min/σ_max)/dt| ≤ 2 ‖dJ̃/dt‖_F / σ_max. Unlike
         the rates of s seen so far it holds near a passage, where s turns sharply."""
-        if v is None or not smax > 0.0 or not v.size:
+        if v is None or not smax > 0.0 or not v.size or self.problem.m > SEARCH_MAX_ROWS:
             return 0.0
         speed = float(np.max(np.abs(v)))
         if speed == 0.0:
@@ -232,8 +243,11 @@ class SingularityMonitor:
         def s_at(tk):
             return self.measure(state_at(tk)[0], tk)[0]
 
-        # Enough evaluations to cover the step with intervals the bound can clear.
+        # Enough evaluations to cover the step with intervals the bound can clear (a
+        # large mechanism's SVD costs milliseconds: there the rates seen bound the search).
         budget = int(min(4000, 16 + 4 * rate_bound * h / max((s0 + s1) * peak, enter)))
+        if self.problem.m > SEARCH_MAX_ROWS:
+            budget = min(budget, 64)
         lows, stack = [], collections.deque([(t0, s0 * peak, t1, s1 * peak)])
         while stack and budget > 0:
             ta, sa, tb, sb = stack.popleft()
@@ -249,6 +263,8 @@ class SingularityMonitor:
         found = []
         for ta, tb in sorted(lows):
             tm, sm = self._refine(s_at, ta, tb)
+            if not (sm < enter and t0 + 1e-6 * h < tm < t1 - 1e-6 * h):
+                continue                          # no minimum inside: s only falls to an end
             if found and (tm - found[-1][0] < 1e-9 * h or
                           self._same_dip(found[-1][0], tm, state_at)):
                 if sm < found[-1][1]:
@@ -275,6 +291,12 @@ class SingularityMonitor:
         found = minimize_scalar(s_at, bounds=(ta, tb), method="bounded",
                                 options={"xatol": 1e-5 * (tb - ta)})
         return float(found.x), float(found.fun)
+
+    @property
+    def clear_since(self) -> float:
+        """Since when the motion has met no passage: the end of the last one recorded, or
+        the first observation."""
+        return self.passages[-1].t_end if self.passages else self.t_first
 
     @property
     def inside(self) -> bool:
