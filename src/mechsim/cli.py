@@ -93,6 +93,8 @@ def _summary(scene, mech, res, report, assembly, t_build) -> None:
           f"{len(res.t)} samples)")
     print(f"energy     final drift {res.energy_drift[-1]:+.3e}, "
           f"max |drift| {abs(res.energy_drift).max():.3e} (scale {res.energy_scale:.4g} J)")
+    if res.energy.channels:
+        print(f"work       {res.energy.includes}")
     if np.any(res.energy.strain):
         print(f"strain     max elastic energy {res.energy.strain.max():.4g} J at "
               f"t = {res.t[np.argmax(res.energy.strain)]:.4f} s")

@@ -349,27 +349,66 @@ class NumericProblem:
                 _add_point_force(Q, q, load.body, load.s, fx, fy, load.modal)
 
     @property
-    def has_nonconservative(self) -> bool:
-        """Whether anything can do work besides gravity and elastic springs."""
-        return bool(self.loads) or any(sp.damping for sp in self.springs) or \
-            bool(self.rheonomic_rows) or any(np.any(fb.invariants.damping > 0.0)
-                                             for fb in self.flexible)
-
-    @property
     def rheonomic_rows(self) -> list[int]:
         """Rows of Φ that depend on time explicitly (drivers): they can do work."""
         return [i for i, name in enumerate(self.constraint_kinds) if name == "driver"]
 
-    def power(self, t, q, v) -> tuple[float, float]:
-        """(applied, driver) power: Q_ncᵀ v and λᵀ Φ_t. The constraint force −Φ_qᵀλ has
-        power −λᵀ Φ_q v = λᵀ Φ_t, non-zero only on rows with explicit time dependence."""
-        applied = float(self.nonconservative_forces(t, q, v) @ v)
-        driver = 0.0
-        if self.rheonomic_rows:
+    @property
+    def work_channels(self) -> list[str]:
+        """What can do work on the mechanism besides gravity and elastic springs, one name
+        per channel of `work_rates`: each damped spring ("spring 's' (damping)"), each load
+        ("load 'F'"), each beam with modal damping ("beam 'b' (modal damping)") and each
+        driver ("driver 'motor'")."""
+        names = [f"spring '{sp.name}' (damping)" for sp in self.springs if sp.damping]
+        names += [f"load '{load.name}'" for load in self.loads]
+        names += [f"beam '{fb.name}' (modal damping)" for fb in self.flexible
+                  if np.any(fb.invariants.damping > 0.0)]
+        names += [f"driver '{d}'" for d in self._driver_owners()]
+        return names
+
+    def _driver_owners(self) -> list[str]:
+        """The drivers owning rows of Φ, in order of their first row."""
+        return list(dict.fromkeys(self.constraint_owners[i] for i in self.rheonomic_rows))
+
+    def work_rates(self, t, q, v) -> np.ndarray:
+        """The power of each of `work_channels` at the consistent state (q, v), shape (k,):
+        a damper's −c ṡ² (ṡ its rate of extension), a load's F·ṗ or τ ω, a beam's
+        −Σ d_k η̇_k², a driver's λᵀ Φ_t over its rows (the constraint force −Φ_qᵀλ does
+        the work −λᵀ Φ_q v = λᵀ Φ_t; λ from the equations of motion, least squares at a
+        singular configuration)."""
+        out = []
+        for sp in self.springs:
+            if not sp.damping:
+                continue
+            pa = _point(q, sp.a, sp.sa, sp.modal_a)
+            pb = _point(q, sp.b, sp.sb, sp.modal_b)
+            d = np.subtract(pb, pa)
+            length = math.hypot(d[0], d[1])
+            if length == 0.0:
+                out.append(0.0)
+                continue
+            rate = (np.subtract(_velocity(q, v, sp.b, sp.sb, sp.modal_b),
+                                _velocity(q, v, sp.a, sp.sa, sp.modal_a)) @ d) / length
+            out.append(-sp.damping * rate * rate)
+        for load in self.loads:
+            value = load.value(t) if callable(load.value) else load.value
+            if load.is_torque:
+                out.append(float(value) * v[load.body + 2])
+            else:
+                out.append(float(np.dot(value, _velocity(q, v, load.body, load.s, load.modal))))
+        for fb in self.flexible:
+            d = fb.invariants.damping
+            if np.any(d > 0.0):
+                rates = v[fb.start + 3:fb.slice.stop]
+                out.append(-float(np.sum(d * rates * rates)))
+        owners = self._driver_owners()
+        if owners:
             _, J, phi_t, gamma = self.terms(q, v, t)
             _, lam = self.accelerations(J, self.forces(t, q, v), gamma, q)
-            driver = float(lam @ phi_t)
-        return applied, driver
+            for owner in owners:
+                out.append(float(sum(lam[i] * phi_t[i] for i in self.rheonomic_rows
+                                     if self.constraint_owners[i] == owner)))
+        return np.array(out, float)
 
     # --- energies (vectorized over leading dimensions) ---------------------------------------
     def kinetic_energy(self, q, v) -> np.ndarray:

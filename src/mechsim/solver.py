@@ -18,12 +18,15 @@ import numpy as np
 
 from .formulations import METHODS, formulation_class
 from .formulations.bridge import SPAN
+from .formulations.full import settle_samples
 from .formulations.monitor import SingularityMonitor
 from .integrators import AdamsPECE, integrator_class
 from .integrators.adapters import correct_in_place, proposed_step
 from .options import Option, check_all, unknown_names
 from .problem import NumericProblem
 from .results import SimulationResult, Switch
+from .results.result import WorkRecord
+from .results.work import WorkIntegral
 
 
 def output_times(t0: float, t_end: float, output_step: float | None) -> np.ndarray | None:
@@ -43,6 +46,10 @@ def output_times(t0: float, t_end: float, output_step: float | None) -> np.ndarr
 # its span (LU alone at the flexible four-bar's passage: 2000 steps of 2e-12–7e-12 s).
 STALL_STEPS = 2000
 STALL_SPAN = 1e-7
+# A step that left the assembly branch (`Formulation.keeps_branch`) is taken again at a
+# quarter of its length, up to this many times in a row, by the methods that resolve
+# passages; then it stands, and the run says so.
+BRANCH_RETRIES = 6
 # What a formulation raises when a run cannot go on: the run stops with its partial result.
 FAILURES = (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError)
 
@@ -156,6 +163,7 @@ SETTINGS = {
     "singular_thresholds": Option((0.07, 0.14), "pair"),
     "max_steps": Option.integer(None, low=1, optional=True),
     "h": Option.positive(None, optional=True),
+    "work": Option.flag(True),
 }
 # An output grid is refused where its arrays would take more than this share of the
 # machine's memory.
@@ -253,7 +261,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
              max_step: float = math.inf, output_step: float | None = None,
              integrator: str | None = None, first_step: float | None = None,
              singular_thresholds: tuple[float, float] = (0.07, 0.14),
-             max_steps: int | None = None, h: float | None = None,
+             max_steps: int | None = None, h: float | None = None, work: bool = True,
              **options) -> SimulationResult:
     """Integrate the constrained equations of motion from a consistent (q0, v0) at t_start.
 
@@ -269,13 +277,17 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         until it rises above `leave` (see `mechsim.formulations.monitor`)
     max_steps : stop (status "failed", partial result kept) after this many steps
     h : fixed step for the fixed-step methods ("ss-newmark"); required by them
+    work : integrate the work of each damper, load, damped beam and driver along every step
+        (`mechsim.results.work`), so the energy balance measures the solver, not the output
+        spacing; it costs 9 evaluations of the powers per step, and only mechanisms with such
+        forces pay it. False: the balance integrates the power over the output samples
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
     cls, solver_cls, t_end, checked = check_settings(
         problem.n, t_end, method, integrator,
         dict(t_start=t_start, rtol=rtol, atol=atol, max_step=max_step, output_step=output_step,
              first_step=first_step, singular_thresholds=singular_thresholds,
-             max_steps=max_steps, h=h), options)
+             max_steps=max_steps, h=h, work=work), options)
     t_start, rtol, atol = checked["t_start"], checked["rtol"], checked["atol"]
     max_step, output_step, h = checked["max_step"], checked["output_step"], checked["h"]
     max_steps, singular_thresholds = checked["max_steps"], checked["singular_thresholds"]
@@ -301,6 +313,27 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     start = time.perf_counter()
     ts = output_times(t_start, t_end, output_step)
     out_t, out_q, out_v = [], [], []
+    # The work of each non-conservative channel at the output samples, integrated along the
+    # steps (rows: out_t's first len(work_at) samples).
+    channels = problem.work_channels if checked["work"] else []
+    work = None
+    if channels:
+        energy = (problem.kinetic_energy(q0, v0) + abs(problem.potential_energy(q0))
+                  + problem.strain_energy(q0))
+        work = WorkIntegral(channels, problem.work_rates, rtol, float(energy), t_end - t_start)
+    work_at = []
+
+    def bridge_samples(tk, Y):
+        """A bridge's output samples, onto the constraints as the steps' are."""
+        Q, V = _split(np.array(Y), problem.n)
+        settle_samples(problem, tk, Q, V, max(10.0 * rtol, 100.0 * atol))
+        return Q, V
+
+    def add_work(a, b, states, times):
+        if work is not None:
+            W = work.add(a, b, states, times)
+            if W is not None:
+                work_at.extend(W)
     y = form.initial_state(t_start, q0, v0)
     monitor.observe(t_start, q0, v0)
 
@@ -351,12 +384,13 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             record(tk, q, v)
 
     status, message, exception = "success", "reached t_end", None
-    steps = restarts = rejected = corrections = 0
+    steps = restarts = rejected = corrections = retries = 0
     nfev_done = njev_done = nlu_done = 0
     next_out = 0
     if ts is None or ts[0] == t_start:
         record(t_start, q0, v0)
         next_out = 1
+        work_at.append(np.zeros(len(channels)))
     solver = None
     t_reached = t_start
     # Stuck (at a singular configuration the formulation cannot pass): stop there with the
@@ -393,11 +427,25 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                     retire(solver)
                     restarts += 1
                     solver = make(solver.t, solver.y, min(h_next, want) or None, want)
-            t_old = solver.t
+            t_old, y_old = solver.t, solver.y.copy()
             msg = solver.step()
             if solver.status == "failed":
                 status, message = "failed", f"integrator stopped at t = {solver.t:.9g}: {msg}"
                 break
+            kept = form.keeps_branch(solver.t, solver.y)
+            if not kept and form.resolves_passages and h is None and \
+                    retries < BRANCH_RETRIES:
+                # Left the branch within the step (or crossed a singular configuration
+                # unseen): take it again, shorter, from its start. A method that does not
+                # resolve passages crosses them so, and says so instead.
+                retries += 1
+                retire(solver)
+                rejected += 1
+                restarts += 1
+                short = 0.25 * (solver.t - t_old)
+                solver = make(t_old, y_old, short, min(max_step, short))
+                continue
+            retries = 0
             steps += 1
             if max_steps is not None and steps > max_steps:
                 status, message = "failed", (f"step limit max_steps = {max_steps} reached at "
@@ -420,8 +468,12 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                     interpolant.append(solver.dense_output())
                 return interpolant[0](tk)
 
+            recorded = len(out_t)
             if ts is not None:
                 record_within(t_old, t_new, False, dense, form.states)
+            records_end = ts is None or (next_out < len(ts) and ts[next_out] == t_new)
+            add_work(t_old, t_new, lambda tk: form.states(tk, np.atleast_2d(dense(tk).T)),
+                     out_t[recorded:] + [t_new] * bool(records_end))
             q_new, v_new = form.state(t_new, y_new)
             check_finite(problem, t_new, q_new, v_new)
             monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
@@ -435,7 +487,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
             t_reached = t_new
             if keep_past:
                 past.append((t_new, np.array(q_new), np.array(v_new)))
-            if ts is None or (next_out < len(ts) and ts[next_out] == t_new):
+            if records_end:
                 record(t_new, *form.state(t_new, y_here))
                 next_out += 1
             if corrected is not None and solver.status == "running":
@@ -460,11 +512,12 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                 continue
             t_b, q_b, v_b, interp, t_star, history = crossed[:6]
             bridges += 1
+            recorded = len(out_t)
             if ts is not None:
-                record_within(t_new, t_b, True, interp,
-                              lambda tk, Y: (Y[:, :problem.n], Y[:, problem.n:]))
+                record_within(t_new, t_b, True, interp, bridge_samples)
             else:
                 record(t_b, q_b, v_b)
+            add_work(t_new, t_b, lambda tk: _split(interp(tk).T, problem.n), out_t[recorded:])
             monitor.crossed(t_new, t_b, t_star, interp(t_star)[:problem.n])
             monitor.observe(t_b, q_b, v_b)
             y_b = form.resume(t_b, q_b, v_b)
@@ -509,6 +562,14 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                     "its branch there (see singular_passages and passage_drift(); methods "
                     "'hybrid' and 'projection' follow the branch)")
 
+    jumps = [(a, b) for a, b in form.sign_changes
+             if not any(p.t_start <= b and a <= p.t_end for p in monitor.passages)]
+    if jumps:
+        message += (f"; the motion may have left its assembly branch in {len(jumps)} step(s) "
+                    f"(first [{jumps[0][0]:.6g}, {jumps[0][1]:.6g}] s): the partition's "
+                    "det(Φ_q D) changed sign within one step where no singular configuration "
+                    "was found; check the result with a smaller rtol or max_step")
+
     wall = time.perf_counter() - start
     bridge_evals = bridge.evaluations - bridge_evals_before if bridge is not None else 0
     stats = {
@@ -531,10 +592,29 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         "bridge_evaluations": bridge_evals,
         "bridges_over_tolerance": (bridge.over_tolerance - bridge_over_before
                                    if bridge is not None else 0),
+        "work_evaluations": work.evaluations if work is not None else 0,
         "wall_time": wall,
     }
     return SimulationResult(np.array(out_t), np.array(out_q).reshape(len(out_t), -1),
                             np.array(out_v).reshape(len(out_t), -1), problem.coordinate_names,
                             problem=problem, status=status, message=message, stats=stats,
                             singular_passages=monitor.passages, switches=form.switches,
-                            exception=exception)
+                            exception=exception,
+                            work=_work_record(work, work_at) if work is not None else None)
+
+
+def _split(Y, n):
+    """(Q, V) from rows [q, v]."""
+    Y = np.atleast_2d(Y)
+    return Y[:, :n], Y[:, n:]
+
+
+def _work_record(work, work_at) -> "WorkRecord":
+    """What the result keeps of the work integral: the channels, W at the first samples, and
+    what limits it (a failure, pieces not resolved)."""
+    notes = [work.failure] if work.failure else []
+    if work.unresolved:
+        notes.append(f"{work.unresolved} piece(s) of steps not resolved to the quadrature's "
+                     "tolerance")
+    return WorkRecord(tuple(work.channels), np.array(work_at).reshape(-1, len(work.channels)),
+                      "; ".join(notes))

@@ -63,6 +63,9 @@ class Formulation:
             setattr(self, key, value)
         self.singular_passages: list = []
         self.switches: list = []
+        # Steps (t_a, t_b) across which the partition's det(Φ_q D) changed sign: the
+        # motion crossed a singular configuration or left its assembly branch there.
+        self.sign_changes: list[tuple[float, float]] = []
 
     def initial_state(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         raise NotImplementedError
@@ -89,3 +92,8 @@ class Formulation:
 
     def after_step(self, t: float, y: np.ndarray) -> np.ndarray | None:
         return None
+
+    def keeps_branch(self, t: float, y: np.ndarray) -> bool:
+        """Whether the step just taken to (t, y) stayed on the assembly branch, as far as
+        the formulation can tell; the manager takes a step that did not again, shorter."""
+        return True

@@ -12,6 +12,10 @@ from ..options import Option
 from .base import Formulation
 from .partitioned import ConstraintSolveError
 
+# An output sample is projected onto the constraints where it leaves them by more than this
+# (relative to its largest coordinate, at least 1).
+ROUND_OFF = 1e-13
+
 
 class FullCoordinates(Formulation):
     options = {"projection": Option.flag(True),
@@ -32,7 +36,13 @@ class FullCoordinates(Formulation):
         return y[:self.n], y[self.n:]
 
     def states(self, ts, Y):
-        return Y[:, :self.n], Y[:, self.n:]
+        """The output samples inside a step, put onto the constraints (`settle_samples`):
+        the dense output between two projected steps drifts off them (2.6e-8 at samples
+        where the steps held 3e-13)."""
+        Q, V = np.array(Y[:, :self.n]), np.array(Y[:, self.n:])
+        if self.projection:
+            settle_samples(self.problem, ts, Q, V, 0.01 * self.projection_tol)
+        return Q, V
 
     def accelerations(self, t, q, v) -> np.ndarray:
         raise NotImplementedError
@@ -71,3 +81,19 @@ class FullCoordinates(Formulation):
 
     def project_velocities(self, q, v, t):
         return self.problem.project_velocities(q, v, t)
+
+
+def settle_samples(problem, ts, Q, V, accept) -> None:
+    """Project each output sample (rows of Q, V at times ts, in place) onto the constraints,
+    positions then velocities in the mass metric, where it leaves them by more than
+    round-off (`ROUND_OFF` of its largest coordinate). A sample at a singular
+    configuration, where the projection ends above `accept`, is kept as it was."""
+    if not problem.m:
+        return
+    for k, t in enumerate(ts):
+        floor = ROUND_OFF * max(1.0, float(np.max(np.abs(Q[k]))))
+        if np.max(np.abs(problem.phi(Q[k], t))) <= floor:
+            continue
+        q, _, err = problem.project_positions(Q[k], t, tol=floor)
+        if err <= max(floor, accept):
+            Q[k], V[k] = q, problem.project_velocities(q, V[k], t)

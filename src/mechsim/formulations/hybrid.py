@@ -36,6 +36,7 @@ class Hybrid(Formulation):
         self.lu = Partitioned(problem, rtol, atol)
         self.proj = Projection(problem, rtol, atol)
         self.active = self.lu
+        self.sign_changes = self.lu.sign_changes
         self.bridge = self.proj.bridge
         self._stable = 0
         self._recent: list[int] = []      # steps at which LU re-partitioned
@@ -63,6 +64,9 @@ class Hybrid(Formulation):
 
     def resume(self, t, q, v):
         return self.active.resume(t, q, v)
+
+    def keeps_branch(self, t, y):
+        return self.active.keeps_branch(t, y)
 
     def rhs(self, t, y):
         return self.active.rhs(t, y)

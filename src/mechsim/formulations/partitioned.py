@@ -121,6 +121,12 @@ class _DenseBlock:
     def condition(self) -> float:
         return _condition(self.A, self.inverse())
 
+    def sign(self) -> int:
+        """The sign of det A (0 where A is singular or not square)."""
+        if self.A.shape[0] != self.A.shape[1]:
+            return 0
+        return int(np.linalg.slogdet(self.A)[0])
+
 
 class _SparseBlock:
     """Φ_q D of a long chain (hundreds of dependent coordinates, four non-zeros a row)
@@ -145,6 +151,13 @@ class _SparseBlock:
 
     chord = solve
 
+    def sign(self) -> int:
+        """The sign of det A from SuperLU's factors P_r A P_c = L U (L unit diagonal)."""
+        if self.lu is None:
+            return 0
+        u = np.sign(self.lu.U.diagonal())
+        return int(np.prod(u) * _parity(self.lu.perm_r) * _parity(self.lu.perm_c))
+
     def condition(self) -> float:
         if self.lu is None:
             return np.inf
@@ -153,6 +166,21 @@ class _SparseBlock:
         op = LinearOperator(self.A.shape, matvec=lu.solve, dtype=float,
                             rmatvec=lambda x: lu.solve(x, trans="T"))
         return float(abs(self.A).sum(axis=0).max() * onenormest(op, t=1))
+
+
+def _parity(perm) -> int:
+    """+1 for an even permutation, −1 for an odd one (from its cycles)."""
+    perm = np.asarray(perm)
+    seen = np.zeros(perm.size, bool)
+    odd = 0
+    for start in range(perm.size):
+        if seen[start]:
+            continue
+        length, k = 0, start
+        while not seen[k]:
+            seen[k], k, length = True, perm[k], length + 1
+        odd += length - 1
+    return -1 if odd % 2 else 1
 
 
 class CoordinateBasis:
@@ -289,6 +317,8 @@ class Partitioned(Formulation):
         self._cache = None
         self.problem.counters.partitions += 1
         self._repartition_at = self._threshold(self._chord.condition() if self._square else 1.0)
+        self._sign = self._chord.sign() if self._square else 0
+        self._end_sign = 0        # at the end of the step being taken (`keeps_branch`)
         return np.concatenate([np.zeros(bs.f), bs.Bt(v)])
 
     def _accept(self, t, z, zd, w, wd, J, first=False, block=None):
@@ -356,8 +386,12 @@ class Partitioned(Formulation):
         try:
             return self._newton(z, t, self._predict(t, z))
         except ConstraintSolveError:
-            pass
-        for pieces in (4, 16, 64):
+            return self._follow(z, t)
+
+    def _follow(self, z, t, first=4):
+        """Positions for (z, t) by Newton along the straight path from the last accepted
+        state in `first`, then 4 and 16 times as many pieces."""
+        for pieces in (first, 4 * first, 16 * first):
             try:
                 w = self.w_last
                 for k in range(1, pieces + 1):
@@ -430,6 +464,39 @@ class Partitioned(Formulation):
         return q, v
 
     def states(self, ts, Y):
+        """The output samples of a step (`_solve_samples`), each on the branch of the
+        last accepted state: det(Φ_q D) of the same sign (see `after_step`). In a step
+        that kept its sign end to end (`keeps_branch`), a sample whose Newton solve,
+        started from the step's prediction, landed on the other branch (a long step) is
+        solved again by following the path from the last accepted state. Dense blocks
+        only; a long chain's samples are not checked."""
+        Q, V = self._solve_samples(ts, Y)
+        bs = self.basis
+        if not self._square or not self._sign or self._end_sign != self._sign or bs.sparse:
+            return Q, V           # (a step that crossed a passage: its samples stand)
+        prob = self.problem
+        J = np.array([prob.phi_q(q, t) for q, t in zip(Q, ts)])
+        signs = np.linalg.slogdet(bs.JD(J))[0]
+        for k in np.flatnonzero((signs != 0) & (signs != self._sign)):
+            try:
+                Q[k], V[k] = self._followed_state(ts[k], Y[k])
+            except (ConstraintSolveError, np.linalg.LinAlgError):
+                pass
+        return Q, V
+
+    def _followed_state(self, t, y):
+        """(q, v) of y at t, the positions found by following the path from the last
+        accepted state in small pieces (staying on its branch)."""
+        bs, prob = self.basis, self.problem
+        z, zd = y[:bs.f], y[bs.f:]
+        q = self._follow(z, t, first=16)[0]
+        J = prob.phi_q(q, t)
+        r = -(bs.JB(J) @ zd)
+        if self._rheonomic:
+            r -= prob.phi_t(q, t)
+        return q, bs.assemble(zd, bs.block(J).solve(r))
+
+    def _solve_samples(self, ts, Y):
         """The output samples of a step, solved for together: the chord Newton on all
         samples at once (one product with the chord factor and one convergence test per
         iteration for all of them), then the velocity solves stacked in one LAPACK call.
@@ -527,13 +594,40 @@ class Partitioned(Formulation):
         """The condition of Φ_q D at which a partition of `condition` is given up."""
         return min(self.cond_max, GROWTH * max(condition, 1.0))
 
-    def after_step(self, t, y):
+    def _block_at(self, t, y):
+        """(q, v, J, n_fresh, Φ_q D factored) at the integrated state y."""
         q, v, J, n_fresh = self.full_state(t, y)
-        self.layout_changed = False
-        bs = self.basis
         block = self._cache[3]                  # Φ_q D at this state, from full_state
         if block is _COMPILED:
-            block = bs.block(J)
+            block = self.basis.block(J)
+            self._cache = self._cache[:3] + (block,)
+        return q, v, J, n_fresh, block
+
+    def keeps_branch(self, t, y):
+        """Whether det(Φ_q D) at the step's end has the sign it had at the last accepted
+        step (see `after_step`): a step across which it changed sign crossed a singular
+        configuration or left the assembly branch, and the manager takes it again shorter."""
+        self._end_sign = 0
+        if not self._square or not self._sign:
+            return True
+        try:
+            self._end_sign = self._block_at(t, y)[4].sign()
+        except ConstraintSolveError:
+            return True                         # the integrator's own failure handling
+        return self._end_sign in (0, self._sign)
+
+    def after_step(self, t, y):
+        q, v, J, n_fresh, block = self._block_at(t, y)
+        self.layout_changed = False
+        bs = self.basis
+        # det(Φ_q D) keeps its sign while the motion stays on its branch with this
+        # partition: the two assembly branches at the same independent coordinates lie on
+        # either side of a fold where it vanishes. A change within one step means the step
+        # crossed a singular configuration, or Newton landed on the other branch.
+        sign = block.sign() if self._square else 0
+        if sign and self._sign and sign != self._sign:
+            self.sign_changes.append((t - self.last_step, t))
+        self._sign = sign or self._sign
         condition = block.condition()
         if n_fresh >= 2 or condition > self._repartition_at:
             before = self.independent

@@ -41,22 +41,37 @@ class Switch:
     reason: str
 
 
+@dataclass(frozen=True)
+class WorkRecord:
+    """The work integrated with the motion (`mechsim.results.work`): `channels` as
+    `NumericProblem.work_channels`, `values` W of each at the first len(values) output
+    samples (shape (s, k); fewer than the samples where the integral stopped), `note` what
+    limits it ("" where nothing does)."""
+    channels: tuple[str, ...]
+    values: np.ndarray
+    note: str = ""
+
+
 @dataclass
 class EnergyLog:
     """Energies at the output times, each shape (n,). `total` = kinetic + potential + strain;
-    `work` = work done since t₀ by non-conservative forces (dampers, applied forces and
-    torques) and drivers; `balance` = total − total(t₀) − work, zero for an exact solution.
-
-    The work is the cumulative Simpson integral of the power at the output samples, so its
-    accuracy follows the output spacing (fourth order in it)."""
+    `work` = the work done since t₀ by all non-conservative forces (dampers, loads, damped
+    beam modes) and drivers, `work_by` the same per channel (shape (n, k), `channels` their
+    names); `balance` = total − total(t₀) − work, zero for an exact solution. `includes`
+    says what the work covers and how it was found: integrated along the integrator's steps
+    with the motion (the default; the balance then measures the solver), or from the output
+    samples (Simpson; its accuracy then follows their spacing)."""
     kinetic: np.ndarray
     potential: np.ndarray
     strain: np.ndarray
     work: np.ndarray | None = None
-    applied_power: np.ndarray | None = None
-    driver_power: np.ndarray | None = None
+    work_by: np.ndarray | None = None
+    channels: tuple[str, ...] = ()
+    includes: str = "no work: nothing but gravity and elastic springs acts"
 
     def __post_init__(self):
+        if self.work_by is not None:
+            self.work = self.work_by.sum(axis=1)
         if self.work is None:
             self.work = np.zeros_like(self.kinetic)
 
@@ -85,7 +100,7 @@ class SimulationResult:
     def __init__(self, t, q, v, coordinate_names, *, problem=None, status="success",
                  message="", stats=None, singular_passages=(), switches=(),
                  energy: EnergyLog | None = None, constraint_violation=None,
-                 exception: BaseException | None = None):
+                 exception: BaseException | None = None, work: WorkRecord | None = None):
         self.t = np.asarray(t, float)
         self.q = np.asarray(q, float)
         self.v = np.asarray(v, float)
@@ -97,6 +112,7 @@ class SimulationResult:
         self.stats = dict(stats or {})
         self.singular_passages = list(singular_passages)
         self.switches = list(switches)
+        self._work = work
         if energy is not None:
             self.__dict__["energy"] = energy
         if constraint_violation is not None:
@@ -175,13 +191,37 @@ class SimulationResult:
     @cached_property
     def energy(self) -> EnergyLog:
         p = self._need_problem("the energy log")
-        log = EnergyLog(p.kinetic_energy(self.q, self.v), p.potential_energy(self.q),
-                        p.strain_energy(self.q))
-        if p.has_nonconservative and len(self.t) > 1:
-            powers = np.array([p.power(t, q, v) for t, q, v in zip(self.t, self.q, self.v)])
-            log.applied_power, log.driver_power = powers[:, 0], powers[:, 1]
-            log.work = _cumulative_integral(powers.sum(axis=1), self.t)
-        return log
+        energies = (p.kinetic_energy(self.q, self.v), p.potential_energy(self.q),
+                    p.strain_energy(self.q))
+        channels = tuple(p.work_channels)
+        if not channels:
+            return EnergyLog(*energies)
+        n = len(self.t)
+        record = self._work
+        if record is not None and record.channels == channels and len(record.values):
+            W = np.empty((n, len(channels)))
+            done = min(len(record.values), n)
+            W[:done] = record.values[:done]
+            how = "integrated with the motion along the integrator's steps"
+            if record.note:
+                how += f" ({record.note})"
+            if done < n:
+                # The samples past the end of the integral (a run that failed inside a step)
+                # go on from the output samples.
+                rest = self.t[done - 1:]
+                rates = np.array([p.work_rates(t, q, v) for t, q, v in
+                                  zip(rest, self.q[done - 1:], self.v[done - 1:])])
+                W[done:] = W[done - 1] + _cumulative_integral(rates, rest)[1:]
+                how += (f"; after t = {self.t[done - 1]:.9g} from the output samples "
+                        "(Simpson)")
+        else:
+            rates = np.array([p.work_rates(t, q, v) for t, q, v in
+                              zip(self.t, self.q, self.v)]).reshape(n, len(channels))
+            W = _cumulative_integral(rates, self.t) if n > 1 else np.zeros((n, len(channels)))
+            how = ("from the power at the output samples (Simpson): its accuracy follows "
+                   "their spacing; simulate with work=True to integrate it with the motion")
+        return EnergyLog(*energies, work_by=W, channels=channels,
+                         includes=f"work of {', '.join(channels)}, {how}")
 
     @property
     def energy_scale(self) -> float:
@@ -196,7 +236,8 @@ class SimulationResult:
     @property
     def energy_drift(self) -> np.ndarray:
         """(E(t) − E(0) − W(t)) / energy_scale, shape (n,): W is the work of non-conservative
-        forces and drivers, so a driven or damped mechanism has a meaningful drift too."""
+        forces and drivers, so a driven or damped mechanism has a meaningful drift too;
+        `energy.includes` says which forces W covers and how it was integrated."""
         return self.energy.balance / self.energy_scale
 
     def passage_drift(self) -> np.ndarray:
@@ -248,6 +289,10 @@ class SimulationResult:
             e = self.energy
             extra = {"kinetic": e.kinetic, "potential": e.potential, "strain": e.strain,
                      "work": e.work}
+            if e.channels:
+                extra["work_by"] = e.work_by
+                meta["work_channels"] = list(e.channels)
+                meta["work_includes"] = e.includes
         if self.problem is not None or "constraint_violation" in self.__dict__:
             extra["constraint_violation"] = self.constraint_violation
         np.savez_compressed(path, t=self.t, q=self.q, v=self.v,
@@ -256,11 +301,12 @@ class SimulationResult:
 
 
 def _cumulative_integral(y, t):
-    """∫_{t₀}^{t} y dt at every sample: Simpson where there are three or more samples."""
+    """∫_{t₀}^{t} y dt at every sample (along axis 0): Simpson where there are three or
+    more samples."""
     from scipy.integrate import cumulative_simpson, cumulative_trapezoid
     if len(t) < 3:
-        return cumulative_trapezoid(y, t, initial=0.0)
-    return cumulative_simpson(y, x=t, initial=0.0)
+        return cumulative_trapezoid(y, t, initial=0.0, axis=0)
+    return cumulative_simpson(y, x=t, initial=0.0, axis=0)
 
 
 def load_result(path) -> SimulationResult:
@@ -269,8 +315,14 @@ def load_result(path) -> SimulationResult:
         meta = json.loads(str(data["meta"]))
         energy = None
         if "kinetic" in data:
-            energy = EnergyLog(data["kinetic"], data["potential"], data["strain"],
-                               data["work"] if "work" in data else None)
+            if "work_by" in data:
+                energy = EnergyLog(data["kinetic"], data["potential"], data["strain"],
+                                   work_by=data["work_by"],
+                                   channels=tuple(meta["work_channels"]),
+                                   includes=meta["work_includes"])
+            else:
+                energy = EnergyLog(data["kinetic"], data["potential"], data["strain"],
+                                   data["work"] if "work" in data else None)
         violation = data["constraint_violation"] if "constraint_violation" in data else None
         return SimulationResult(
             data["t"], data["q"], data["v"], meta["coordinate_names"], status=meta["status"],

@@ -57,8 +57,11 @@ class MechanismPeriodicProblem(PeriodicProblem):
     def flow(self, u, samples=200):
         from ..solver import simulate
         q, v = self.initial_state(u)
+        # The flow is evaluated many times per Newton iteration: the work of its dampers
+        # and drivers is integrated only where the caller asks for it.
+        options = {"work": False, **self.options}
         res = simulate(self.problem, q, v, t_start=self.t0, t_end=self.t0 + self.period,
-                       output_step=self.period / samples, **self.options)
+                       output_step=self.period / samples, **options)
         if res.status != "success":
             raise ValueError(f"steady_state: the flow over one period failed: {res.message}")
         x = np.hstack([res.q[:, self.ind], res.v[:, self.ind]])
