@@ -4,6 +4,7 @@ checked against this scipy and against the oldest that pyproject allows
 (`mechsim.integrators.adapter_check`: the state moved by 1e-3 mid-run must carry over,
 with the history, to the exact solution through the moved state)."""
 
+import math
 import os
 import re
 import shutil
@@ -26,6 +27,21 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_a_moved_state_carries_over_on_this_scipy(cls):
     ok, what = adapter_check.check_one(cls)
     assert ok, what
+
+
+@pytest.mark.parametrize("cls", [RK23, RK45, DOP853, Radau, BDF, LSODA],
+                         ids=lambda c: c.__name__)
+def test_a_shifted_state_keeps_its_motion_on_this_scipy(cls):
+    ok, what = adapter_check.check_shift(cls)
+    assert ok, what
+
+
+def test_the_adams_method_takes_a_shift_in_place():
+    from mechsim.integrators import AdamsPECE
+    solver, taken = adapter_check._pendulum(AdamsPECE, shift_at=0.7)
+    reference, _ = adapter_check._pendulum(adapter_check.DOP853, rtol=1e-13, atol=1e-15)
+    assert taken and solver.status == "finished"
+    assert abs(solver.y[0] - reference.y[0] - 2 * math.pi) < 1e-6
 
 
 def _lowest(requirement_name):

@@ -13,26 +13,12 @@ import numpy as np
 import pytest
 
 import mechsim as ms
-from mechsim.examples import slider_crank_position
+from mechsim.examples import four_bar_angles, slider_crank_position
 from mechsim.formulations import METHODS
 
 RTOLS = (1e-6, 1e-8, 1e-10, 1e-12)
 # Baumgarte's and the fixed-step method's accuracy is not set by rtol.
 METHOD_NAMES = sorted(m for m in METHODS if m != "ss-newmark")
-
-
-def four_bar_angles(th2, a, b, c, d, branch):
-    """Coupler and rocker angles (θ3, θ4) of the four-bar with ground pivots (0, 0) and
-    (d, 0), crank a, coupler b, rocker c at crank angle θ2: the coupler's far end is where
-    the circles about the crank tip (radius b) and about (d, 0) (radius c) meet, on the side
-    `branch` = ±1 of the line between their centres."""
-    ax, ay = a * np.cos(th2), a * np.sin(th2)
-    dx, dy = d - ax, -ay
-    span = np.hypot(dx, dy)
-    gamma = np.arccos((b * b + span * span - c * c) / (2 * b * span))
-    th3 = np.arctan2(dy, dx) + branch * gamma
-    bx, by = ax + b * np.cos(th3), ay + b * np.sin(th3)
-    return th3, np.arctan2(by, bx - d)
 
 
 def crank_rocker(a=0.2, b=0.6, c=0.5, d=0.7, th0=0.3, omega=10.0, branch=1):

@@ -25,22 +25,12 @@ def damped_spring_mass():
 def torque_driven_four_bar():
     """A Grashof crank-rocker under gravity whose crank is turned by a varying torque, with a
     damper from the coupler's end to the ground."""
-    from test_driven import four_bar_angles
-    a, b, c, d, th0 = 0.2, 0.6, 0.5, 0.7, 0.3
-    _, th4 = four_bar_angles(np.array(th0), a, b, c, d, 1)
-    tip = (a * math.cos(th0), a * math.sin(th0))
-    joint = (d + c * math.cos(th4), c * math.sin(th4))
-    mech = ms.Mechanism("torque-driven four-bar", gravity=(0.0, -9.81))
-    crank = mech.add(ms.RigidBody.rod("crank", (0, 0), tip, 1.0))
-    coupler = mech.add(ms.RigidBody.rod("coupler", tip, joint, 1.0))
-    rocker = mech.add(ms.RigidBody.rod("rocker", (d, 0), joint, 1.0))
-    mech.add(ms.Revolute(mech.ground, crank, at=(0, 0), name="O2"))
-    mech.add(ms.Revolute(crank, coupler, at=tip, name="A"))
-    mech.add(ms.Revolute(coupler, rocker, at=joint, name="B"))
-    mech.add(ms.Revolute(mech.ground, rocker, at=(d, 0), name="O4"))
-    mech.add(ms.Torque(crank, lambda t: 3.0 + 2.0 * math.sin(5.0 * t), name="motor"))
-    mech.add(ms.Spring(mech.ground, coupler, at_a=(0.4, 0.8), at_b=joint, stiffness=0.0,
-                       damping=0.5, name="damper"))
+    mech = ms.examples.general_four_bar(0.2, 0.6, 0.5, 0.7, 0.3,
+                                        name="torque-driven four-bar")
+    mech.add(ms.Torque(mech.body("crank"), lambda t: 3.0 + 2.0 * math.sin(5.0 * t),
+                       name="motor"))
+    mech.add(ms.Spring(mech.ground, mech.body("coupler"), at_a=(0.4, 0.8),
+                       at_b=mech.joint("B").at, stiffness=0.0, damping=0.5, name="damper"))
     return mech
 
 

@@ -16,10 +16,11 @@ import numpy as np
 import pytest
 
 import mechsim as ms
+from mechsim.examples import RANDOM_KINDS, grashof_class, random_mechanism
 from mechsim.formulations import METHODS
-from test_driven import four_bar_angles
 
 RTOL, ATOL = 1e-8, 1e-10
+T_END = 2.0
 METHOD_NAMES = sorted(m for m in METHODS if m != "ss-newmark")
 # Baumgarte's constraint stabilization is not an integrator error control: its balance is
 # checked to a looser bound.
@@ -29,110 +30,41 @@ BALANCE = {"baumgarte": 1e-5}
 WORK_RATIO = 3.0
 
 
-def grashof_class(a, b, c, d):
-    """The Grashof class of a four-bar with crank a, coupler b, rocker c and ground d."""
-    s, *_, l = sorted((a, b, c, d))
-    if s + l > a + b + c + d - s - l:
-        return "triple rocker"
-    return {a: "crank-rocker", d: "double-crank", b: "double-rocker"}.get(s, "rocker-crank")
+def branch_and_passages(kind, params):
+    """(side, aligned): `side(res)` is ±1 at each sample while the motion stays on the
+    branch it started on (0 where it left it), `aligned` the exact instants of the
+    mechanism's singular configurations in the run."""
+    if kind == "parallelogram":
+        theta, speed = params["theta"], params["speed"]
 
+        def side(res):          # the cranks turn together: θ + speed·t on the parallel branch
+            err = res.coordinate("rocker.angle") - (theta + speed * res.t)
+            return np.where(np.abs((err + math.pi) % (2 * math.pi) - math.pi) < 1e-4, 1.0, 0.0)
+        aligned = sorted(t for t in ((k * math.pi - theta) / speed for k in range(-10, 10))
+                         if 0.0 < t < T_END)
+        return side, aligned
+    if kind == "slider-crank":
+        return (lambda res: np.sign(res.coordinate("slider.x"))), []
 
-def random_four_bar(rng, kind):
-    """(mechanism, branch function) for a random four-bar of Grashof class `kind`: the
-    crank starts turning at a random speed, a spring-damper pulls the coupler's middle
-    towards a point above the ground."""
-    while True:
-        a, b, c, d = rng.uniform(0.25, 1.2, 4)
-        th0 = rng.uniform(0.0, 2.0 * math.pi)
-        if grashof_class(a, b, c, d) != kind:
-            continue
-        with np.errstate(invalid="ignore"):          # no assembly at this crank angle
-            th3, th4 = four_bar_angles(np.array(th0), a, b, c, d, 1)
-        if np.isfinite(th3) and abs(math.sin(th3 - th4)) > 0.2:
-            break
-    w = rng.uniform(1.0, 6.0)
-    tip = (a * math.cos(th0), a * math.sin(th0))
-    joint = (d + c * math.cos(th4), c * math.sin(th4))
-    mech = ms.Mechanism(kind, gravity=(0.0, -9.81))
-    crank = mech.add(ms.RigidBody.rod("crank", (0, 0), tip, 1.0,
-                                      velocity=(-tip[1] * w / 2, tip[0] * w / 2),
-                                      angular_velocity=w))
-    coupler = mech.add(ms.RigidBody.rod("coupler", tip, joint, 1.5))
-    rocker = mech.add(ms.RigidBody.rod("rocker", (d, 0), joint, 1.0))
-    mech.add(ms.Revolute(mech.ground, crank, at=(0, 0), name="O2"))
-    mech.add(ms.Revolute(crank, coupler, at=tip, name="A"))
-    mech.add(ms.Revolute(coupler, rocker, at=joint, name="B"))
-    mech.add(ms.Revolute(mech.ground, rocker, at=(d, 0), name="O4"))
-    middle = ((tip[0] + joint[0]) / 2, (tip[1] + joint[1]) / 2)
-    mech.add(ms.Spring(mech.ground, coupler, at_a=(d / 2, 1.5), at_b=middle,
-                       stiffness=rng.uniform(5.0, 40.0), damping=rng.uniform(0.1, 2.0),
-                       name="spring-damper"))
-
-    def branch(res):
+    def side(res):
         """Which side of the rocker the coupler lies on: fixed on the circuit of a linkage
         whose crank turns fully; a rocking crank reverses where coupler and rocker align
         and takes the other side, on the same circuit (there the energy balance says
         whether the motion stayed on its circuit)."""
-        side = np.sign(np.sin(res.coordinate("coupler.angle") - res.coordinate("rocker.angle")))
-        return side if kind in ("crank-rocker", "double-crank") else np.ones_like(side)
-    return mech, branch, []
+        s = np.sign(np.sin(res.coordinate("coupler.angle") - res.coordinate("rocker.angle")))
+        return s if kind in ("crank-rocker", "double-crank") else np.ones_like(s)
+    return side, []
 
 
-def random_slider_crank(rng):
-    r = rng.uniform(0.05, 0.2)
-    l = r * rng.uniform(1.5, 4.0)
-    mech = ms.examples.slider_crank(crank_length=r, rod_length=l,
-                                    crank_angle=rng.uniform(0.0, 2.0 * math.pi),
-                                    crank_speed=rng.uniform(20.0, 80.0))
-    x = mech.body("slider").position
-    mech.add(ms.Spring(mech.ground, mech.body("slider"), at_a=(x[0] + 0.5, 0.0), at_b=x,
-                       stiffness=rng.uniform(10.0, 100.0), damping=rng.uniform(0.1, 1.0),
-                       name="spring-damper"))
-
-    def branch(res):      # the slider stays on its side of the crank's pivot
-        return np.sign(res.coordinate("slider.x"))
-    return mech, branch, []
-
-
-def random_parallelogram(rng):
-    """A parallelogram (crank = rocker = a, coupler = ground = b) turning uniformly at w in
-    zero gravity: the cranks stay parallel at θ0 + w t, aligned with the ground (a
-    singular configuration) at every multiple of π."""
-    a, b = rng.uniform(0.3, 1.5, 2)
-    th0, w = rng.uniform(0.2, math.pi - 0.2), rng.uniform(1.0, 4.0) * rng.choice([-1, 1])
-    tip = (a * math.cos(th0), a * math.sin(th0))
-    v = (-tip[1] * w, tip[0] * w)
-    mech = ms.Mechanism("parallelogram", gravity=(0.0, 0.0))
-    crank = mech.add(ms.RigidBody.rod("crank", (0, 0), tip, 1.0, velocity=(v[0] / 2, v[1] / 2),
-                                      angular_velocity=w))
-    coupler = mech.add(ms.RigidBody.rod("coupler", tip, (b + tip[0], tip[1]), 1.0, velocity=v))
-    rocker = mech.add(ms.RigidBody.rod("rocker", (b, 0), (b + tip[0], tip[1]), 1.0,
-                                       velocity=(v[0] / 2, v[1] / 2), angular_velocity=w))
-    mech.add(ms.Revolute(mech.ground, crank, at=(0, 0), name="A"))
-    mech.add(ms.Revolute(crank, coupler, at=tip, name="B"))
-    mech.add(ms.Revolute(coupler, rocker, at=(b + tip[0], tip[1]), name="C"))
-    mech.add(ms.Revolute(mech.ground, rocker, at=(b, 0), name="D"))
-    aligned = sorted(t for t in ((k * math.pi - th0) / w for k in range(-10, 10))
-                     if 0.0 < t < T_END)
-
-    def branch(res):      # the cranks turn together: θ = θ0 + w t on the parallel branch
-        err = res.coordinate("rocker.angle") - (th0 + w * res.t)
-        return np.where(np.abs((err + math.pi) % (2 * math.pi) - math.pi) < 1e-4, 1.0, 0.0)
-    return mech, branch, aligned
-
-
-T_END = 2.0
 rng = np.random.default_rng(20261124)
-CASES = {f"{kind} {k}": random_four_bar(rng, kind)
-         for kind in ("crank-rocker", "double-crank", "double-rocker", "triple rocker")
-         for k in range(2)}
-CASES.update({f"slider-crank {k}": random_slider_crank(rng) for k in range(2)})
-CASES.update({f"parallelogram {k}": random_parallelogram(rng) for k in range(2)})
+CASES = {f"{kind} {k}": (kind, *random_mechanism(rng, kind))
+         for kind in RANDOM_KINDS for k in range(2)}
 
 
 @pytest.mark.parametrize("case", CASES)
 def test_every_method_follows_a_random_mechanism(case):
-    mech, branch, aligned = CASES[case]
+    kind, mech, params = CASES[case]
+    branch, aligned = branch_and_passages(kind, params)
     runs = {}
     for method in METHOD_NAMES:
         res = mech.simulate(t_end=T_END, rtol=RTOL, atol=ATOL, method=method,
@@ -164,8 +96,13 @@ def test_every_method_follows_a_random_mechanism(case):
 
 def test_the_generator_covers_every_class():
     kinds = {grashof_class(*dims) for dims in ((0.3, 1.0, 0.8, 0.9), (1.0, 0.8, 0.9, 0.3),
-                                                 (0.8, 0.3, 0.9, 1.0), (0.5, 1.0, 0.6, 0.7))}
-    assert kinds == {"crank-rocker", "double-crank", "double-rocker", "triple rocker"}
+                                                 (0.8, 0.3, 0.9, 1.0), (0.5, 1.0, 0.6, 0.7),
+                                                 (1.0, 0.5, 1.0, 0.5))}
+    assert kinds == {"crank-rocker", "double-crank", "double-rocker", "triple rocker",
+                     "change point"}
+    for kind, mech, params in CASES.values():
+        if kind in ("crank-rocker", "double-crank", "double-rocker", "triple rocker"):
+            assert grashof_class(params["a"], params["b"], params["c"], params["d"]) == kind
 
 
 def test_a_step_that_leaves_the_branch_is_retaken_or_reported():
@@ -176,19 +113,7 @@ def test_a_step_that_leaves_the_branch_is_retaken_or_reported():
     a, b, c, d = 0.8131294559364897, 1.3211470186857572, 1.123945832457931, 0.22569475014308732
     th0, w = 0.5914277019096399, 5.46501552189179
     assert grashof_class(a, b, c, d) == "double-crank"
-    th3, th4 = four_bar_angles(np.array(th0), a, b, c, d, 1)
-    tip = (a * math.cos(th0), a * math.sin(th0))
-    joint = (d + c * math.cos(th4), c * math.sin(th4))
-    mech = ms.Mechanism("double-crank", gravity=(0.0, -9.81))
-    crank = mech.add(ms.RigidBody.rod("crank", (0, 0), tip, 1.0,
-                                      velocity=(-tip[1] * w / 2, tip[0] * w / 2),
-                                      angular_velocity=w))
-    coupler = mech.add(ms.RigidBody.rod("coupler", tip, joint, 1.0))
-    rocker = mech.add(ms.RigidBody.rod("rocker", (d, 0), joint, 1.0))
-    mech.add(ms.Revolute(mech.ground, crank, at=(0, 0), name="O2"))
-    mech.add(ms.Revolute(crank, coupler, at=tip, name="A"))
-    mech.add(ms.Revolute(coupler, rocker, at=joint, name="B"))
-    mech.add(ms.Revolute(mech.ground, rocker, at=(d, 0), name="O4"))
+    mech = ms.examples.general_four_bar(a, b, c, d, th0, w, name="double-crank")
 
     def side(res):
         return np.sign(np.sin(res.coordinate("coupler.angle") - res.coordinate("rocker.angle")))

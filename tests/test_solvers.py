@@ -535,3 +535,20 @@ def test_partitioned_output_samples_solved_together_match_one_by_one(method, sce
         np.testing.assert_allclose(res.coordinate("crank.angle"), 15.0 * res.t, atol=1e-11)
         np.testing.assert_allclose(res.v[:, res.coordinate_names.index("crank.angle")], 15.0,
                                    rtol=1e-12)
+
+
+def test_bench_driven_slider_crank_and_random_sweep(tmp_path, capsys):
+    """`mechsim bench driven-slider-crank random`: the slider against its exact kinematics,
+    and random mechanisms by the hybrid and projection, each error within 100 rtol of its
+    reference; the summary compares their work."""
+    from mechsim import bench
+    (row,) = bench.run(["driven-slider-crank"], ["hybrid"], [1e-8], progress=None)
+    assert row.status == "success" and row.error < 1e-8 and row.passages == 0
+    rows = bench.random_run(count=6, rtol=1e-8, t_end=1.0, progress=None)
+    assert len(rows) == 12 and {r.method for r in rows} == {"hybrid", "projection"}
+    assert all(r.status == "success" and r.error < 100 * 1e-8 for r in rows)
+    summary = bench.random_summary(rows)
+    assert summary.startswith("random mechanisms (6): hybrid/projection wall time median")
+    assert summary.endswith("failed: 0 and 0")
+    (path,) = bench.write_random(rows, tmp_path)
+    assert path.read_text().count("\n") == 13

@@ -33,8 +33,12 @@ class Problem:
     description: str = ""
     integrator: str | None = None         # the problem's default integrator
     reference: object = None              # () -> SimulationResult when there is no exact one
+    exact: object = None                  # (result) -> error, where it has its own measure
+    quantity: str = "max crank-tip error [m]"
 
     def error(self, res) -> float:
+        if self.exact is not None:
+            return float(self.exact(res))
         if self.reference is not None:
             ref = self.reference()                     # computed once (cached)
             mid = res.point("coupler", (0.5, 0.0))
@@ -69,9 +73,22 @@ def _flexible_reference():
 PROBLEMS["flexible-four-bar"] = Problem(
     "flexible-four-bar", examples.flexible_four_bar, 1.2, math.radians(10), 0.0, 1,
     max_step=5e-4, integrator="adams", reference=_flexible_reference,
-    description="seed 001 elastic coupler, 1.2 s, 2 singular passages")
+    description="seed 001 elastic coupler, 1.2 s, 2 singular passages",
+    quantity="max coupler-midpoint error [m]")
 
-DEFAULT_PROBLEMS = ("parallelogram", "double-four-bar")
+
+def _slider_error(res) -> float:
+    """The driven slider-crank's slider against its exact kinematics."""
+    exact = examples.slider_crank_position(150.0 * res.t)
+    return float(np.max(np.abs(res.coordinate("slider.x") - exact)))
+
+
+PROBLEMS["driven-slider-crank"] = Problem(
+    "driven-slider-crank", lambda: examples.slider_crank(driven=True), 0.2, 0.0, 150.0, 1,
+    exact=_slider_error, quantity="max slider error [m]",
+    description="crank driven at 150 rad/s (0 DOF), 0.2 s")
+
+DEFAULT_PROBLEMS = ("parallelogram", "double-four-bar", "driven-slider-crank")
 DEFAULT_METHODS = ("lu", "projection", "projection-svd", "hybrid", "baumgarte")
 # Benchmark names for a method with options: the seed's projection method takes an SVD at
 # every evaluation, where mechsim's, clear of a singular configuration, takes the Cholesky
@@ -259,8 +276,7 @@ def write(rows: list[Row], out_dir) -> list[Path]:
                 x, y = zip(*sorted(pts))
                 ax.loglog(x, y, "o-", color=f"C{k}", label=method)
         ax.set_xlabel("wall time [s]")
-        ax.set_ylabel("max coupler-midpoint error [m]" if PROBLEMS[name].reference
-                      else "max crank-tip error [m]")
+        ax.set_ylabel(PROBLEMS[name].quantity)
         ax.set_title(f"{name}: {PROBLEMS[name].description}")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
@@ -268,6 +284,99 @@ def write(rows: list[Row], out_dir) -> list[Path]:
         fig.savefig(png, dpi=120)
         written.append(png)
     return written
+
+
+# --- Random mechanisms: the default method against projection -----------------------------
+
+@dataclass
+class RandomRow:
+    case: str
+    method: str
+    status: str
+    error: float             # max |q − q_ref| over the run's samples (m and rad)
+    drift: float
+    wall_time: float
+    rhs: int
+    passages: int
+
+
+RANDOM_HEADER = (f"{'case':18s} {'method':10s} {'status':8s} {'error':>9s} {'drift':>9s} "
+                 f"{'wall [s]':>9s} {'rhs':>7s} {'pass':>4s}")
+
+
+def random_run(count=12, rtol=1e-8, seed=20261124, methods=("hybrid", "projection"),
+               t_end=2.0, progress=print) -> list[RandomRow]:
+    """`count` random mechanisms (`examples.random_mechanism`, the kinds in turn) run by each
+    of `methods` at `rtol`; each run's error against a projection run at rtol 1e-12 (the
+    turning parallelograms: against their exact uniform rotation, θ + speed·t), measured
+    at 200 samples. One untimed warm-up run per mechanism builds its model first."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    kinds = examples.RANDOM_KINDS
+    for k in range(int(count)):
+        kind = kinds[k % len(kinds)]
+        mech, params = examples.random_mechanism(rng, kind)
+        mech.simulate(t_end=0.01, method="projection")
+        step = t_end / 200
+        if kind == "parallelogram":
+            exact = None
+        else:
+            ref = mech.simulate(t_end=t_end, method="projection", rtol=1e-12, atol=1e-14,
+                                output_step=step)
+        for method in methods:
+            res = mech.simulate(t_end=t_end, method=method, rtol=rtol, atol=rtol * 1e-2,
+                                output_step=step)
+            n = len(res.t)
+            if kind == "parallelogram":
+                exact = params["theta"] + params["speed"] * res.t
+                d = res.coordinate("rocker.angle") - exact
+                error = float(np.max(np.abs((d + math.pi) % (2 * math.pi) - math.pi)))
+            else:
+                error = float(np.max(np.abs(res.q - ref.q[:n])))
+            row = RandomRow(f"{kind} {k // len(kinds)}", method, res.status, error,
+                            float(np.max(np.abs(res.energy_drift))),
+                            res.stats["wall_time"], res.stats["rhs_evaluations"],
+                            len(res.singular_passages))
+            rows.append(row)
+            if progress:
+                progress(format_random(row))
+    return rows
+
+
+def format_random(r: RandomRow) -> str:
+    return (f"{r.case:18s} {r.method:10s} {r.status:8s} {r.error:9.2e} {r.drift:9.2e} "
+            f"{r.wall_time:9.3f} {r.rhs:7d} {r.passages:4d}")
+
+
+def random_summary(rows: list[RandomRow], method="hybrid", against="projection") -> str:
+    """The default method against projection over the sweep: wall-time and right-hand-side
+    ratios per case (median and largest) and each method's largest error."""
+    by = {}
+    for r in rows:
+        by.setdefault(r.case, {})[r.method] = r
+    pairs = [(c[method], c[against]) for c in by.values() if method in c and against in c]
+    if not pairs:
+        return ""
+    wall = np.array([a.wall_time / b.wall_time for a, b in pairs])
+    rhs = np.array([a.rhs / b.rhs for a, b in pairs])
+    return (f"random mechanisms ({len(pairs)}): {method}/{against} wall time median "
+            f"{np.median(wall):.2f}, largest {wall.max():.2f}; right-hand sides median "
+            f"{np.median(rhs):.2f}, largest {rhs.max():.2f}; largest error {method} "
+            f"{max(a.error for a, _ in pairs):.2e}, {against} {max(b.error for _, b in pairs):.2e}"
+            f"; failed: {sum(a.status != 'success' for a, _ in pairs)} and "
+            f"{sum(b.status != 'success' for _, b in pairs)}")
+
+
+def write_random(rows: list[RandomRow], out_dir) -> list[Path]:
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / "bench_random.csv"
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(list(RandomRow.__dataclass_fields__))
+        for r in rows:
+            w.writerow([getattr(r, k) for k in RandomRow.__dataclass_fields__])
+    return [path]
 
 
 # --- Shooting against brute force (seed 002) ---------------------------------------------

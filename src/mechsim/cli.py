@@ -130,9 +130,10 @@ def _numbers(text, option, default) -> list[float]:
 def _bench(args) -> int:
     from . import bench
 
-    problems = args.problems or list(bench.DEFAULT_PROBLEMS)
+    problems = args.problems or [*bench.DEFAULT_PROBLEMS, "random"]
     shooting = "coulomb" in problems
-    problems = [p for p in problems if p != "coulomb"]
+    sweep = "random" in problems
+    problems = [p for p in problems if p not in ("coulomb", "random")]
     methods = args.methods.split(",") if args.methods else list(bench.DEFAULT_METHODS)
     try:
         rtols = _numbers(args.rtols, "--rtols", bench.DEFAULT_RTOLS)
@@ -151,6 +152,13 @@ def _bench(args) -> int:
             for name, error, best in bench.equal_error(rows):      # at equal accuracy
                 print(bench.format_within(name, error, best))
             written += bench.write(rows, args.out)
+        if sweep:
+            print(f"random mechanisms: the default method against projection at rtol "
+                  f"{rtols[-1]:.0e}")
+            print(bench.RANDOM_HEADER)
+            random_rows = bench.random_run(rtol=rtols[-1])
+            print(bench.random_summary(random_rows))
+            written += bench.write_random(random_rows, args.out)
         if shooting:
             print("Coulomb oscillator: shooting against brute force to the same accuracy")
             print(bench.SHOOTING_HEADER)
@@ -177,8 +185,11 @@ def main(argv=None) -> int:
     run.set_defaults(func=_run)
     bench = sub.add_parser("bench", help="work–precision table and plots for the solvers")
     bench.add_argument("problems", nargs="*",
-                       help="parallelogram, double-four-bar, forty-window, flexible-four-bar, "
-                            "coulomb (shooting against brute force; default: the first two)")
+                       help="parallelogram, double-four-bar, driven-slider-crank, "
+                            "forty-window, flexible-four-bar, random (12 random mechanisms: "
+                            "hybrid against projection at the smallest rtol), coulomb "
+                            "(shooting against brute force); default: the first three and "
+                            "random")
     bench.add_argument("--methods", help="comma-separated (default: lu,projection,"
                        "projection-svd,hybrid,baumgarte; projection-svd is the projection "
                        "method with factorization='svd', the seed's)")

@@ -187,3 +187,127 @@ def spring_mass(mass: float = 2.0, stiffness: float = 800.0, stretch: float = 0.
     mech.add(Spring(mech.ground, block, at_a=(0.0, 0.0), at_b=(x0, 0.0), stiffness=stiffness,
                     rest_length=0.5, damping=damping, name="spring"))
     return mech
+
+
+# --- Four-bars of any proportions, and random mechanisms for studies and tests -----------------
+
+def four_bar_angles(th2, a, b, c, d, branch=1):
+    """Coupler and rocker angles (θ3, θ4) of the four-bar with ground pivots (0, 0) and
+    (d, 0), crank a, coupler b, rocker c at crank angle θ2 (array-like): the coupler's far
+    end is where the circles about the crank tip (radius b) and about (d, 0) (radius c)
+    meet, on the side `branch` = ±1 of the line between their centres. NaN where the
+    crank angle admits no assembly."""
+    th2 = np.asarray(th2, float)
+    ax, ay = a * np.cos(th2), a * np.sin(th2)
+    dx, dy = d - ax, -ay
+    span = np.hypot(dx, dy)
+    with np.errstate(invalid="ignore"):
+        gamma = np.arccos((b * b + span * span - c * c) / (2 * b * span))
+    th3 = np.arctan2(dy, dx) + branch * gamma
+    bx, by = ax + b * np.cos(th3), ay + b * np.sin(th3)
+    return th3, np.arctan2(by, bx - d)
+
+
+def grashof_class(a, b, c, d) -> str:
+    """The Grashof class of a four-bar with crank a, coupler b, rocker c and ground d:
+    "crank-rocker", "double-crank", "double-rocker", "rocker-crank" (the shortest link is
+    the one named last turning fully) or "triple rocker" (non-Grashof), and "change point"
+    where s + l = p + q (to 1e-12)."""
+    s, *_, l = sorted((a, b, c, d))
+    excess = s + l - (a + b + c + d - s - l)
+    if abs(excess) <= 1e-12 * l:
+        return "change point"
+    if excess > 0:
+        return "triple rocker"
+    return {a: "crank-rocker", d: "double-crank", b: "double-rocker"}.get(s, "rocker-crank")
+
+
+def general_four_bar(a, b, c, d, theta: float, speed: float = 0.0, branch: int = 1,
+                     masses=(1.0, 1.0, 1.0), gravity=(0.0, -9.81),
+                     name: str = "four-bar") -> Mechanism:
+    """A four-bar of uniform rods (crank a from the pivot O2 at the origin, coupler b,
+    rocker c from O4 at (d, 0)), assembled at crank angle `theta` on `branch` (see
+    `four_bar_angles`), the crank turning at `speed` (the others' speeds follow at
+    assembly). Joints O2, A (crank–coupler), B (coupler–rocker), O4."""
+    th3, th4 = four_bar_angles(theta, a, b, c, d, branch)
+    if not np.isfinite(th3):
+        raise ValueError(f"four-bar {a}, {b}, {c}, {d}: no assembly at crank angle {theta}")
+    tip = (a * math.cos(theta), a * math.sin(theta))
+    joint = (d + c * math.cos(float(th4)), c * math.sin(float(th4)))
+    mech = Mechanism(name, gravity=gravity)
+    crank = mech.add(RigidBody.rod("crank", (0.0, 0.0), tip, masses[0],
+                                   velocity=(-tip[1] * speed / 2, tip[0] * speed / 2),
+                                   angular_velocity=speed))
+    coupler = mech.add(RigidBody.rod("coupler", tip, joint, masses[1]))
+    rocker = mech.add(RigidBody.rod("rocker", (d, 0.0), joint, masses[2]))
+    mech.add(Revolute(mech.ground, crank, at=(0.0, 0.0), name="O2"))
+    mech.add(Revolute(crank, coupler, at=tip, name="A"))
+    mech.add(Revolute(coupler, rocker, at=joint, name="B"))
+    mech.add(Revolute(mech.ground, rocker, at=(d, 0.0), name="O4"))
+    return mech
+
+
+def turning_parallelogram(a: float, b: float, theta: float, speed: float) -> Mechanism:
+    """A parallelogram (crank = rocker = a, coupler = ground = b) in zero gravity, its
+    cranks at `theta` turning at `speed`: they stay parallel at θ + speed·t, aligned with
+    the ground (a singular configuration) at every multiple of π."""
+    tip = (a * math.cos(theta), a * math.sin(theta))
+    v = (-tip[1] * speed, tip[0] * speed)
+    far = (b + tip[0], tip[1])
+    mech = Mechanism("turning parallelogram", gravity=(0.0, 0.0))
+    crank = mech.add(RigidBody.rod("crank", (0.0, 0.0), tip, 1.0, velocity=(v[0] / 2, v[1] / 2),
+                                   angular_velocity=speed))
+    coupler = mech.add(RigidBody.rod("coupler", tip, far, 1.0, velocity=v))
+    rocker = mech.add(RigidBody.rod("rocker", (b, 0.0), far, 1.0, velocity=(v[0] / 2, v[1] / 2),
+                                    angular_velocity=speed))
+    mech.add(Revolute(mech.ground, crank, at=(0.0, 0.0), name="A"))
+    mech.add(Revolute(crank, coupler, at=tip, name="B"))
+    mech.add(Revolute(coupler, rocker, at=far, name="C"))
+    mech.add(Revolute(mech.ground, rocker, at=(b, 0.0), name="D"))
+    return mech
+
+
+RANDOM_KINDS = ("crank-rocker", "double-crank", "double-rocker", "triple rocker",
+                "slider-crank", "parallelogram")
+
+
+def random_mechanism(rng: np.random.Generator, kind: str) -> tuple[Mechanism, dict]:
+    """A mechanism of `kind` (one of `RANDOM_KINDS`) with proportions, start and speed drawn
+    from `rng`, and the parameters drawn. Four-bars of a Grashof class (their crank turning
+    at 1–6 rad/s under gravity) and slider-cranks (20–80 rad/s) carry a spring-damper (on
+    the coupler's middle, on the slider); parallelograms turn in zero gravity at 1–4 rad/s
+    (`turning_parallelogram`), through their aligned positions."""
+    if kind == "parallelogram":
+        a, b = rng.uniform(0.3, 1.5, 2)
+        theta = rng.uniform(0.2, math.pi - 0.2)
+        speed = rng.uniform(1.0, 4.0) * rng.choice([-1.0, 1.0])
+        return turning_parallelogram(a, b, theta, speed), dict(a=a, b=b, theta=theta,
+                                                               speed=speed)
+    if kind == "slider-crank":
+        r = rng.uniform(0.05, 0.2)
+        l = r * rng.uniform(1.5, 4.0)
+        theta, speed = rng.uniform(0.0, 2.0 * math.pi), rng.uniform(20.0, 80.0)
+        k, c = rng.uniform(10.0, 100.0), rng.uniform(0.1, 1.0)
+        mech = slider_crank(crank_length=r, rod_length=l, crank_angle=theta, crank_speed=speed)
+        x = mech.body("slider").position
+        mech.add(Spring(mech.ground, mech.body("slider"), at_a=(x[0] + 0.5, 0.0), at_b=x,
+                        stiffness=k, damping=c, name="spring-damper"))
+        return mech, dict(r=r, l=l, theta=theta, speed=speed, stiffness=k, damping=c)
+    if kind not in RANDOM_KINDS:
+        raise ValueError(f"unknown kind {kind!r}; kinds: {', '.join(RANDOM_KINDS)}")
+    while True:
+        a, b, c, d = rng.uniform(0.25, 1.2, 4)
+        theta = rng.uniform(0.0, 2.0 * math.pi)
+        if grashof_class(a, b, c, d) != kind:
+            continue
+        th3, th4 = four_bar_angles(theta, a, b, c, d)
+        if np.isfinite(th3) and abs(math.sin(th3 - th4)) > 0.2:    # clear of a toggle
+            break
+    speed, k, damping = rng.uniform(1.0, 6.0), rng.uniform(5.0, 40.0), rng.uniform(0.1, 2.0)
+    mech = general_four_bar(a, b, c, d, theta, speed, masses=(1.0, 1.5, 1.0), name=kind)
+    joint = (d + c * math.cos(float(th4)), c * math.sin(float(th4)))
+    middle = ((a * math.cos(theta) + joint[0]) / 2, (a * math.sin(theta) + joint[1]) / 2)
+    mech.add(Spring(mech.ground, mech.body("coupler"), at_a=(d / 2, 1.5), at_b=middle,
+                    stiffness=k, damping=damping, name="spring-damper"))
+    return mech, dict(a=a, b=b, c=c, d=d, theta=theta, speed=speed, stiffness=k,
+                      damping=damping)

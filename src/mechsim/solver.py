@@ -21,7 +21,7 @@ from .formulations.bridge import SPAN
 from .formulations.full import settle_samples
 from .formulations.monitor import SingularityMonitor
 from .integrators import AdamsPECE, integrator_class
-from .integrators.adapters import correct_in_place, proposed_step
+from .integrators.adapters import correct_in_place, proposed_step, shift_in_place
 from .options import Option, check_all, unknown_names
 from .problem import NumericProblem
 from .results import SimulationResult, Switch
@@ -491,7 +491,10 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                 record(t_new, *form.state(t_new, y_here))
                 next_out += 1
             if corrected is not None and solver.status == "running":
-                if not form.layout_changed and correct_in_place(solver, corrected):
+                if form.shifted and shift_in_place(solver, corrected - y_new):
+                    corrections += 1
+                elif not form.layout_changed and not form.shifted and \
+                        correct_in_place(solver, corrected):
                     corrections += 1
                 else:
                     retire(solver)

@@ -9,7 +9,9 @@ A formulation holds a NumericProblem and exposes a first-order ODE y' = f(t, y).
 5. `after_step(t, y)` -> a corrected y or None. A correction that keeps the meaning of the
    state (a projection) is applied in place where the integrator allows it; one that changes
    it (a new partition, a switch of formulation) must set `self.layout_changed = True`, and
-   the manager restarts the integrator there.
+   the manager restarts the integrator there; one that moves the state by a constant with
+   the motion unchanged (a partition re-referenced) sets `self.shifted = True`, and the
+   integrator takes the offset in place where it can.
 
 `options` declares the keyword arguments of `simulate` that the formulation accepts, each an
 `mechsim.options.Option` (default, type, range); they are checked before any work and set
@@ -33,6 +35,7 @@ class Formulation:
     last_step = 0.0       # size of the step just accepted, set before after_step
     failure = ""          # what went wrong last, for the manager's failure message
     layout_changed = False  # set by after_step when its correction changes the coordinates
+    shifted = False         # set by after_step when its correction is a constant offset
     step_limit = None       # largest next step the formulation can take safely (None: any)
     bridge = None           # a PassageBridge when the formulation can cross passages by one
     bridging = False        # whether the manager may use it at the present step

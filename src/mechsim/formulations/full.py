@@ -86,14 +86,57 @@ class FullCoordinates(Formulation):
 def settle_samples(problem, ts, Q, V, accept) -> None:
     """Project each output sample (rows of Q, V at times ts, in place) onto the constraints,
     positions then velocities in the mass metric, where it leaves them by more than
-    round-off (`ROUND_OFF` of its largest coordinate). A sample at a singular
-    configuration, where the projection ends above `accept`, is kept as it was."""
-    if not problem.m:
+    round-off (`ROUND_OFF` of its largest coordinate). Rigid mechanisms take one Newton
+    step for all such samples at once (stacked Schur complements; a sample off by an
+    integrator's error lands within round-off) and each velocity its projection at the new
+    positions; a sample that does not land, and every sample of a flexible mechanism, is
+    projected on its own (`NumericProblem.project_state`, the full projections where its
+    chord fails). A sample at a singular configuration, where the projection ends above
+    `accept`, is kept as it was."""
+    if not problem.m or not len(ts):
         return
-    for k, t in enumerate(ts):
-        floor = ROUND_OFF * max(1.0, float(np.max(np.abs(Q[k]))))
-        if np.max(np.abs(problem.phi(Q[k], t))) <= floor:
-            continue
-        q, _, err = problem.project_positions(Q[k], t, tol=floor)
-        if err <= max(floor, accept):
-            Q[k], V[k] = q, problem.project_velocities(q, V[k], t)
+    floors = ROUND_OFF * np.maximum(1.0, np.max(np.abs(Q), axis=1))
+    phis = np.array([problem.phi(q, t) for q, t in zip(Q, ts)])
+    off = np.flatnonzero(np.max(np.abs(phis), axis=1) > floors)
+    if not off.size:
+        return
+    if problem.constant_mass:
+        off = _settle_together(problem, ts, Q, V, phis, floors, off)
+    for k in off:
+        t = ts[k]
+        done = problem.project_state(Q[k], V[k], t, tol=floors[k])
+        if done is None:          # no factor, or the chord does not converge: the full way
+            q, _, err = problem.project_positions(Q[k], t, tol=floors[k])
+            if err <= max(floors[k], accept):
+                Q[k], V[k] = q, problem.project_velocities(q, V[k], t)
+        else:
+            Q[k], V[k] = done
+
+
+def _settle_together(problem, ts, Q, V, phis, floors, off):
+    """One stacked Newton step (constant diagonal mass) for the samples `off`; returns the
+    ones it did not bring within their floor."""
+    w = problem.inverse_mass_diagonal
+    tk = ts[off]
+    J = np.array([problem.phi_q(Q[k], t) for k, t in zip(off, tk)])        # (s, m, n)
+    try:
+        lam = np.linalg.solve(np.einsum("smn,n,spn->smp", J, w, J), phis[off][..., None])
+    except np.linalg.LinAlgError:
+        return off
+    q_new = Q[off] - w * np.einsum("smn,sm->sn", J, lam[..., 0])
+    landed = np.array([np.max(np.abs(problem.phi(q, t))) <= f
+                       for q, t, f in zip(q_new, tk, floors[off])])
+    if not np.any(landed):
+        return off
+    idx, q_new, tk = off[landed], q_new[landed], tk[landed]
+    J = np.array([problem.phi_q(q, t) for q, t in zip(q_new, tk)])
+    r = np.einsum("smn,sn->sm", J, V[idx])
+    if problem.rheonomic_rows:
+        r += np.array([problem.phi_t(q, t) for q, t in zip(q_new, tk)])
+    try:
+        mu = np.linalg.solve(np.einsum("smn,n,spn->smp", J, w, J), r[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return off
+    Q[idx] = q_new
+    V[idx] = V[idx] - w * np.einsum("smn,sm->sn", J, mu)
+    return off[~landed]

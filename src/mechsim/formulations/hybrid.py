@@ -124,7 +124,7 @@ class Hybrid(Formulation):
         proj = self.proj
         proj.monitor, proj.last_step = self.monitor, self.last_step
         self._step += 1
-        self.layout_changed = False
+        self.layout_changed = self.shifted = False
         self.step_limit = None
         mon = self.monitor
         s = mon.last if mon else 1.0
@@ -151,7 +151,7 @@ class Hybrid(Formulation):
                            "a singular configuration ahead")
                 return self._switch(t, y, self.proj, why)
             out = self.lu.after_step(t, y)
-            self.layout_changed = self.lu.layout_changed
+            self.layout_changed, self.shifted = self.lu.layout_changed, self.lu.shifted
             if out is not None and self.lu.layout_changed:
                 self._recent = [k for k in self._recent if self._step - k < self.burst_steps]
                 self._recent.append(self._step)

@@ -67,6 +67,35 @@ def correct_in_place(solver, y) -> bool:
     return False
 
 
+def shift_in_place(solver, delta) -> bool:
+    """Move a running integrator's state by the constant `delta` (the same motion in
+    coordinates measured from another origin) without restarting it: its derivatives and
+    history of derivatives stand; of the history of states only what holds y itself moves
+    (BDF's D[0], the Nordsieck array's first column). Radau's Newton start is a polynomial
+    in the old coordinates: False there (the caller restarts), as for anything unknown."""
+    delta = np.asarray(delta, float)
+    y = solver.y + delta
+    if isinstance(solver, AdamsPECE):
+        solver.correct(y)
+        return True
+    if isinstance(solver, BDF):
+        D = getattr(solver, "D", None)
+        if not isinstance(D, np.ndarray) or D.ndim != 2 or \
+                not np.allclose(D[0], solver.y, rtol=1e-12, atol=1e-300):
+            return False
+        D[0] += delta
+        solver.y = y
+        return True
+    if isinstance(solver, LSODA):
+        return correct_in_place(solver, y)       # replaces y in the Nordsieck array only
+    if isinstance(solver, (RK23, RK45, DOP853)):
+        if getattr(solver, "f", None) is None or solver.y.shape != delta.shape:
+            return False
+        solver.y = y
+        return True
+    return False
+
+
 def lsoda_workspace(solver):
     """LSODA's RWORK array (ODEPACK's documented layout), or None."""
     ode = getattr(solver, "_lsoda_solver", None)
