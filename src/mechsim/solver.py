@@ -294,8 +294,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     first_step = checked["first_step"] if h is None else h
     q0, v0 = check_initial_state(problem, q0, v0, t_start)
     problem.start_run()
-    if cls.needs_freedom and problem.m >= problem.n and \
-            problem.degrees_of_freedom(q0, t_start) == 0:
+    fully_driven = problem.m >= problem.n and problem.degrees_of_freedom(q0, t_start) == 0
+    if cls.needs_freedom and fully_driven:
         # A fully driven mechanism: no independent coordinate to integrate. Its motion is
         # the drivers' kinematics, which the projection method follows on its branch with
         # the integrator's error control (a partitioned run took one step for the whole
@@ -565,6 +565,13 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                     "its branch there (see singular_passages and passage_drift(); methods "
                     "'hybrid' and 'projection' follow the branch)")
 
+    if fully_driven and monitor.passages and status == "success":
+        first = monitor.passages[0]
+        message += (f"; the drivers carried the mechanism through {len(monitor.passages)} "
+                    f"singular configuration(s) (first at t = {first.t_min or first.t_start:.6g},"
+                    f" joints {', '.join(first.joints)}), following the branch it moved on: "
+                    "there Φ_q loses rank, so the drivers alone do not decide which branch "
+                    "follows, and the joint reactions and driver efforts are not unique")
     jumps = [(a, b) for a, b in form.sign_changes
              if not any(p.t_start <= b and a <= p.t_end for p in monitor.passages)]
     if jumps:
