@@ -253,18 +253,22 @@ def format_within(name: str, error: float, best: dict) -> str:
     return f"within error {error:.0e}, {name}: " + ", ".join(parts)
 
 
+def _write_csv(rows, path: Path, fields) -> Path:
+    """One CSV row per row of `rows` with the attributes `fields`, under a header of them."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(fields)
+        for r in rows:
+            w.writerow([getattr(r, k) for k in fields])
+    return path
+
+
 def write(rows: list[Row], out_dir) -> list[Path]:
     """CSV of all rows and one error-vs-time plot per problem."""
     from matplotlib.figure import Figure
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / "bench.csv"
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(list(Row.__dataclass_fields__))
-        for r in rows:
-            w.writerow([getattr(r, k) for k in Row.__dataclass_fields__])
-    written = [path]
+    written = [_write_csv(rows, out_dir / "bench.csv", list(Row.__dataclass_fields__))]
     for name in dict.fromkeys(r.problem for r in rows):
         fig = Figure(figsize=(6.4, 4.4), layout="constrained")
         ax = fig.add_subplot()
@@ -368,15 +372,9 @@ def random_summary(rows: list[RandomRow], method="hybrid", against="projection")
 
 
 def write_random(rows: list[RandomRow], out_dir) -> list[Path]:
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / "bench_random.csv"
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(list(RandomRow.__dataclass_fields__))
-        for r in rows:
-            w.writerow([getattr(r, k) for k in RandomRow.__dataclass_fields__])
-    return [path]
+    """CSV of the random sweep's rows."""
+    return [_write_csv(rows, Path(out_dir) / "bench_random.csv",
+                       list(RandomRow.__dataclass_fields__))]
 
 
 # --- Shooting against brute force (seed 002) ---------------------------------------------
@@ -492,14 +490,8 @@ def write_shooting(rows: list[ShootingRow], out_dir) -> list[Path]:
     """CSV of the rows and a plot of wall time against accuracy, per case and method."""
     from matplotlib.figure import Figure
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / "bench_coulomb.csv"
-    fields = list(ShootingRow.__dataclass_fields__) + ["speedup"]
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(fields)
-        for r in rows:
-            w.writerow([getattr(r, k) for k in fields])
+    path = _write_csv(rows, out_dir / "bench_coulomb.csv",
+                      list(ShootingRow.__dataclass_fields__) + ["speedup"])
     fig = Figure(figsize=(6.4, 4.4), layout="constrained")
     ax = fig.add_subplot()
     for k, case in enumerate(dict.fromkeys((r.mu, r.start) for r in rows)):
