@@ -94,6 +94,20 @@ def test_a_driven_slider_crank_follows_its_exact_kinematics(method):
     _follows_rtol(_errors(method, run, exact))
 
 
+def test_a_driven_slider_crank_has_its_exact_accelerations():
+    """Kinematic analysis: the slider's acceleration at every sample (`accelerations()`,
+    from the equations of motion at the sample) against d²x/dt² of the exact kinematics,
+    −ω² (c + c²/ρ + s² (c² − ρ²)/ρ³), s = r sin θ, c = r cos θ, ρ = √(l² − s²)."""
+    res = ms.examples.slider_crank(driven=True).simulate(0.1, rtol=1e-10, atol=1e-12,
+                                                          output_step=1e-3)
+    th, r, l, w = 150.0 * res.t, 0.15, 0.30, 150.0
+    s, c = r * np.sin(th), r * np.cos(th)
+    root = np.sqrt(l * l - s * s)
+    exact = -w * w * (c + c * c / root + s * s * (c * c - root * root) / root**3)
+    xdd = res.accelerations()[:, res.coordinate_names.index("slider.x")]
+    assert np.max(np.abs(xdd - exact)) < 1e-8 * np.max(np.abs(exact))
+
+
 @pytest.mark.parametrize("method", METHOD_NAMES)
 def test_a_driven_change_point_four_bar_crosses_its_dead_centres(method):
     """The parallelogram of `four_bar()` (a change-point four-bar: all bars align twice a
