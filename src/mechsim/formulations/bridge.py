@@ -42,6 +42,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..integrators.adams import error_norm, integration_weights, step_weights
+from ..integrators.adapters import proposed_step
 
 # The band's edge, in multiples of the truncation cut (σ_min/σ_max = rcond).
 EDGE = 3.0
@@ -334,3 +335,32 @@ class PassageBridge:
         else:
             self.landing = max(floor, self.landing * min(0.5, (0.5 / err) ** (1.0 / (self.order + 1))))
         return None
+
+
+def bridge_passage(form, bridge, monitor, solver, bound, t, q, v, t_end):
+    """Approach and cross a singular passage ahead with the formulation's bridge
+    (`mechsim.formulations.bridge`): its `Crossing` when crossed, else None, with the next
+    step limited to the landing point (`StepBound.land`) while approaching. A crossing
+    that would end after t_end is not taken: the formulation steps to the end on its own."""
+    s, rate = monitor.last * monitor.peak, monitor.rate * monitor.peak
+    h_free = proposed_step(solver)
+    if not h_free:                   # a restarted integrator that has not stepped yet
+        return None
+    max_step = bound.max_step
+    h_next = min(h_free, max_step)
+    plan = bridge.plan(s, rate, t, h_next, max_step_bound=h_free >= max_step)
+    if plan is not None and plan[0] == "cross":
+        if t + SPAN * (plan[1] - t) >= t_end:
+            bridge.stand_down()
+            return None
+        crossed = bridge.cross(t, q, v, plan[1], lambda qk, tk: monitor.measure(qk, tk)[0],
+                               t_floor=monitor.clear_since)
+        if crossed is not None and crossed.t_b >= t_end:
+            bridge.stand_down()
+            return None
+        if crossed is not None:
+            return crossed
+        plan = bridge.plan(s, rate, t, h_next, h_free >= max_step)   # land closer, or stand down
+    if plan is not None and plan[0] == "land":
+        bound.land(solver, plan[1])
+    return None

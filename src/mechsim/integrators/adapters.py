@@ -8,6 +8,9 @@ document: `y` and `f` of the Runge–Kutta methods and Radau, the backward diffe
 of BDF, ODEPACK's work array of LSODA (whose layout ODEPACK does document). Each adapter
 checks the layout it relies on and declines (the manager then restarts the solver) where
 it does not find it, so a scipy release that changes them costs speed, not correctness.
+The same holds for a constant shift of the state (`shift_in_place`: a partition whose
+reference moved), and a fresh Adams solver takes the history of the one it replaces
+(`warm_start`).
 `tests/test_adapters.py` runs `mechsim.integrators.adapter_check` against the oldest and
 the newest scipy that pyproject allows.
 """
@@ -112,3 +115,23 @@ def proposed_step(solver):
     return h or solver.step_size
 
 
+def warm_start(solver, old, form, past, order=None, step=None) -> int:
+    """After a change of coordinates at solver.t, give a fresh Adams solver the history the
+    old one had, re-expressed in the new coordinates: y' at the last accepted states
+    `past` ((t, q, v), oldest first, the present one excluded) from `form.derivative`, up
+    to the old order (or `order`), going on with the old solver's next step (or `step`).
+    Returns the right-hand sides spent (0 where not possible: then the solver starts from
+    order 1 as usual)."""
+    if not past:
+        return 0
+    order = old.order if order is None else min(order, old.order)
+    recent = list(past)[-order:]
+    try:
+        fs = [form.derivative(t, q, v) for t, q, v in recent]
+    except NotImplementedError:
+        return 0
+    if not all(np.all(np.isfinite(f)) for f in fs):
+        return len(fs)
+    solver.seed_history([t for t, _, _ in recent], fs, order,
+                        proposed_step(old) if step is None else step)
+    return len(fs)

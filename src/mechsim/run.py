@@ -1,0 +1,576 @@
+"""One run of the integration loop, made of named parts.
+
+`Run.execute` is the algorithm: take a step with the integrator; if the formulation says the
+step left its assembly branch, take it again shorter; record the output samples inside it and
+integrate the work along it; let the singularity monitor look at it; let the formulation
+correct the state (in place where the integrator allows, else a restart); cross a singular
+passage ahead with the passage bridge. Its parts:
+
+- `Recorder`: the output samples, in arrays that grow by doubling (no lists of small arrays),
+  with the work of each channel at each sample;
+- `StepBound`: the one bound on the next step (the run's `max_step`, the formulation's
+  `step_limit`, the bridge's landing), and LSODA's restart when it changes;
+- `Statistics`: the counts of what the run spent;
+- the integrator adapters (`mechsim.integrators.adapters`) for everything private to scipy;
+- the passage bridge (`mechsim.formulations.bridge`, `bridge_passage`).
+
+A failure mid-run (an exception in the model, a singular matrix, an integrator giving up, the
+user pressing Ctrl-C) ends the loop and returns everything computed so far, with a `status`
+and a `message` (diffrax's RESULTS): no work is lost.
+"""
+
+from __future__ import annotations
+
+import collections
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .formulations.bridge import bridge_passage
+from .formulations.full import settle_samples
+from .integrators import AdamsPECE
+from .integrators.adapters import correct_in_place, proposed_step, shift_in_place, warm_start
+from .results import SimulationResult
+from .results.result import WorkRecord
+from .results.work import WorkIntegral
+
+# A run stops as stuck when this many steps together advance less than this fraction of
+# its span (LU alone at the flexible four-bar's passage: 2000 steps of 2e-12–7e-12 s).
+STALL_STEPS = 2000
+STALL_SPAN = 1e-7
+# A step that left the assembly branch (`Formulation.keeps_branch`) is taken again at a
+# quarter of its length, up to this many times in a row, by the methods that resolve
+# passages; then it stands, and the run says so.
+BRANCH_RETRIES = 6
+# What a formulation raises when a run cannot go on: the run stops with its partial result.
+FAILURES = (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError)
+# A driver moving faster than this (rad/s or m/s) is named where a run fails.
+DRIVER_RATE_LIMIT = 1e8
+
+
+class NonFiniteState(RuntimeError):
+    """The motion became infinite or NaN: the run stops there with its partial result."""
+
+
+def check_finite(problem, t, q, v) -> None:
+    """NonFiniteState where q or v holds an infinite or NaN value, naming the coordinate
+    and, where one is the cause, the driver whose prescribed motion is not finite there."""
+    for name, x in (("position", q), ("velocity", v)):
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            break
+    else:
+        return
+    raise NonFiniteState(f"the motion became non-finite at t = {t:.9g} ({name} of "
+                         f"'{problem.coordinate_names[bad[0]]}' = {x[bad[0]]})"
+                         f"{troubled_drivers(problem, (t,))}")
+
+
+def troubled_drivers(problem, times) -> str:
+    """"; driver 'd' …" for each driver whose law at one of `times` is undefined, not finite
+    (or beyond 1e100) or changing faster than `DRIVER_RATE_LIMIT`: the likely cause of a
+    failed run; "" where there is none."""
+    out = []
+    for driver, law in problem.driver_laws:
+        for t in times:
+            dt = 1e-9 * max(1.0, abs(t))
+            try:
+                value, ahead = law.value(t=t), law.value(t=t + dt)
+            except (ArithmeticError, ValueError) as exc:
+                out.append(f"driver '{driver}' prescribes {law.text}, undefined at "
+                           f"t ≈ {t:.9g} ({exc})")
+                break
+            if not (abs(value) < 1e100 and abs(ahead) < 1e100):
+                out.append(f"driver '{driver}' prescribes {law.text} = {value:.3g} at "
+                           f"t = {t:.9g}")
+                break
+            if abs(ahead - value) > DRIVER_RATE_LIMIT * dt:
+                out.append(f"driver '{driver}' prescribes {law.text}, changing at "
+                           f"{(ahead - value) / dt:.3g}/s at t = {t:.9g}")
+                break
+    return "".join(f"; {o}" for o in out)
+
+
+class Recorder:
+    """The output samples of a run: times `t`, positions `q`, velocities `v` (rows), and the
+    work of each of `channels` at the first `len(work)` of them. `ts` is the output grid
+    (None: a sample at every accepted step); `next` the index of its next sample.
+    Samples pass `check_finite` as they are recorded."""
+
+    def __init__(self, problem, ts, channels=()):
+        self.problem, self.ts, self.next = problem, ts, 0
+        capacity = len(ts) if ts is not None else 256
+        self._t = np.empty(capacity)
+        self._q = np.empty((capacity, problem.n))
+        self._v = np.empty((capacity, problem.n))
+        self.count = 0
+        self.work = []                  # rows: W of each channel at samples 0, 1, …
+
+    @property
+    def t(self):
+        return self._t[:self.count]
+
+    @property
+    def q(self):
+        return self._q[:self.count]
+
+    @property
+    def v(self):
+        return self._v[:self.count]
+
+    def record(self, t, q, v) -> None:
+        check_finite(self.problem, t, q, v)
+        if self.count == len(self._t):
+            grow = max(16, len(self._t))
+            self._t = np.concatenate([self._t, np.empty(grow)])
+            self._q = np.vstack([self._q, np.empty((grow, self.problem.n))])
+            self._v = np.vstack([self._v, np.empty((grow, self.problem.n))])
+        self._t[self.count], self._q[self.count], self._v[self.count] = t, q, v
+        self.count += 1
+
+    def due(self, t) -> bool:
+        """Whether a sample falls exactly at the end of a step at t."""
+        ts = self.ts
+        return ts is None or (self.next < len(ts) and ts[self.next] == t)
+
+    def record_due(self, t, q, v) -> None:
+        """The sample at a step's end (`due`)."""
+        self.record(t, q, v)
+        self.next += 1
+
+    def within(self, t_lo, t_hi, through, values, states) -> None:
+        """Record the output samples in (t_lo, t_hi), or (t_lo, t_hi] with `through`, from
+        one call of the interpolant `values(times)` and one of `states(times, Y) -> (Q, V)`
+        (rows: the samples)."""
+        ts, first = self.ts, self.next
+        while self.next < len(ts) and (ts[self.next] < t_hi or
+                                       through and ts[self.next] == t_hi):
+            self.next += 1
+        inside = np.array([tk for tk in ts[first:self.next] if tk > t_lo])
+        if not inside.size:
+            return
+        Y = np.atleast_2d(values(inside).T)
+        try:
+            Q, V = states(inside, Y)
+        except FAILURES:
+            # One by one: the samples before the one that fails are kept (a run that
+            # cannot go on returns them).
+            for k in range(inside.size):
+                q, v = states(inside[k:k + 1], Y[k:k + 1])
+                self.record(inside[k], q[0], v[0])
+            return
+        for tk, q, v in zip(inside, Q, V):
+            self.record(tk, q, v)
+
+
+class StepBound:
+    """The one bound on the next step: the run's `max_step`, lowered by the formulation's
+    `step_limit` (the hybrid ahead of a singularity) and by the passage bridge's landing.
+    scipy's RK, Radau and BDF and the Adams method read `max_step` at every step, so a bound
+    applies at once; LSODA takes its bound only when it starts, so a new bound restarts it
+    (`restart_for`)."""
+
+    def __init__(self, max_step: float, lsoda: bool):
+        self.max_step = max_step
+        self._started_with = max_step if lsoda else None
+
+    def after_step(self, solver, form) -> None:
+        limit = form.step_limit
+        solver.max_step = self.max_step if limit is None else min(self.max_step, limit)
+
+    def land(self, solver, reach: float) -> None:
+        solver.max_step = min(solver.max_step, reach)
+
+    def restart_for(self, solver):
+        """(first step, bound) for an LSODA restart where the bound decides the next step (a
+        tighter one below the step it would take, or a looser one where the old bound held
+        it); None otherwise."""
+        if self._started_with is None:
+            return None
+        want = getattr(solver, "max_step", self._started_with)
+        h_next = proposed_step(solver) or 0.0
+        if (want < self._started_with and h_next > want) or \
+                (want > self._started_with and h_next >= 0.9 * self._started_with):
+            self._started_with = want
+            return (min(h_next, want) or None), want
+        return None
+
+
+@dataclass
+class Statistics:
+    """What a run spent, beyond the live integrator's own counts."""
+    steps: int = 0
+    restarts: int = 0
+    rejected: int = 0
+    corrections: int = 0
+    retries: int = 0            # consecutive retakes of a step that left its branch
+    bridges: int = 0
+    nfev: int = 0
+    njev: int = 0
+    nlu: int = 0
+
+    def retire(self, solver) -> None:
+        """Add the counts of an integrator the run replaces."""
+        self.nfev += solver.nfev
+        self.njev += int(getattr(solver, "njev", 0))
+        self.nlu += int(getattr(solver, "nlu", 0))
+        self.rejected += int(getattr(solver, "n_rejected", 0))
+
+
+@dataclass(frozen=True)
+class Settings:
+    """A run's checked settings (`mechsim.solver.check_settings`)."""
+    t_start: float
+    t_end: float
+    rtol: float
+    atol: float
+    max_step: float
+    first_step: float | None
+    h: float | None                 # a fixed step (fixed-step methods), else None
+    max_steps: int | None
+    ts: np.ndarray | None           # the output grid (None: every step)
+    work: bool
+
+
+class Run:
+    """One integration of `form` (a formulation with its monitor set) by `solver_cls` from
+    the consistent state (q0, v0): `execute()` returns the `SimulationResult`. `method`:
+    the method asked for (the formulation may stand in for it); `fully_driven`: the
+    mechanism has no degree of freedom (its passages get a word on what the drivers do
+    there)."""
+
+    def __init__(self, problem, form, solver_cls, settings: Settings, q0, v0, method="",
+                 fully_driven=False):
+        self.problem, self.form, self.solver_cls = problem, form, solver_cls
+        self.method = method or form.name
+        self.s, self.fully_driven = settings, fully_driven
+        self.monitor = form.monitor
+        self.start = time.perf_counter()
+        self.counters_before = {k: getattr(problem.counters, k) for k in (
+            "projections", "partitions", "switches", "factorizations", "constraint_terms")}
+        channels = problem.work_channels if settings.work else []
+        self.work = None
+        if channels:
+            energy = (problem.kinetic_energy(q0, v0) + abs(problem.potential_energy(q0))
+                      + problem.strain_energy(q0))
+            self.work = WorkIntegral(channels, problem.work_rates, settings.rtol,
+                                     float(energy), settings.t_end - settings.t_start)
+        self.out = Recorder(problem, settings.ts, channels)
+        self.bound = StepBound(settings.max_step, solver_cls.__name__ == "LSODA")
+        self.stats = Statistics()
+        self.bridge = getattr(form, "bridge", None)
+        self._bridge_start = ((self.bridge.evaluations, self.bridge.over_tolerance)
+                              if self.bridge is not None else (0, 0))
+        # The last accepted states (t, q, v), for a warm Adams restart after a change of
+        # coordinates (after a bridge: the states the bridge was built on).
+        self.keep_past = issubclass(solver_cls, AdamsPECE)
+        self.past = collections.deque(maxlen=AdamsPECE.max_order_limit + 1)
+        # Stuck (at a singular configuration the formulation cannot pass): stop there with
+        # the partial result instead of grinding on.
+        self.recent = collections.deque([settings.t_start], maxlen=STALL_STEPS + 1)
+        self.status, self.message, self.exception = "success", "reached t_end", None
+        self.t_reached = settings.t_start
+        self.solver = None
+        self.y0 = form.initial_state(settings.t_start, q0, v0)
+        self.monitor.observe(settings.t_start, q0, v0)
+        if settings.ts is None or settings.ts[0] == settings.t_start:
+            self.out.record_due(settings.t_start, q0, v0)
+            self.out.work.append(np.zeros(len(channels)))
+
+    # --- the loop ------------------------------------------------------------------------------
+    def execute(self) -> SimulationResult:
+        try:
+            self.solver = self.make(self.s.t_start, self.y0, self.s.first_step)
+            while self.solver.status == "running" and self._advance():
+                pass
+        except KeyboardInterrupt:
+            self.status, self.message = "interrupted", "interrupted by the user"
+        except FAILURES as exc:
+            t = max(self.t_reached, self.out.t[-1] if self.out.count else self.s.t_start)
+            self.t_reached = t
+            self.status = "failed"
+            self.message = f"{type(exc).__name__} after t = {t:.9g}: {exc}"
+            self.exception = exc
+        self._explain()
+        return self._result()
+
+    def _advance(self) -> bool:
+        """One accepted step (or a step retaken, or an LSODA restart for a new bound);
+        False where the run stops."""
+        restart = self.bound.restart_for(self.solver)
+        if restart is not None:
+            self._replace(self.solver.t, self.solver.y, *restart)
+        solver, form = self.solver, self.form
+        t_old, y_old = solver.t, solver.y.copy()
+        msg = solver.step()
+        if solver.status == "failed":
+            return self._stop(f"integrator stopped at t = {solver.t:.9g}: {msg}")
+        if not form.keeps_branch(solver.t, solver.y) and form.resolves_passages and \
+                self.s.h is None and self.stats.retries < BRANCH_RETRIES:
+            # Left the branch within the step (or crossed a singular configuration unseen):
+            # take it again, shorter, from its start. A method that does not resolve
+            # passages crosses them so, and says so instead.
+            self.stats.retries += 1
+            self.stats.rejected += 1
+            short = 0.25 * (solver.t - t_old)
+            self._replace(t_old, y_old, short, min(self.s.max_step, short))
+            return True
+        self.stats.retries = 0
+        self.stats.steps += 1
+        if self.s.max_steps is not None and self.stats.steps > self.s.max_steps:
+            return self._stop(f"step limit max_steps = {self.s.max_steps} reached at "
+                              f"t = {solver.t:.9g}")
+        self.recent.append(solver.t)
+        if len(self.recent) == self.recent.maxlen and \
+                solver.t - self.recent[0] < STALL_SPAN * (self.s.t_end - self.s.t_start):
+            return self._stop(f"the steps collapsed: {self.recent.maxlen - 1} steps advanced "
+                              f"only {solver.t - self.recent[0]:.2g} s up to "
+                              f"t = {solver.t:.9g}")
+        y_here = self._accept(t_old, solver.t, solver.y)
+        if self.bridge is not None and self.solver.status == "running":
+            self._bridge(self.solver.t, y_here)
+        return True
+
+    def _accept(self, t_old, t_new, y_new):
+        """Samples, work, monitor and the formulation's correction for the step just
+        accepted; returns the state the run goes on from."""
+        form, out, solver = self.form, self.out, self.solver
+        # The step's interpolant, built at most once (scipy's RK methods spend extra
+        # right-hand sides on each `dense_output()` call) and shared by the output samples,
+        # the work integral and the monitor's search for a minimum inside the step.
+        interpolant = []
+
+        def dense(tk):
+            if not interpolant:
+                interpolant.append(solver.dense_output())
+            return interpolant[0](tk)
+
+        recorded = out.count
+        if out.ts is not None:
+            out.within(t_old, t_new, False, dense, form.states)
+        due = out.due(t_new)
+        self._add_work(t_old, t_new, lambda tk: form.states(tk, np.atleast_2d(dense(tk).T)),
+                       recorded, [t_new] if due else [])
+        q_new, v_new = form.state(t_new, y_new)
+        check_finite(self.problem, t_new, q_new, v_new)
+        self.monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
+                             t_old=t_old)
+        form.last_step = t_new - t_old
+        form.layout_changed = False
+        corrected = form.after_step(t_new, y_new)
+        self.bound.after_step(solver, form)
+        y_here = y_new if corrected is None else corrected
+        self.t_reached = t_new
+        if self.keep_past:
+            self.past.append((t_new, np.array(q_new), np.array(v_new)))
+        if due:
+            out.record_due(t_new, *form.state(t_new, y_here))
+        if corrected is not None and solver.status == "running":
+            self._correct(t_new, y_new, corrected)
+        return y_here
+
+    def _correct(self, t, y, corrected) -> None:
+        """Put the formulation's correction into the integrator: in place where it can
+        take it (a projection, a constant shift), else by a restart there."""
+        form, solver = self.form, self.solver
+        if form.shifted and shift_in_place(solver, corrected - y):
+            self.stats.corrections += 1
+        elif not form.layout_changed and not form.shifted and \
+                correct_in_place(solver, corrected):
+            self.stats.corrections += 1
+        else:
+            old = self._replace(t, corrected, solver.step_size)
+            if self.keep_past:
+                self.stats.nfev += warm_start(self.solver, old, form, list(self.past)[:-1])
+
+    def _bridge(self, t, y) -> None:
+        """Cross a singular passage ahead where the formulation bridges, and go on from its
+        far side."""
+        form, bridge, solver = self.form, self.bridge, self.solver
+        if not form.bridging:
+            h_free = proposed_step(solver)
+            if h_free:
+                bridge.note_step(min(h_free, self.bound.max_step),
+                                 h_free >= self.bound.max_step)
+            return
+        crossed = bridge_passage(form, bridge, self.monitor, solver, self.bound, t,
+                                 *form.state(t, y), self.s.t_end)
+        if crossed is None:
+            return
+        t_b, q_b, v_b, interp, t_star, history = crossed[:6]
+        self.stats.bridges += 1
+        n = self.problem.n
+        recorded = self.out.count
+        if self.out.ts is not None:
+            self.out.within(t, t_b, True, interp, self._bridge_samples)
+        else:
+            self.out.record(t_b, q_b, v_b)
+        self._add_work(t, t_b, lambda tk: _split(interp(tk).T, n), recorded, [])
+        self.monitor.crossed(t, t_b, t_star, interp(t_star)[:n])
+        self.monitor.observe(t_b, q_b, v_b)
+        y_b = form.resume(t_b, q_b, v_b)
+        form.last_step = t_b - t
+        after = form.after_step(t_b, y_b)
+        y_b = y_b if after is None else after
+        self.t_reached = t_b
+        old = self._replace(t_b, y_b, proposed_step(solver))
+        if self.keep_past:
+            # The history goes on from the states the bridge was built on, all outside the
+            # passage's band, with the bridge's own step and the order its error estimate
+            # found still gaining there (near the passage the accelerations carry round-off
+            # amplified by 1/σ_min²).
+            self.past.clear()
+            self.past.extend(history)
+            self.stats.nfev += warm_start(self.solver, old, form, self.past, crossed.order,
+                                          crossed.step)
+            self.past.append((t_b, np.array(q_b), np.array(v_b)))
+
+    # --- parts -------------------------------------------------------------------------------
+    def make(self, t, y, step, bound=None):
+        """A new integrator at (t, y), starting with `step` (a fixed step stays fixed),
+        bounded by `bound` (default: the run's max_step)."""
+        s = self.s
+        bound = s.max_step if bound is None else bound
+        step = s.first_step if s.h is not None else step
+        kw = {"first_step": min(step, s.t_end - t, bound)} if step else {}
+        solver = self.solver_cls(self.form.integrand, t, y, s.t_end, rtol=s.rtol, atol=s.atol,
+                                 max_step=bound, **kw)
+        if isinstance(solver, AdamsPECE):
+            # Project inside the step, before its last evaluation: after_step then finds
+            # the state on the constraints and the projection costs no extra evaluation.
+            solver.project = getattr(self.form, "project_now", None)
+        return solver
+
+    def _replace(self, t, y, step, bound=None):
+        """Retire the running integrator for a new one at (t, y); returns the old one."""
+        old = self.solver
+        self.stats.retire(old)
+        self.stats.restarts += 1
+        self.solver = self.make(t, y, step, bound)
+        return old
+
+    def _stop(self, message) -> bool:
+        self.status, self.message = "failed", message
+        return False
+
+    def _bridge_samples(self, tk, Y):
+        """A bridge's output samples, onto the constraints as the steps' are."""
+        Q, V = _split(np.array(Y), self.problem.n)
+        settle_samples(self.problem, tk, Q, V, max(10.0 * self.s.rtol, 100.0 * self.s.atol))
+        return Q, V
+
+    def _add_work(self, a, b, states, recorded, more) -> None:
+        """Integrate the work over the step [a, b] and keep W at the samples it recorded
+        (from index `recorded`, and `more` times still to be recorded)."""
+        if self.work is None:
+            return
+        times = list(self.out.t[recorded:]) + list(more)
+        W = self.work.add(a, b, states, times)
+        if W is not None:
+            self.out.work.extend(W)
+
+    # --- the result ----------------------------------------------------------------------------
+    def _explain(self) -> None:
+        """Add to the message what the run's end and its passages mean."""
+        problem, form, monitor = self.problem, self.form, self.monitor
+        if self.status == "failed":
+            if form.failure and form.failure not in self.message:
+                self.message += f"; last trouble: {form.failure}"
+            if "driver '" not in self.message and problem.driver_laws:
+                h = proposed_step(self.solver) if self.solver is not None else None
+                t = self.t_reached
+                trial = min(self.s.t_end, t + (h if h else self.s.t_end - t))
+                self.message += troubled_drivers(problem, (t, trial))
+            if monitor.inside or monitor.last < monitor.enter:   # (relative to the peak)
+                s, _, u = monitor.measure(self.out.q[-1], self.out.t[-1])
+                self.message += (f"; Φ_q is nearly singular there (σ_min/σ_max = {s:.3g}, "
+                                 f"joints {', '.join(monitor.joints_of(u))})")
+        monitor.close(self.t_reached)
+        passages = monitor.passages
+        if self.status != "success":
+            return
+        first = passages[0] if passages else None
+        if passages and not form.resolves_passages:
+            self.message += (
+                f"; the run passed {len(passages)} singular configuration(s) (first at "
+                f"t = {first.t_min or first.t_start:.6g}) that method {form.name!r} does not "
+                "resolve: its motion may have left its branch there (see singular_passages "
+                "and passage_drift(); methods 'hybrid' and 'projection' follow the branch)")
+        if self.fully_driven and passages:
+            self.message += (
+                f"; the drivers carried the mechanism through {len(passages)} singular "
+                f"configuration(s) (first at t = {first.t_min or first.t_start:.6g}, joints "
+                f"{', '.join(first.joints)}), following the branch it moved on: there Φ_q "
+                "loses rank, so the drivers alone do not decide which branch follows, and "
+                "the joint reactions and driver efforts are not unique")
+        self._explain_jumps()
+
+    def _explain_jumps(self) -> None:
+        jumps = [(a, b) for a, b in self.form.sign_changes
+                 if not any(p.t_start <= b and a <= p.t_end for p in self.monitor.passages)]
+        if jumps:
+            self.message += (
+                f"; the motion may have left its assembly branch in {len(jumps)} step(s) "
+                f"(first [{jumps[0][0]:.6g}, {jumps[0][1]:.6g}] s): the partition's "
+                "det(Φ_q D) changed sign within one step where no singular configuration was "
+                "found; check the result with a smaller rtol or max_step")
+
+    def _statistics(self) -> dict:
+        st, solver, bridge = self.stats, self.solver, self.bridge
+        counters, before = self.problem.counters, self.counters_before
+        bridge_evals = bridge.evaluations - self._bridge_start[0] if bridge is not None else 0
+        return {
+            "method": self.method,
+            "integrator": self.solver_cls.__name__,
+            "steps": st.steps,
+            "rejected_steps": (st.rejected + int(solver.n_rejected)
+                               if solver is not None and hasattr(solver, "n_rejected")
+                               else None),
+            "rhs_evaluations": st.nfev + (solver.nfev if solver is not None else 0)
+            + bridge_evals,
+            "jacobian_evaluations": st.njev + int(getattr(solver, "njev", 0)),
+            "lu_decompositions": st.nlu + int(getattr(solver, "nlu", 0)),
+            "restarts": st.restarts,
+            "corrections_in_place": st.corrections,
+            **{name: getattr(counters, key) - before[key] for name, key in (
+                ("projections", "projections"), ("partitions", "partitions"),
+                ("factorizations", "factorizations"),
+                ("constraint_evaluations", "constraint_terms"), ("switches", "switches"))},
+            "bridges": st.bridges,
+            "bridge_evaluations": bridge_evals,
+            "bridges_over_tolerance": (bridge.over_tolerance - self._bridge_start[1]
+                                       if bridge is not None else 0),
+            "work_evaluations": self.work.evaluations if self.work is not None else 0,
+            "wall_time": time.perf_counter() - self.start,
+        }
+
+    def _result(self) -> SimulationResult:
+        out = self.out
+        return SimulationResult(out.t.copy(), out.q.copy(), out.v.copy(),
+                                self.problem.coordinate_names, problem=self.problem,
+                                status=self.status, message=self.message,
+                                stats=self._statistics(),
+                                singular_passages=self.monitor.passages,
+                                switches=self.form.switches, exception=self.exception,
+                                work=self._work_record())
+
+    def _work_record(self) -> WorkRecord | None:
+        """What the result keeps of the work integral: the channels, W at the first samples,
+        and what limits it (a failure, pieces not resolved)."""
+        work = self.work
+        if work is None:
+            return None
+        notes = [work.failure] if work.failure else []
+        if work.unresolved:
+            notes.append(f"{work.unresolved} piece(s) of steps not resolved to the "
+                         "quadrature's tolerance")
+        return WorkRecord(tuple(work.channels),
+                          np.array(self.out.work).reshape(-1, len(work.channels)),
+                          "; ".join(notes))
+
+
+def _split(Y, n):
+    """(Q, V) from rows [q, v]."""
+    Y = np.atleast_2d(Y)
+    return Y[:, :n], Y[:, n:]
