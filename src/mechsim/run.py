@@ -30,7 +30,8 @@ import numpy as np
 from .formulations.bridge import bridge_passage
 from .formulations.full import settle_samples
 from .integrators import AdamsPECE
-from .integrators.adapters import correct_in_place, proposed_step, shift_in_place, warm_start
+from .integrators.adapters import (bound_read_at_start, correct_in_place, proposed_step,
+                                   shift_in_place, warm_start)
 from .results import SimulationResult
 from .results.result import WorkRecord
 from .results.work import WorkIntegral
@@ -171,9 +172,9 @@ class StepBound:
     applies at once; LSODA takes its bound only when it starts, so a new bound restarts it
     (`restart_for`)."""
 
-    def __init__(self, max_step: float, lsoda: bool):
+    def __init__(self, max_step: float, read_at_start: bool):
         self.max_step = max_step
-        self._started_with = max_step if lsoda else None
+        self._started_with = max_step if read_at_start else None
 
     def after_step(self, solver, form) -> None:
         limit = form.step_limit
@@ -257,9 +258,9 @@ class Run:
             self.work = WorkIntegral(channels, problem.work_rates, settings.rtol,
                                      float(energy), settings.t_end - settings.t_start)
         self.out = Recorder(problem, settings.ts, channels)
-        self.bound = StepBound(settings.max_step, solver_cls.__name__ == "LSODA")
+        self.bound = StepBound(settings.max_step, bound_read_at_start(solver_cls))
         self.stats = Statistics()
-        self.bridge = getattr(form, "bridge", None)
+        self.bridge = form.bridge
         self._bridge_start = ((self.bridge.evaluations, self.bridge.over_tolerance)
                               if self.bridge is not None else (0, 0))
         # The last accepted states (t, q, v), for a warm Adams restart after a change of
@@ -439,7 +440,7 @@ class Run:
         if isinstance(solver, AdamsPECE):
             # Project inside the step, before its last evaluation: after_step then finds
             # the state on the constraints and the projection costs no extra evaluation.
-            solver.project = getattr(self.form, "project_now", None)
+            solver.project = self.form.project_now
         return solver
 
     def _replace(self, t, y, step, bound=None):

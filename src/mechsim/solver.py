@@ -75,7 +75,7 @@ def check_settings(n, t_end, method, integrator, settings: dict, options: dict):
     if not t_end > t0:
         raise ValueError(f"`t_end` must be after t_start = {t0}, got {t_end!r}")
     solver_cls = integrator_class(integrator or cls.default_integrator)
-    if checked["h"] is None and solver_cls.__name__ == "Trapezoidal":
+    if checked["h"] is None and getattr(solver_cls, "fixed_step", False):
         raise ValueError(f"method {cls.name!r} steps at a fixed size: give `h`, e.g. h=1e-3")
     if checked["output_step"] is not None:
         _check_output_size(n, t_end - t0, checked["output_step"])

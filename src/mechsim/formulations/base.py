@@ -1,22 +1,9 @@
-"""The contract every formulation fulfils (scipy's `OdeSolver` docstring style).
+"""The contract between a formulation and the run that integrates it (`mechsim.run.Run`).
 
-A formulation holds a NumericProblem and exposes a first-order ODE y' = f(t, y). To add one:
-
-1. set `name` (its key in `METHODS`) and `default_integrator`;
-2. `initial_state(t, q, v)` -> y0, from a consistent (assembled) state;
-3. `rhs(t, y)` -> y', counting itself in `problem.counters.rhs`;
-4. `state(t, y)` -> (q, v), the full coordinates and velocities;
-5. `after_step(t, y)` -> a corrected y or None. A correction that keeps the meaning of the
-   state (a projection) is applied in place where the integrator allows it; one that changes
-   it (a new partition, a switch of formulation) must set `self.layout_changed = True`, and
-   the manager restarts the integrator there; one that moves the state by a constant with
-   the motion unchanged (a partition re-referenced) sets `self.shifted = True`, and the
-   integrator takes the offset in place where it can.
-
-`options` declares the keyword arguments of `simulate` that the formulation accepts, each an
-`mechsim.options.Option` (default, type, range); they are checked before any work and set
-as attributes. Anything it does not know is an error naming the option and the closest
-valid name.
+A formulation turns a `NumericProblem` into a first-order ODE y' = f(t, y) whose state y may
+be any coordinates (all of q and v, independent ones, …) and says how to get back the full
+(q, v). The run owns the integrator, the output, the singularity monitor and the status; it
+calls the formulation as the `Formulation` docstring below says, and uses nothing else.
 """
 
 from __future__ import annotations
@@ -28,23 +15,89 @@ from ..problem import NumericProblem
 
 
 class Formulation:
+    """Base class and complete contract of a formulation (scipy's `OdeSolver` is the model).
+
+    A new formulation is a subclass that sets `name` (its key in `METHODS`) and implements
+    `initial_state`, `rhs` and `state`; everything else has a working default. A minimal
+    one, the index-1 system without stabilization::
+
+        class Index1(Formulation):
+            name = "index-1"
+            def initial_state(self, t, q, v):
+                return np.concatenate([q, v])
+            def rhs(self, t, y):
+                self.problem.counters.rhs += 1
+                q, v = self.state(t, y)
+                _, J, _, gamma = self.problem.terms(q, v, t)
+                qdd = self.problem.accelerations(J, self.problem.forces(t, q, v), gamma, q)[0]
+                return np.concatenate([v, qdd])
+            def state(self, t, y):
+                n = self.problem.n
+                return y[:n], y[n:]
+
+    Declared by the class
+    ---------------------
+    name : str
+    default_integrator : name in `mechsim.integrators.INTEGRATORS`
+    options : dict of `mechsim.options.Option`, the keyword arguments of `simulate` it takes;
+        checked before any work and set as attributes of the same names
+    needs_freedom : bool, it integrates independent coordinates (a mechanism with no degree
+        of freedom has none: the run takes the projection method instead)
+    resolves_passages : bool, it follows the assembly branch through singular
+        configurations (where it does not, a run that meets one says its motion may have
+        left the branch there, and steps that `keeps_branch` rejects stand)
+
+    Called by the run
+    -----------------
+    initial_state(t, q, v) -> y : the state of a consistent (q, v) at the start
+    rhs(t, y) -> y' : counting itself in `problem.counters.rhs`; NaN where y admits no
+        state (the integrator then rejects the step and shrinks it)
+    integrand : the callable the integrator about to start gets (default: `rhs`)
+    state(t, y) -> (q, v) : the full coordinates and velocities
+    states(ts, Y) -> (Q, V) : the same for the output samples inside a step (rows)
+    keeps_branch(t, y) -> bool : whether the step just taken stayed on its assembly branch;
+        a formulation that resolves passages gets a step that did not again, shorter
+    after_step(t, y) -> corrected y or None : after each accepted step. A correction
+        that keeps the meaning of y (a projection) is put into the running integrator in
+        place where it allows; one that changes it (a new partition, a switch) must set
+        `layout_changed`, and the run restarts the integrator; one that moves y by a
+        constant (the same motion from another reference) sets `shifted`.
+    derivative(t, q, v) -> y' : what `rhs` gives at the y of a consistent (q, v), without
+        solving for the state; re-expresses a multistep history after a restart
+        (NotImplementedError: the history is not carried over)
+    resume(t, q, v) -> y : the state of (q, v) in the present layout (after a bridge)
+    project_now : None, or (t, y) -> projected y or None, for an integrator that can project
+        inside its step (Adams: P E C, project, E)
+
+    Set by the run, read by the formulation
+    ---------------------------------------
+    monitor : the run's `SingularityMonitor`, before `initial_state`
+    last_step : the size of the step just accepted, before `after_step`
+
+    Set by the formulation, read by the run
+    ---------------------------------------
+    layout_changed, shifted : see `after_step`
+    step_limit : the largest next step it can take safely, or None
+    bridge : a `PassageBridge` where it can cross singular passages in one step, else None;
+        `bridging` says whether the run may use it at the present step
+    failure : what went wrong last, for the message of a failed run
+    switches : list of `Switch`, its changes of formulation
+    sign_changes : steps (t_a, t_b) across which its partition's det(Φ_q D) changed sign
+    """
     name = ""
     default_integrator = "DOP853"
     options: dict = {}
-    monitor = None        # the manager's SingularityMonitor, set before initial_state
-    last_step = 0.0       # size of the step just accepted, set before after_step
-    failure = ""          # what went wrong last, for the manager's failure message
-    layout_changed = False  # set by after_step when its correction changes the coordinates
-    shifted = False         # set by after_step when its correction is a constant offset
-    step_limit = None       # largest next step the formulation can take safely (None: any)
-    bridge = None           # a PassageBridge when the formulation can cross passages by one
-    bridging = False        # whether the manager may use it at the present step
-    # Whether it integrates independent coordinates (partitioning): a mechanism with no
-    # degree of freedom has none, and the manager runs it by the projection method instead.
     needs_freedom = False
-    # Whether it resolves singular passages (follows the branch through them); where it
-    # does not, a run that meets one says its motion may have left the branch there.
     resolves_passages = False
+    monitor = None
+    last_step = 0.0
+    failure = ""
+    layout_changed = False
+    shifted = False
+    step_limit = None
+    bridge = None
+    bridging = False
+    project_now = None
 
     def derivative(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """y' in the present layout at a consistent full state (q, v): what `rhs` gives at
@@ -64,7 +117,6 @@ class Formulation:
         self.rtol, self.atol = rtol, atol
         for key, value in check_all(self.options, options, f"method {self.name!r}").items():
             setattr(self, key, value)
-        self.singular_passages: list = []
         self.switches: list = []
         # Steps (t_a, t_b) across which the partition's det(Φ_q D) changed sign: the
         # motion crossed a singular configuration or left its assembly branch there.

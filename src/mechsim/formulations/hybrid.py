@@ -85,8 +85,13 @@ class Hybrid(Formulation):
         return self.active.derivative(t, q, v)
 
     def project_now(self, t, y):
-        project = getattr(self.active, "project_now", None)
+        project = self.active.project_now
         return None if project is None else project(t, y)
+
+    @property
+    def failure(self) -> str:
+        """What went wrong last in the formulation running now (or in the other one)."""
+        return self.active.failure or self.lu.failure or self.proj.failure
 
     def _lu_ready(self, q, t) -> bool:
         """Would LU partitioning be well conditioned here? cond(Φ_u) of the set its pivoting

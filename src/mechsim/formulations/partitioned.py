@@ -274,6 +274,9 @@ class MatrixBasis(CoordinateBasis):
 class Partitioned(Formulation):
     name = "lu"
     needs_freedom = True
+    # Whether its basis follows Φ_q wherever it is chosen (tangent coordinates): a
+    # re-partition then always changes the coordinates, where a pivoting keeps its set.
+    moving_basis = False
     default_integrator = "DOP853"    # fastest measured; "adams" (the paper's PECE) on request
     options = {"cond_max": Option.real(1e4, low=1.0),
                "newton_tol": Option.positive(None, optional=True),
@@ -635,7 +638,7 @@ class Partitioned(Formulation):
         if n_fresh >= 2 or condition > self._repartition_at:
             before = self.independent
             basis = self.choose(J)
-            if self.name == "svd" or self.independent != before:
+            if self.moving_basis or self.independent != before:
                 self.layout_changed = True
                 return self.partition(t, q, v, basis)
             # The pivoting keeps this set: it is as good as any, so keep it until its
@@ -679,6 +682,7 @@ class QRPartitioned(Partitioned):
 
 class SVDPartitioned(Partitioned):
     name = "svd"
+    moving_basis = True
 
     def choose(self, J, rank=None):
         r = _numerical_rank(J) if rank is None else rank

@@ -99,6 +99,12 @@ def shift_in_place(solver, delta) -> bool:
     return False
 
 
+def bound_read_at_start(solver_cls) -> bool:
+    """Whether the integrator reads `max_step` only when it starts (LSODA passes it to
+    ODEPACK once): a new bound then needs a restart."""
+    return issubclass(solver_cls, LSODA)
+
+
 def lsoda_workspace(solver):
     """LSODA's RWORK array (ODEPACK's documented layout), or None."""
     ode = getattr(solver, "_lsoda_solver", None)

@@ -22,6 +22,7 @@ class Trapezoidal(OdeSolver):
     `first_step` (or `h`) is the step; the last step is shortened to land on t_bound. Newton
     converges when the scaled correction ‖Δy / (atol + rtol |y|)‖ < 0.01.
     """
+    fixed_step = True          # its step is given (`h`), not chosen
 
     def __init__(self, fun, t0, y0, t_bound, max_step=np.inf, rtol=1e-6, atol=1e-8,
                  first_step=None, h=None, max_newton=8, vectorized=False, **extraneous):
