@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 
 import mechsim as ms
 from mechsim import bench
-from mechsim.oscillators import CoulombOscillator, LinearOscillator
+from mechsim.shooting.oscillators import CoulombOscillator, LinearOscillator
 
 PAPER = bench.COULOMB                   # ζ = 0.05, ω_n = 100, δ_st = 0.1, ω = 100
 

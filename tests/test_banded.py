@@ -124,18 +124,19 @@ def test_lu_partitioning_factors_a_long_chains_dependent_block_sparse(ten_window
     """Φ_q D of the ten-window chain (62 dependent coordinates) is factored by SuperLU:
     the same solution as the dense solve, and a condition estimate that bounds the exact
     1-norm condition number from below within a factor of 3."""
-    from mechsim.formulations.partitioned import Partitioned, _SparseBlock, _condition
+    from mechsim.formulations.basis import SparseBlock, condition_number
+    from mechsim.formulations.partitioned import Partitioned
 
     mech = ms.examples.double_four_bar(10)
     q = mech.simulate(t_end=0.2, method="lu").q[-1]
     J = ten_window.phi_q(q, 0.2)
     basis = Partitioned(ten_window, 1e-8, 1e-10).choose(J)
     block = basis.block(J)
-    assert isinstance(block, _SparseBlock) and basis.r == J.shape[0] == 62
+    assert isinstance(block, SparseBlock) and basis.r == J.shape[0] == 62
     JD = basis.JD(J)
     b = np.linspace(-1.0, 1.0, basis.r)
     np.testing.assert_allclose(block.solve(b), np.linalg.solve(JD, b), rtol=1e-10, atol=1e-12)
-    exact = _condition(JD)
+    exact = condition_number(JD)
     np.random.seed(7)
     assert exact / 3 <= block.condition() <= exact * (1 + 1e-9)
     # The estimate takes nothing from numpy's global random generator (runs stay

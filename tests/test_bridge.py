@@ -128,11 +128,9 @@ def test_a_noise_limited_bridge_takes_its_best_declined_attempt():
     run = dict(t_end=2.0, method="projection", rtol=1e-9, atol=1e-11, max_step=0.01,
                output_step=0.002)
     model = mech.simulate(t_end=1e-3).problem.model
-    model._ENGINE = None
-    try:
+    from mechsim.codegen import engine
+    with engine.python_path(model):
         res = mech.simulate(**run)
-    finally:
-        del model._ENGINE
     assert res.status == "success"
     assert [p.bridged for p in res.singular_passages] == [True, True, True]
     assert res.stats["bridges"] == 3 and res.stats["bridges_over_tolerance"] >= 1

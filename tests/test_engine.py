@@ -26,7 +26,7 @@ def _pair(result, rtol=1e-9):
         f = Partitioned(prob, rtol, 1e-2 * rtol)
         y = f.initial_state(t, q, v)
         if not compiled:
-            f._engine = None
+            f.engine = None
         f.after_step(t, y)
         pair.append(f)
     return pair, t, y
@@ -54,7 +54,7 @@ def test_compiled_evaluation_agrees_with_the_python_path(build, rng):
     mech = build()
     res = mech.simulate(t_end=0.3, method="lu", rtol=1e-9, atol=1e-11)
     (fast, slow), t, y = _pair(res)
-    assert fast._engine is not None and fast._engine.ready and slow._engine is None
+    assert fast.engine is not None and fast.engine.ready and slow.engine is None
     ts, ys = [], []
     for _ in range(20):
         tk = t + 2e-3 * rng.random()
@@ -81,12 +81,9 @@ def test_runs_with_and_without_the_engine_agree():
                integrator="adams")
     fast = mech.simulate(**run)
     model = fast.problem.model
-    assert model._ENGINE is not None
-    try:
-        model._ENGINE = None                      # as without a compiler
+    assert engine.library(model) is not None
+    with engine.python_path(model):               # as without a compiler
         slow = mech.simulate(**run)
-    finally:
-        del model._ENGINE
     assert fast.status == slow.status == "success"
     assert fast.stats["partitions"] == slow.stats["partitions"]
     assert abs(fast.stats["steps"] - slow.stats["steps"]) <= 1
@@ -100,11 +97,11 @@ def test_the_engine_applies_only_where_its_assumptions_hold(tmp_path, monkeypatc
     flexible = ms.examples.flexible_four_bar()
     res = flexible.simulate(t_end=0.01, method="lu")
     (f, _), _, _ = _pair(res, 1e-6)
-    assert f._engine is None
+    assert f.engine is None
     chain = ms.examples.double_four_bar(10)
     res = chain.simulate(t_end=0.01, method="lu")
     (f, _), _, _ = _pair(res, 1e-6)
-    assert f._engine is None
+    assert f.engine is None
     monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
     cache.clear_memory_cache()
@@ -140,8 +137,8 @@ def test_compiled_projection_accelerations_agree_with_the_python_path():
     near = simulate(prob, res.q[k], res.v[k], t_start=res.t[k], t_end=res.t[k] + 4e-3,
                     output_step=1e-6, **run)
     fast, slow = Projection(prob, 1e-9, 1e-11), Projection(prob, 1e-9, 1e-11)
-    slow._compiled = None
-    assert fast._compiled is not None
+    slow.engine = None
+    assert fast.engine is not None
     min_rcond = max(100, prob.m) * fast.rcond ** 2
     monitor = SingularityMonitor(prob)
     counts = {"cholesky": 0, "svd": 0, "band": 0}
@@ -153,9 +150,9 @@ def test_compiled_projection_accelerations_agree_with_the_python_path():
             b = slow.accelerations(t, q, v, far=False)
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-9 * np.abs(b).max())
             Q = prob.forces(t, q, v)
-            if fast._compiled.accelerations(t, q, v, Q, min_rcond) is not None:
+            if fast.engine.accelerations(t, q, v, Q, min_rcond) is not None:
                 counts["cholesky"] += 1
-            elif fast._compiled.accelerations(t, q, v, Q, min_rcond, fast.rcond) is not None:
+            elif fast.engine.accelerations(t, q, v, Q, min_rcond, fast.rcond) is not None:
                 counts["svd"] += 1
                 assert monitor.measure(q, t)[0] > fast.rcond
             else:
@@ -178,7 +175,7 @@ def test_compiled_state_projection_agrees_with_the_python_path(rng):
                         output_step=1e-3)
     prob = res.problem
     proj = Projection(prob, 1e-9, 1e-11)
-    eng = proj._compiled
+    eng = proj.engine
     assert eng is not None
     min_rcond = max(100, prob.m) * proj.rcond ** 2
     taken = declined = 0
@@ -220,8 +217,8 @@ def test_compiled_singularity_measure_agrees_with_the_python_path():
                         output_step=1e-3)
     prob = res.problem
     fast, slow = SingularityMonitor(prob), SingularityMonitor(prob)
-    slow._engine = None
-    assert fast._engine is not None
+    slow.engine = None
+    assert fast.engine is not None
     rate_scale = 0.0
     pairs = []
     for k in range(0, len(res.t), 5):
@@ -252,12 +249,12 @@ def test_compiled_lu_condition_agrees_with_the_python_path():
                         output_step=1e-3)
     prob = res.problem
     hybrid = Hybrid(prob, 1e-8, 1e-10)
-    assert hybrid._compiled is not None
+    assert hybrid.engine is not None
     conds = []
     for k in range(0, len(res.t), 4):
         t, q = res.t[k], res.q[k]
         J = prob.phi_q(q, t)
         slow = hybrid.lu.choose(J, prob.m).block(J).condition()
-        assert hybrid._compiled.lu_condition(t, q) == pytest.approx(slow, rel=1e-9)
+        assert hybrid.engine.lu_condition(t, q) == pytest.approx(slow, rel=1e-9)
         conds.append(slow)
     assert max(conds) >= 1e3 and min(conds) < 100

@@ -9,7 +9,7 @@ import pytest
 
 import mechsim as ms
 from mechsim.model import ModelError
-from mechsim.problem import frame_point
+from mechsim.kinematics import frame_point
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "mechanisms"
@@ -125,17 +125,18 @@ def test_flexible_four_bar_scene_passes_both_singular_configurations():
     assert res.energy.strain.max() > 0.01                 # ~0.05 J of ~22 J
     # Passages near the rigid parallelogram's crossings at 0.173 and 0.955 s (the elastic
     # coupler lets the crank lag a little), each entered and left by a switch.
-    mins = [p.t_min for p in res.singular_passages]
-    assert len(mins) == 2
-    assert mins[0] == pytest.approx(0.173, abs=0.01)
-    assert mins[1] == pytest.approx(0.955, abs=0.02)
     assert [(s.from_method, s.to_method) for s in res.switches] == \
         [("lu", "projection"), ("projection", "lu")] * 2
     # Crank angle against the parallelogram branch of the rigid mechanism with the same
-    # coupler mass: within the elastic lag, no branch jump.
+    # coupler mass: within the elastic lag (2.0e-3 rad by 1.2 s, grown through the two
+    # passages), no branch jump; the passages within 2e-3 s of the rigid one's (3e-5 s and
+    # 6e-4 s apart).
     rigid = ms.examples.flexible_four_bar(rigid=True).simulate(
         1.2, rtol=1e-9, atol=1e-11, output_step=0.001)
-    assert np.max(np.abs(res.coordinate("crank.angle") - rigid.coordinate("crank.angle"))) < 0.01
+    assert np.max(np.abs(res.coordinate("crank.angle") - rigid.coordinate("crank.angle"))) < 4e-3
+    mins = [p.t_min for p in res.singular_passages]
+    assert len(mins) == 2
+    np.testing.assert_allclose(mins, [p.t_min for p in rigid.singular_passages], atol=2e-3)
     # Seed 000's average-velocity rule at a fixed step 10× the seed's 5e-4 s (the first mode
     # gets 12 steps per period) passes both singular configurations, halving its step where
     # Newton needs it, and stays close to the adaptive hybrid run (measured: crank 2.0e-4

@@ -18,10 +18,11 @@ from .model import (AssemblyError, Body, LoadError, DofReport, Driver, FlexibleB
 __version__ = "0.1.0"
 
 _LAZY_MODULES = {"examples", "scene", "solver", "codegen", "formulations", "integrators",
-                 "results", "analysis", "linear", "bench", "oscillators", "shooting"}
+                 "results", "linear", "bench", "shooting"}
 _LAZY_NAMES = {"SimulationResult": "results", "load_result": "results",
                "load_scene": "scene", "LinearSystem": "linear"}
-_ALIASES = {"rotor": "linear.rotor"}
+_ALIASES = {"rotor": "linear.rotor", "analysis": "linear.analysis",
+            "oscillators": "shooting.oscillators"}
 
 
 def __getattr__(name):

@@ -433,7 +433,7 @@ def shooting_run(cases=COULOMB_CASES, accuracies=DEFAULT_ACCURACIES, repeat=5,
     import time
 
     from . import shooting
-    from .oscillators import CoulombOscillator
+    from .shooting.oscillators import CoulombOscillator
     if int(repeat) < 1:
         raise ValueError(f"`repeat` must be a positive number of runs, got {repeat!r}")
     refs = {}

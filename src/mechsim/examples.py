@@ -68,7 +68,7 @@ def double_four_bar(n: int = 2, length: float = 1.0, mass: float = 1.0,
     """IFToMM benchmark A02 (N four-bars in a row): N+1 vertical cranks at x = 0, L, …, NL and
     N horizontal couplers, all uniform rods of `mass`; cranks turn at `crank_speed` rad/s
     (−1: tips moving at +1 m/s). On the parallelogram branch every crank has the same angle
-    θ with M_eff θ̈ = −K cos θ (see `double_four_bar_exact`)."""
+    θ with M_eff θ̈ = −K cos θ (see `parallelogram_exact`)."""
     if n < 1:
         raise ValueError(f"`n` must be at least 1, got {n}")
     mech = Mechanism(f"{n}-window four-bar" if n != 2 else "double four-bar", gravity=gravity)

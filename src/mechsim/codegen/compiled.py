@@ -4,8 +4,8 @@ A model with many coordinates (`printer.C_MIN_COORDINATES`) carries, besides its
 functions, their C source (`C_SOURCE`, the same common subexpressions) and signatures
 (`C_SIGNATURES`). On loading, the C source is compiled with the system's C compiler into a
 shared library next to the cached module (once; atomically, like the module) and the
-functions are replaced by ctypes calls into it: on the 40-window chain `dynamics_terms`
-costs 22 µs so, against 134 µs in Python. The Python functions stay available in
+functions are replaced by ctypes calls into it, several times faster on large models. The
+Python functions stay available in
 `PYTHON_KERNELS`. Smaller models carry C twins of Φ, Φ_q, Φ_t and γ only, with
 `C_REPLACE = False`: a foreign call would cost them as much as the Python kernel, and the
 twins serve inside the compiled evaluations of `mechsim.codegen.engine` instead.

@@ -2,13 +2,11 @@
 
 An evaluation of "lu" or "qr" on a small rigid mechanism is about twenty small numpy and
 LAPACK calls (the chord Newton on the dependent coordinates, Φ_q, the velocity solve, γ
-and the Schur complement of the accelerations), each costing a few µs of Python call
-overhead for a few hundred floating-point operations: about 100 µs an evaluation on the
-double four-bar, three times the projection method's. Here the same steps run in one C
-function, compiled together with the model's C twins of Φ, Φ_q, Φ_t and γ (so no call
-between them crosses into Python), with LAPACK's dgesv and dposv taken from scipy's own
-LAPACK (the function pointers `scipy.linalg.cython_lapack` exports). Python keeps the
-forces, which may be any user code, between the state and the accelerations.
+and the reduced accelerations), each costing more in Python's call overhead than in
+arithmetic. Here the same steps run in one C function (`engine.c`), compiled together with
+the model's C twins of Φ, Φ_q, Φ_t and γ, with LAPACK taken from scipy's own (the function
+pointers `scipy.linalg.cython_lapack` exports). Python keeps the forces, which may be any
+user code, between the state and the accelerations.
 
 The same library serves the projection method and the solver manager:
 
@@ -21,9 +19,8 @@ The same library serves the projection method and the solver manager:
 - the hybrid's test for a return to LU, cond₁ of the block LU pivoting picks
   (`lu_condition`).
 
-The compiled path takes only the plain case: a chord Newton converging by the same rule as
-`Partitioned._newton` (residual max|Φ| ≤ newton_tol, each iteration at least four times
-smaller), a nonsingular square Φ_q D and a positive definite Schur complement; for the
+The compiled path takes only the plain case: a chord Newton converging by the same rules as
+the Python path's (`mechsim.newton`, whose constants it is handed), a nonsingular square Φ_q D and a positive definite Schur complement; for the
 projection method, a state outside the truncation band. Anything else (a stalled chord
 that needs fresh Jacobians, redundant constraints, Newton failing altogether, a singular
 value under the cut) returns a status and the Python path takes the evaluation from the
@@ -31,496 +28,38 @@ start, so the two agree on every decision and differ only in the rounding of the
 
 The library is built beside the cached model module on first use (`library`); without a
 compiler, with `MECHSIM_NO_COMPILE` set, or for a model kept in memory only, there is none
-and the formulations run in Python as before.
+and the formulations take the Python path. The structures both sides share, and the sizes
+of the buffers they point to, are described once in `layout`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
+import functools
 import hashlib
+import weakref
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
+from ..newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
 from .compiled import shared_library
+from .layout import PARTITION, PROJECTION, Dims
 
-SOURCE = r"""
-#include <math.h>
-#include <stdint.h>
-#include <string.h>
-
-typedef void (*mechsim_gesv_t)(int *, int *, double *, int *, int *, double *, int *, int *);
-typedef void (*mechsim_posv_t)(char *, int *, int *, double *, int *, double *, int *, int *);
-typedef void (*mechsim_potrf_t)(char *, int *, double *, int *, int *);
-typedef void (*mechsim_pocon_t)(char *, int *, double *, int *, double *, double *, double *,
-                                int *, int *);
-typedef void (*mechsim_potrs_t)(char *, int *, int *, double *, int *, double *, int *, int *);
-typedef void (*mechsim_getrf_t)(int *, int *, double *, int *, int *, int *);
-typedef void (*mechsim_gesdd_t)(char *, int *, int *, double *, int *, double *, double *, int *,
-                                double *, int *, double *, int *, int *, int *);
-static mechsim_gesv_t mechsim_dgesv = 0;
-static mechsim_posv_t mechsim_dposv = 0;
-static mechsim_potrf_t mechsim_dpotrf = 0;
-static mechsim_pocon_t mechsim_dpocon = 0;
-static mechsim_potrs_t mechsim_dpotrs = 0;
-static mechsim_gesdd_t mechsim_dgesdd = 0;
-static mechsim_getrf_t mechsim_dgetrf = 0;
-
-void mechsim_engine_init(void *gesv, void *posv, void *potrf, void *pocon, void *potrs,
-                         void *gesdd, void *getrf) {
-  mechsim_dgesv = (mechsim_gesv_t)gesv;
-  mechsim_dposv = (mechsim_posv_t)posv;
-  mechsim_dpotrf = (mechsim_potrf_t)potrf;
-  mechsim_dpocon = (mechsim_pocon_t)pocon;
-  mechsim_dpotrs = (mechsim_potrs_t)potrs;
-  mechsim_dgesdd = (mechsim_gesdd_t)gesdd;
-  mechsim_dgetrf = (mechsim_getrf_t)getrf;
-}
-
-/* The partition and the last accepted step; buffers owned by the Python side. */
-typedef struct {
-  int64_t n, m, f, max_newton, rheonomic;
-  double newton_tol, t_last;
-  const double *p, *q_ref, *P, *C, *winv;  /* P: r x (3 + f) predictor, C: (Phi_q D)^-1 */
-  const int64_t *ind, *dep;
-  double *y, *q, *v, *J, *Q, *out, *work;
-  int *ipiv;
-} mechsim_lu;
-
-/* Positions by the chord Newton from the prediction, Phi_q there and the velocities.
-   0: done; 1: Newton failed or slowed down (Python decides); 2: Phi_q D singular. */
-static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double *v,
-                    double *J) {
-  const int64_t n = c->n, m = c->m, f = c->f, r = n - f, cols = 3 + f;
-  const double *z = y, *zd = y + f;
-  double *w = c->work, *phi = w + r, *A = phi + m, *b = A + r * r, *phit = b + r;
-  const double d = t - c->t_last;
-  for (int64_t i = 0; i < r; i++) {
-    const double *Pi = c->P + i * cols;
-    double s = Pi[0] + Pi[1] * d + Pi[2] * (d * d);
-    for (int64_t k = 0; k < f; k++) s += Pi[3 + k] * z[k];
-    w[i] = s;
-  }
-  double err_prev = INFINITY;
-  for (int64_t it = 0;; it++) {
-    memcpy(q, c->q_ref, n * sizeof(double));
-    for (int64_t k = 0; k < f; k++) q[c->ind[k]] += z[k];
-    for (int64_t i = 0; i < r; i++) q[c->dep[i]] += w[i];
-    mechsim_phi(q, t, c->p, phi);
-    double err = 0.0;
-    for (int64_t i = 0; i < m; i++) {
-      const double a = fabs(phi[i]);
-      if (isnan(a)) return 1;
-      if (a > err) err = a;
-    }
-    if (err <= c->newton_tol) break;
-    if (it == c->max_newton || !isfinite(err) || err > 0.25 * err_prev) return 1;
-    err_prev = err;
-    for (int64_t i = 0; i < r; i++) {
-      const double *Ci = c->C + i * m;
-      double s = 0.0;
-      for (int64_t j = 0; j < m; j++) s += Ci[j] * phi[j];
-      w[i] -= s;
-    }
-  }
-  memset(J, 0, m * n * sizeof(double));
-  mechsim_phi_q(q, t, c->p, J);
-  memset(phit, 0, m * sizeof(double));
-  if (c->rheonomic) mechsim_phi_t(q, t, c->p, phit);
-  for (int64_t i = 0; i < r; i++) {
-    const double *Ji = J + i * n;
-    double s = 0.0;
-    for (int64_t k = 0; k < f; k++) s += Ji[c->ind[k]] * zd[k];
-    b[i] = -s - phit[i];
-    for (int64_t j = 0; j < r; j++) A[i + j * r] = Ji[c->dep[j]];   /* column-major */
-  }
-  int N = (int)r, nrhs = 1, info = 0;
-  mechsim_dgesv(&N, &nrhs, A, &N, c->ipiv, b, &N, &info);
-  if (info != 0) return 2;
-  for (int64_t k = 0; k < f; k++) v[c->ind[k]] = zd[k];
-  for (int64_t i = 0; i < r; i++) v[c->dep[i]] = b[i];
-  return 0;
-}
-
-int mechsim_lu_state(mechsim_lu *c, double t) {
-  return lu_state(c, t, c->y, c->q, c->v, c->J);
-}
-
-/* k output samples (rows of Y) into the rows of Qo and Vo; the first failure's status. */
-int mechsim_lu_states(mechsim_lu *c, int64_t k, const double *ts, const double *Y,
-                      double *Qo, double *Vo, double *Jwork) {
-  const int64_t n = c->n, f = c->f;
-  for (int64_t s = 0; s < k; s++) {
-    const int status = lu_state(c, ts[s], Y + s * 2 * f, Qo + s * n, Vo + s * n, Jwork);
-    if (status) return status;
-  }
-  return 0;
-}
-
-/* S = J W J^T (both triangles, column-major); returns max S_ii. */
-static double complement(int64_t n, int64_t m, const double *J, const double *winv,
-                         double *S) {
-  double diag = 0.0;
-  for (int64_t i = 0; i < m; i++) {
-    const double *Ji = J + i * n;
-    for (int64_t k = 0; k <= i; k++) {
-      const double *Jk = J + k * n;
-      double e = 0.0;
-      for (int64_t j = 0; j < n; j++) e += Ji[j] * winv[j] * Jk[j];
-      S[i + k * m] = e;
-      S[k + i * m] = e;
-    }
-    if (S[i + i * m] > diag) diag = S[i + i * m];
-  }
-  return diag;
-}
-
-/* The Schur complement's terms: wq = W Q, lam = J wq - g (the right-hand side) and
-   S = J W J^T; returns max S_ii. */
-static double schur_terms(int64_t n, int64_t m, const double *J, const double *winv,
-                          const double *Q, const double *g, double *wq, double *lam,
-                          double *S) {
-  for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * Q[j];
-  for (int64_t i = 0; i < m; i++) {
-    const double *Ji = J + i * n;
-    double s = 0.0;
-    for (int64_t j = 0; j < n; j++) s += Ji[j] * wq[j];
-    lam[i] = s - g[i];
-  }
-  return complement(n, m, J, winv, S);
-}
-
-/* [zd; zdd] at the state mechsim_lu_state left in the buffers, with the forces c->Q, by
-   the partition's reduced equations (as `Partitioned._qdd`): with A = J D, X = A^-1 J B
-   and s = A^-1 gamma (one LU of A with f + 1 right-hand sides),
-   (M_B + X^T M_D X) zdd = Q_B - X^T (Q_D - M_D s). 1: A or the reduced mass is singular
-   (Python decides). */
-int mechsim_lu_accelerations(mechsim_lu *c, double t) {
-  const int64_t n = c->n, m = c->m, f = c->f, r = n - f;
-  const double *J = c->J, *winv = c->winv, *Q = c->Q;
-  double *g = c->work + 2 * r + 2 * m + r * r, *A = g + m, *X = A + r * r, *Mh = X + r * (f + 1);
-  double *Qh = Mh + f * f, *s = X + r * f;
-  memset(g, 0, m * sizeof(double));
-  mechsim_gamma(c->q, c->v, t, c->p, g);
-  for (int64_t i = 0; i < r; i++) {                      /* column-major A and [J B, gamma] */
-    const double *Ji = J + i * n;
-    for (int64_t j = 0; j < r; j++) A[i + j * r] = Ji[c->dep[j]];
-    for (int64_t k = 0; k < f; k++) X[i + k * r] = Ji[c->ind[k]];
-    s[i] = g[i];
-  }
-  int R = (int)r, nrhs = (int)(f + 1), info = 0;
-  mechsim_dgesv(&R, &nrhs, A, &R, c->ipiv, X, &R, &info);
-  if (info != 0) return 1;
-  for (int64_t k = 0; k < f; k++) {
-    const double *Xk = X + k * r;
-    double qk = Q[c->ind[k]];
-    for (int64_t i = 0; i < r; i++) {
-      const int64_t d = c->dep[i];
-      qk -= Xk[i] * (Q[d] - s[i] / winv[d]);
-    }
-    Qh[k] = qk;
-    for (int64_t l = 0; l <= k; l++) {
-      const double *Xl = X + l * r;
-      double e = l == k ? 1.0 / winv[c->ind[k]] : 0.0;
-      for (int64_t i = 0; i < r; i++) e += Xk[i] * Xl[i] / winv[c->dep[i]];
-      Mh[k + l * f] = e;
-      Mh[l + k * f] = e;
-    }
-  }
-  char uplo = 'U';
-  int F = (int)f, one = 1;
-  if (f > 0) {
-    mechsim_dposv(&uplo, &F, &one, Mh, &F, Qh, &F, &info);
-    if (info != 0) return 1;
-  }
-  memcpy(c->out, c->y + f, f * sizeof(double));
-  memcpy(c->out + f, Qh, f * sizeof(double));
-  return 0;
-}
-
-/* The projection method's accelerations where J W J^T is well conditioned (there they
-   are the exact constrained accelerations, as `Projection.accelerations` computes them by
-   Cholesky): qdd = W Q - W J^T lam, (J W J^T) lam = J W Q - gamma, with J = Phi_q and
-   gamma from the C twins, into c->out as [v; qdd]. The Cholesky factor serves unless it
-   fails or, with min_rcond >= 0, LAPACK's estimate of 1/cond_1 of J W J^T (norm bounded
-   by m max S_ii, as `dense.cholesky_conditioned`) is not above min_rcond; then, with
-   cut > 0, the SVD decides (`svd_accelerations`), else 1. */
-typedef struct {
-  int64_t n, m, count;
-  const double *p, *winv;
-  double *q, *v, *Q, *out, *work;
-  int *iwork;
-  double *svd_work;
-  int64_t lwork;
-} mechsim_projection;
-
-/* The Cholesky factor of S = J W J^T in place (upper triangle); 1 where it fails or, with
-   min_rcond >= 0, LAPACK's estimate of 1/cond_1 (the norm bounded by m max S_ii, as
-   `dense.cholesky_conditioned`) is not above min_rcond. */
-static int cholesky(mechsim_projection *c, double *S, double diag, double *cw,
-                    double min_rcond) {
-  char uplo = 'U';
-  int M = (int)c->m, info = 0;
-  mechsim_dpotrf(&uplo, &M, S, &M, &info);
-  if (info != 0) return 1;
-  if (min_rcond >= 0.0) {
-    double anorm = (double)c->m * diag, rcond = 0.0;
-    mechsim_dpocon(&uplo, &M, S, &M, &anorm, &rcond, cw, c->iwork, &info);
-    if (info != 0 || !(rcond > min_rcond)) return 1;
-  }
-  return 0;
-}
-
-/* A = J W^(1/2) (row-major m x n; A may be J). */
-static void scale_columns(const mechsim_projection *c, const double *J, double *A) {
-  for (int64_t i = 0; i < c->m; i++)
-    for (int64_t j = 0; j < c->n; j++) A[i * c->n + j] = J[i * c->n + j] * sqrt(c->winv[j]);
-}
-
-/* The thin SVD of A = J~ (row-major m x n, m <= n; destroyed) by LAPACK's dgesdd: the
-   singular values sig (largest first), the right singular vectors of J~ as the columns
-   of U (n x m, column-major) and the left ones as the rows of VT (m x m, column-major):
-   row-major J~ is J~^T column-major, and J~^T = U S VT. 1 where dgesdd fails. */
-static int scaled_svd(mechsim_projection *c, double *A, double *sig, double *U, double *VT) {
-  char jobz = 'S';
-  int N = (int)c->n, M = (int)c->m, LW = (int)c->lwork, info = 0;
-  mechsim_dgesdd(&jobz, &N, &M, A, &N, sig, U, &N, VT, &M, c->svd_work, &LW, c->iwork,
-                 &info);
-  return info != 0;
-}
-
-/* The projection method's accelerations by the SVD of J~ = J W^(1/2) (m <= n), as
-   `Projection.accelerations` computes them where truncation drops nothing: every
-   singular value above cut * sigma_max. x = W^(1/2) Q, x -= V V^T x - V S^-1 U^T g,
-   qdd = W^(1/2) x into c->out as [v; qdd]. 1 where some singular value is at or below
-   the cut (the band: Python truncates and interpolates) or the SVD fails. */
-static int svd_accelerations(mechsim_projection *c, const double *J, const double *g,
-                             double cut, double *buf) {
-  const int64_t n = c->n, m = c->m;
-  double *A = buf, *sig = A + m * n, *U = sig + m, *VT = U + n * m, *x = VT + m * m;
-  double *y = x + n;
-  if (m > n) return 1;
-  scale_columns(c, J, A);
-  if (scaled_svd(c, A, sig, U, VT) || !(sig[0] > 0.0) || !(sig[m - 1] > cut * sig[0]))
-    return 1;
-  for (int64_t j = 0; j < n; j++) x[j] = sqrt(c->winv[j]) * c->Q[j];
-  for (int64_t k = 0; k < m; k++) {            /* y_k = V_k^T x - (U^T g)_k / sigma_k */
-    double vx = 0.0, ug = 0.0;
-    for (int64_t j = 0; j < n; j++) vx += U[j + k * n] * x[j];
-    for (int64_t i = 0; i < m; i++) ug += VT[k + i * m] * g[i];
-    y[k] = vx - ug / sig[k];
-  }
-  memcpy(c->out, c->v, n * sizeof(double));
-  for (int64_t j = 0; j < n; j++) {
-    double s = 0.0;
-    for (int64_t k = 0; k < m; k++) s += U[j + k * n] * y[k];
-    c->out[n + j] = sqrt(c->winv[j]) * (x[j] - s);
-  }
-  return 0;
-}
-
-int mechsim_projection_accelerations(mechsim_projection *c, double t, double min_rcond,
-                                     double cut) {
-  const int64_t n = c->n, m = c->m;
-  const double *winv = c->winv;
-  double *J = c->work, *g = J + m * n, *wq = g + m, *lam = wq + n, *S = lam + m;
-  double *cw = S + m * m;
-  memset(J, 0, m * n * sizeof(double));
-  mechsim_phi_q(c->q, t, c->p, J);
-  memset(g, 0, m * sizeof(double));
-  mechsim_gamma(c->q, c->v, t, c->p, g);
-  const double diag = schur_terms(n, m, J, winv, c->Q, g, wq, lam, S);
-  char uplo = 'U';
-  int M = (int)m, nrhs = 1, info = 0;
-  if (cholesky(c, S, diag, cw, min_rcond))
-    return cut > 0.0 ? svd_accelerations(c, J, g, cut, cw + 3 * m) : 1;
-  mechsim_dpotrs(&uplo, &M, &nrhs, S, &M, lam, &M, &info);
-  if (info != 0) return 1;
-  memcpy(c->out, c->v, n * sizeof(double));
-  for (int64_t j = 0; j < n; j++) {
-    double s = 0.0;
-    for (int64_t i = 0; i < m; i++) s += J[i * n + j] * lam[i];
-    c->out[n + j] = wq[j] - winv[j] * s;
-  }
-  return 0;
-}
-
-static double max_abs(int64_t m, const double *x) {
-  double e = 0.0;
-  for (int64_t i = 0; i < m; i++) {
-    const double a = fabs(x[i]);
-    if (isnan(a)) return NAN;
-    if (a > e) e = a;
-  }
-  return e;
-}
-
-/* x -= W J^T (S^-1 r), S the Cholesky factor in place; r is overwritten. */
-static int correct(mechsim_projection *c, const double *J, const double *S, double *r,
-                   double *x) {
-  const int64_t n = c->n, m = c->m;
-  char uplo = 'U';
-  int M = (int)m, nrhs = 1, info = 0;
-  mechsim_dpotrs(&uplo, &M, &nrhs, (double *)S, &M, r, &M, &info);
-  if (info != 0) return 1;
-  for (int64_t j = 0; j < n; j++) {
-    double s = 0.0;
-    for (int64_t i = 0; i < m; i++) s += J[i * n + j] * r[i];
-    x[j] -= c->winv[j] * s;
-  }
-  return 0;
-}
-
-/* (c->q, c->v) projected in place onto the constraints in the mass metric, as
-   `NumericProblem.project_state`: a chord Newton on Phi with the one Cholesky factor of
-   J W J^T at the given q (stopping at max|Phi| <= tol or where `newton_stalled` says
-   round-off, then `extra` further iterations), and the velocity projection
-   v -= W J^T S^-1 (J v + Phi_t) with J at the new q and the same factor. 0: projected,
-   c->count the Newton iterations; 2: max|Phi| <= skip_tol, left as it is; 1: declined
-   (the factor fails, or with min_rcond >= 0 its condition estimate is not above it; the
-   chord does not converge within max_iter). */
-int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, double tol,
-                          double min_rcond, int64_t extra, int64_t max_iter) {
-  const int64_t n = c->n, m = c->m;
-  double *q = c->q, *v = c->v;
-  double *J = c->work, *phi = J + m * n, *r = phi + m, *S = r + m, *cw = S + m * m;
-  mechsim_phi(q, t, c->p, phi);
-  double err = max_abs(m, phi);
-  if (err <= skip_tol) return 2;
-  memset(J, 0, m * n * sizeof(double));
-  mechsim_phi_q(q, t, c->p, J);
-  const double diag = complement(n, m, J, c->winv, S);
-  if (cholesky(c, S, diag, cw, min_rcond)) return 1;
-  double prev = INFINITY;
-  int64_t count = 0;
-  for (int64_t k = 0;; k++) {
-    if (isnan(err)) return 1;
-    if (err <= tol || (err > 0.5 * prev && err <= 1e3 * tol)) break;
-    if (k == max_iter) return 1;
-    prev = err;
-    memcpy(r, phi, m * sizeof(double));
-    if (correct(c, J, S, r, q)) return 1;
-    count++;
-    mechsim_phi(q, t, c->p, phi);
-    err = max_abs(m, phi);
-  }
-  for (int64_t k = 0; k < extra; k++) {
-    memcpy(r, phi, m * sizeof(double));
-    if (correct(c, J, S, r, q)) return 1;
-    count++;
-    mechsim_phi(q, t, c->p, phi);
-  }
-  memset(J, 0, m * n * sizeof(double));
-  mechsim_phi_q(q, t, c->p, J);        /* S keeps the factor at the given q */
-  memset(r, 0, m * sizeof(double));
-  mechsim_phi_t(q, t, c->p, r);
-  for (int64_t i = 0; i < m; i++) {
-    const double *Ji = J + i * n;
-    double s = 0.0;
-    for (int64_t j = 0; j < n; j++) s += Ji[j] * v[j];
-    r[i] += s;
-  }
-  if (correct(c, J, S, r, v)) return 1;
-  c->count = count;
-  return 0;
-}
-
-/* J~ = Phi_q W^(1/2) at (q, t) into Jt (row-major m x n). */
-static void scaled_jacobian(mechsim_projection *c, const double *q, double t, double *Jt) {
-  memset(Jt, 0, c->m * c->n * sizeof(double));
-  mechsim_phi_q(q, t, c->p, Jt);
-  scale_columns(c, Jt, Jt);
-}
-
-/* The singularity monitor's measurement (`SingularityMonitor._measure`, m <= n): the
-   extreme singular values of J~ = Phi_q W^(1/2) at c->q by LAPACK's dgesdd and, with
-   eps > 0, their derivatives along the motion, u^T dJ~ v with dJ~ from J~ at
-   (q + eps v, t + eps). out: [s_min, s_max, ds_min, ds_max, u_min (m)]; J~ in Jt.
-   1 where the SVD fails. */
-int mechsim_measure(mechsim_projection *c, double t, double eps, double *out, double *Jt) {
-  const int64_t n = c->n, m = c->m;
-  double *A = c->work, *sig = A + m * n, *U = sig + m, *VT = U + n * m, *J1 = VT + m * m;
-  double *q1 = J1 + m * n;
-  scaled_jacobian(c, c->q, t, Jt);
-  memcpy(A, Jt, m * n * sizeof(double));
-  if (scaled_svd(c, A, sig, U, VT)) return 1;
-  const int64_t k = m - 1;
-  out[0] = sig[k];
-  out[1] = sig[0];
-  out[2] = out[3] = 0.0;
-  for (int64_t i = 0; i < m; i++) out[4 + i] = VT[k + i * m];
-  if (eps > 0.0) {
-    for (int64_t j = 0; j < n; j++) q1[j] = c->q[j] + eps * c->v[j];
-    scaled_jacobian(c, q1, t + eps, J1);
-    double dmin = 0.0, dmax = 0.0;
-    for (int64_t i = 0; i < m; i++) {
-      double smin = 0.0, smax = 0.0;
-      for (int64_t j = 0; j < n; j++) {
-        const double d = J1[i * n + j] - Jt[i * n + j];
-        smin += d * U[j + k * n];
-        smax += d * U[j];
-      }
-      dmin += VT[k + i * m] * smin;
-      dmax += VT[i * m] * smax;
-    }
-    out[2] = dmin / eps;
-    out[3] = dmax / eps;
-  }
-  return 0;
-}
-
-/* ||A||_1 ||A^-1||_1 of the block A = Phi_q D that `Partitioned.choose` picks at (c->q, t)
-   for a Phi_q of full row rank (m <= n): the dependent coordinates are the first m of
-   the row permutation of LU with partial pivoting of Phi_q^T. INFINITY where the
-   pivoting or the block is singular. */
-double mechsim_lu_condition(mechsim_projection *c, double t) {
-  const int64_t n = c->n, m = c->m;
-  double *J = c->work, *F = J + m * n, *A = F + m * n, *X = A + m * m;
-  int64_t *perm = (int64_t *)(X + m * m);
-  memset(J, 0, m * n * sizeof(double));
-  mechsim_phi_q(c->q, t, c->p, J);
-  memcpy(F, J, m * n * sizeof(double));
-  /* Row-major J is J^T column-major (n x m), the matrix `choose` factors. */
-  int N = (int)n, M = (int)m, info = 0;
-  mechsim_dgetrf(&N, &M, F, &N, c->iwork, &info);
-  if (info < 0) return INFINITY;
-  for (int64_t j = 0; j < n; j++) perm[j] = j;
-  for (int64_t i = 0; i < m; i++) {
-    const int64_t p = c->iwork[i] - 1, s = perm[i];
-    perm[i] = perm[p];
-    perm[p] = s;
-  }
-  double norm = 0.0, inorm = 0.0;
-  for (int64_t k = 0; k < m; k++) {
-    double col = 0.0;
-    for (int64_t i = 0; i < m; i++) {
-      const double a = J[i * n + perm[k]];
-      A[i + k * m] = a;                       /* column-major */
-      X[i + k * m] = i == k ? 1.0 : 0.0;
-      col += fabs(a);
-    }
-    if (col > norm) norm = col;
-  }
-  mechsim_dgesv(&M, &M, A, &M, c->iwork, X, &M, &info);
-  if (info != 0) return INFINITY;
-  for (int64_t k = 0; k < m; k++) {
-    double col = 0.0;
-    for (int64_t i = 0; i < m; i++) col += fabs(X[i + k * m]);
-    if (col > inorm) inorm = col;
-  }
-  return norm * inorm;
-}
-"""
-
-_HASH = hashlib.sha256(SOURCE.encode()).hexdigest()[:12]
+# The engine's own C (shipped beside this module), compiled after the model's C twins and the
+# structures' typedefs (`layout`).
+_ENGINE_C = "engine.c"
+_HEADERS = "#include <math.h>\n#include <stdint.h>\n#include <string.h>\n\n"
 
 
-class _Context(ctypes.Structure):
-    _fields_ = ([(name, ctypes.c_int64) for name in ("n", "m", "f", "max_newton", "rheonomic")]
-                + [("newton_tol", ctypes.c_double), ("t_last", ctypes.c_double)]
-                + [(name, ctypes.c_void_p) for name in (
-                    "p", "q_ref", "P", "C", "winv", "ind", "dep",
-                    "y", "q", "v", "J", "Q", "out", "work", "ipiv")])
+@functools.cache
+def source() -> str:
+    """The engine's C: headers, the typedefs of `layout.PARTITION` and `layout.PROJECTION`,
+    and `engine.c`."""
+    text = resources.files(__package__).joinpath(_ENGINE_C).read_text(encoding="utf-8")
+    return _HEADERS + PARTITION.typedef() + "\n" + PROJECTION.typedef() + "\n" + text
 
 
 def _lapack(name: str) -> int:
@@ -545,8 +84,10 @@ def for_problem(problem):
 
 
 def library_path(module_path: Path) -> Path:
-    """Where the engine library of the model module at `module_path` is cached."""
-    return module_path.with_name(f"{module_path.stem}.lu-{_HASH}.so")
+    """Where the compiled evaluations of the model module at `module_path` are cached: the
+    model's name with `.evaluations-<digest of the engine's C>.so`."""
+    digest = hashlib.sha256(source().encode()).hexdigest()[:12]
+    return module_path.with_name(f"{module_path.stem}.evaluations-{digest}.so")
 
 
 def why_not(problem) -> str:
@@ -561,19 +102,29 @@ def why_not(problem) -> str:
     return ""
 
 
+# The engine found for each generated module (None: none serves it), for the module's life.
+_LIBRARIES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
 def library(model):
     """The compiled engine for `model` (a generated module), or None where there is none."""
-    lib = getattr(model, "_ENGINE", False)
-    if lib is not False:
-        return lib
-    model._ENGINE = None
-    source, path = getattr(model, "C_SOURCE", None), getattr(model, "__file__", None)
-    if not source or not path:
+    if model in _LIBRARIES:
+        return _LIBRARIES[model]
+    _LIBRARIES[model] = None
+    model_source = getattr(model, "C_SOURCE", None)
+    path = getattr(model, "__file__", None)
+    if not model_source or not path:
         return None
-    lib = shared_library(source + SOURCE, library_path(Path(path)))
+    lib = shared_library(model_source + source(), library_path(Path(path)))
     if lib is None:
         return None
     try:
+        for name, layout in (("mechsim_sizeof_lu", PARTITION),
+                             ("mechsim_sizeof_projection", PROJECTION)):
+            fn = getattr(lib, name)
+            fn.argtypes, fn.restype = [], ctypes.c_int64
+            if fn() != ctypes.sizeof(layout.structure):
+                return None        # the C and ctypes layouts disagree: the Python path serves
         routines = ("dgesv", "dposv", "dpotrf", "dpocon", "dpotrs", "dgesdd", "dgetrf")
         lib.mechsim_engine_init.argtypes = [ctypes.c_void_p] * len(routines)
         lib.mechsim_engine_init.restype = None
@@ -597,8 +148,24 @@ def library(model):
         fn.restype = ctypes.c_int
     except (OSError, AttributeError, KeyError):
         return None
-    model._ENGINE = lib
+    _LIBRARIES[model] = lib
     return lib
+
+
+@contextlib.contextmanager
+def python_path(model):
+    """Within the block, runs of `model` take the Python path, as without a compiler (for
+    comparisons of the two paths)."""
+    missing = object()
+    before = _LIBRARIES.get(model, missing)
+    _LIBRARIES[model] = None
+    try:
+        yield
+    finally:
+        if before is missing:
+            del _LIBRARIES[model]
+        else:
+            _LIBRARIES[model] = before
 
 
 class PartitionedEngine:
@@ -620,14 +187,12 @@ class PartitionedEngine:
         self.y, self.out = np.zeros(2 * f), np.zeros(2 * f)
         self.q, self.v, self.Q = np.zeros(n), np.zeros(n), np.zeros(n)
         self.J, self.J_samples = np.zeros((m, n)), np.zeros((m, n))
-        self.work = np.zeros(2 * r + 2 * m + r * r + m + n + m + m * m + r * r + r * (f + 1)
-                             + f * f + f)
-        self.ipiv = np.zeros(max(r, 1), dtype=np.intc)
-        addr = {name: getattr(self, name).ctypes.data for name in (
-            "p", "q_ref", "P", "C", "winv", "ind", "dep", "y", "q", "v", "J", "Q", "out",
-            "work", "ipiv")}
-        self.ctx = _Context(n=n, m=m, f=f, max_newton=max_newton, rheonomic=int(rheonomic),
-                            newton_tol=newton_tol, t_last=0.0, **addr)
+        self.buffers = PARTITION.buffers(Dims(n, m, f))
+        arrays = {**self.buffers, **{name: getattr(self, name) for name in (
+            "p", "q_ref", "P", "C", "winv", "ind", "dep", "y", "q", "v", "J", "Q", "out")}}
+        self.ctx = PARTITION.make(dict(
+            n=n, m=m, f=f, max_newton=max_newton, rheonomic=int(rheonomic),
+            newton_tol=newton_tol, chord_contraction=CHORD_CONTRACTION, t_last=0.0), arrays)
         self._ptr = ctypes.addressof(self.ctx)
         self._state, self._acc = lib.mechsim_lu_state, lib.mechsim_lu_accelerations
         self._states = lib.mechsim_lu_states
@@ -672,12 +237,6 @@ class PartitionedEngine:
         return Qs, Vs
 
 
-class _ProjectionContext(ctypes.Structure):
-    _fields_ = [(name, ctypes.c_int64) for name in ("n", "m", "count")] + [
-        (name, ctypes.c_void_p) for name in ("p", "winv", "q", "v", "Q", "out", "work", "iwork",
-                                             "svd_work")] + [("lwork", ctypes.c_int64)]
-
-
 class ProjectionEngine:
     """The projection method's accelerations outside the truncation band (`library`): one
     call instead of Φ_q, γ, the mass scaling, the Cholesky factor of J̃J̃ᵀ with its
@@ -691,15 +250,13 @@ class ProjectionEngine:
         self.winv = np.ascontiguousarray(problem.inverse_mass_diagonal, dtype=float)
         self.y, self.Q, self.out = np.zeros(2 * n), np.zeros(n), np.zeros(2 * n)
         self.q, self.v = self.y[:n], self.y[n:]
-        self.work = np.zeros(3 * m * n + 2 * m * m + 8 * m + 2 * n)
-        self.iwork = np.zeros(max(8 * m, 1), dtype=np.intc)
-        k = min(m, n)
-        self.svd_work = np.zeros(3 * k + max(max(m, n), 5 * k * k + 4 * k) + 64)
+        self.buffers = PROJECTION.buffers(Dims(n, m))
         self.measured, self.Jt = np.zeros(4 + m), np.zeros((m, n))
-        self.ctx = _ProjectionContext(n=n, m=m, **{
-            name: getattr(self, name).ctypes.data
-            for name in ("p", "winv", "q", "v", "Q", "out", "work", "iwork", "svd_work")},
-            lwork=self.svd_work.size)
+        arrays = {**self.buffers, "p": self.p, "winv": self.winv, "q": self.q, "v": self.v,
+                  "Q": self.Q, "out": self.out}
+        self.ctx = PROJECTION.make(dict(
+            n=n, m=m, count=0, lwork=self.buffers["svd_work"].size,
+            stall_ratio=STALL_RATIO, stall_span=STALL_SPAN), arrays)
         self.n = n
         self._ptr = ctypes.addressof(self.ctx)
         self._fn = lib.mechsim_projection_accelerations

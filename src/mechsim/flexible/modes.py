@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..linear.rotor import timoshenko_element
+from ..fem import timoshenko_element
 
 BOUNDARIES = ("pinned-pinned", "clamped-free", "free-free")
 

@@ -7,10 +7,10 @@ here, and an unknown name lists the valid ones.
 import difflib
 
 from .base import Formulation
+from .basis import ConstraintSolveError
 from .baumgarte import Baumgarte
 from .hybrid import Hybrid
-from .partitioned import (ConstraintSolveError, Partitioned, QRPartitioned, SSNewmark,
-                          SVDPartitioned)
+from .partitioned import Partitioned, QRPartitioned, SSNewmark, SVDPartitioned
 from .projection import Projection
 
 METHODS: dict[str, type[Formulation]] = {

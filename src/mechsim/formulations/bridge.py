@@ -220,49 +220,21 @@ class PassageBridge:
         """One Adams step from (q_n, v_n) at t_n over t*; `measure(q, t)` gives σ_min/σ_max.
         Its history reaches back no further than `t_floor` (the end of the previous
         passage, or the start of the run): integrated backwards through an earlier passage
-        it ground through that configuration (43 000 evaluations for one history on a
-        fast-turning parallelogram). Returns the `Crossing`, or None: then the approach
-        goes on with a shorter landing distance, or the bridge stands down for this
-        passage."""
+        it would grind through that configuration. Returns the `Crossing`, or None: then
+        the approach goes on with a shorter landing distance, or the bridge stands down
+        for this passage."""
         n = self.problem.n
         H = SPAN * (t_star - t_n)
-        D = 0.5 * H
-        span = t_n - t_floor
-        points = self.order if not span < np.inf else min(self.order, int(span / D) + 1)
-        if points < MIN_HISTORY:
-            return self._decline(np.inf)
-        ts = t_n - D * np.arange(points)
-        q_n, v_n = self._consistent(q_n, v_n, t_n)
-        F = [self._f(t_n, q_n, v_n)]
-        states = self._history(t_n, q_n, v_n, ts[1:])
-        if states is None:
-            self.landing, self.standing_down = None, True
+        start = self._start(t_n, q_n, v_n, 0.5 * H, t_floor)
+        if start is None:
             return None
-        for tk, (q, v) in zip(ts[1:], states):
-            F.append(self._f(tk, q, v))
-        F = np.array(F)
-        y_n = np.concatenate([q_n, v_n])
-        history = [(tk, q, v) for tk, (q, v) in zip(ts[:0:-1], states[::-1])] + [(t_n, q_n, v_n)]
-        for _ in range(6):                     # the end must be out of the band
-            past = (ts - t_n) / H
-            y_p = y_n + H * (step_weights(past) @ F)
-            if measure(y_p[:n], t_n + H) > 2.0 * self.edge:
-                break
-            H *= 1.3
-        else:
+        ts, F, y_n, history = start
+        H = self._out_of_band(y_n, F, ts, t_n, H, measure)
+        if H is None:
             return self._decline(np.inf)
         t_b = t_n + H
-        nodes = np.concatenate([[1.0], past])
-        w = step_weights(nodes)
-        y_c = y_p
-        for _ in range(iterations):
-            q, v = self._consistent(y_c[:n], y_c[n:], t_b)
-            f_b = self._f(t_b, q, v)
-            y_new = y_n + H * (w @ np.vstack([f_b, F]))
-            settled = self._norm(y_new - y_c, y_c, y_new) < 1e-2
-            y_c = y_new
-            if settled:
-                break
+        nodes = np.concatenate([[1.0], (ts - t_n) / H])
+        f_b = self._corrected_end(y_n, F, nodes, t_b, H, iterations)
         # The order: correctors on the end point and the k − 1 newest history points for
         # k = 3 …; the difference between orders k + 1 and k estimates the error of order k,
         # and the order with the smallest estimate is kept with its extrapolation to k + 1
@@ -303,6 +275,55 @@ class PassageBridge:
             self.over_tolerance += 1
         self.landing = self._declined = None
         return self._finish(n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history)
+
+    def _start(self, t_n, q_n, v_n, D, t_floor):
+        """The history of the step from (q_n, v_n) at t_n: times ts (newest first, D apart,
+        back no further than t_floor), the rates F there, y_n, and the states in time
+        order; None where it is too short or cannot be integrated (the bridge declines or
+        stands down)."""
+        span = t_n - t_floor
+        points = self.order if not span < np.inf else min(self.order, int(span / D) + 1)
+        if points < MIN_HISTORY:
+            self._decline(np.inf)
+            return None
+        ts = t_n - D * np.arange(points)
+        q_n, v_n = self._consistent(q_n, v_n, t_n)
+        F = [self._f(t_n, q_n, v_n)]
+        states = self._history(t_n, q_n, v_n, ts[1:])
+        if states is None:
+            self.landing, self.standing_down = None, True
+            return None
+        F = np.array(F + [self._f(tk, q, v) for tk, (q, v) in zip(ts[1:], states)])
+        history = [(tk, q, v) for tk, (q, v) in zip(ts[:0:-1], states[::-1])] + [(t_n, q_n, v_n)]
+        return ts, F, np.concatenate([q_n, v_n]), history
+
+    def _out_of_band(self, y_n, F, ts, t_n, H, measure):
+        """The step's length, from H lengthened up to six times by 1.3 until the predicted
+        end lies out of the band (σ_min/σ_max above twice its edge); None where it does
+        not."""
+        n = self.problem.n
+        for _ in range(6):
+            y_p = y_n + H * (step_weights((ts - t_n) / H) @ F)
+            if measure(y_p[:n], t_n + H) > 2.0 * self.edge:
+                return H
+            H *= 1.3
+        return None
+
+    def _corrected_end(self, y_n, F, nodes, t_b, H, iterations):
+        """The rate at the step's end t_b, from corrector iterations of the full order
+        started at the prediction, until they settle (1 % of the tolerance)."""
+        n = self.problem.n
+        y_c = y_n + H * (step_weights(nodes[1:]) @ F)
+        w = step_weights(nodes)
+        for _ in range(iterations):
+            q, v = self._consistent(y_c[:n], y_c[n:], t_b)
+            f_b = self._f(t_b, q, v)
+            y_new = y_n + H * (w @ np.vstack([f_b, F]))
+            settled = self._norm(y_new - y_c, y_c, y_new) < 1e-2
+            y_c = y_new
+            if settled:
+                break
+        return f_b
 
     def _finish(self, n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history):
         """The `Crossing` with the corrector of order `best`."""

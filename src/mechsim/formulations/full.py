@@ -1,7 +1,9 @@
 """Formulations in all coordinates: the state is y = [q; v] and q̈ comes from the whole
 constrained system. After a step whose ‖Φ‖∞ exceeds `projection_tol`, positions and
-velocities are projected back onto the constraint manifold (mass metric) and the integrator
-restarts there. Subclasses supply `accelerations(t, q, v)`.
+velocities are projected back onto the constraint manifold (mass metric); the run puts the
+projected state into the running integrator in place where its adapter allows that
+(`mechsim.integrators.adapters`) and restarts the integrator otherwise. Subclasses supply
+`accelerations(t, q, v)`.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ import numpy as np
 
 from ..options import Option
 from .base import Formulation
-from .partitioned import ConstraintSolveError
+from .basis import ConstraintSolveError
 
 # An output sample is projected onto the constraints where it leaves them by more than this
 # (relative to its largest coordinate, at least 1).

@@ -18,7 +18,8 @@ from __future__ import annotations
 from ..options import Option
 from ..results import Switch
 from .base import Formulation
-from .partitioned import SPARSE_MIN, Partitioned
+from .basis import SPARSE_MIN
+from .partitioned import Partitioned
 from .projection import Projection
 
 
@@ -26,7 +27,7 @@ class Hybrid(Formulation):
     name = "hybrid"
     needs_freedom = True
     resolves_passages = True
-    default_integrator = "DOP853"    # fastest measured; "adams" (the paper's PECE) on request
+    default_integrator = "DOP853"    # see docs/design-notes.md; "adams" on request
     options = {"stable_steps": Option.integer(5, low=1),
                "repartition_burst": Option.integer(3, low=1),
                "burst_steps": Option.integer(10, low=1)}
@@ -44,7 +45,7 @@ class Hybrid(Formulation):
         self._limit = None                # the step limit LU's last step was taken under
         self._held = 0                    # consecutive LU steps held by that limit
         # The compiled condition of LU's block (`_lu_ready`) where the block is dense.
-        self._compiled = self.proj._compiled if problem.m < SPARSE_MIN else None
+        self.engine = self.proj.engine if problem.m < SPARSE_MIN else None
 
     def initial_state(self, t, q, v):
         s = self.monitor.measure(q, t)[0] if self.monitor else 1.0
@@ -100,8 +101,8 @@ class Hybrid(Formulation):
         # Asked only where the monitor finds σ_min/σ_max clear of a passage: Φ_q has full
         # row rank there, unless that ratio is itself at round-off (redundant constraints).
         full = mon is not None and mon.last * mon.peak > 1e-6
-        if full and self._compiled is not None:
-            return self._compiled.lu_condition(t, q) < 0.1 * self.lu.cond_max
+        if full and self.engine is not None:
+            return self.engine.lu_condition(t, q) < 0.1 * self.lu.cond_max
         J = self.problem.phi_q(q, t)
         basis = self.lu.choose(J, J.shape[0] if full else None)
         return basis.block(J).condition() < 0.1 * self.lu.cond_max
@@ -150,7 +151,7 @@ class Hybrid(Formulation):
             if mon and (mon.predicted_within(self.last_step) or self._held >= 2):
                 if mon.inside:
                     why = (f"σ_min/σ_max at {s:.3g} of its peak (< {mon.enter:g}): near a "
-                           f"singular configuration (joints {', '.join(mon._open[3])})")
+                           f"singular configuration (joints {', '.join(mon.open_passage.joints)})")
                 else:
                     why = (f"σ_min/σ_max at {s:.3g} of its peak, falling {-mon.rate:.3g}/s: "
                            "a singular configuration ahead")

@@ -18,7 +18,7 @@ while s/peak is nearly the same function of the crank angle for all three (0.15�
 from the singular configuration, 0.03–0.04 at 2°). `enter = 0.07`, `leave = 0.14` of the
 peak (hysteresis) open a band of about ±4° around each passage.
 
-Far from the band the measurement (an SVD and a second Jacobian, ~0.1 ms) is skipped for up
+Far from the band the measurement (an SVD and a second Jacobian) is skipped for up
 to `max_skip` steps when two bounds keep s above twice `enter`: Weyl's inequality on the
 Jacobian's change since the last measurement, |σᵢ(J̃) − σᵢ(J̃ₘ)| ≤ ‖J̃ − J̃ₘ‖ (one Jacobian,
 no SVD), for the step's end; and s − R (t_next − t_measured) > 2 enter through a next step
@@ -30,6 +30,7 @@ while large steps, which move J̃ a lot, are measured every time.
 from __future__ import annotations
 
 import collections
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -41,6 +42,18 @@ from ..results import SingularPassage
 # a step by the rates of σ_min/σ_max seen, not by ‖dJ̃/dt‖ (whose Frobenius norm grows with
 # the rows and made the 40-window chain's 20 s search every step), and search more briefly.
 SEARCH_MAX_ROWS = 60
+
+
+@dataclass
+class OpenPassage:
+    """The singular passage the monitor is inside: where it began, its lowest σ_min/σ_max
+    (not normalized) so far and where, the joints of that singular vector, and whether the
+    passage bridge crossed it."""
+    t_start: float
+    t_min: float
+    s_min: float
+    joints: tuple
+    bridged: bool = False
 
 
 class SingularityMonitor:
@@ -55,7 +68,7 @@ class SingularityMonitor:
         self.problem = problem
         self.enter, self.leave = enter, leave
         self.passages: list[SingularPassage] = []
-        self._open = None            # [t_start, t_min, s_min, joints, bridged] while inside
+        self.open_passage: OpenPassage | None = None     # the passage it is inside
         self.last, self.rate = 1.0, 0.0  # s/peak and its rate at the last observation
         self.peak = 0.0
         self._prev = None            # (t, s/peak, ṡ/peak) at the previous observation
@@ -64,7 +77,7 @@ class SingularityMonitor:
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
         self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
         self.t_first = -np.inf       # the first observation's time
-        self._engine = _compiled(problem)
+        self.engine = _compiled(problem)
 
     def _jacobian(self, q, t):
         """J̃ = Φ_q L⁻ᵀ, the mass-scaled Jacobian."""
@@ -79,8 +92,8 @@ class SingularityMonitor:
         (`J` if the caller has it)."""
         speed = float(np.max(np.abs(v))) if v is not None and v.size else 0.0
         eps = 1e-7 / speed if speed > 0.0 else 0.0
-        if self._engine is not None:
-            got = self._engine.measure(t, q, v, eps)
+        if self.engine is not None:
+            got = self.engine.measure(t, q, v, eps)
             if got is not None:
                 smin, smax, d_min, d_max, u_min, J = got
                 if not smax > 0.0:
@@ -140,7 +153,7 @@ class SingularityMonitor:
     def _may_skip(self, q, t, t_old):
         """(skip?, J̃(q) if it was computed for the Weyl bound)."""
         prev = self._prev
-        if self._open is not None or prev is None or t_old is None or \
+        if self.open_passage is not None or prev is None or t_old is None or \
                 self._skipped >= self.max_skip or self._measured is None:
             return False, None
         bound = max(2.0 * abs(prev[2]), self.peak_rate)
@@ -173,9 +186,10 @@ class SingularityMonitor:
             (t_old is None or prev[0] == t_old)
         self._skipped = 0
         self.last, self.rate = s, rate
-        if self._open is not None:
-            if raw < self._open[2]:
-                self._open[1:4] = [t, raw, self.joints_of(u)]
+        if self.open_passage is not None:
+            here = self.open_passage
+            if raw < here.s_min:
+                here.t_min, here.s_min, here.joints = t, raw, self.joints_of(u)
             if s > self.leave:
                 self.close(t)
             return s
@@ -184,12 +198,12 @@ class SingularityMonitor:
             hidden = self._hidden_minimum(prev, (t, s, rate), state_at,
                                           max(speed_before, self._ratio_speed))
         if s < self.enter:
-            self._open = [t, t, raw, self.joints_of(u), False]
+            self.open_passage = OpenPassage(t, t, raw, self.joints_of(u))
             if hidden and self._same_dip(hidden[-1][0], t, state_at):
                 # The step ends inside a passage whose minimum it passed: the open one.
                 tm, sm, joints, t_start = hidden.pop()
                 if sm < raw:
-                    self._open = [t_start, tm, sm, joints, False]
+                    self.open_passage = OpenPassage(t_start, tm, sm, joints)
         for tm, sm, joints, t_start in hidden:
             self.passages.append(SingularPassage(t_start, min(t, 2.0 * tm - t_start), sm,
                                                  joints, tm))
@@ -202,10 +216,11 @@ class SingularityMonitor:
         own, which the next observation closes once s is above `leave` (closing it at t1
         counted the rest of the same dip, observed after the bridge, a second time)."""
         sm, _, um = self.measure(qm, tm)
-        if self._open is not None:
-            self._open[1:5] = [tm, sm, self.joints_of(um), True]
+        if self.open_passage is not None:
+            here = self.open_passage
+            here.t_min, here.s_min, here.joints, here.bridged = tm, sm, self.joints_of(um), True
         elif sm < self.enter * self.peak:
-            self._open = [t0, tm, sm, self.joints_of(um), True]
+            self.open_passage = OpenPassage(t0, tm, sm, self.joints_of(um), True)
 
     def _speed(self, q, v, t, J, smax) -> float:
         """A bound on how fast σ_min/σ_max can change at (q, v): every singular value of J̃
@@ -229,7 +244,7 @@ class SingularityMonitor:
         until s is shown to stay above it (s ≥ (s_a + s_b − R (t_b − t_a))/2 between two
         values) or found under it; each dip found is refined to its minimum. A step that
         crosses several passages (a partitioned method striding through a uniformly
-        turning parallelogram took 7 passages in 5 steps) reports every one. Steps clear of
+        turning parallelogram) reports every one. Steps clear of
         any passage cost nothing: their ends already exclude it."""
         t0, s0, d0 = a
         t1, s1, d1 = b
@@ -300,13 +315,14 @@ class SingularityMonitor:
 
     @property
     def inside(self) -> bool:
-        return self._open is not None
+        return self.open_passage is not None
 
     def close(self, t):
-        if self._open is not None:
-            t0, tmin, smin, joints, bridged = self._open
-            self.passages.append(SingularPassage(t0, t, smin, joints, tmin, bridged))
-            self._open = None
+        here = self.open_passage
+        if here is not None:
+            self.passages.append(SingularPassage(here.t_start, t, here.s_min, here.joints,
+                                                 here.t_min, here.bridged))
+            self.open_passage = None
 
 
 def _compiled(problem):

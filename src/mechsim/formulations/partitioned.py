@@ -27,55 +27,17 @@ method's known weakness, which "hybrid" removes.
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
 
 from .. import dense
+from ..newton import CHORD_CONTRACTION, newton
 from ..options import Option
 from .base import Formulation
-
-
-class ConstraintSolveError(RuntimeError):
-    """Newton on the dependent coordinates did not converge; names the worst joint."""
-
-
-def _solve(A, b):
-    if A.shape[0] == A.shape[1]:
-        return dense.solve(A, b)
-    return np.linalg.lstsq(A, b, rcond=None)[0]
-
-
-def _condition(A, inv=None) -> float:
-    """1-norm condition number ‖A‖₁ ‖A⁻¹‖₁ (inf if singular); an explicit inverse of the
-    small Φ_u is cheaper than the SVD behind np.linalg.cond. Pass `inv` if it is known."""
-    if A.size == 0:
-        return 1.0                      # no constraints: nothing to condition
-    if A.shape[0] != A.shape[1]:
-        return float(np.linalg.cond(A))
-    if inv is None:
-        try:
-            inv = dense.inv(A)
-        except np.linalg.LinAlgError:
-            return np.inf
-    return float(np.abs(A).sum(axis=0).max() * np.abs(inv).sum(axis=0).max())
-
-
-def _inverse(A):
-    """A⁻¹ of a square matrix, None if it is singular or not square."""
-    if A.shape[0] != A.shape[1]:
-        return None
-    try:
-        return dense.inv(A)
-    except np.linalg.LinAlgError:
-        return None
-
-
-def _numerical_rank(J) -> int:
-    if J.shape[0] == 0:
-        return 0
-    s = dense.svdvals(J)
-    return int(np.sum(s > max(J.shape) * np.finfo(float).eps * 1e3 * s[0]))
+from .basis import (SPARSE_MIN, ConstraintSolveError, CoordinateBasis, DenseBlock,
+                    MatrixBasis, condition_number, numerical_rank)
 
 
 # A partition is given up when cond(Φ_q D) has grown this many times beyond its value at
@@ -91,184 +53,17 @@ GROWTH = 10.0
 # one when any of them has gone further than this (a radian of a crank, a metre of a slider).
 REFERENCE_SPAN = 1.0
 
-# Dependent blocks Φ_q D at least this large are factored sparse (`_SparseBlock`).
-SPARSE_MIN = 40
 
-# In place of Φ_q D in `Partitioned._cache`: the state was computed by the compiled engine,
-# whose buffers still hold it.
-_COMPILED = "compiled"
-
-
-class _DenseBlock:
-    """Φ_q D as a dense matrix. `solve` is LAPACK's (least squares when the block is not
-    square: redundant constraints); the chord iteration and the condition number use the
-    explicit inverse, formed once: one small matmul per chord iteration, where lu_solve
-    spends ~30 µs in its wrapper."""
-
-    def __init__(self, A):
-        self.A, self._inv = A, False
-
-    def solve(self, b):
-        return _solve(self.A, b)
-
-    def inverse(self):
-        """A⁻¹, formed once; None if A is singular or not square."""
-        if self._inv is False:
-            self._inv = _inverse(self.A)
-        return self._inv
-
-    def chord(self, b):
-        inv = self.inverse()
-        return self.solve(b) if inv is None else inv @ b
-
-    def condition(self) -> float:
-        return _condition(self.A, self.inverse())
-
-    def sign(self) -> int:
-        """The sign of det A (0 where A is singular or not square)."""
-        if self.A.shape[0] != self.A.shape[1]:
-            return 0
-        return int(np.linalg.slogdet(self.A)[0])
-
-
-class _SparseBlock:
-    """Φ_q D of a long chain (hundreds of dependent coordinates, four non-zeros a row)
-    factored by SuperLU: on the 40-window chain 0.14 ms to factor and 24 µs to solve,
-    against 3.7 ms for the dense inverse and 0.67 ms for a dense solve. The condition
-    number is the 1-norm estimate of Hager and Higham (as LAPACK's condition estimators),
-    with one probe vector: more would be drawn from numpy's global random generator, which
-    would make re-partitioning, and so whole runs, depend on the caller's random state."""
-
-    def __init__(self, A):
-        from scipy.sparse.linalg import splu
-        self.A = A
-        try:
-            self.lu = splu(A)
-        except RuntimeError:                 # exactly singular
-            self.lu = None
-
-    def solve(self, b):
-        if self.lu is None:
-            raise np.linalg.LinAlgError("Singular matrix")
-        return self.lu.solve(np.asarray(b, float))
-
-    chord = solve
-
-    def sign(self) -> int:
-        """The sign of det A from SuperLU's factors P_r A P_c = L U (L unit diagonal)."""
-        if self.lu is None:
-            return 0
-        u = np.sign(self.lu.U.diagonal())
-        return int(np.prod(u) * _parity(self.lu.perm_r) * _parity(self.lu.perm_c))
-
-    def condition(self) -> float:
-        if self.lu is None:
-            return np.inf
-        from scipy.sparse.linalg import LinearOperator, onenormest
-        lu = self.lu
-        op = LinearOperator(self.A.shape, matvec=lu.solve, dtype=float,
-                            rmatvec=lambda x: lu.solve(x, trans="T"))
-        return float(abs(self.A).sum(axis=0).max() * onenormest(op, t=1))
-
-
-def _parity(perm) -> int:
-    """+1 for an even permutation, −1 for an odd one (from its cycles)."""
-    perm = np.asarray(perm)
-    seen = np.zeros(perm.size, bool)
-    odd = 0
-    for start in range(perm.size):
-        if seen[start]:
-            continue
-        length, k = 0, start
-        while not seen[k]:
-            seen[k], k, length = True, perm[k], length + 1
-        odd += length - 1
-    return -1 if odd % 2 else 1
-
-
-class CoordinateBasis:
-    """Independent / dependent subsets of q (columns of the identity), applied by indexing:
-    no n × n products, which dominate for large mechanisms. With `pattern` (the rows and
-    columns where Φ_q can be non-zero) and at least `SPARSE_MIN` dependent coordinates,
-    Φ_q D is factored sparse."""
-
-    def __init__(self, independent, dependent, pattern=None):
-        self.ind = np.sort(np.asarray(independent, dtype=np.intp))
-        self.dep = np.sort(np.asarray(dependent, dtype=np.intp))
-        self.f, self.r = self.ind.size, self.dep.size
-        # [z; w] in the order of q: one gather instead of two scattered updates.
-        self._order = np.argsort(np.concatenate([self.ind, self.dep]))
-        self._csc = None
-        if pattern is not None and self.r >= SPARSE_MIN:
-            rows, cols = (np.asarray(x, np.intp) for x in pattern)
-            where = np.full(max(cols.max(initial=-1), self.dep.max(initial=-1)) + 1, -1)
-            where[self.dep] = np.arange(self.r)
-            keep = where[cols] >= 0
-            rows, cols = rows[keep], cols[keep]
-            new = where[cols]
-            order = np.lexsort((rows, new))            # column-major, as CSC stores
-            rows, cols, new = rows[order], cols[order], new[order]
-            indptr = np.searchsorted(new, np.arange(self.r + 1))
-            self._csc = (rows, cols, rows.copy(), indptr)
-
-    @property
-    def sparse(self) -> bool:
-        """Whether Φ_q D is factored sparse (`block`)."""
-        return self._csc is not None
-
-    def block(self, J):
-        """Φ_q D at Φ_q = J, ready to solve with (`_DenseBlock` or `_SparseBlock`)."""
-        if self._csc is None or J.shape[0] != self.r:
-            return _DenseBlock(self.JD(J))
-        from scipy.sparse import csc_matrix
-        rows, cols, indices, indptr = self._csc
-        return _SparseBlock(csc_matrix((J[rows, cols], indices, indptr), shape=(self.r, self.r)))
-
-    def combine(self, base, z, w):
-        return base + self.assemble(z, w)
-
-    def assemble(self, z, w):
-        """B z + D w."""
-        return np.concatenate((z, w))[self._order]
-
-    def JB(self, J):
-        return J[..., self.ind]
-
-    def JD(self, J):
-        return J[..., self.dep]
-
-    def Bt(self, x):
-        return x[self.ind]
-
-    def Dt(self, x):
-        return x[self.dep]
-
-
-class MatrixBasis(CoordinateBasis):
-    """Orthonormal complementary bases B (n × f) and D (n × r), e.g. from an SVD."""
-
-    def __init__(self, B, D):
-        self.B, self.D = B, D
-        self.f, self.r = B.shape[1], D.shape[1]
-        self._csc = None
-
-    def combine(self, base, z, w):
-        return base + self.B @ z + self.D @ w
-
-    def assemble(self, z, w):
-        return self.B @ z + self.D @ w
-
-    def JB(self, J):
-        return J @ self.B
-
-    def JD(self, J):
-        return J @ self.D
-
-    def Bt(self, x):
-        return self.B.T @ x
-
-    def Dt(self, x):
-        return self.D.T @ x
+@dataclass
+class SolvedState:
+    """The state `Partitioned.full_state` solved for last: at time t and y (its bytes
+    `key`), out = (q, v, Φ_q, n_fresh), and Φ_q D there factored (`block`; None while only
+    the compiled engine, whose buffers hold the state, has solved it)."""
+    t: float
+    key: bytes
+    out: tuple
+    block: object = None
+    compiled: bool = False
 
 
 class Partitioned(Formulation):
@@ -277,7 +72,7 @@ class Partitioned(Formulation):
     # Whether its basis follows Φ_q wherever it is chosen (tangent coordinates): a
     # re-partition then always changes the coordinates, where a pivoting keeps its set.
     moving_basis = False
-    default_integrator = "DOP853"    # fastest measured; "adams" (the paper's PECE) on request
+    default_integrator = "DOP853"    # see docs/design-notes.md; "adams" on request
     options = {"cond_max": Option.real(1e4, low=1.0),
                "newton_tol": Option.positive(None, optional=True),
                "max_newton": Option.integer(12, low=1)}
@@ -287,17 +82,16 @@ class Partitioned(Formulation):
         if self.newton_tol is None:
             self.newton_tol = max(1e-13, 1e-2 * atol)
         self.n = problem.n
-        self._cache = None
+        self._cache: SolvedState | None = None
         self.independent = ()
         self._rheonomic = bool(problem.rheonomic_rows)      # Φ_t ≠ 0 (drivers)
-        self._engine = None                                  # see `_compiled_engine`
+        self.engine = None                                  # see `_compiled_engine`
 
     # --- the hook ----------------------------------------------------------------------------
     def choose(self, J, rank=None) -> CoordinateBasis:
         """The independent and dependent directions at Φ_q = J (f = n − r and r of them).
-        `rank`: Φ_q's rank if the caller knows it (the SVD for it costs 7 ms on the
-        40-window chain)."""
-        r = _numerical_rank(J) if rank is None else rank
+        `rank`: Φ_q's rank if the caller knows it (its SVD is dear on long chains)."""
+        r = numerical_rank(J) if rank is None else rank
         with warnings.catch_warnings():      # a rank-deficient Φ_q (redundancy) is expected
             warnings.simplefilter("ignore", sla.LinAlgWarning)
             _, piv = sla.lu_factor(J.T, check_finite=False)
@@ -318,7 +112,7 @@ class Partitioned(Formulation):
         J = self.problem.phi_q(q, t)
         self.basis = bs = basis if basis is not None else self.choose(J)
         self.q_ref = np.array(q, float)
-        self._engine = self._compiled_engine(bs)
+        self.engine = self._compiled_engine(bs)
         self._accept(t, np.zeros(bs.f), bs.Bt(v), np.zeros(bs.r), bs.Dt(v), J, first=True)
         self._cache = None
         self.problem.counters.partitions += 1
@@ -353,8 +147,8 @@ class Partitioned(Formulation):
             cz = (z0 - z - zd * e) / e**2
         # [a0 a1 a2 G]: the prediction is one product with [1, d, d², z].
         self._P = np.column_stack([w - G @ z, wd - G @ zd, cw - G @ cz, G])
-        if self._engine is not None:      # a dense Φ_q D: `_chord` is a `_DenseBlock`
-            self._engine.accept(t, self.q_ref, self._P,
+        if self.engine is not None:      # a dense Φ_q D: `_chord` is a `DenseBlock`
+            self.engine.accept(t, self.q_ref, self._P,
                                 self._chord.inverse() if self._square else None)
 
     def _compiled_engine(self, basis):
@@ -412,26 +206,30 @@ class Partitioned(Formulation):
         raise ConstraintSolveError(self.failure)
 
     def _newton(self, z, t, w, fresh=False):
+        """(q, n_fresh) on Φ(q_ref + B z + D w, t) = 0 from the guess w: the chord with the
+        factor of Φ_q D from the last accepted step, fresh Jacobians from the iteration where
+        the chord contracts too slowly (`mechsim.newton`) or where `fresh`; n_fresh counts
+        those. ConstraintSolveError where Newton fails."""
         prob, bs = self.problem, self.basis
-        fresh = fresh or not self._square
-        n_fresh = 0
-        err_prev = np.inf
-        for k in range(self.max_newton + 1):
+        fresh = [fresh or not self._square, 0]
+
+        def residual(w):
             q = bs.combine(self.q_ref, z, w)
-            phi = prob.phi(q, t)
-            err = float(abs(phi).max()) if phi.size else 0.0
-            if err <= self.newton_tol:
-                return q, n_fresh
-            if k == self.max_newton or not np.isfinite(err):
-                break
-            if not fresh and err > 0.25 * err_prev:     # chord converging too slowly
-                fresh = True
-            err_prev = err
-            if fresh:
-                n_fresh += 1
-                w = w - bs.block(prob.phi_q(q, t)).solve(phi)
-            else:
-                w = w - self._chord.chord(phi)
+            return prob.phi(q, t), q
+
+        def correct(w, phi, q, slow):
+            if slow:
+                fresh[0] = True
+            if fresh[0]:
+                fresh[1] += 1
+                return w - bs.block(prob.phi_q(q, t)).solve(phi)
+            return w - self._chord.chord(phi)
+
+        done = newton(w, residual, correct, self.newton_tol, self.max_newton,
+                      contraction=CHORD_CONTRACTION)
+        if done.converged:
+            return done.aux, fresh[1]
+        phi = prob.phi(done.aux, t)
         self.failure = (f"Newton on the dependent coordinates did not converge at t = {t:.9g} "
                         f"(residual {prob.worst_constraint(phi)})")
         raise ConstraintSolveError(self.failure)
@@ -442,14 +240,14 @@ class Partitioned(Formulation):
         is changing fast)."""
         c = self._cache
         key = y.tobytes()
-        if c is not None and c[0] == t and c[1] == key:
-            return c[2]
-        engine = self._engine
+        if c is not None and c.t == t and c.key == key:
+            return c.out
+        engine = self.engine
         if engine is not None and engine.ready:
             done = engine.state(t, y)
             if done is not None:
                 out = done + (0,)
-                self._cache = (t, key, out, _COMPILED)
+                self._cache = SolvedState(t, key, out, compiled=True)
                 return out
         bs = self.basis
         z, zd = y[:bs.f], y[bs.f:]
@@ -462,7 +260,7 @@ class Partitioned(Formulation):
         wd = block.solve(r)
         v = bs.assemble(zd, wd)
         out = (q, v, J, n_fresh)
-        self._cache = (t, key, out, block)
+        self._cache = SolvedState(t, key, out, block)
         return out
 
     def state(self, t, y):
@@ -513,8 +311,8 @@ class Partitioned(Formulation):
         prob, bs = self.problem, self.basis
         if len(ts) < 2 or not self._square or bs.sparse:
             return super().states(ts, Y)
-        if self._engine is not None and self._engine.ready:
-            done = self._engine.states(ts, Y)
+        if self.engine is not None and self.engine.ready:
+            done = self.engine.states(ts, Y)
             if done is not None:
                 return done
         ts = np.asarray(ts, float)
@@ -522,17 +320,19 @@ class Partitioned(Formulation):
         d = ts - self.t_last
         W = self._P @ np.vstack([np.ones_like(d), d, d * d, Z])
         base = self.q_ref[:, None]
-        err_prev = np.inf
-        for k in range(self.max_newton + 1):
+
+        def residual(W):
             Q = bs.combine(base, Z, W).T                     # (k, n)
-            phi = np.array([prob.phi(q, t) for q, t in zip(Q, ts)]).T
-            err = float(abs(phi).max()) if phi.size else 0.0
-            if err <= self.newton_tol:
-                break
-            if k == self.max_newton or not err < 0.25 * err_prev:
-                return super().states(ts, Y)
-            err_prev = err
-            W = W - self._chord.chord(phi)
+            return np.array([prob.phi(q, t) for q, t in zip(Q, ts)]).T, Q
+
+        def correct(W, phi, Q, slow):
+            return None if slow else W - self._chord.chord(phi)
+
+        done = newton(W, residual, correct, self.newton_tol, self.max_newton,
+                      contraction=CHORD_CONTRACTION)
+        if not done.converged:
+            return super().states(ts, Y)
+        Q = done.aux
         J = np.array([prob.phi_q(q, t) for q, t in zip(Q, ts)])       # (k, m, n)
         r = -(bs.JB(J) @ Zd[:, :, None])[:, :, 0]
         if self._rheonomic:
@@ -551,12 +351,12 @@ class Partitioned(Formulation):
         except ConstraintSolveError:
             # A trial step too far for Newton: NaN makes the integrator reject and shrink it.
             return np.full(y.shape, np.nan)
-        if self._cache[3] is _COMPILED:
-            out = self._engine.accelerations(t, prob.forces(t, q, v))
+        if self._cache.compiled:
+            out = self.engine.accelerations(t, prob.forces(t, q, v))
             if out is not None:
                 prob.counters.factorizations += 1
                 return out
-        block = self._cache[3] if self._cache[3] is not _COMPILED else None
+        block = self._cache.block
         return np.concatenate([y[self.basis.f:], self.basis.Bt(self._qdd(t, q, v, J, block))])
 
     def derivative(self, t, q, v):
@@ -603,10 +403,10 @@ class Partitioned(Formulation):
     def _block_at(self, t, y):
         """(q, v, J, n_fresh, Φ_q D factored) at the integrated state y."""
         q, v, J, n_fresh = self.full_state(t, y)
-        block = self._cache[3]                  # Φ_q D at this state, from full_state
-        if block is _COMPILED:
-            block = self.basis.block(J)
-            self._cache = self._cache[:3] + (block,)
+        block = self._cache.block               # Φ_q D at this state, from full_state
+        if block is None:                        # solved by the compiled engine
+            block = self._cache.block = self.basis.block(J)
+            self._cache.compiled = False         # the Python path serves this state now
         return q, v, J, n_fresh, block
 
     def keeps_branch(self, t, y):
@@ -675,7 +475,7 @@ class QRPartitioned(Partitioned):
     name = "qr"
 
     def choose(self, J, rank=None):
-        r = _numerical_rank(J) if rank is None else rank
+        r = numerical_rank(J) if rank is None else rank
         _, P = sla.qr(J, pivoting=True, mode="r", check_finite=False)
         return self._coordinate_bases(P[r:], P[:r])
 
@@ -685,7 +485,7 @@ class SVDPartitioned(Partitioned):
     moving_basis = True
 
     def choose(self, J, rank=None):
-        r = _numerical_rank(J) if rank is None else rank
+        r = numerical_rank(J) if rank is None else rank
         _, _, Vt = np.linalg.svd(J)
         self.independent = ()
         return MatrixBasis(Vt[r:].T, Vt[:r].T)

@@ -20,30 +20,13 @@ velocity projections, which use the exact pseudo-inverse, instead of by J̃⁺γ
 Inside the band, where the motion crosses the singular configuration, the components of
 q̈ along the lost directions (0/0 on the configuration) are interpolated from the exact
 accelerations at consistent states just outside the band on either side (`_across`), for
-all small singular values together: every passage of the double four-bar loses two at
-once. Dropping them was off by 5 % in q̈ and made the step size collapse wherever a step
-landed within the band (to 7e-8 s; 99 of 213 steps at rtol 1e-8). Treating each singular
-value on its own (through the slopes of uᵀγ and uᵀJ̃w) was off by 6.5 % exactly on the
-configuration and by 2e-6–5e-6 relative inside the band, and one passage (4.599 s) cost
-335 evaluations; with the joint
-interpolation the hybrid run at rtol 1e-8 takes 116 steps and 2083 evaluations against 130
-and 2531 (bench settings).
-
-Measured (rtol 1e-8; crank error over the seed's parallelogram 2 s / the double four-bar
-10 s, DOP853): rcond 1e-8 leaves the branch at the second passage; truncation at 1e-4 with
-exact projections gives 2.4e-11 / 2.4e-7 and takes the 40-window chain through its first
-passage in 8 steps; damping (rcond 1e-6) gives 2.9e-10 / 2.5e-4; truncated projections made
-the chain collapse to microsecond steps. Positions are corrected by Newton on [Φ_q; P_Tᵀ] Δq = [−Φ; 0] — the
-minimum-norm (row-space) correction −I_R Φ — whenever ‖Φ‖ exceeds `projection_tol`.
+all small singular values together (a passage of the double four-bar loses two at once).
+Positions are corrected by Newton on [Φ_q; P_Tᵀ] Δq = [−Φ; 0], the minimum-norm (row-space)
+correction −I_R Φ, whenever ‖Φ‖ exceeds `projection_tol`.
 
 `factorization="svd"` is the seed's own method: the SVD at every evaluation and projection,
-also clear of the band. Same steps and motion (the parallelogram's crank to 1e-10 over 2 s);
-on the double four-bar (10 s, rtol 1e-8) a run takes 1918 M instructions against 436 M
-for this one with its compiled evaluations and projections (`mechsim.codegen.engine`:
-Cholesky clear of the band, the SVD in C near it, Python only inside it), 0.585 s
-against 0.097 s in one `mechsim bench`. That is where the seed's Table 2 finds projection
-dear: with the SVD every time, the hybrid (450 M) costs 0.23× the projection method;
-against this one, 1.03×.
+also clear of the band; the same steps and motion at a higher cost. The measurements behind
+these choices are in docs/design-notes.md.
 """
 
 from __future__ import annotations
@@ -51,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import dense
-from ..problem import newton_stalled
+from ..newton import newton
 from .bridge import PassageBridge
 from ..options import Option
 from .full import FullCoordinates
@@ -89,7 +72,7 @@ class Projection(FullCoordinates):
             options["projection_tol"] = max(1e-13, 1e-3 * atol)
         super().__init__(problem, rtol, atol, **options)
         self._redundant = 0          # singular values found to stay at zero (redundancy)
-        self._compiled = self._compiled_engine()
+        self.engine = self._compiled_engine()
         # The bound on LAPACK's estimate of 1/cond₁ of J̃J̃ᵀ above which the Cholesky
         # factor stands in for the SVD (see `_clear`).
         # Set after an accepted step far from any passage: until the next one, the
@@ -97,7 +80,7 @@ class Projection(FullCoordinates):
         self._far = False
         if self.regularization == "truncate" and self.bridge_passages:
             self.bridge = PassageBridge(problem, lambda t, q, v: self.accelerations(t, q, v, False),
-                                        lambda: self.cut, rtol, atol, engine=self._compiled)
+                                        lambda: self.cut, rtol, atol, engine=self.engine)
             self.bridging = True
 
     @property
@@ -106,11 +89,9 @@ class Projection(FullCoordinates):
         whose σ_min/σ_max has never risen above `SCALE_REF` in the run (its peak, from
         the singularity monitor). There the ratio is small because the masses are very
         unequal (a point mass on a link, a heavy body of small inertia), not because the
-        configuration is singular: a 1 kg point mass of inertia 1e-9 kg·m² pinned 0.5 m
-        from its centre has σ_min/σ_max = 6e-5 everywhere, and a fixed cut at 1e-4 dropped
-        one of its pin's equations (its motion was off by 0.6 rad after 2 s). The cut keeps
-        its place relative to the mechanism's own level; for every mechanism whose ratio
-        reaches SCALE_REF it is `rcond`."""
+        configuration is singular, and a fixed cut would drop one of the mechanism's own
+        constraint equations. The cut keeps its place relative to the mechanism's own
+        level; for every mechanism whose ratio reaches SCALE_REF it is `rcond`."""
         mon = self.monitor
         peak = mon.peak if mon is not None and mon.peak > 0.0 else 1.0
         return self.rcond * min(1.0, max(peak, 1e-12) / SCALE_REF)
@@ -182,9 +163,8 @@ class Projection(FullCoordinates):
 
     def _clear(self, Jt):
         """The dense Cholesky factor of J̃J̃ᵀ where every singular value of J̃ is clear of
-        the truncation cut, else None (then the SVD decides). The factor and LAPACK's
-        condition estimate cost 15 µs on the double four-bar's 14 × 14 complement, against
-        70 µs for the SVD. Truncation would drop σ ≤ rcond σ_max, i.e. λ ≤ rcond² λ_max of
+        the truncation cut, else None (then the SVD decides, at several times the cost).
+        Truncation would drop σ ≤ rcond σ_max, i.e. λ ≤ rcond² λ_max of
         J̃J̃ᵀ; the estimate of 1/κ₁ ≤ 1/κ₂ must exceed max(100, m) rcond², margin for an
         estimate that may read high by a factor up to m."""
         if not self._cholesky or not Jt.shape[0]:
@@ -214,8 +194,7 @@ class Projection(FullCoordinates):
         the monitor says after this step: σ_min/σ_max above its `leave` threshold, not
         predicted to fall under `enter` within three steps like this one, and the
         threshold itself 100 cuts clear. There the Cholesky factor alone serves, without
-        LAPACK's condition estimate (4 µs of the 33 µs an evaluation costs on the double
-        four-bar); a trial step that reaches the band anyway gets the untruncated q̈,
+        LAPACK's condition estimate (a noticeable part of an evaluation's cost); a trial step that reaches the band anyway gets the untruncated q̈,
         which the error estimate judges like any other."""
         mon = self.monitor
         return (mon is not None and self._cholesky
@@ -224,13 +203,13 @@ class Projection(FullCoordinates):
 
     def rhs(self, t, y):
         """[v; q̈], in one compiled call where it takes the evaluation."""
-        if self._compiled is None:
+        if self.engine is None:
             return super().rhs(t, y)
         prob, n = self.problem, self.n
         prob.counters.rhs += 1
         q, v = y[:n], y[n:]
         Q = prob.forces(t, q, v)
-        out = self._compiled.rhs(t, y, Q, -1.0 if self._far else self._min_rcond, self.cut)
+        out = self.engine.rhs(t, y, Q, -1.0 if self._far else self._min_rcond, self.cut)
         if out is not None:
             prob.counters.factorizations += 1
             return out
@@ -241,9 +220,9 @@ class Projection(FullCoordinates):
         accepted step decided, `_far_from_band`)."""
         prob = self.problem
         Q = prob.forces(t, q, v)
-        if self._compiled is not None:
+        if self.engine is not None:
             clear = self._far if far is None else far
-            out = self._compiled.accelerations(t, q, v, Q, -1.0 if clear else self._min_rcond,
+            out = self.engine.accelerations(t, q, v, Q, -1.0 if clear else self._min_rcond,
                                                self.cut)
             if out is not None:
                 prob.counters.factorizations += 1
@@ -370,8 +349,8 @@ class Projection(FullCoordinates):
         if not self.projection or not prob.m:
             return super().project_now(t, y)
         q, v = y[:n], y[n:]
-        if self._compiled is not None:
-            done = self._compiled.project_state(t, q, v, 0.01 * self.projection_tol,
+        if self.engine is not None:
+            done = self.engine.project_state(t, q, v, 0.01 * self.projection_tol,
                                                 self._min_rcond, skip_tol=self.projection_tol)
             if done is False:
                 return None
@@ -392,18 +371,15 @@ class Projection(FullCoordinates):
         f = prob.mass_factor(q)
         if self._clear_at(prob.phi_q(q, t), f):
             return prob.project_positions(q, t, tol=tol)      # clear of the band: exact Schur
-        prev = np.inf
-        for k in range(20):
-            phi, J = prob.position_terms(q, t)
-            err = float(np.max(np.abs(phi)))
-            if err <= tol or newton_stalled(err, prev, tol):
-                break
-            prev = err
-            Jt = f.cols(J)
-            V, Ui, _ = self._pinv_exact(Jt) if self.exact_projection else self._pinv(Jt)
-            q -= f.right(V @ (Ui @ phi))
+        pinv = self._pinv_exact if self.exact_projection else self._pinv
+
+        def correct(q, phi, J, slow):
+            V, Ui, _ = pinv(f.cols(J))
             prob.counters.projections += 1
-        return q, k, err
+            return q - f.right(V @ (Ui @ phi))
+
+        done = newton(q, lambda q: prob.position_terms(q, t), correct, tol, 20, stall=True)
+        return done.x, done.iterations, done.residual
 
     def project_velocities(self, q, v, t):
         prob = self.problem

@@ -1,6 +1,6 @@
 """The declarative model: what the user builds. Imports nothing heavier than numpy."""
 
-from ._checks import LoadError, ModelError
+from .checks import LoadError, ModelError
 from .bodies import Body, Ground, RigidBody
 from .drivers import Driver
 from .flexible_beam import FlexibleBeam

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ._checks import ModelError, rotation, scalar, vector2
+from .checks import ModelError, rotation, scalar, vector2
 
 
 class Body:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._checks import ModelError, name_or_default
+from .checks import ModelError, name_or_default
 from .expressions import parse
 from .joints import Joint
 

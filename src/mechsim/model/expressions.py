@@ -19,7 +19,7 @@ from __future__ import annotations
 import ast
 import math
 
-from ._checks import ModelError
+from .checks import ModelError
 
 MAX_LENGTH = 2000
 MAX_NODES = 2000

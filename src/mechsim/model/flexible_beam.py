@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import ModelError, rotation, scalar, vector2
+from .checks import ModelError, rotation, scalar, vector2
 from .bodies import Body
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import ModelError, name_or_default, scalar, scalar_or_function, vector2
+from .checks import ModelError, name_or_default, scalar, scalar_or_function, vector2
 from .bodies import Body
 
 
@@ -74,3 +74,12 @@ class Torque:
     @property
     def bodies(self):
         return (self.body,)
+
+
+def load_points(ld) -> list:
+    """(body, global point) of each attachment of a spring or force."""
+    if isinstance(ld, Spring):
+        return [(ld.body_a, ld.at_a), (ld.body_b, ld.at_b)]
+    if isinstance(ld, Force):
+        return [(ld.body, ld.at)]
+    return []

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._checks import ModelError, name_or_default, vector2
+from .checks import ModelError, name_or_default, vector2
 from .bodies import Body
 
 

@@ -1,17 +1,16 @@
-"""Mechanism: the container users build, and the bridge to the numeric problem."""
+"""Mechanism: the container users build (`mechsim.build` turns it into a NumericProblem)."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._checks import LoadError, ModelError, call_user, name_or_default, vector2
+from .checks import ModelError, name_or_default, vector2
 from .bodies import Body, Ground
 from .drivers import Driver
 from .flexible_beam import FlexibleBeam
-from .forces import Force, Spring, Torque
+from .forces import Force, Spring, Torque, load_points
 from .joints import Joint
 
 
@@ -103,7 +102,7 @@ class Mechanism:
         elif isinstance(item, (Spring, Force, Torque)):
             for body in item.bodies:
                 self._check_member(body, f"'{item.name}'")
-            for body, at in _load_points(item):
+            for body, at in load_points(item):
                 body.attachment_values(body.local_point(at), f"'{item.name}'")
             self.loads.append(item)
         else:
@@ -146,13 +145,6 @@ class Mechanism:
     def coordinate_names(self) -> list[str]:
         return [f"{b.name}.{c}" for b in self.bodies for c in b.coordinate_names]
 
-    def _body_starts(self) -> dict:
-        starts, k = {self.ground.name: None}, 0
-        for b in self.bodies:
-            starts[b.name] = k
-            k += len(b.coordinate_names)
-        return starts
-
     def initial_coordinates(self) -> np.ndarray:
         return np.concatenate([b.initial_coordinates for b in self.bodies]) if self.bodies \
             else np.zeros(0)
@@ -162,9 +154,6 @@ class Mechanism:
             else np.zeros(0)
 
     # --- the numeric problem -----------------------------------------------------------------
-    def _constraint_items(self):
-        return self.joints + self.drivers
-
     def structure(self) -> dict:
         """What the generated code depends on (not parameter values, not names): the cache
         key. Bodies and joints are referred to by position."""
@@ -172,95 +161,17 @@ class Mechanism:
                  **{id(j): k for k, j in enumerate(self.joints)}}
         return {"bodies": [(type(b).__name__, list(b.coordinate_names)) for b in self.bodies],
                 "constraints": [list(item.structure(lambda x: index[id(x)]))
-                                for item in self._constraint_items()]}
+                                for item in self.joints + self.drivers]}
 
     def problem(self):
-        """The NumericProblem of this mechanism (compiled once; from the disk cache if seen)."""
+        """The NumericProblem of this mechanism (compiled once; from the disk cache if seen;
+        see `mechsim.build`)."""
         if self._problem is None:
-            from ..problem import FlexibleData, NumericProblem, PointLoad, SpringData
-            from ..codegen import load_model, structure_key
-
             if not self.bodies:
                 raise ModelError(f"mechanism '{self.name}' has no moving bodies")
-            items = self._constraint_items()
-            structure = self.structure()
-
-            def build() -> str:
-                from ..codegen.printer import model_source
-                from ..symbolic import build_system
-                return model_source(build_system(self.bodies, items), structure_key(structure))
-
-            model, self.from_cache = load_model(structure, build)
-            starts = self._body_starts()
-            params = [x for item in items for x in item.parameter_values()]
-            names, owners, kinds = [], [], []
-            for item in items:
-                for label in item.equation_labels:
-                    names.append(f"{item.name}.{label}")
-                    owners.append(item.name)
-                    kinds.append("driver" if isinstance(item, Driver) else "joint")
-            springs, loads = [], []
-            for ld in self.loads:
-                if isinstance(ld, Spring):
-                    sa, sb = ld.body_a.local_point(ld.at_a), ld.body_b.local_point(ld.at_b)
-                    springs.append(SpringData(
-                        ld.name, starts[ld.body_a.name], starts[ld.body_b.name],
-                        tuple(sa), tuple(sb), ld.stiffness, ld.damping, ld.rest_length,
-                        ld.body_a.point_modes(sa), ld.body_b.point_modes(sb)))
-                elif starts[ld.body.name] is None:
-                    continue  # a load on the ground does no work
-                elif isinstance(ld, Force):
-                    s = ld.body.local_point(ld.at)
-                    loads.append(PointLoad(ld.name, starts[ld.body.name], tuple(s),
-                                           _checked_force(ld), False, ld.body.point_modes(s)))
-                else:
-                    loads.append(PointLoad(ld.name, starts[ld.body.name], None,
-                                           _checked_torque(ld), True))
-            mass = np.concatenate([b.mass_diagonal for b in self.bodies])
-            flexible = []
-            for b in self.bodies:
-                if isinstance(b, FlexibleBeam):
-                    from ..flexible.kernel import load_kernel
-                    inv = b.invariants()
-                    flexible.append(FlexibleData(b.name, starts[b.name], inv,
-                                                 load_kernel(b.n_modes),
-                                                 inv.kernel_parameters(self.gravity),
-                                                 b.point_modes))
-            self._problem = NumericProblem(model, params, mass, self.gravity, starts,
-                                           self.coordinate_names, names, owners,
-                                           springs, loads, title=self.name,
-                                           constraint_kinds=kinds, flexible=flexible,
-                                           drawing=self._drawing(starts),
-                                           driver_laws=[(d.name, d.law) for d in self.drivers])
+            from ..build import build_problem
+            self._problem, self.from_cache = build_problem(self)
         return self._problem
-
-    def _drawing(self, starts) -> list:
-        """Polylines for export: a rigid body through its attachment points and centre of
-        mass (ordered along their main direction), a beam through 4 points per element."""
-        attached = {b.name: [np.zeros(2)] for b in self.bodies}
-        for j in self.joints:
-            for body, local in zip((j.body_a, j.body_b), j.attachment_points()):
-                if body.name in attached:
-                    attached[body.name].append(np.asarray(local, float))
-        for ld in self.loads:
-            for body, at in _load_points(ld):
-                if body.name in attached:
-                    attached[body.name].append(body.local_point(at))
-        out = []
-        for b in self.bodies:
-            if isinstance(b, FlexibleBeam):
-                xi = np.linspace(0.0, b.length, 4 * b.n_elements + 1)
-                local = np.column_stack([xi, np.zeros_like(xi)])
-                modal = np.stack([b.point_modes(s) for s in local])
-                out.append((b.name, starts[b.name], local, modal))
-                continue
-            pts = np.unique(np.round(np.array(attached[b.name]), 12), axis=0)
-            if len(pts) == 1:
-                pts = np.vstack([pts, pts])
-            centred = pts - pts.mean(axis=0)
-            direction = np.linalg.svd(centred)[2][0]
-            out.append((b.name, starts[b.name], pts[np.argsort(centred @ direction)], None))
-        return out
 
     # --- analysis ----------------------------------------------------------------------------
     def dof(self, t: float = 0.0) -> DofReport:
@@ -345,51 +256,3 @@ class Mechanism:
     def __repr__(self):
         return (f"Mechanism({self.name!r}: {len(self.bodies)} bodies, {len(self.joints)} joints, "
                 f"{len(self.drivers)} drivers, {len(self.loads)} loads)")
-
-
-def _load_points(ld):
-    """(body, global point) of each attachment of a spring or force."""
-    if isinstance(ld, Spring):
-        return [(ld.body_a, ld.at_a), (ld.body_b, ld.at_b)]
-    if isinstance(ld, Force):
-        return [(ld.body, ld.at)]
-    return []
-
-
-def _checked_force(ld: Force):
-    """A constant force, or its function wrapped so that a failure or a bad value is a
-    LoadError naming the force."""
-    if not callable(ld.force):
-        return ld.force
-    f, owner = ld.force, f"force '{ld.name}'"
-
-    def value(t):
-        given = call_user(f, (t,), owner)
-        try:
-            out = np.asarray(given, float)
-        except (TypeError, ValueError):
-            out = None
-        if out is None or out.shape != (2,) or not np.all(np.isfinite(out)):
-            raise LoadError(f"{owner}: the function returned {given!r:.60} at t = "
-                            f"{t:.9g}; expected two finite numbers")
-        return out
-    return value
-
-
-def _checked_torque(ld: Torque):
-    """A constant torque, or its function wrapped as `_checked_force`'s."""
-    if not callable(ld.torque):
-        return ld.torque
-    f, owner = ld.torque, f"torque '{ld.name}'"
-
-    def value(t):
-        given = call_user(f, (t,), owner)
-        try:
-            out = float(given)
-        except (TypeError, ValueError):
-            out = math.nan
-        if not math.isfinite(out):
-            raise LoadError(f"{owner}: the function returned {given!r:.60} at t = {t:.9g}; "
-                            "expected a finite number")
-        return out
-    return value

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..problem import frame_point, frame_point_velocity
+from ..kinematics import frame_point, frame_point_velocity
 
 # The formats written: ones whose meshio writers take line cells and point data per time.
 FORMATS = (".xdmf", ".vtu", ".vtk")

@@ -4,7 +4,7 @@ built with the object API (no pyplot state, never `show()`)."""
 from __future__ import annotations
 
 
-def _new_axes(ax, size=(7.0, 3.6)):
+def new_axes(ax, size=(7.0, 3.6)):
     if ax is not None:
         return ax.figure, ax
     from matplotlib.figure import Figure
@@ -13,7 +13,7 @@ def _new_axes(ax, size=(7.0, 3.6)):
 
 
 def plot_energy(result, path=None, ax=None):
-    fig, ax = _new_axes(ax)
+    fig, ax = new_axes(ax)
     ax.plot(result.t, result.energy_drift, lw=1.2, color="C0", label="energy drift")
     for k, sp in enumerate(result.singular_passages):
         ax.axvspan(sp.t_start, max(sp.t_end, sp.t_start + 1e-9 * (result.t[-1] - result.t[0])),

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..problem import frame_point, frame_point_velocity
+from ..kinematics import frame_point, frame_point_velocity
 
 
 @dataclass(frozen=True)

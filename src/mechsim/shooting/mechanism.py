@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..oscillators import PeriodicProblem, Trajectory
+from ..newton import newton
+from .oscillators import PeriodicProblem, Trajectory
 
 
 class MechanismPeriodicProblem(PeriodicProblem):
@@ -39,12 +40,15 @@ class MechanismPeriodicProblem(PeriodicProblem):
         prob, t = self.problem, self.t0
         q = self.q_ref.copy()
         q[self.ind] = u[:f]
-        for _ in range(30):
-            phi, J = prob.position_terms(q, t)
-            if np.max(np.abs(phi), initial=0.0) < 1e-13:
-                break
+
+        def correct(q, phi, J, slow):
+            q = q.copy()
             q[self.dep] -= np.linalg.lstsq(J[:, self.dep], phi, rcond=None)[0]
-        else:
+            return q
+
+        done = newton(q, lambda q: prob.position_terms(q, t), correct, 1e-13, 30)
+        q = done.x
+        if not done.converged:
             raise ValueError("steady_state: the independent coordinates "
                              f"{np.round(u[:f], 6).tolist()} admit no assembled configuration")
         J = prob.phi_q(q, t)

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..oscillators import ImpactPair
+from .oscillators import ImpactPair
 from .solve import solve
 
 # Quasi-Newton (forward-difference Jacobian of the residual, Broyden updates, minimum-norm
@@ -62,8 +62,8 @@ class RegimeMap:
         """Mode map: one colour per (n, m), hatched where the periodic state is unstable; a
         subharmonic's colour is its impacts in k periods, labelled "/kT"; grey where the
         motion is irregular."""
-        from ..results.plots import _new_axes
-        fig, ax = _new_axes(ax, size=(8.5, 5.0))
+        from ..results.plots import new_axes
+        fig, ax = new_axes(ax, size=(8.5, 5.0))
         periods = self.periods if self.periods is not None else \
             np.where(self.modes[:, :, 0] >= 0, 1, -1)
         cycles = self.cycle_modes if self.cycle_modes is not None else self.modes

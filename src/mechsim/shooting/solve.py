@@ -220,7 +220,7 @@ SHOOTING_METHODS = {"warner": _warner, "newton": _newton}
 def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: int = 50,
           scale: float = 1.01, guesses=None, floquet: bool = True,
           max_halvings: int = 30, xtol: float | None = None) -> ShootingResult:
-    """Find u with g(u) = 0 for a periodic `problem` (see `mechsim.oscillators`).
+    """Find u with g(u) = 0 for a periodic `problem` (see `mechsim.shooting.oscillators`).
 
     Parameters
     ----------

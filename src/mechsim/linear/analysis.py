@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from .linear import LINEAR_METHODS, LinearSystem
+from .system import LINEAR_METHODS, LinearSystem
 
 
 def _check(method, omega, zeta, h):

@@ -202,7 +202,7 @@ class LinearOscillator(PeriodicProblem):
     def floquet_matrix(self, u):
         M = self._cached_flow(u)[1]
         if M is None:
-            from .shooting.solve import monodromy
+            from .solve import monodromy
             return monodromy(self, u)
         return M
 
@@ -480,7 +480,7 @@ class ImpactPair(PeriodicProblem):
         (central differences; the perturbed flows meet the same impacts, so the saltation
         at each impact is included). Its eigenvalues are the Floquet multipliers. (The
         shooting Jacobian ∂y(T)/∂u is not a state-to-state map: u holds φ instead of x2.)"""
-        from .shooting.solve import central_jacobian
+        from .solve import central_jacobian
         u = self.check(u)
         phi = float(u[3])
         return central_jacobian(lambda y: self.state_flow(y, phi).x[-1],

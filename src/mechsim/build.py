@@ -1,0 +1,163 @@
+"""The builder: a declarative `Mechanism` turned into the `NumericProblem` the solvers run.
+
+The model (`mechsim.model`) says what the user built; this module compiles it: the
+constraint equations through sympy and the generated-code cache (`mechsim.codegen`), the
+parameter values in the order of the generated symbols, the rows' names and owners, the
+springs', loads' and beams' numeric data, and the polylines an export draws.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .model import Driver, FlexibleBeam, Force, LoadError, Spring, Torque
+from .model.forces import load_points
+from .model.checks import call_user
+from .problem import FlexibleData, NumericProblem, PointLoad, SpringData
+
+
+def body_starts(mech) -> dict:
+    """Each body's name -> the index of its first coordinate in q (None: the ground)."""
+    starts, k = {mech.ground.name: None}, 0
+    for b in mech.bodies:
+        starts[b.name] = k
+        k += len(b.coordinate_names)
+    return starts
+
+
+def build_problem(mech) -> tuple[NumericProblem, bool]:
+    """(the NumericProblem of `mech`, whether its generated model came from the cache)."""
+    from .codegen import load_model, structure_key
+
+    items = mech.joints + mech.drivers
+    structure = mech.structure()
+
+    def generate() -> str:
+        from .codegen.printer import model_source
+        from .symbolic import build_system
+        return model_source(build_system(mech.bodies, items), structure_key(structure))
+
+    model, from_cache = load_model(structure, generate)
+    starts = body_starts(mech)
+    params = [x for item in items for x in item.parameter_values()]
+    names, owners, kinds = [], [], []
+    for item in items:
+        for label in item.equation_labels:
+            names.append(f"{item.name}.{label}")
+            owners.append(item.name)
+            kinds.append("driver" if isinstance(item, Driver) else "joint")
+    springs, loads = _load_data(mech, starts)
+    mass = np.concatenate([b.mass_diagonal for b in mech.bodies])
+    problem = NumericProblem(model, params, mass, mech.gravity, starts, mech.coordinate_names,
+                             names, owners, springs, loads, title=mech.name,
+                             constraint_kinds=kinds, flexible=_flexible_data(mech, starts),
+                             drawing=drawing(mech, starts),
+                             driver_laws=[(d.name, d.law) for d in mech.drivers])
+    return problem, from_cache
+
+
+def _load_data(mech, starts):
+    """(SpringData list, PointLoad list) of the mechanism's loads; loads on the ground,
+    which do no work, are left out."""
+    springs, loads = [], []
+    for ld in mech.loads:
+        if isinstance(ld, Spring):
+            sa, sb = ld.body_a.local_point(ld.at_a), ld.body_b.local_point(ld.at_b)
+            springs.append(SpringData(
+                ld.name, starts[ld.body_a.name], starts[ld.body_b.name],
+                tuple(sa), tuple(sb), ld.stiffness, ld.damping, ld.rest_length,
+                ld.body_a.point_modes(sa), ld.body_b.point_modes(sb)))
+        elif starts[ld.body.name] is None:
+            continue
+        elif isinstance(ld, Force):
+            s = ld.body.local_point(ld.at)
+            loads.append(PointLoad(ld.name, starts[ld.body.name], tuple(s),
+                                   _checked_force(ld), False, ld.body.point_modes(s)))
+        else:
+            loads.append(PointLoad(ld.name, starts[ld.body.name], None,
+                                   _checked_torque(ld), True))
+    return springs, loads
+
+
+def _flexible_data(mech, starts) -> list[FlexibleData]:
+    flexible = []
+    for b in mech.bodies:
+        if isinstance(b, FlexibleBeam):
+            from .flexible.kernel import load_kernel
+            inv = b.invariants()
+            flexible.append(FlexibleData(b.name, starts[b.name], inv, load_kernel(b.n_modes),
+                                         inv.kernel_parameters(mech.gravity), b.point_modes))
+    return flexible
+
+
+def drawing(mech, starts) -> list:
+    """Polylines for export: a rigid body through its attachment points and centre of
+    mass (ordered along their main direction), a beam through 4 points per element."""
+    attached = {b.name: [np.zeros(2)] for b in mech.bodies}
+    for j in mech.joints:
+        for body, local in zip((j.body_a, j.body_b), j.attachment_points()):
+            if body.name in attached:
+                attached[body.name].append(np.asarray(local, float))
+    for ld in mech.loads:
+        for body, at in load_points(ld):
+            if body.name in attached:
+                attached[body.name].append(body.local_point(at))
+    out = []
+    for b in mech.bodies:
+        if isinstance(b, FlexibleBeam):
+            xi = np.linspace(0.0, b.length, 4 * b.n_elements + 1)
+            local = np.column_stack([xi, np.zeros_like(xi)])
+            modal = np.stack([b.point_modes(s) for s in local])
+            out.append((b.name, starts[b.name], local, modal))
+            continue
+        pts = np.unique(np.round(np.array(attached[b.name]), 12), axis=0)
+        if len(pts) == 1:
+            pts = np.vstack([pts, pts])
+        centred = pts - pts.mean(axis=0)
+        direction = np.linalg.svd(centred)[2][0]
+        out.append((b.name, starts[b.name], pts[np.argsort(centred @ direction)], None))
+    return out
+
+
+def _checked_force(ld: Force):
+    """A constant force, or its function wrapped by `_checked`."""
+    return _checked(ld.force, f"force '{ld.name}'", _as_force, "two finite numbers")
+
+
+def _checked_torque(ld: Torque):
+    """A constant torque, or its function wrapped by `_checked`."""
+    return _checked(ld.torque, f"torque '{ld.name}'", _as_torque, "a finite number")
+
+
+def _checked(given, owner: str, convert, expected: str):
+    """`given` if it is a constant; a user's function of t wrapped so that its exception,
+    or a value `convert` refuses (None), is a LoadError naming `owner`."""
+    if not callable(given):
+        return given
+
+    def value(t):
+        got = call_user(given, (t,), owner)
+        out = convert(got)
+        if out is None:
+            raise LoadError(f"{owner}: the function returned {got!r:.60} at t = {t:.9g}; "
+                            f"expected {expected}")
+        return out
+    return value
+
+
+def _as_force(given):
+    try:
+        out = np.asarray(given, float)
+    except (TypeError, ValueError):
+        return None
+    return out if out.shape == (2,) and np.all(np.isfinite(out)) else None
+
+
+def _as_torque(given):
+    try:
+        out = float(given)
+    except (TypeError, ValueError):
+        return None
+    return out if math.isfinite(out) else None

@@ -1,0 +1,446 @@
+/* mechsim's compiled evaluations of small rigid mechanisms (see engine.py).
+
+   Compiled after the model's C twins (mechsim_phi, mechsim_phi_q, mechsim_phi_t,
+   mechsim_gamma) and the typedefs of mechsim_lu and mechsim_projection, which Python
+   writes from one description (layout.py): every buffer below is a named member of those
+   structs, allocated by Python at the size the description gives, and every threshold of
+   a rule shared with the Python path (the chord's contraction, the round-off stall) is a
+   member set from its one Python definition (mechsim/newton.py). LAPACK comes from scipy
+   (the function pointers scipy.linalg.cython_lapack exports). */
+
+typedef void (*mechsim_gesv_t)(int *, int *, double *, int *, int *, double *, int *, int *);
+typedef void (*mechsim_posv_t)(char *, int *, int *, double *, int *, double *, int *, int *);
+typedef void (*mechsim_potrf_t)(char *, int *, double *, int *, int *);
+typedef void (*mechsim_pocon_t)(char *, int *, double *, int *, double *, double *, double *,
+                                int *, int *);
+typedef void (*mechsim_potrs_t)(char *, int *, int *, double *, int *, double *, int *, int *);
+typedef void (*mechsim_getrf_t)(int *, int *, double *, int *, int *, int *);
+typedef void (*mechsim_gesdd_t)(char *, int *, int *, double *, int *, double *, double *, int *,
+                                double *, int *, double *, int *, int *, int *);
+static mechsim_gesv_t mechsim_dgesv = 0;
+static mechsim_posv_t mechsim_dposv = 0;
+static mechsim_potrf_t mechsim_dpotrf = 0;
+static mechsim_pocon_t mechsim_dpocon = 0;
+static mechsim_potrs_t mechsim_dpotrs = 0;
+static mechsim_gesdd_t mechsim_dgesdd = 0;
+static mechsim_getrf_t mechsim_dgetrf = 0;
+
+void mechsim_engine_init(void *gesv, void *posv, void *potrf, void *pocon, void *potrs,
+                         void *gesdd, void *getrf) {
+  mechsim_dgesv = (mechsim_gesv_t)gesv;
+  mechsim_dposv = (mechsim_posv_t)posv;
+  mechsim_dpotrf = (mechsim_potrf_t)potrf;
+  mechsim_dpocon = (mechsim_pocon_t)pocon;
+  mechsim_dpotrs = (mechsim_potrs_t)potrs;
+  mechsim_dgesdd = (mechsim_gesdd_t)gesdd;
+  mechsim_dgetrf = (mechsim_getrf_t)getrf;
+}
+
+static double max_abs(int64_t m, const double *x) {
+  double e = 0.0;
+  for (int64_t i = 0; i < m; i++) {
+    const double a = fabs(x[i]);
+    if (isnan(a)) return NAN;
+    if (a > e) e = a;
+  }
+  return e;
+}
+
+/* ---- the partitioned evaluation (Partitioned.full_state and its accelerations) ---- */
+
+/* Positions by the chord Newton from the prediction, Phi_q there and the velocities, into
+   q, v, J. 0: done; 1: Newton failed or contracted too slowly (Python decides); 2: Phi_q D
+   singular. */
+static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double *v,
+                    double *J) {
+  const int64_t n = c->n, m = c->m, f = c->f, r = n - f, cols = 3 + f;
+  const double *z = y, *zd = y + f;
+  double *w = c->w, *phi = c->phi, *A = c->A, *b = c->b, *phit = c->phit;
+  const double d = t - c->t_last;
+  for (int64_t i = 0; i < r; i++) {
+    const double *Pi = c->P + i * cols;
+    double s = Pi[0] + Pi[1] * d + Pi[2] * (d * d);
+    for (int64_t k = 0; k < f; k++) s += Pi[3 + k] * z[k];
+    w[i] = s;
+  }
+  double err_prev = INFINITY;
+  for (int64_t it = 0;; it++) {
+    memcpy(q, c->q_ref, n * sizeof(double));
+    for (int64_t k = 0; k < f; k++) q[c->ind[k]] += z[k];
+    for (int64_t i = 0; i < r; i++) q[c->dep[i]] += w[i];
+    mechsim_phi(q, t, c->p, phi);
+    const double err = max_abs(m, phi);
+    if (isnan(err)) return 1;
+    if (err <= c->newton_tol) break;
+    if (it == c->max_newton || !isfinite(err) || !(err <= c->chord_contraction * err_prev))
+      return 1;
+    err_prev = err;
+    for (int64_t i = 0; i < r; i++) {
+      const double *Ci = c->C + i * m;
+      double s = 0.0;
+      for (int64_t j = 0; j < m; j++) s += Ci[j] * phi[j];
+      w[i] -= s;
+    }
+  }
+  memset(J, 0, m * n * sizeof(double));
+  mechsim_phi_q(q, t, c->p, J);
+  memset(phit, 0, m * sizeof(double));
+  if (c->rheonomic) mechsim_phi_t(q, t, c->p, phit);
+  for (int64_t i = 0; i < r; i++) {
+    const double *Ji = J + i * n;
+    double s = 0.0;
+    for (int64_t k = 0; k < f; k++) s += Ji[c->ind[k]] * zd[k];
+    b[i] = -s - phit[i];
+    for (int64_t j = 0; j < r; j++) A[i + j * r] = Ji[c->dep[j]];   /* column-major */
+  }
+  int N = (int)r, nrhs = 1, info = 0;
+  mechsim_dgesv(&N, &nrhs, A, &N, c->ipiv, b, &N, &info);
+  if (info != 0) return 2;
+  for (int64_t k = 0; k < f; k++) v[c->ind[k]] = zd[k];
+  for (int64_t i = 0; i < r; i++) v[c->dep[i]] = b[i];
+  return 0;
+}
+
+int mechsim_lu_state(mechsim_lu *c, double t) {
+  return lu_state(c, t, c->y, c->q, c->v, c->J);
+}
+
+/* k output samples (rows of Y) into the rows of Qo and Vo; the first failure's status. */
+int mechsim_lu_states(mechsim_lu *c, int64_t k, const double *ts, const double *Y,
+                      double *Qo, double *Vo, double *Jwork) {
+  const int64_t n = c->n, f = c->f;
+  for (int64_t s = 0; s < k; s++) {
+    const int status = lu_state(c, ts[s], Y + s * 2 * f, Qo + s * n, Vo + s * n, Jwork);
+    if (status) return status;
+  }
+  return 0;
+}
+
+/* [zd; zdd] at the state mechsim_lu_state left in the buffers, with the forces c->Q, by
+   the partition's reduced equations (as Partitioned._qdd): with A = J D, X = A^-1 J B
+   and s = A^-1 gamma (one LU of A with f + 1 right-hand sides),
+   (M_B + X^T M_D X) zdd = Q_B - X^T (Q_D - M_D s). 1: A or the reduced mass is singular
+   (Python decides). */
+int mechsim_lu_accelerations(mechsim_lu *c, double t) {
+  const int64_t n = c->n, f = c->f, r = n - f;
+  const double *J = c->J, *winv = c->winv, *Q = c->Q;
+  double *g = c->g, *A = c->A, *X = c->X, *Mh = c->Mh, *Qh = c->Qh, *s = c->X + r * f;
+  memset(g, 0, c->m * sizeof(double));
+  mechsim_gamma(c->q, c->v, t, c->p, g);
+  for (int64_t i = 0; i < r; i++) {                      /* column-major A and [J B, gamma] */
+    const double *Ji = J + i * n;
+    for (int64_t j = 0; j < r; j++) A[i + j * r] = Ji[c->dep[j]];
+    for (int64_t k = 0; k < f; k++) X[i + k * r] = Ji[c->ind[k]];
+    s[i] = g[i];
+  }
+  int R = (int)r, nrhs = (int)(f + 1), info = 0;
+  mechsim_dgesv(&R, &nrhs, A, &R, c->ipiv, X, &R, &info);
+  if (info != 0) return 1;
+  for (int64_t k = 0; k < f; k++) {
+    const double *Xk = X + k * r;
+    double qk = Q[c->ind[k]];
+    for (int64_t i = 0; i < r; i++) {
+      const int64_t d = c->dep[i];
+      qk -= Xk[i] * (Q[d] - s[i] / winv[d]);
+    }
+    Qh[k] = qk;
+    for (int64_t l = 0; l <= k; l++) {
+      const double *Xl = X + l * r;
+      double e = l == k ? 1.0 / winv[c->ind[k]] : 0.0;
+      for (int64_t i = 0; i < r; i++) e += Xk[i] * Xl[i] / winv[c->dep[i]];
+      Mh[k + l * f] = e;
+      Mh[l + k * f] = e;
+    }
+  }
+  char uplo = 'U';
+  int F = (int)f, one = 1;
+  if (f > 0) {
+    mechsim_dposv(&uplo, &F, &one, Mh, &F, Qh, &F, &info);
+    if (info != 0) return 1;
+  }
+  memcpy(c->out, c->y + f, f * sizeof(double));
+  memcpy(c->out + f, Qh, f * sizeof(double));
+  return 0;
+}
+
+/* ---- the projection method (Projection.accelerations, NumericProblem.project_state) ---- */
+
+/* S = J W J^T (both triangles, column-major); returns max S_ii. */
+static double complement(int64_t n, int64_t m, const double *J, const double *winv,
+                         double *S) {
+  double diag = 0.0;
+  for (int64_t i = 0; i < m; i++) {
+    const double *Ji = J + i * n;
+    for (int64_t k = 0; k <= i; k++) {
+      const double *Jk = J + k * n;
+      double e = 0.0;
+      for (int64_t j = 0; j < n; j++) e += Ji[j] * winv[j] * Jk[j];
+      S[i + k * m] = e;
+      S[k + i * m] = e;
+    }
+    if (S[i + i * m] > diag) diag = S[i + i * m];
+  }
+  return diag;
+}
+
+/* The Cholesky factor of S = J W J^T in place (upper triangle); 1 where it fails or, with
+   min_rcond >= 0, LAPACK's estimate of 1/cond_1 is not above min_rcond. The norm is
+   bounded by m max S_ii, as dense.cholesky_conditioned bounds it. */
+static int cholesky(mechsim_projection *c, double *S, double diag, double min_rcond) {
+  char uplo = 'U';
+  int M = (int)c->m, info = 0;
+  mechsim_dpotrf(&uplo, &M, S, &M, &info);
+  if (info != 0) return 1;
+  if (min_rcond >= 0.0) {
+    double anorm = (double)c->m * diag, rcond = 0.0;
+    mechsim_dpocon(&uplo, &M, S, &M, &anorm, &rcond, c->cw, c->iwork, &info);
+    if (info != 0 || !(rcond > min_rcond)) return 1;
+  }
+  return 0;
+}
+
+/* A = J W^(1/2) (row-major m x n; A may be J). */
+static void scale_columns(const mechsim_projection *c, const double *J, double *A) {
+  for (int64_t i = 0; i < c->m; i++)
+    for (int64_t j = 0; j < c->n; j++) A[i * c->n + j] = J[i * c->n + j] * sqrt(c->winv[j]);
+}
+
+/* The thin SVD of A = J~ (row-major m x n, m <= n; destroyed) by LAPACK's dgesdd into
+   c->sig (largest first), the right singular vectors of J~ as the columns of c->U
+   (n x m, column-major) and the left ones as the rows of c->VT (m x m, column-major):
+   row-major J~ is J~^T column-major, and J~^T = U S VT. 1 where dgesdd fails. */
+static int scaled_svd(mechsim_projection *c, double *A) {
+  char jobz = 'S';
+  int N = (int)c->n, M = (int)c->m, LW = (int)c->lwork, info = 0;
+  mechsim_dgesdd(&jobz, &N, &M, A, &N, c->sig, c->U, &N, c->VT, &M, c->svd_work, &LW,
+                 c->iwork, &info);
+  return info != 0;
+}
+
+/* The accelerations by the SVD of J~ = J W^(1/2) (m <= n), as Projection.accelerations
+   computes them where truncation drops nothing: every singular value above
+   cut * sigma_max. x = W^(1/2) Q, x -= V V^T x - V S^-1 U^T g, qdd = W^(1/2) x into
+   c->out as [v; qdd]. 1 where some singular value is at or below the cut (the band:
+   Python truncates and interpolates) or the SVD fails. */
+static int svd_accelerations(mechsim_projection *c, const double *J, const double *g,
+                             double cut) {
+  const int64_t n = c->n, m = c->m;
+  const double *sig = c->sig, *U = c->U, *VT = c->VT;
+  double *x = c->x, *y = c->y;
+  if (m > n) return 1;
+  scale_columns(c, J, c->A);
+  if (scaled_svd(c, c->A) || !(sig[0] > 0.0) || !(sig[m - 1] > cut * sig[0])) return 1;
+  for (int64_t j = 0; j < n; j++) x[j] = sqrt(c->winv[j]) * c->Q[j];
+  for (int64_t k = 0; k < m; k++) {            /* y_k = V_k^T x - (U^T g)_k / sigma_k */
+    double vx = 0.0, ug = 0.0;
+    for (int64_t j = 0; j < n; j++) vx += U[j + k * n] * x[j];
+    for (int64_t i = 0; i < m; i++) ug += VT[k + i * m] * g[i];
+    y[k] = vx - ug / sig[k];
+  }
+  memcpy(c->out, c->v, n * sizeof(double));
+  for (int64_t j = 0; j < n; j++) {
+    double s = 0.0;
+    for (int64_t k = 0; k < m; k++) s += U[j + k * n] * y[k];
+    c->out[n + j] = sqrt(c->winv[j]) * (x[j] - s);
+  }
+  return 0;
+}
+
+/* The projection method's accelerations where J W J^T is well conditioned (there they
+   are the exact constrained accelerations): qdd = W Q - W J^T lam,
+   (J W J^T) lam = J W Q - gamma, into c->out as [v; qdd]. The Cholesky factor serves
+   unless it fails or, with min_rcond >= 0, its condition estimate is not above
+   min_rcond; then, with cut > 0, the SVD decides (svd_accelerations), else 1. */
+int mechsim_projection_accelerations(mechsim_projection *c, double t, double min_rcond,
+                                     double cut) {
+  const int64_t n = c->n, m = c->m;
+  const double *winv = c->winv;
+  double *J = c->J, *g = c->g, *wq = c->wq, *lam = c->lam, *S = c->S;
+  memset(J, 0, m * n * sizeof(double));
+  mechsim_phi_q(c->q, t, c->p, J);
+  memset(g, 0, m * sizeof(double));
+  mechsim_gamma(c->q, c->v, t, c->p, g);
+  for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * c->Q[j];
+  for (int64_t i = 0; i < m; i++) {                    /* lam = J W Q - gamma */
+    const double *Ji = J + i * n;
+    double s = 0.0;
+    for (int64_t j = 0; j < n; j++) s += Ji[j] * wq[j];
+    lam[i] = s - g[i];
+  }
+  const double diag = complement(n, m, J, winv, S);
+  char uplo = 'U';
+  int M = (int)m, nrhs = 1, info = 0;
+  if (cholesky(c, S, diag, min_rcond))
+    return cut > 0.0 ? svd_accelerations(c, J, g, cut) : 1;
+  mechsim_dpotrs(&uplo, &M, &nrhs, S, &M, lam, &M, &info);
+  if (info != 0) return 1;
+  memcpy(c->out, c->v, n * sizeof(double));
+  for (int64_t j = 0; j < n; j++) {
+    double s = 0.0;
+    for (int64_t i = 0; i < m; i++) s += J[i * n + j] * lam[i];
+    c->out[n + j] = wq[j] - winv[j] * s;
+  }
+  return 0;
+}
+
+/* x -= W J^T (S^-1 r), S the Cholesky factor in place; r is overwritten. */
+static int correct(mechsim_projection *c, const double *J, const double *S, double *r,
+                   double *x) {
+  const int64_t n = c->n, m = c->m;
+  char uplo = 'U';
+  int M = (int)m, nrhs = 1, info = 0;
+  mechsim_dpotrs(&uplo, &M, &nrhs, (double *)S, &M, r, &M, &info);
+  if (info != 0) return 1;
+  for (int64_t j = 0; j < n; j++) {
+    double s = 0.0;
+    for (int64_t i = 0; i < m; i++) s += J[i * n + j] * r[i];
+    x[j] -= c->winv[j] * s;
+  }
+  return 0;
+}
+
+/* (c->q, c->v) projected in place onto the constraints in the mass metric, as
+   NumericProblem.project_state: a chord Newton on Phi with the one Cholesky factor of
+   J W J^T at the given q (stopping at max|Phi| <= tol or at round-off: the residual
+   shrinks by less than stall_ratio and lies within stall_span tol; then `extra` further
+   iterations), and the velocity projection v -= W J^T S^-1 (J v + Phi_t) with J at the new
+   q and the same factor. 0: projected, c->count the Newton iterations; 2: max|Phi| <=
+   skip_tol, left as it is; 1: declined (the factor fails, or with min_rcond >= 0 its
+   condition estimate is not above it; the chord does not converge within max_iter). */
+int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, double tol,
+                          double min_rcond, int64_t extra, int64_t max_iter) {
+  const int64_t n = c->n, m = c->m;
+  double *q = c->q, *v = c->v, *J = c->J, *phi = c->phi, *r = c->r, *S = c->S;
+  mechsim_phi(q, t, c->p, phi);
+  double err = max_abs(m, phi);
+  if (err <= skip_tol) return 2;
+  memset(J, 0, m * n * sizeof(double));
+  mechsim_phi_q(q, t, c->p, J);
+  const double diag = complement(n, m, J, c->winv, S);
+  if (cholesky(c, S, diag, min_rcond)) return 1;
+  double prev = INFINITY;
+  int64_t count = 0;
+  for (int64_t k = 0;; k++) {
+    if (isnan(err)) return 1;
+    if (err <= tol || (err > c->stall_ratio * prev && err <= c->stall_span * tol)) break;
+    if (k == max_iter) return 1;
+    prev = err;
+    memcpy(r, phi, m * sizeof(double));
+    if (correct(c, J, S, r, q)) return 1;
+    count++;
+    mechsim_phi(q, t, c->p, phi);
+    err = max_abs(m, phi);
+  }
+  for (int64_t k = 0; k < extra; k++) {
+    memcpy(r, phi, m * sizeof(double));
+    if (correct(c, J, S, r, q)) return 1;
+    count++;
+    mechsim_phi(q, t, c->p, phi);
+  }
+  memset(J, 0, m * n * sizeof(double));
+  mechsim_phi_q(q, t, c->p, J);        /* S keeps the factor at the given q */
+  memset(r, 0, m * sizeof(double));
+  mechsim_phi_t(q, t, c->p, r);
+  for (int64_t i = 0; i < m; i++) {
+    const double *Ji = J + i * n;
+    double s = 0.0;
+    for (int64_t j = 0; j < n; j++) s += Ji[j] * v[j];
+    r[i] += s;
+  }
+  if (correct(c, J, S, r, v)) return 1;
+  c->count = count;
+  return 0;
+}
+
+/* ---- the singularity monitor and the hybrid's LU test ---- */
+
+/* J~ = Phi_q W^(1/2) at (q, t) into Jt (row-major m x n). */
+static void scaled_jacobian(mechsim_projection *c, const double *q, double t, double *Jt) {
+  memset(Jt, 0, c->m * c->n * sizeof(double));
+  mechsim_phi_q(q, t, c->p, Jt);
+  scale_columns(c, Jt, Jt);
+}
+
+/* The singularity monitor's measurement (SingularityMonitor.measure, m <= n): the
+   extreme singular values of J~ = Phi_q W^(1/2) at c->q by LAPACK's dgesdd and, with
+   eps > 0, their derivatives along the motion, u^T dJ~ v with dJ~ from J~ at
+   (q + eps v, t + eps). out: [s_min, s_max, ds_min, ds_max, u_min (m)]; J~ in Jt.
+   1 where the SVD fails. */
+int mechsim_measure(mechsim_projection *c, double t, double eps, double *out, double *Jt) {
+  const int64_t n = c->n, m = c->m;
+  const double *U = c->U, *VT = c->VT;
+  double *J1 = c->J1, *q1 = c->q1;
+  scaled_jacobian(c, c->q, t, Jt);
+  memcpy(c->A, Jt, m * n * sizeof(double));
+  if (scaled_svd(c, c->A)) return 1;
+  const int64_t k = m - 1;
+  out[0] = c->sig[k];
+  out[1] = c->sig[0];
+  out[2] = out[3] = 0.0;
+  for (int64_t i = 0; i < m; i++) out[4 + i] = VT[k + i * m];
+  if (eps > 0.0) {
+    for (int64_t j = 0; j < n; j++) q1[j] = c->q[j] + eps * c->v[j];
+    scaled_jacobian(c, q1, t + eps, J1);
+    double dmin = 0.0, dmax = 0.0;
+    for (int64_t i = 0; i < m; i++) {
+      double smin = 0.0, smax = 0.0;
+      for (int64_t j = 0; j < n; j++) {
+        const double d = J1[i * n + j] - Jt[i * n + j];
+        smin += d * U[j + k * n];
+        smax += d * U[j];
+      }
+      dmin += VT[k + i * m] * smin;
+      dmax += VT[i * m] * smax;
+    }
+    out[2] = dmin / eps;
+    out[3] = dmax / eps;
+  }
+  return 0;
+}
+
+/* ||A||_1 ||A^-1||_1 of the block A = Phi_q D that Partitioned.choose picks at (c->q, t)
+   for a Phi_q of full row rank (m <= n): the dependent coordinates are the first m of
+   the row permutation of LU with partial pivoting of Phi_q^T. INFINITY where the
+   pivoting or the block is singular. */
+double mechsim_lu_condition(mechsim_projection *c, double t) {
+  const int64_t n = c->n, m = c->m;
+  double *J = c->J, *F = c->J1, *A = c->S, *X = c->X;
+  int64_t *perm = c->perm;
+  memset(J, 0, m * n * sizeof(double));
+  mechsim_phi_q(c->q, t, c->p, J);
+  memcpy(F, J, m * n * sizeof(double));
+  /* Row-major J is J^T column-major (n x m), the matrix `choose` factors. */
+  int N = (int)n, M = (int)m, info = 0;
+  mechsim_dgetrf(&N, &M, F, &N, c->iwork, &info);
+  if (info < 0) return INFINITY;
+  for (int64_t j = 0; j < n; j++) perm[j] = j;
+  for (int64_t i = 0; i < m; i++) {
+    const int64_t p = c->iwork[i] - 1, s = perm[i];
+    perm[i] = perm[p];
+    perm[p] = s;
+  }
+  double norm = 0.0, inorm = 0.0;
+  for (int64_t k = 0; k < m; k++) {
+    double col = 0.0;
+    for (int64_t i = 0; i < m; i++) {
+      const double a = J[i * n + perm[k]];
+      A[i + k * m] = a;                       /* column-major */
+      X[i + k * m] = i == k ? 1.0 : 0.0;
+      col += fabs(a);
+    }
+    if (col > norm) norm = col;
+  }
+  mechsim_dgesv(&M, &M, A, &M, c->iwork, X, &M, &info);
+  if (info != 0) return INFINITY;
+  for (int64_t k = 0; k < m; k++) {
+    double col = 0.0;
+    for (int64_t i = 0; i < m; i++) col += fabs(X[i + k * m]);
+    if (col > inorm) inorm = col;
+  }
+  return norm * inorm;
+}
+
+/* The structures' sizes as this compiler lays them out: Python checks them against its
+   ctypes twins before using the library. */
+int64_t mechsim_sizeof_lu(void) { return (int64_t)sizeof(mechsim_lu); }
+int64_t mechsim_sizeof_projection(void) { return (int64_t)sizeof(mechsim_projection); }

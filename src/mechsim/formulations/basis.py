@@ -1,0 +1,226 @@
+"""Coordinate bases of a partition, q = q_ref + B z + D w, and the factored dependent block
+Φ_q D that the partitioned formulations solve with."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import dense
+
+# Dependent blocks Φ_q D at least this large are factored sparse (`SparseBlock`).
+SPARSE_MIN = 40
+
+
+class ConstraintSolveError(RuntimeError):
+    """Newton on the dependent coordinates did not converge; names the worst joint."""
+
+
+def solve(A, b):
+    if A.shape[0] == A.shape[1]:
+        return dense.solve(A, b)
+    return np.linalg.lstsq(A, b, rcond=None)[0]
+
+
+def condition_number(A, inv=None) -> float:
+    """1-norm condition number ‖A‖₁ ‖A⁻¹‖₁ (inf if singular); an explicit inverse of the
+    small Φ_u is cheaper than the SVD behind np.linalg.cond. Pass `inv` if it is known."""
+    if A.size == 0:
+        return 1.0                      # no constraints: nothing to condition
+    if A.shape[0] != A.shape[1]:
+        return float(np.linalg.cond(A))
+    if inv is None:
+        try:
+            inv = dense.inv(A)
+        except np.linalg.LinAlgError:
+            return np.inf
+    return float(np.abs(A).sum(axis=0).max() * np.abs(inv).sum(axis=0).max())
+
+
+def inverse_or_none(A):
+    """A⁻¹ of a square matrix, None if it is singular or not square."""
+    if A.shape[0] != A.shape[1]:
+        return None
+    try:
+        return dense.inv(A)
+    except np.linalg.LinAlgError:
+        return None
+
+
+def numerical_rank(J) -> int:
+    if J.shape[0] == 0:
+        return 0
+    s = dense.svdvals(J)
+    return int(np.sum(s > max(J.shape) * np.finfo(float).eps * 1e3 * s[0]))
+
+
+
+class DenseBlock:
+    """Φ_q D as a dense matrix. `solve` is LAPACK's (least squares when the block is not
+    square: redundant constraints); the chord iteration and the condition number use the
+    explicit inverse, formed once: one small matmul per chord iteration instead of a
+    solve through scipy's wrapper."""
+
+    def __init__(self, A):
+        self.A, self._inv = A, False
+
+    def solve(self, b):
+        return solve(self.A, b)
+
+    def inverse(self):
+        """A⁻¹, formed once; None if A is singular or not square."""
+        if self._inv is False:
+            self._inv = inverse_or_none(self.A)
+        return self._inv
+
+    def chord(self, b):
+        inv = self.inverse()
+        return self.solve(b) if inv is None else inv @ b
+
+    def condition(self) -> float:
+        return condition_number(self.A, self.inverse())
+
+    def sign(self) -> int:
+        """The sign of det A (0 where A is singular or not square)."""
+        if self.A.shape[0] != self.A.shape[1]:
+            return 0
+        return int(np.linalg.slogdet(self.A)[0])
+
+
+class SparseBlock:
+    """Φ_q D of a long chain (hundreds of dependent coordinates, four non-zeros a row)
+    factored by SuperLU, an order of magnitude cheaper than the dense inverse there. The
+    condition
+    number is the 1-norm estimate of Hager and Higham (as LAPACK's condition estimators),
+    with one probe vector: more would be drawn from numpy's global random generator, which
+    would make re-partitioning, and so whole runs, depend on the caller's random state."""
+
+    def __init__(self, A):
+        from scipy.sparse.linalg import splu
+        self.A = A
+        try:
+            self.lu = splu(A)
+        except RuntimeError:                 # exactly singular
+            self.lu = None
+
+    def solve(self, b):
+        if self.lu is None:
+            raise np.linalg.LinAlgError("Singular matrix")
+        return self.lu.solve(np.asarray(b, float))
+
+    chord = solve
+
+    def sign(self) -> int:
+        """The sign of det A from SuperLU's factors P_r A P_c = L U (L unit diagonal)."""
+        if self.lu is None:
+            return 0
+        u = np.sign(self.lu.U.diagonal())
+        return int(np.prod(u) * _parity(self.lu.perm_r) * _parity(self.lu.perm_c))
+
+    def condition(self) -> float:
+        if self.lu is None:
+            return np.inf
+        from scipy.sparse.linalg import LinearOperator, onenormest
+        lu = self.lu
+        op = LinearOperator(self.A.shape, matvec=lu.solve, dtype=float,
+                            rmatvec=lambda x: lu.solve(x, trans="T"))
+        return float(abs(self.A).sum(axis=0).max() * onenormest(op, t=1))
+
+
+def _parity(perm) -> int:
+    """+1 for an even permutation, −1 for an odd one (from its cycles)."""
+    perm = np.asarray(perm)
+    seen = np.zeros(perm.size, bool)
+    odd = 0
+    for start in range(perm.size):
+        if seen[start]:
+            continue
+        length, k = 0, start
+        while not seen[k]:
+            seen[k], k, length = True, perm[k], length + 1
+        odd += length - 1
+    return -1 if odd % 2 else 1
+
+
+class CoordinateBasis:
+    """Independent / dependent subsets of q (columns of the identity), applied by indexing:
+    no n × n products, which dominate for large mechanisms. With `pattern` (the rows and
+    columns where Φ_q can be non-zero) and at least `SPARSE_MIN` dependent coordinates,
+    Φ_q D is factored sparse."""
+
+    def __init__(self, independent, dependent, pattern=None):
+        self.ind = np.sort(np.asarray(independent, dtype=np.intp))
+        self.dep = np.sort(np.asarray(dependent, dtype=np.intp))
+        self.f, self.r = self.ind.size, self.dep.size
+        # [z; w] in the order of q: one gather instead of two scattered updates.
+        self._order = np.argsort(np.concatenate([self.ind, self.dep]))
+        self._csc = None
+        if pattern is not None and self.r >= SPARSE_MIN:
+            rows, cols = (np.asarray(x, np.intp) for x in pattern)
+            where = np.full(max(cols.max(initial=-1), self.dep.max(initial=-1)) + 1, -1)
+            where[self.dep] = np.arange(self.r)
+            keep = where[cols] >= 0
+            rows, cols = rows[keep], cols[keep]
+            new = where[cols]
+            order = np.lexsort((rows, new))            # column-major, as CSC stores
+            rows, cols, new = rows[order], cols[order], new[order]
+            indptr = np.searchsorted(new, np.arange(self.r + 1))
+            self._csc = (rows, cols, rows.copy(), indptr)
+
+    @property
+    def sparse(self) -> bool:
+        """Whether Φ_q D is factored sparse (`block`)."""
+        return self._csc is not None
+
+    def block(self, J):
+        """Φ_q D at Φ_q = J, ready to solve with (`DenseBlock` or `SparseBlock`)."""
+        if self._csc is None or J.shape[0] != self.r:
+            return DenseBlock(self.JD(J))
+        from scipy.sparse import csc_matrix
+        rows, cols, indices, indptr = self._csc
+        return SparseBlock(csc_matrix((J[rows, cols], indices, indptr), shape=(self.r, self.r)))
+
+    def combine(self, base, z, w):
+        return base + self.assemble(z, w)
+
+    def assemble(self, z, w):
+        """B z + D w."""
+        return np.concatenate((z, w))[self._order]
+
+    def JB(self, J):
+        return J[..., self.ind]
+
+    def JD(self, J):
+        return J[..., self.dep]
+
+    def Bt(self, x):
+        return x[self.ind]
+
+    def Dt(self, x):
+        return x[self.dep]
+
+
+class MatrixBasis(CoordinateBasis):
+    """Orthonormal complementary bases B (n × f) and D (n × r), e.g. from an SVD."""
+
+    def __init__(self, B, D):
+        self.B, self.D = B, D
+        self.f, self.r = B.shape[1], D.shape[1]
+        self._csc = None
+
+    def combine(self, base, z, w):
+        return base + self.B @ z + self.D @ w
+
+    def assemble(self, z, w):
+        return self.B @ z + self.D @ w
+
+    def JB(self, J):
+        return J @ self.B
+
+    def JD(self, J):
+        return J @ self.D
+
+    def Bt(self, x):
+        return self.B.T @ x
+
+    def Dt(self, x):
+        return self.D.T @ x

@@ -1,0 +1,183 @@
+"""The applied loads of a NumericProblem: gravity, springs with dampers, point forces and
+torques, and the elastic and inertial forces of flexible beams; their potentials and the
+power of every channel that can do work on the mechanism besides gravity and elastic
+springs (the energy balance integrates it)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..kinematics import add_point_force, frame_point, point, point_velocity
+
+
+@dataclass(frozen=True)
+class SpringData:
+    name: str
+    a: int | None
+    b: int | None
+    sa: tuple[float, float]
+    sb: tuple[float, float]
+    stiffness: float
+    damping: float
+    rest_length: float
+    modal_a: np.ndarray | None = None     # (2, k) modal displacement of a point on a beam
+    modal_b: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class PointLoad:
+    """A force (constant 2-vector or callable of t) at body-fixed point `s`, or a torque."""
+    name: str
+    body: int
+    s: tuple[float, float] | None
+    value: object          # ndarray (2,), float, or callable of t
+    is_torque: bool
+    modal: np.ndarray | None = None
+
+
+class FlexibleData:
+    """A flexible beam's block of coordinates, (x, y, angle, η₁ … η_k) from `start`, with its
+    invariants and generated kernel (`mechsim.flexible`); `point_modes(local)` gives the
+    (2, k) modal displacement of a body point."""
+    __slots__ = ("name", "start", "invariants", "kernel", "parameters", "slice", "point_modes")
+
+    def __init__(self, name, start, invariants, kernel, parameters, point_modes=None):
+        self.name, self.start, self.invariants = name, start, invariants
+        self.kernel, self.parameters = kernel, tuple(parameters)
+        self.point_modes = point_modes
+        self.slice = slice(start, start + 3 + invariants.n_modes)
+
+
+class Loads:
+    """Q(t, q, v) and the loads' energies and powers.
+
+    Parameters
+    ----------
+    n : number of coordinates
+    gravity : ndarray (2,)
+    mass_diagonal : ndarray (n,), the rigid bodies' m on their x and y
+    rigid_starts : the start indices of the rigid bodies (gravity's constant force m g)
+    springs, loads, flexible : tuples of SpringData, PointLoad, FlexibleData
+    """
+
+    def __init__(self, n, gravity, mass_diagonal, rigid_starts, springs=(), loads=(),
+                 flexible=()):
+        self.n = n
+        self.gravity = np.asarray(gravity, float)
+        self.springs, self.loads, self.flexible = tuple(springs), tuple(loads), tuple(flexible)
+        # Gravity's generalized force on rigid bodies is constant: m g on their x and y.
+        self.gravity_force = np.zeros(n)
+        for start in rigid_starts:
+            self.gravity_force[start:start + 2] = mass_diagonal[start] * self.gravity
+
+    def forces(self, t, q, v) -> np.ndarray:
+        """Generalized applied forces Q(t, q, v), shape (n,): for flexible bodies including
+        the quadratic-velocity (centrifugal and Coriolis) terms of M(q)."""
+        Q = self.gravity_force.copy()
+        for fb in self.flexible:
+            Q[fb.slice] += fb.kernel.forces(q[fb.slice], v[fb.slice], fb.parameters)
+        self._add(t, q, v, Q, elastic=True)
+        return Q
+
+    def nonconservative_forces(self, t, q, v) -> np.ndarray:
+        """The part of Q with no potential: spring damping, point forces and torques, and
+        the modal damping of flexible beams."""
+        Q = np.zeros(self.n)
+        self._add(t, q, v, Q, elastic=False)
+        for fb in self.flexible:
+            modes = slice(fb.start + 3, fb.slice.stop)
+            Q[modes] -= fb.invariants.damping * v[modes]
+        return Q
+
+    def _add(self, t, q, v, Q, elastic: bool):
+        for sp in self.springs:
+            if not elastic and not sp.damping:
+                continue
+            pa = point(q, sp.a, sp.sa, sp.modal_a)
+            pb = point(q, sp.b, sp.sb, sp.modal_b)
+            dx, dy = pb[0] - pa[0], pb[1] - pa[1]
+            length = math.hypot(dx, dy)
+            if length == 0.0:
+                continue  # direction undefined; a zero-length spring carries no force
+            ex, ey = dx / length, dy / length
+            tension = sp.stiffness * (length - sp.rest_length) if elastic else 0.0
+            if sp.damping:
+                va = point_velocity(q, v, sp.a, sp.sa, sp.modal_a)
+                vb = point_velocity(q, v, sp.b, sp.sb, sp.modal_b)
+                tension += sp.damping * ((vb[0] - va[0]) * ex + (vb[1] - va[1]) * ey)
+            add_point_force(Q, q, sp.a, sp.sa, tension * ex, tension * ey, sp.modal_a)
+            add_point_force(Q, q, sp.b, sp.sb, -tension * ex, -tension * ey, sp.modal_b)
+        for load in self.loads:
+            value = load.value(t) if callable(load.value) else load.value
+            if load.is_torque:
+                Q[load.body + 2] += value
+            else:
+                fx, fy = value
+                add_point_force(Q, q, load.body, load.s, fx, fy, load.modal)
+
+    # --- work ------------------------------------------------------------------------------
+    @property
+    def work_channels(self) -> list[str]:
+        """One name per channel of `powers`: each damped spring ("spring 's' (damping)"),
+        each load ("load 'F'") and each beam with modal damping ("beam 'b' (modal
+        damping)")."""
+        names = [f"spring '{sp.name}' (damping)" for sp in self.springs if sp.damping]
+        names += [f"load '{load.name}'" for load in self.loads]
+        names += [f"beam '{fb.name}' (modal damping)" for fb in self.flexible
+                  if np.any(fb.invariants.damping > 0.0)]
+        return names
+
+    def powers(self, t, q, v) -> list[float]:
+        """The power of each of `work_channels` at (q, v): a damper's −c ṡ² (ṡ its rate of
+        extension), a load's F·ṗ or τ ω, a beam's −Σ d_k η̇_k²."""
+        out = []
+        for sp in self.springs:
+            if not sp.damping:
+                continue
+            pa = point(q, sp.a, sp.sa, sp.modal_a)
+            pb = point(q, sp.b, sp.sb, sp.modal_b)
+            d = np.subtract(pb, pa)
+            length = math.hypot(d[0], d[1])
+            if length == 0.0:
+                out.append(0.0)
+                continue
+            rate = (np.subtract(point_velocity(q, v, sp.b, sp.sb, sp.modal_b),
+                                point_velocity(q, v, sp.a, sp.sa, sp.modal_a)) @ d) / length
+            out.append(-sp.damping * rate * rate)
+        for load in self.loads:
+            value = load.value(t) if callable(load.value) else load.value
+            if load.is_torque:
+                out.append(float(value) * v[load.body + 2])
+            else:
+                out.append(float(np.dot(value, point_velocity(q, v, load.body, load.s,
+                                                              load.modal))))
+        for fb in self.flexible:
+            d = fb.invariants.damping
+            if np.any(d > 0.0):
+                rates = v[fb.start + 3:fb.slice.stop]
+                out.append(-float(np.sum(d * rates * rates)))
+        return out
+
+    # --- energies (vectorized over leading dimensions) -------------------------------------
+    def gravity_potential(self, q) -> np.ndarray:
+        V = -np.einsum("...i,i->...", q, self.gravity_force)
+        for fb in self.flexible:
+            V = V + fb.invariants.gravity_potential(q[..., fb.slice], self.gravity)
+        return V
+
+    def spring_potential(self, q) -> np.ndarray:
+        total = np.zeros(np.shape(q)[:-1])
+        for sp in self.springs:
+            d = frame_point(q, sp.b, sp.sb, sp.modal_b) - frame_point(q, sp.a, sp.sa, sp.modal_a)
+            total = total + 0.5 * sp.stiffness * (np.linalg.norm(d, axis=-1) - sp.rest_length) ** 2
+        return total
+
+    def strain_energy(self, q) -> np.ndarray:
+        """Elastic energy of the flexible bodies' modes, ½ Σ ω_k² η_k²."""
+        U = np.zeros(np.shape(q)[:-1])
+        for fb in self.flexible:
+            U = U + fb.invariants.strain(q[..., fb.slice])
+        return U

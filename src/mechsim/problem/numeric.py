@@ -1,0 +1,288 @@
+"""NumericProblem: the constrained equations of motion in numbers.
+
+    M q̈ + Φ_qᵀ λ = Q(t, q, v),    Φ(q, t) = 0,    Φ_q q̈ = γ(q, v, t)
+
+Formulations and integrators see only this object (as scipy's solvers see only `fun`): they
+never touch a Body or a Joint. It joins three parts: the constraints (the generated model's
+functions of (q, t) and its parameter values), the mass and the Schur-complement solves
+(`mass`), and the loads (`loads`); and it projects states onto the constraints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..newton import newton
+from .loads import Loads
+from .mass import MassFactor, MassModel, SchurSolver, dense
+
+
+@dataclass
+class Counters:
+    """Work counters, incremented by whoever does the work (scipy's nfev/njev/nlu)."""
+    rhs: int = 0
+    constraint_terms: int = 0
+    factorizations: int = 0
+    projections: int = 0
+    partitions: int = 0
+    switches: int = 0
+
+
+class NumericProblem:
+    """Compiled model plus parameter values.
+
+    Parameters
+    ----------
+    model : module
+        Generated functions (see `mechsim.codegen`).
+    parameters : sequence of float
+        Values of the model's parameter symbols, in order.
+    mass_diagonal : ndarray, shape (n,)
+    gravity : ndarray, shape (2,)
+    body_starts : dict name -> index of the body's x in q
+    coordinate_names, constraint_names : list of str (one per coordinate / per row of Φ)
+    constraint_owners : list of str, the joint or driver that owns each row of Φ
+    constraint_kinds : list of str, "joint" or "driver" for each row of Φ
+    springs, loads : tuples of SpringData / PointLoad
+    flexible : tuple of FlexibleData; their blocks of M depend on q (`mass_diagonal` holds
+        only nominal values there, and the rigid-body terms skip them)
+    drawing : list of (body name, start, local points (p, 2), modal shapes (p, 2, k) or
+        None): the polylines `SimulationResult.export` draws
+    driver_laws : list of (driver name, `mechsim.model.expressions.Expression` in t): what
+        each driver prescribes, for the failure messages of a run
+    """
+
+    def __init__(self, model, parameters, mass_diagonal, gravity, body_starts,
+                 coordinate_names, constraint_names, constraint_owners,
+                 springs=(), loads=(), title="mechanism", constraint_kinds=None,
+                 flexible=(), drawing=(), driver_laws=()):
+        self.model = model
+        self.p = tuple(float(x) for x in parameters)
+        self.mass_model = MassModel(mass_diagonal, flexible)
+        self.mass_diagonal = self.mass_model.diagonal
+        self.inverse_mass_diagonal = self.mass_model.inverse_diagonal
+        self.n = self.mass_diagonal.size
+        self.m = int(model.M)
+        self.body_starts = dict(body_starts)
+        self.coordinate_names = list(coordinate_names)
+        self.constraint_names = list(constraint_names)
+        self.constraint_owners = list(constraint_owners)
+        self.constraint_kinds = list(constraint_kinds or ["joint"] * len(self.constraint_names))
+        self.title = title
+        self.drawing = list(drawing)
+        self.driver_laws = list(driver_laws)
+        self.counters = Counters()
+        self.flexible = tuple(flexible)
+        self.constant_mass = self.mass_model.constant
+        flex_starts = {fb.start for fb in self.flexible}
+        rigid = [s for s in self.body_starts.values() if s is not None and s not in flex_starts]
+        self.load_model = Loads(self.n, gravity, self.mass_diagonal, rigid, springs, loads,
+                                flexible)
+        self.gravity = self.load_model.gravity
+        self.springs, self.loads = self.load_model.springs, self.load_model.loads
+        self.solver = SchurSolver(self.mass_model, self._banded_form)
+
+    def _banded_form(self):
+        from ..banded import for_problem
+        return for_problem(self)
+
+    @property
+    def schur(self):
+        """The banded Schur complement of a large rigid mechanism (`mechsim.banded`), built
+        on first use; None where the dense path serves. Assign None to force the dense
+        path, or a `BandedSchur` to force the banded one."""
+        return self.solver.band
+
+    @schur.setter
+    def schur(self, value):
+        self.solver.band = value
+
+    def start_run(self):
+        """Forget what earlier runs left behind (the banded form's eigenvector warm starts):
+        the same run twice gives the same result."""
+        band = self.solver.decided_band()
+        if band is not None:
+            band.forget()
+
+    # --- constraints -----------------------------------------------------------------------
+    def phi(self, q, t):
+        return self.model.phi(q, t, self.p)
+
+    def phi_q(self, q, t):
+        return self.model.phi_q(q, t, self.p)
+
+    def phi_t(self, q, t):
+        return self.model.phi_t(q, t, self.p)
+
+    def gamma(self, q, v, t):
+        return self.model.gamma(q, v, t, self.p)
+
+    def position_terms(self, q, t):
+        """(Φ, Φ_q) sharing their subexpressions."""
+        return self.model.position_terms(q, t, self.p)
+
+    def terms(self, q, v, t):
+        """(Φ, Φ_q, Φ_t, γ) sharing their subexpressions."""
+        self.counters.constraint_terms += 1
+        return self.model.terms(q, v, t, self.p)
+
+    def dynamics_terms(self, q, v, t):
+        """(Φ_q, γ) sharing their subexpressions: what q̈ needs."""
+        self.counters.constraint_terms += 1
+        return self.model.dynamics_terms(q, v, t, self.p)
+
+    def worst_constraint(self, phi) -> str:
+        """'<residual> in '<equation>' of '<joint or driver>'' for the largest |Φ_i|: how
+        failures name the model object at fault."""
+        phi = np.asarray(phi, float)
+        i = int(np.nanargmax(np.abs(phi))) if phi.size and np.all(np.isfinite(phi)) else 0
+        value = abs(phi[i]) if phi.size else 0.0
+        return (f"{value:.3g} in '{self.constraint_names[i]}' of "
+                f"'{self.constraint_owners[i]}'")
+
+    @property
+    def rheonomic_rows(self) -> list[int]:
+        """Rows of Φ that depend on time explicitly (drivers): they can do work."""
+        return [i for i, name in enumerate(self.constraint_kinds) if name == "driver"]
+
+    def degrees_of_freedom(self, q, t) -> int:
+        """n − rank Φ_q at (q, t) (the rank from the SVD, as `Mechanism.dof`)."""
+        if self.m == 0:
+            return self.n
+        J = self.phi_q(q, t)
+        s = dense().svdvals(J)
+        tol = max(J.shape) * np.finfo(float).eps * 1e3 * (s[0] if s.size else 1.0)
+        return self.n - int(np.sum(s > tol))
+
+    # --- mass and forces -------------------------------------------------------------------
+    def mass(self, q=None) -> np.ndarray:
+        """M(q), shape (n, n); constant unless the mechanism has flexible bodies."""
+        return self.mass_model.matrix(q)
+
+    def mass_factor(self, q) -> MassFactor:
+        """M(q) = L Lᵀ as a `MassFactor` (shared and constant for rigid mechanisms)."""
+        return self.mass_model.factor(q)
+
+    def forces(self, t, q, v) -> np.ndarray:
+        """Generalized applied forces Q(t, q, v), shape (n,) (`Loads.forces`)."""
+        return self.load_model.forces(t, q, v)
+
+    def nonconservative_forces(self, t, q, v) -> np.ndarray:
+        """The part of Q with no potential (`Loads.nonconservative_forces`)."""
+        return self.load_model.nonconservative_forces(t, q, v)
+
+    def accelerations(self, J, Q, c, q=None, factor=None):
+        """(q̈, λ) of [M Φ_qᵀ; Φ_q 0][q̈; λ] = [Q; c] by the Schur complement of M = L Lᵀ (a
+        diagonal for rigid mechanisms; `q` is needed only when M depends on it). Redundant
+        constraints (a singular Φ_q M⁻¹ Φ_qᵀ) fall back to the least-squares λ. `factor`:
+        the complement's banded factor at J, if the caller has it (`mechsim.banded`)."""
+        self.counters.factorizations += 1
+        return self.solver.accelerations(J, Q, c, q, factor)
+
+    def complement_solver(self, J, f):
+        """r ↦ (Φ_q M⁻¹ Φ_qᵀ)⁻¹ r from one Cholesky factor at Φ_q = J (`f`: the mass factor
+        there), banded where the problem has the banded form; None if the complement is
+        not numerically positive definite (a singular configuration, redundancy)."""
+        return self.solver.factored(J, f)
+
+    # --- work and energies -----------------------------------------------------------------
+    @property
+    def work_channels(self) -> list[str]:
+        """What can do work on the mechanism besides gravity and elastic springs, one name
+        per channel of `work_rates`: the loads' channels (`Loads.work_channels`) and each
+        driver ("driver 'motor'")."""
+        return self.load_model.work_channels + [f"driver '{d}'" for d in self._driver_owners()]
+
+    def _driver_owners(self) -> list[str]:
+        """The drivers owning rows of Φ, in order of their first row."""
+        return list(dict.fromkeys(self.constraint_owners[i] for i in self.rheonomic_rows))
+
+    def work_rates(self, t, q, v) -> np.ndarray:
+        """The power of each of `work_channels` at the consistent state (q, v), shape (k,):
+        the loads' (`Loads.powers`), and a driver's λᵀ Φ_t over its rows (the constraint
+        force −Φ_qᵀλ does the work −λᵀ Φ_q v = λᵀ Φ_t; λ from the equations of motion,
+        least squares at a singular configuration)."""
+        out = self.load_model.powers(t, q, v)
+        owners = self._driver_owners()
+        if owners:
+            _, J, phi_t, gamma = self.terms(q, v, t)
+            _, lam = self.accelerations(J, self.forces(t, q, v), gamma, q)
+            for owner in owners:
+                out.append(float(sum(lam[i] * phi_t[i] for i in self.rheonomic_rows
+                                     if self.constraint_owners[i] == owner)))
+        return np.array(out, float)
+
+    def kinetic_energy(self, q, v) -> np.ndarray:
+        return self.mass_model.kinetic_energy(q, v)
+
+    def gravity_potential(self, q) -> np.ndarray:
+        return self.load_model.gravity_potential(q)
+
+    def spring_potential(self, q) -> np.ndarray:
+        return self.load_model.spring_potential(q)
+
+    def potential_energy(self, q) -> np.ndarray:
+        return self.gravity_potential(q) + self.spring_potential(q)
+
+    def strain_energy(self, q) -> np.ndarray:
+        """Elastic energy of the flexible bodies' modes, ½ Σ ω_k² η_k²."""
+        return self.load_model.strain_energy(q)
+
+    # --- projections onto the constraint manifold (mass metric) -----------------------------
+    def project_positions(self, q, t, tol=1e-12, max_iter=20):
+        """Newton steps Δq = −W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ Φ with W = M⁻¹: the smallest correction in
+        the kinetic metric, a fresh Jacobian each iteration. Returns (q, iterations, final
+        ‖Φ‖∞); stops at round-off (`mechsim.newton`)."""
+        f = self.mass_factor(q)
+
+        def correct(q, phi, J, slow):
+            self.counters.projections += 1
+            return q - f.right(f.cols(J).T @ self.solver.solve(J, phi, f))
+
+        done = newton(np.array(q, float), lambda q: self.position_terms(q, t), correct, tol,
+                      max_iter, stall=True)
+        return done.x, done.iterations, done.residual
+
+    def project_state(self, q, v, t, tol, extra=0, max_iter=8, solve=None):
+        """(q, v) with ‖Φ‖∞ ≤ tol (then `extra` further iterations) and Φ_q v + Φ_t = 0, by
+        a chord Newton in the mass metric whose single factor of Φ_q M⁻¹ Φ_qᵀ at the given
+        q also serves the velocity projection: where the corrections are small (a state
+        off the manifold by an integrator's error) each iteration gains the digits by
+        which Φ_q moves, and the one factor does the work of the three or four that
+        `project_positions` and `project_velocities` form. `solve`: the factor's solve
+        (`complement_solver`) if the caller has it. None where the complement cannot be
+        factored or the chord does not converge; the full projections serve there."""
+        f = self.mass_factor(q)
+        phi, J = self.position_terms(q, t)
+        if solve is None:
+            solve = self.complement_solver(J, f)
+            if solve is None:
+                return None
+        Jt = f.cols(J)
+        first = [phi]
+
+        def residual(q):
+            return (first.pop() if first else self.phi(q, t)), None
+
+        def correct(q, phi, _, slow):
+            self.counters.projections += 1
+            return q - f.right(Jt.T @ solve(phi))
+
+        done = newton(np.array(q, float), residual, correct, tol, max_iter, stall=True,
+                      extra=extra)
+        if not done.converged:
+            return None
+        q = done.x
+        J = self.phi_q(q, t)
+        f = self.mass_factor(q)
+        r = J @ v + self.phi_t(q, t)
+        return q, v - f.right(f.cols(J).T @ solve(r))
+
+    def project_velocities(self, q, v, t):
+        """v − W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ (Φ_q v + Φ_t): the nearest consistent velocity."""
+        J = self.phi_q(q, t)
+        r = J @ v + self.phi_t(q, t)
+        f = self.mass_factor(q)
+        return v - f.right(f.cols(J).T @ self.solver.solve(J, r, f))
