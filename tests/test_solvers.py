@@ -103,7 +103,8 @@ def test_falling_parallelogram_passes_its_singularities(parallelogram_runs, meth
     assert np.max(np.abs(res.energy_drift)) < 1e-6
     found = [p.t_min for p in res.singular_passages]
     assert len(found) == 3
-    np.testing.assert_allclose(found, [0.173, 0.955, 1.301], atol=0.01)
+    # The monitor's minima on the exact crossings (measured within 1e-5 s).
+    np.testing.assert_allclose(found, crossing_times(res.t, theta), atol=1e-4)
     assert all(set(p.joints) & {"A", "B", "C", "D"} for p in res.singular_passages)
 
 
@@ -125,8 +126,10 @@ def test_lu_alone_reports_its_passages(parallelogram_runs):
     res = parallelogram_runs["lu"]
     assert res.status == "success"
     assert res.stats["partitions"] >= 1
+    theta, _ = parallelogram_exact(res.t, math.radians(10), 0.0)
+    # LU's own motion places its first passage within 2e-3 s of the exact one (measured).
     assert len(res.singular_passages) >= 1 and res.singular_passages[0].t_min == \
-        pytest.approx(0.173, abs=0.01)
+        pytest.approx(crossing_times(res.t, theta)[0], abs=5e-3)
 
 
 def test_double_four_bar_ten_seconds_hybrid():
@@ -142,12 +145,14 @@ def test_double_four_bar_ten_seconds_hybrid():
     assert len(exact) == 10 and exact[0] == pytest.approx(0.714, abs=0.002)
     found = np.array([p.t_min for p in res.singular_passages])
     assert len(found) == 10
-    np.testing.assert_allclose(found, exact, atol=0.03)
+    np.testing.assert_allclose(found, exact, atol=2e-4)       # measured within 3.1e-5 s
 
 
+@pytest.mark.slow
 def test_forty_window_four_bar_twenty_seconds():
-    """243 coordinates, twenty passages, each crossed by the passage bridge (measured: 7 s,
-    214 steps and an error of 1.0e-6; stepping through the passages took 288–470 s)."""
+    """243 coordinates, twenty passages, each crossed by the passage bridge, on the exact
+    parallelogram branch. A long study (its code generation alone takes most of a minute):
+    `python3 -m pytest -m slow`, and `mechsim bench forty-window`."""
     res = ms.examples.double_four_bar(40).simulate(t_end=20.0, method="hybrid", rtol=1e-8,
                                                    atol=1e-10, output_step=0.05)
     assert res.status == "success", res.message
