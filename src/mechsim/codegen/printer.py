@@ -148,9 +148,9 @@ def kernel_source(q, v, p, functions, key: str) -> str:
     return w.module(key)
 
 
-# Mechanisms with at least this many coordinates call C twins of their functions: there the
-# Python kernels cost 0.1–0.2 ms a call (the 40-window chain), against a few µs of ctypes
-# overhead; below it the Python kernels are as fast as a foreign call, and the C twins of
+# Mechanisms with at least this many coordinates call C twins of their functions: there a
+# Python kernel costs far more than a foreign call's overhead (docs/design-notes.md); below
+# it the Python kernels are as fast as a foreign call, and the C twins of
 # Φ, Φ_q, Φ_t and γ serve only inside the compiled partitioned engine.
 C_MIN_COORDINATES = 60
 ENGINE_KERNELS = ("phi", "phi_q", "phi_t", "gamma")

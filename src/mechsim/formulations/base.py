@@ -32,20 +32,16 @@ class Formulation:
                 qdd = self.problem.accelerations(J, self.problem.forces(t, q, v), gamma, q)[0]
                 return np.concatenate([v, qdd])
             def state(self, t, y):
-                n = self.problem.n
-                return y[:n], y[n:]
+                return np.split(y, 2)
 
     Declared by the class
     ---------------------
-    name : str
-    default_integrator : name in `mechsim.integrators.INTEGRATORS`
-    options : dict of `mechsim.options.Option`, the keyword arguments of `simulate` it takes;
-        checked before any work and set as attributes of the same names
-    needs_freedom : bool, it integrates independent coordinates (a mechanism with no degree
-        of freedom has none: the run takes the projection method instead)
-    resolves_passages : bool, it follows the assembly branch through singular
-        configurations (where it does not, a run that meets one says its motion may have
-        left the branch there, and steps that `keeps_branch` rejects stand)
+    name, default_integrator : its key in `METHODS`; a key of `integrators.INTEGRATORS`
+    options : dict of `mechsim.options.Option`: the `simulate` keywords it takes (checked
+        before any work, set as attributes)
+    needs_freedom : bool, it integrates independent coordinates (0 DOF: projection instead)
+    resolves_passages : bool, it follows the assembly branch through singular configurations
+        (else a run meeting one says it may have left its branch; `keeps_branch` may not retake)
 
     Called by the run
     -----------------
@@ -55,31 +51,27 @@ class Formulation:
     integrand : the callable the integrator about to start gets (default: `rhs`)
     state(t, y) -> (q, v) : the full coordinates and velocities
     states(ts, Y) -> (Q, V) : the same for the output samples inside a step (rows)
-    keeps_branch(t, y) -> bool : whether the step just taken stayed on its assembly branch;
-        a formulation that resolves passages gets a step that did not again, shorter
-    after_step(t, y) -> corrected y or None : after each accepted step. A correction
-        that keeps the meaning of y (a projection) is put into the running integrator in
-        place where it allows; one that changes it (a new partition, a switch) must set
-        `layout_changed`, and the run restarts the integrator; one that moves y by a
-        constant (the same motion from another reference) sets `shifted`.
-    derivative(t, q, v) -> y' : what `rhs` gives at the y of a consistent (q, v), without
-        solving for the state; re-expresses a multistep history after a restart
-        (NotImplementedError: the history is not carried over)
+    keeps_branch(t, y) -> bool : the step just taken stayed on its assembly branch (else
+        one that resolves passages gets it again, shorter)
+    after_step(t, y) -> corrected y or None : after each accepted step. A correction that
+        keeps the meaning of y (a projection) goes into the running integrator in place
+        where it allows; one that changes it (a new partition, a switch) sets
+        `layout_changed` (the run restarts the integrator); a constant shift of y (another
+        reference) sets `shifted`.
+    derivative(t, q, v) -> y' : `rhs` at the y of a consistent (q, v), re-expressing a
+        multistep history after a restart (NotImplementedError: history not carried over)
     resume(t, q, v) -> y : the state of (q, v) in the present layout (after a bridge)
-    project_now : None, or (t, y) -> projected y or None, for an integrator that can project
-        inside its step (Adams: P E C, project, E)
+    project_now : None or (t, y) -> projected y or None: projection inside an integrator's
+        step where it can (Adams: P E C, project, E)
 
-    Set by the run, read by the formulation
-    ---------------------------------------
-    monitor : the run's `SingularityMonitor`, before `initial_state`
-    last_step : the size of the step just accepted, before `after_step`
-
-    Set by the formulation, read by the run
-    ---------------------------------------
+    Exchanged as attributes
+    -----------------------
+    monitor, last_step : set by the run: its `SingularityMonitor` (before `initial_state`),
+        the size of the step just accepted (before `after_step`); the rest by the formulation
     layout_changed, shifted : see `after_step`
     step_limit : the largest next step it can take safely, or None
-    bridge : a `PassageBridge` where it can cross singular passages in one step, else None;
-        `bridging` says whether the run may use it at the present step
+    bridge, bridging : a `PassageBridge` that crosses singular passages in one step (else
+        None), and whether the run may use it at the present step
     failure : what went wrong last, for the message of a failed run
     switches : list of `Switch`, its changes of formulation
     sign_changes : steps (t_a, t_b) across which its partition's det(Φ_q D) changed sign

@@ -146,14 +146,14 @@ class PassageBridge:
                 return None
             # Start and end clear of the band (s ≈ |rate| (t* − t) near the configuration);
             # twice as far when the free step was the run's max_step, which says nothing of
-            # how long a step the motion allows (the seed four-bar at max_step 0.01 s was
-            # declined at 0.66 ms for the round-off of q̈ there, and crossed from 1.5 ms).
+            # how long a step the motion allows: closer, the round-off of q̈ declines the
+            # bridge (docs/design-notes.md, passage bridge).
             floor = (3.2 if self._free_bound else 1.6) * self.edge / -rate
             self.landing = max(LANDING * (self.free_step or h_next), floor)
         if to_star <= 1.5 * self.landing and not replan:
             return "cross", t + to_star
-        # From far off the prediction may be short by tens of percent (measured: 5 ms of
-        # 60 on the double four-bar): go three quarters of the way first, then land.
+        # From far off the prediction may be short by tens of percent (double four-bar):
+        # go three quarters of the way first, then land.
         h = to_star - max(self.landing, 0.25 * to_star)
         if h <= 0.0:                     # declined already closer than the landing point
             self.landing, self.standing_down = None, True
@@ -260,9 +260,8 @@ class PassageBridge:
             best_declined = self._declined
             if best_declined is not None and (err >= best_declined[0] or at_floor):
                 # Closer was no better: the estimate is the round-off of q̈ near the
-                # configuration, which a still closer landing only amplifies (the seed
-                # four-bar at rtol 1e-9 read 1.9, 15 and 33 landing at 1.36, 0.68 and
-                # 0.58 ms, then stepped through). The best bridge declined so far is
+                # configuration, which a still closer landing only amplifies
+                # (docs/design-notes.md, passage bridge). The best bridge declined so far is
                 # taken instead; its end lies past the present landing point.
                 self._declined, self.landing = None, None
                 self.over_tolerance += 1

@@ -143,7 +143,7 @@ class Hybrid(Formulation):
         if self.active is self.lu:
             # Each step held by the limit covers half the rest of the way to the entry, so
             # an integrator whose steps are short anyway (Adams) would creep up to it in
-            # steps halving down to the 1 µs floor, and then climb back from there (40
+            # steps halving down to the limit's floor, and then climb back from there (40
             # steps a passage on the double four-bar): after two held steps it switches.
             held = self._limit is not None and self.last_step >= 0.99 * self._limit
             self._held = self._held + 1 if held else 0

@@ -41,13 +41,9 @@ from .full import FullCoordinates
 
 # Singular values below this multiple of the truncation cut join the crossing cluster.
 _CLUSTER = 10.0
-# Larger clusters are left truncated. The 40-window chain loses 40 directions over a
-# stretch of its passage, each crossing the band slowly; interpolating them took 170 ms per
-# evaluation (twelve Schur solves of 240 × 240) and made the first 0.7 s take minutes,
-# while plain truncation takes the chain through the passage in 8 steps. With the end
-# states on the banded path (`mechsim.banded`) the cost per evaluation is no longer the
-# obstacle, but the interpolation is no smoother: the first 5.4 s at rtol 1e-7 took 22969
-# in-band evaluations with every cluster interpolated, against 3428 with this limit.
+# Larger clusters are left truncated: a long chain loses many directions over a stretch of
+# its passage, each crossing the band slowly, and interpolating them all is no smoother than
+# truncating them and costs several times the evaluations (docs/design-notes.md).
 _MAX_CLUSTER = 4
 # The truncation cut follows a mechanism's own level of σ_min/σ_max below this (`cut`).
 SCALE_REF = 1e-3

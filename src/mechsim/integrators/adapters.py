@@ -22,6 +22,11 @@ from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 
 from .adams import AdamsPECE
 
+# scipy's undocumented names this module relies on, each checked where it is used: LSODA's
+# wrapped `scipy.integrate.ode` and, on that, the state it passes to ODEPACK and its
+# integrator (whose `rwork` is ODEPACK's documented work array).
+LSODA_ODE, ODE_STATE, ODE_INTEGRATOR = "_lsoda_solver", "_y", "_integrator"
+
 
 def correct_in_place(solver, y) -> bool:
     """Put a projected state into a running integrator without restarting it, where that is
@@ -51,14 +56,14 @@ def correct_in_place(solver, y) -> bool:
         # ODEPACK's documented workspace: the Nordsieck array YH starts at RWORK(21), its
         # first column the current y (checked); replacing it keeps the history (as for BDF).
         rwork = lsoda_workspace(solver)
-        ode = getattr(solver, "_lsoda_solver", None)
+        ode = getattr(solver, LSODA_ODE, None)
         n = solver.y.size
-        if rwork is None or rwork.size < 20 + n or not hasattr(ode, "_y") or \
+        if rwork is None or rwork.size < 20 + n or not hasattr(ode, ODE_STATE) or \
                 not np.allclose(rwork[20:20 + n], solver.y, rtol=1e-15, atol=0.0):
             return False
         rwork[20:20 + n] = y
         solver.y = y
-        ode._y = y.copy()
+        setattr(ode, ODE_STATE, y.copy())
         return True
     if isinstance(solver, (RK23, RK45, DOP853, Radau)):
         f = getattr(solver, "f", None)
@@ -107,8 +112,8 @@ def bound_read_at_start(solver_cls) -> bool:
 
 def lsoda_workspace(solver):
     """LSODA's RWORK array (ODEPACK's documented layout), or None."""
-    ode = getattr(solver, "_lsoda_solver", None)
-    return getattr(getattr(ode, "_integrator", None), "rwork", None)
+    ode = getattr(solver, LSODA_ODE, None)
+    return getattr(getattr(ode, ODE_INTEGRATOR, None), "rwork", None)
 
 
 def proposed_step(solver):
