@@ -13,7 +13,8 @@ simulation starts, matplotlib when a plot is drawn, meshio when a result is expo
 from importlib import import_module
 
 from .model import (AssemblyError, Body, LoadError, DofReport, Driver, FlexibleBeam, Force, Ground, Joint,
-                    Mechanism, ModelError, Prismatic, Revolute, RigidBody, Spring, Torque)
+                    Mechanism, ModelError, Prismatic, Revolute, RigidBody, RotationalSpring, Spring,
+                    Torque)
 
 __version__ = "0.1.0"
 
@@ -37,5 +38,6 @@ def __getattr__(name):
 
 __all__ = ["AssemblyError", "Body", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Ground", "Joint",
            "LinearSystem", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody",
+           "RotationalSpring",
            "SimulationResult",
            "Spring", "Torque", "load_result", "load_scene"]

@@ -12,10 +12,10 @@ import math
 
 import numpy as np
 
-from .model import Driver, FlexibleBeam, Force, LoadError, Spring, Torque
+from .model import Driver, FlexibleBeam, Force, LoadError, RotationalSpring, Spring
 from .model.forces import load_points
 from .model.checks import call_user
-from .problem import FlexibleData, NumericProblem, PointLoad, SpringData
+from .problem import FlexibleData, NumericProblem, PointLoad, RotationalSpringData, SpringData
 
 
 def body_starts(mech) -> dict:
@@ -48,20 +48,37 @@ def build_problem(mech) -> tuple[NumericProblem, bool]:
             names.append(f"{item.name}.{label}")
             owners.append(item.name)
             kinds.append("driver" if isinstance(item, Driver) else "joint")
-    springs, loads = _load_data(mech, starts)
+    joints = joint_geometry(mech, starts)
+    springs, loads, torsion = _load_data(mech, starts, joints)
     mass = np.concatenate([b.mass_diagonal for b in mech.bodies])
     problem = NumericProblem(model, params, mass, mech.gravity, starts, mech.coordinate_names,
                              names, owners, springs, loads, title=mech.name,
                              constraint_kinds=kinds, flexible=_flexible_data(mech, starts),
                              drawing=drawing(mech, starts),
-                             driver_laws=[(d.name, d.law) for d in mech.drivers])
+                             driver_laws=[(d.name, d.law) for d in mech.drivers],
+                             joints=joints, torsion=torsion,
+                             driver_joints={d.name: d.joint.name for d in mech.drivers})
     return problem, from_cache
 
 
-def _load_data(mech, starts):
-    """(SpringData list, PointLoad list) of the mechanism's loads; loads on the ground,
-    which do no work, are left out."""
-    springs, loads = [], []
+def joint_geometry(mech, starts) -> dict:
+    """Each joint's name -> its `JointGeometry` (`mechsim.engineering.geometry`): what its
+    coordinate, rate and reactions are evaluated from."""
+    from .engineering.geometry import JointGeometry
+    by_id = {id(b): starts[b.name] for b in mech.bodies}
+    out = {}
+    for j in mech.joints:
+        local_a, local_b = (tuple(float(x) for x in pt) for pt in j.attachment_points())
+        out[j.name] = JointGeometry(j, dict(zip(j.parameter_names, j.parameter_values())),
+                                    by_id, local_a, local_b)
+    return out
+
+
+def _load_data(mech, starts, joints):
+    """(SpringData list, PointLoad list, RotationalSpringData list) of the mechanism's loads;
+    loads on the ground, which do no work, are left out. `joints`: the joints' geometry, for
+    loads that read a joint's coordinate."""
+    springs, loads, torsion = [], [], []
     for ld in mech.loads:
         if isinstance(ld, Spring):
             sa, sb = ld.body_a.local_point(ld.at_a), ld.body_b.local_point(ld.at_b)
@@ -69,16 +86,23 @@ def _load_data(mech, starts):
                 ld.name, starts[ld.body_a.name], starts[ld.body_b.name],
                 tuple(sa), tuple(sb), ld.stiffness, ld.damping, ld.rest_length,
                 ld.body_a.point_modes(sa), ld.body_b.point_modes(sb)))
+        elif isinstance(ld, RotationalSpring):
+            torsion.append(RotationalSpringData(ld.name, starts[ld.body_a.name],
+                                                starts[ld.body_b.name], ld.stiffness,
+                                                ld.damping, ld.rest_angle))
         elif starts[ld.body.name] is None:
             continue
         elif isinstance(ld, Force):
             s = ld.body.local_point(ld.at)
             loads.append(PointLoad(ld.name, starts[ld.body.name], tuple(s),
-                                   _checked_force(ld), False, ld.body.point_modes(s)))
+                                   _checked(ld, ld.force, f"force '{ld.name}'", _as_force,
+                                            "two finite numbers", joints),
+                                   False, ld.body.point_modes(s)))
         else:
             loads.append(PointLoad(ld.name, starts[ld.body.name], None,
-                                   _checked_torque(ld), True))
-    return springs, loads
+                                   _checked(ld, ld.torque, f"torque '{ld.name}'", _as_torque,
+                                            "a finite number", joints), True))
+    return springs, loads, torsion
 
 
 def _flexible_data(mech, starts) -> list[FlexibleData]:
@@ -121,24 +145,28 @@ def drawing(mech, starts) -> list:
     return out
 
 
-def _checked_force(ld: Force):
-    """A constant force, or its function wrapped by `_checked`."""
-    return _checked(ld.force, f"force '{ld.name}'", _as_force, "two finite numbers")
-
-
-def _checked_torque(ld: Torque):
-    """A constant torque, or its function wrapped by `_checked`."""
-    return _checked(ld.torque, f"torque '{ld.name}'", _as_torque, "a finite number")
-
-
-def _checked(given, owner: str, convert, expected: str):
-    """`given` if it is a constant; a user's function of t wrapped so that its exception,
-    or a value `convert` refuses (None), is a LoadError naming `owner`."""
+def _checked(load, given, owner: str, convert, expected: str, joints):
+    """`given` if it is a constant; else a function of (t, q, v) that calls the user's with
+    what `load.inputs` says (t; t and a joint's coordinate and rate; t, q and v) and turns
+    its exception, or a value `convert` refuses (None), into a LoadError naming `owner`."""
     if not callable(given):
         return given
+    if load.inputs == "joint":
+        from .engineering.geometry import joint_coordinates
+        geometry = joints[load.joint.name]
 
-    def value(t):
-        got = call_user(given, (t,), owner)
+        def arguments(t, q, v):
+            s, rate = joint_coordinates(geometry, q[None], v[None])
+            return t, float(s[0]), float(rate[0])
+    elif load.inputs == "state":
+        def arguments(t, q, v):
+            return t, q.copy(), v.copy()
+    else:
+        def arguments(t, q, v):
+            return (t,)
+
+    def value(t, q, v):
+        got = call_user(given, arguments(t, q, v), owner)
         out = convert(got)
         if out is None:
             raise LoadError(f"{owner}: the function returned {got!r:.60} at t = {t:.9g}; "

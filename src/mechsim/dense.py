@@ -43,14 +43,21 @@ def solve_psd(S, r):
 
 def cholesky_conditioned(S, min_rcond):
     """The upper Cholesky factor of a symmetric positive definite S whose reciprocal
-    condition number exceeds `min_rcond`, else None. The condition is LAPACK's estimate
-    (dpocon) in the 1-norm, with ‖S‖₁ bounded above by m·max Sᵢᵢ (|Sᵢⱼ| ≤ max Sᵢᵢ for a
-    positive definite S), which errs towards None; for symmetric S, 1/κ₂ ≥ 1/κ₁."""
+    condition number exceeds `min_rcond`, else None (see `cholesky_rcond`)."""
+    c, rcond = cholesky_rcond(S)
+    return c if c is not None and rcond > min_rcond else None
+
+
+def cholesky_rcond(S):
+    """(upper Cholesky factor, estimate of 1/κ₁) of a symmetric S; (None, 0) where S is not
+    numerically positive definite. The condition is LAPACK's estimate (dpocon) with ‖S‖₁
+    bounded above by m·max Sᵢᵢ (|Sᵢⱼ| ≤ max Sᵢᵢ for a positive definite S), which errs
+    towards ill-conditioning; for symmetric S, 1/κ₂ ≥ 1/κ₁."""
     c = cho_factor_or_none(S)
     if c is None:
-        return None
+        return None, 0.0
     rcond, info = _pocon(c, S.shape[0] * max(S.diagonal().tolist()))
-    return c if info == 0 and rcond > min_rcond else None
+    return (c, float(rcond)) if info == 0 else (None, 0.0)
 
 
 def cho_factor_or_none(S):

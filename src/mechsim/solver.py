@@ -177,7 +177,11 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     first_step = checked["first_step"] if h is None else h
     q0, v0 = check_initial_state(problem, q0, v0, t_start)
     problem.start_run()
-    fully_driven = problem.m >= problem.n and problem.degrees_of_freedom(q0, t_start) == 0
+    dof = problem.degrees_of_freedom(q0, t_start) if problem.m else problem.n
+    fully_driven = problem.m >= problem.n and dof == 0
+    # Constraint equations redundant at the start (Φ_q's rank n − dof below m) are taken
+    # as redundant everywhere: the singularity monitor watches the rank-th singular value.
+    redundant = max(problem.m - (problem.n - dof), 0)
     if cls.needs_freedom and fully_driven:
         # A fully driven mechanism: no independent coordinate to integrate. Its motion is
         # the drivers' kinematics, which the projection method follows on its branch with
@@ -188,7 +192,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                                     "drivers' motion, followed by the projection method"))
     else:
         form = cls(problem, rtol, atol, **options)
-    form.monitor = SingularityMonitor(problem, *singular_thresholds)
+    form.monitor = SingularityMonitor(problem, *singular_thresholds, redundant=redundant)
     settings = Settings(t_start, t_end, rtol, atol, max_step, first_step, h, max_steps,
                         output_times(t_start, t_end, output_step), checked["work"])
     return Run(problem, form, solver_cls, settings, q0, v0, method=cls.name,

@@ -48,6 +48,14 @@ class Hybrid(Formulation):
         self.engine = self.proj.engine if problem.m < SPARSE_MIN else None
 
     def initial_state(self, t, q, v):
+        if self.monitor is not None and self.monitor.redundant:
+            # Redundant constraints: a partition's dependent block is not square, so LU
+            # would go without its chord and its branch test; the projection method's
+            # truncation drops the redundant directions exactly.
+            self.active = self.proj
+            self.switches.append(Switch(t, "lu", "projection", f"{self.monitor.redundant} "
+                                        "redundant constraint equation(s)"))
+            return self.proj.initial_state(t, q, v)
         s = self.monitor.measure(q, t)[0] if self.monitor else 1.0
         # Starts on a singular configuration, or with redundant constraints: no partition
         # is safe. (A small σ_min/σ_max alone may come from very unequal masses, with Φ_q
@@ -100,6 +108,8 @@ class Hybrid(Formulation):
         mon = self.monitor
         # Asked only where the monitor finds σ_min/σ_max clear of a passage: Φ_q has full
         # row rank there, unless that ratio is itself at round-off (redundant constraints).
+        if mon is not None and mon.redundant:
+            return False                  # projection throughout (see `initial_state`)
         full = mon is not None and mon.last * mon.peak > 1e-6
         if full and self.engine is not None:
             return self.engine.lu_condition(t, q) < 0.1 * self.lu.cond_max

@@ -1,7 +1,10 @@
 """Singular configurations of Φ_q, measured directly.
 
 The measure is s = σ_min / σ_max of the mass-scaled Jacobian J̃ = Φ_q M^{-1/2} (over its m
-rows, so a mechanism whose rank drops reads 0), with its rate ṡ from the singular vectors:
+rows, so a mechanism whose rank drops reads 0), with its rate ṡ from the singular vectors.
+With `redundant` constraint equations (a rank r = m − redundant everywhere, such as a
+parallelogram with a fifth bar) σ_min is the r-th singular value, the smallest one the
+motion can lose. Its rate comes
 σ̇ = uᵀ J̃̇ v, J̃̇ by one extra Jacobian along the velocity. Unlike the paper's symptoms
 (frequent re-partitioning, energy fluctuation, collapsing steps) it sees a singularity coming
 before any harm is done, and it names the joints involved: the rows that carry the left
@@ -62,11 +65,12 @@ class SingularityMonitor:
 
     max_skip = 4
 
-    def __init__(self, problem, enter: float = 0.07, leave: float = 0.14):
+    def __init__(self, problem, enter: float = 0.07, leave: float = 0.14, redundant: int = 0):
         if not 0.0 < enter < leave:
             raise ValueError(f"singularity thresholds need 0 < enter < leave, got {enter}, {leave}")
         self.problem = problem
         self.enter, self.leave = enter, leave
+        self.redundant = int(redundant)     # equations of Φ that are redundant everywhere
         self.passages: list[SingularPassage] = []
         self.open_passage: OpenPassage | None = None     # the passage it is inside
         self.last, self.rate = 1.0, 0.0  # s/peak and its rate at the last observation
@@ -77,7 +81,7 @@ class SingularityMonitor:
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
         self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
         self.t_first = -np.inf       # the first observation's time
-        self.engine = _compiled(problem)
+        self.engine = _compiled(problem) if not self.redundant else None
 
     def _jacobian(self, q, t):
         """J̃ = Φ_q L⁻ᵀ, the mass-scaled Jacobian."""
@@ -108,8 +112,8 @@ class SingularityMonitor:
         pair = self._banded(J)
         if pair is None:
             U, sig, Vt = dense.svd(J)
-            k = m - 1
-            if k >= sig.size or sig[0] <= 0.0:
+            k = m - 1 - self.redundant
+            if k >= sig.size or k < 0 or sig[0] <= 0.0:
                 return 0.0, 0.0, U[:, -1], 0.0, 0.0, J
             pair = (sig[k], U[:, k], Vt[k]), (sig[0], U[:, 0], Vt[0])
         (smin, u_min, v_min), (smax, u_max, v_max) = pair
@@ -128,7 +132,7 @@ class SingularityMonitor:
         banded form, or J̃J̃ᵀ too near singular for its Cholesky factor and inverse
         iteration."""
         band = self.problem.schur
-        if band is None:
+        if band is None or self.redundant:
             return None
         c = band.factor(J, scaled=True)
         low = band.smallest(c) if c is not None else None

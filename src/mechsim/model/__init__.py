@@ -4,10 +4,10 @@ from .checks import LoadError, ModelError
 from .bodies import Body, Ground, RigidBody
 from .drivers import Driver
 from .flexible_beam import FlexibleBeam
-from .forces import Force, Spring, Torque
+from .forces import Force, RotationalSpring, Spring, Torque
 from .joints import Joint, Prismatic, Revolute
 from .mechanism import AssemblyError, AssemblyReport, DofReport, Mechanism
 
 __all__ = ["AssemblyError", "LoadError", "AssemblyReport", "Body", "DofReport", "Driver", "FlexibleBeam", "Force", "Ground",
-           "Joint", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody", "Spring",
+           "Joint", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody", "RotationalSpring", "Spring",
            "Torque"]

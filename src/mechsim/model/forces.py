@@ -1,14 +1,27 @@
-"""Applied loads: spring–dampers between body points, point forces and torques.
+"""Applied loads: spring–dampers between body points, torsion spring–dampers, point forces
+and torques.
 
-These hold data only; `mechsim.problem` evaluates them numerically.
+These hold data only; `mechsim.problem` evaluates them numerically. A force or torque is a
+constant or a function, called with
+
+- `t` (the default): `f(t)`;
+- `joint=j`: `f(t, s, ṡ)` with the coordinate s of joint j (its relative angle or slide)
+  and its rate, e.g. a motor's torque–speed curve `lambda t, angle, rate: 12*(1 - rate/300)`;
+- `state=True`: `f(t, q, v)` with copies of all coordinates and velocities (in the order of
+  `Mechanism.coordinate_names`).
+
+Its power enters the energy balance like any load's.
 """
 
 from __future__ import annotations
+
+import inspect
 
 import numpy as np
 
 from .checks import ModelError, name_or_default, scalar, scalar_or_function, vector2
 from .bodies import Body
+from .joints import Joint
 
 
 def _check_body(body, role: str, owner: str) -> Body:
@@ -45,17 +58,47 @@ class Spring:
         return (self.body_a, self.body_b)
 
 
+def _inputs(function, joint, state, owner) -> tuple[str, Joint | None]:
+    """What a load's function is called with ("t", "joint" or "state"), checked against its
+    signature now, so a function that cannot take them is refused before any work."""
+    if joint is not None and state:
+        raise ModelError(f"{owner}: give either `joint` or `state=True`, not both")
+    if joint is not None and not isinstance(joint, Joint):
+        raise ModelError(f"{owner}: `joint` must be a joint, got {joint!r:.60}")
+    if joint is not None and type(joint).coordinate is Joint.coordinate:
+        raise ModelError(f"{owner}: a {joint.kind} joint has no coordinate to read")
+    if not isinstance(state, (bool, np.bool_)):
+        raise ModelError(f"{owner}: `state` must be true or false, got {state!r:.60}")
+    kind = "joint" if joint is not None else "state" if state else "t"
+    if not callable(function):
+        if kind != "t":
+            raise ModelError(f"{owner}: `joint` and `state` need a function, got a constant")
+        return kind, joint
+    arguments = {"t": ("t",), "joint": ("t", "s", "rate"), "state": ("t", "q", "v")}[kind]
+    try:
+        inspect.signature(function).bind(*arguments)
+    except TypeError:
+        raise ModelError(f"{owner}: its function must take ({', '.join(arguments)})"
+                         + ("" if kind == "t" else f" (with `{kind}`)")) from None
+    except ValueError:
+        pass                        # no signature to read (a builtin): taken on trust
+    return kind, joint
+
+
 class Force:
     """A force of fixed global direction on `body` at the global point `at` (default: the
-    body's frame origin, its centre of mass). `force` is a 2-vector or a callable t -> 2-vector.
+    body's frame origin, its centre of mass). `force` is a 2-vector or a function giving one:
+    of t, of (t, s, ṡ) of a `joint`, or of (t, q, v) with `state=True` (module docstring).
     """
 
-    def __init__(self, body: Body, force, at=None, name: str | None = None):
+    def __init__(self, body: Body, force, at=None, name: str | None = None, *,
+                 joint: Joint | None = None, state: bool = False):
         self.name = name_or_default(name, f"force({getattr(body, 'name', '?')})", "force")
         owner = f"force '{self.name}'"
         self.body = _check_body(body, "body", owner)
         self.force = force if callable(force) else vector2(force, "force", owner)
         self.at = body.position.copy() if at is None else vector2(at, "at", owner)
+        self.inputs, self.joint = _inputs(force, joint, state, owner)
 
     @property
     def bodies(self):
@@ -63,17 +106,48 @@ class Force:
 
 
 class Torque:
-    """A torque on `body` (N·m, counter-clockwise positive): a constant or a callable of t."""
+    """A torque on `body` (N·m, counter-clockwise positive): a constant or a function of t,
+    of (t, s, ṡ) of a `joint`, or of (t, q, v) with `state=True` (module docstring)."""
 
-    def __init__(self, body: Body, torque, name: str | None = None):
+    def __init__(self, body: Body, torque, name: str | None = None, *,
+                 joint: Joint | None = None, state: bool = False):
         self.name = name_or_default(name, f"torque({getattr(body, 'name', '?')})", "torque")
         owner = f"torque '{self.name}'"
         self.body = _check_body(body, "body", owner)
         self.torque = scalar_or_function(torque, "torque", owner)
+        self.inputs, self.joint = _inputs(torque, joint, state, owner)
 
     @property
     def bodies(self):
         return (self.body,)
+
+
+class RotationalSpring:
+    """A torsion spring–damper between body_a and body_b (either may be the ground).
+
+    The torque on body_b is −k (θ_b − θ_a − rest_angle) − c (ω_b − ω_a), the opposite on
+    body_a; θ is a body's frame angle (a beam's floating frame). `rest_angle` defaults to
+    the relative angle as built, so the spring is relaxed in the initial configuration.
+    """
+
+    def __init__(self, body_a: Body, body_b: Body, stiffness: float, damping: float = 0.0,
+                 rest_angle: float | None = None, name: str | None = None):
+        self.name = name_or_default(
+            name, f"rotational_spring({getattr(body_a, 'name', '?')},"
+                  f"{getattr(body_b, 'name', '?')})", "rotational spring")
+        owner = f"rotational spring '{self.name}'"
+        self.body_a = _check_body(body_a, "body_a", owner)
+        self.body_b = _check_body(body_b, "body_b", owner)
+        if body_a is body_b:
+            raise ModelError(f"{owner}: connects body '{body_a.name}' to itself")
+        self.stiffness = scalar(stiffness, "stiffness", owner, nonnegative=True)
+        self.damping = scalar(damping, "damping", owner, nonnegative=True)
+        self.rest_angle = (float(body_b.angle - body_a.angle) if rest_angle is None
+                           else scalar(rest_angle, "rest_angle", owner))
+
+    @property
+    def bodies(self):
+        return (self.body_a, self.body_b)
 
 
 def load_points(ld) -> list:

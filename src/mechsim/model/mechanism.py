@@ -10,7 +10,7 @@ from .checks import ModelError, name_or_default, vector2
 from .bodies import Body, Ground
 from .drivers import Driver
 from .flexible_beam import FlexibleBeam
-from .forces import Force, Spring, Torque, load_points
+from .forces import Force, RotationalSpring, Spring, Torque, load_points
 from .joints import Joint
 
 
@@ -72,13 +72,14 @@ class Mechanism:
         self.bodies: list[Body] = []          # moving bodies, in coordinate order
         self.joints: list[Joint] = []
         self.drivers: list[Driver] = []
-        self.loads: list = []                 # springs, forces, torques
+        self.loads: list = []                 # springs, rotational springs, forces, torques
         self._problem = None
         self._assembled: AssemblyReport | None = None
 
     # --- building ----------------------------------------------------------------------------
     def add(self, item):
-        """Add a body, joint, driver, spring, force or torque; returns it."""
+        """Add a body, joint, driver, spring, rotational spring, force or torque; returns
+        it."""
         owner = f"mechanism '{self.name}'"
         if isinstance(item, Body):
             if isinstance(item, Ground):
@@ -99,15 +100,19 @@ class Mechanism:
                 raise ModelError(f"driver '{item.name}': joint '{item.joint.name}' is driven already")
             self._check_names(item, self.joints + self.drivers)
             self.drivers.append(item)
-        elif isinstance(item, (Spring, Force, Torque)):
+        elif isinstance(item, (Spring, Force, Torque, RotationalSpring)):
             for body in item.bodies:
                 self._check_member(body, f"'{item.name}'")
+            joint = getattr(item, "joint", None)
+            if joint is not None and not any(j is joint for j in self.joints):
+                raise ModelError(f"'{item.name}': joint '{joint.name}' is not in {owner}; "
+                                 "add the joint first")
             for body, at in load_points(item):
                 body.attachment_values(body.local_point(at), f"'{item.name}'")
             self.loads.append(item)
         else:
             raise ModelError(f"{owner}: cannot add {item!r}; expected a body, joint, driver, "
-                             "spring, force or torque")
+                             "spring, rotational spring, force or torque")
         self._problem = None
         self._assembled = None
         return item
@@ -229,6 +234,50 @@ class Mechanism:
             float(np.max(np.abs(v - v0), initial=0.0)),
             float(np.max(np.abs(prob.phi(q, t)), initial=0.0)))
         return self._assembled
+
+    def set_state(self, q, v=None, t: float = 0.0) -> AssemblyReport:
+        """Start later simulations from the consistent state (q, v) (v default zeros),
+        such as an equilibrium's `eq.q`, instead of the assembled initial configuration.
+        Raises ModelError if (q, v) does not satisfy the constraints; adding to the
+        mechanism forgets the state."""
+        from ..solver import check_initial_state
+        prob = self.problem()
+        v = np.zeros(prob.n) if v is None else v
+        try:
+            q, v = check_initial_state(prob, q, v, t)
+        except ValueError as exc:
+            raise ModelError(f"mechanism '{self.name}': set_state: {exc}") from None
+        self._assembled = AssemblyReport(q, v, 0, 0.0, 0.0,
+                                         float(np.max(np.abs(prob.phi(q, t)), initial=0.0)))
+        return self._assembled
+
+    # --- engineering analysis ----------------------------------------------------------------
+    def equilibrium(self, t: float = 0.0):
+        """The static equilibrium nearest the assembled state under gravity, springs and
+        constant loads, with the drivers held where their laws put them at t: an
+        `Equilibrium` (`mechsim.engineering.equilibrium`) with `q`, `converged`, `stable`
+        (the reduced stiffness positive definite), the stiffness itself and the reactions
+        there (`eq.joint_force(joint)`). `mech.set_state(eq.q)` starts simulations there."""
+        from ..engineering.equilibrium import equilibrium
+        return equilibrium(self, t)
+
+    def linearize(self, q=None, v=None, t: float = 0.0):
+        """The linearized equations of motion about the consistent state (q, v) at t, in the
+        independent coordinates: a `Linearization` with M, C, K, A, natural frequencies,
+        damping ratios and mode shapes in all coordinates. q=None: the static equilibrium
+        found from the assembled state (`equilibrium`), v=None: at rest."""
+        from ..engineering.linearize import linearize
+        prob = self.problem()
+        if q is None:
+            eq = self.equilibrium(t)
+            q = eq.q if eq.converged else self.assemble(t=t).q
+        v = np.zeros(prob.n) if v is None else v
+        from ..solver import check_initial_state
+        try:
+            q, v = check_initial_state(prob, q, v, t)
+        except ValueError as exc:
+            raise ModelError(f"mechanism '{self.name}': linearize: {exc}") from None
+        return linearize(prob, q, v, t)
 
     # --- simulation --------------------------------------------------------------------------
     def simulate(self, t_end: float, method: str | None = None, **options):

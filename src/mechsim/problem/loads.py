@@ -1,7 +1,7 @@
-"""The applied loads of a NumericProblem: gravity, springs with dampers, point forces and
-torques, and the elastic and inertial forces of flexible beams; their potentials and the
-power of every channel that can do work on the mechanism besides gravity and elastic
-springs (the energy balance integrates it)."""
+"""The applied loads of a NumericProblem: gravity, springs and torsion springs with dampers,
+point forces and torques, and the elastic and inertial forces of flexible beams; their
+potentials and the power of every channel that can do work on the mechanism besides gravity
+and elastic springs (the energy balance integrates it)."""
 
 from __future__ import annotations
 
@@ -28,12 +28,30 @@ class SpringData:
 
 
 @dataclass(frozen=True)
+class RotationalSpringData:
+    """A torsion spring–damper: torque −k (θ_b − θ_a − rest) − c (ω_b − ω_a) on body b, the
+    opposite on a (the start indices of their frames; None: the ground)."""
+    name: str
+    a: int | None
+    b: int | None
+    stiffness: float
+    damping: float
+    rest: float
+
+    def angles(self, x):
+        """θ_b − θ_a (or ω_b − ω_a from velocities) over leading dimensions of x."""
+        out = x[..., self.b + 2] if self.b is not None else 0.0
+        return out - x[..., self.a + 2] if self.a is not None else out + 0.0 * x[..., 0]
+
+
+@dataclass(frozen=True)
 class PointLoad:
-    """A force (constant 2-vector or callable of t) at body-fixed point `s`, or a torque."""
+    """A force (constant 2-vector or function of (t, q, v)) at body-fixed point `s`, or a
+    torque."""
     name: str
     body: int
     s: tuple[float, float] | None
-    value: object          # ndarray (2,), float, or callable of t
+    value: object          # ndarray (2,), float, or callable of (t, q, v)
     is_torque: bool
     modal: np.ndarray | None = None
 
@@ -60,14 +78,16 @@ class Loads:
     gravity : ndarray (2,)
     mass_diagonal : ndarray (n,), the rigid bodies' m on their x and y
     rigid_starts : the start indices of the rigid bodies (gravity's constant force m g)
-    springs, loads, flexible : tuples of SpringData, PointLoad, FlexibleData
+    springs, loads, flexible, torsion : tuples of SpringData, PointLoad, FlexibleData,
+        RotationalSpringData
     """
 
     def __init__(self, n, gravity, mass_diagonal, rigid_starts, springs=(), loads=(),
-                 flexible=()):
+                 flexible=(), torsion=()):
         self.n = n
         self.gravity = np.asarray(gravity, float)
         self.springs, self.loads, self.flexible = tuple(springs), tuple(loads), tuple(flexible)
+        self.torsion = tuple(torsion)
         # Gravity's generalized force on rigid bodies is constant: m g on their x and y.
         self.gravity_force = np.zeros(n)
         for start in rigid_starts:
@@ -110,8 +130,18 @@ class Loads:
                 tension += sp.damping * ((vb[0] - va[0]) * ex + (vb[1] - va[1]) * ey)
             add_point_force(Q, q, sp.a, sp.sa, tension * ex, tension * ey, sp.modal_a)
             add_point_force(Q, q, sp.b, sp.sb, -tension * ex, -tension * ey, sp.modal_b)
+        for rs in self.torsion:
+            if not elastic and not rs.damping:
+                continue
+            torque = -rs.stiffness * (rs.angles(q) - rs.rest) if elastic else 0.0
+            if rs.damping:
+                torque -= rs.damping * rs.angles(v)
+            if rs.b is not None:
+                Q[rs.b + 2] += torque
+            if rs.a is not None:
+                Q[rs.a + 2] -= torque
         for load in self.loads:
-            value = load.value(t) if callable(load.value) else load.value
+            value = load.value(t, q, v) if callable(load.value) else load.value
             if load.is_torque:
                 Q[load.body + 2] += value
             else:
@@ -125,6 +155,8 @@ class Loads:
         each load ("load 'F'") and each beam with modal damping ("beam 'b' (modal
         damping)")."""
         names = [f"spring '{sp.name}' (damping)" for sp in self.springs if sp.damping]
+        names += [f"rotational spring '{rs.name}' (damping)" for rs in self.torsion
+                  if rs.damping]
         names += [f"load '{load.name}'" for load in self.loads]
         names += [f"beam '{fb.name}' (modal damping)" for fb in self.flexible
                   if np.any(fb.invariants.damping > 0.0)]
@@ -132,7 +164,7 @@ class Loads:
 
     def powers(self, t, q, v) -> list[float]:
         """The power of each of `work_channels` at (q, v): a damper's −c ṡ² (ṡ its rate of
-        extension), a load's F·ṗ or τ ω, a beam's −Σ d_k η̇_k²."""
+        extension or of relative rotation), a load's F·ṗ or τ ω, a beam's −Σ d_k η̇_k²."""
         out = []
         for sp in self.springs:
             if not sp.damping:
@@ -147,8 +179,12 @@ class Loads:
             rate = (np.subtract(point_velocity(q, v, sp.b, sp.sb, sp.modal_b),
                                 point_velocity(q, v, sp.a, sp.sa, sp.modal_a)) @ d) / length
             out.append(-sp.damping * rate * rate)
+        for rs in self.torsion:
+            if rs.damping:
+                rate = float(rs.angles(v))
+                out.append(-rs.damping * rate * rate)
         for load in self.loads:
-            value = load.value(t) if callable(load.value) else load.value
+            value = load.value(t, q, v) if callable(load.value) else load.value
             if load.is_torque:
                 out.append(float(value) * v[load.body + 2])
             else:
@@ -173,6 +209,8 @@ class Loads:
         for sp in self.springs:
             d = frame_point(q, sp.b, sp.sb, sp.modal_b) - frame_point(q, sp.a, sp.sa, sp.modal_a)
             total = total + 0.5 * sp.stiffness * (np.linalg.norm(d, axis=-1) - sp.rest_length) ** 2
+        for rs in self.torsion:
+            total = total + 0.5 * rs.stiffness * (rs.angles(q) - rs.rest) ** 2
         return total
 
     def strain_energy(self, q) -> np.ndarray:

@@ -45,19 +45,23 @@ class NumericProblem:
     coordinate_names, constraint_names : list of str (one per coordinate / per row of Φ)
     constraint_owners : list of str, the joint or driver that owns each row of Φ
     constraint_kinds : list of str, "joint" or "driver" for each row of Φ
-    springs, loads : tuples of SpringData / PointLoad
+    springs, loads, torsion : tuples of SpringData / PointLoad / RotationalSpringData
     flexible : tuple of FlexibleData; their blocks of M depend on q (`mass_diagonal` holds
         only nominal values there, and the rigid-body terms skip them)
     drawing : list of (body name, start, local points (p, 2), modal shapes (p, 2, k) or
         None): the polylines `SimulationResult.export` draws
     driver_laws : list of (driver name, `mechsim.model.expressions.Expression` in t): what
         each driver prescribes, for the failure messages of a run
+    joints : dict joint name -> `mechsim.engineering.geometry.JointGeometry`: what joint
+        coordinates and reactions are evaluated from (results only; never the solvers)
+    driver_joints : dict driver name -> the name of the joint it drives
     """
 
     def __init__(self, model, parameters, mass_diagonal, gravity, body_starts,
                  coordinate_names, constraint_names, constraint_owners,
                  springs=(), loads=(), title="mechanism", constraint_kinds=None,
-                 flexible=(), drawing=(), driver_laws=()):
+                 flexible=(), drawing=(), driver_laws=(), joints=None, driver_joints=None,
+                 torsion=()):
         self.model = model
         self.p = tuple(float(x) for x in parameters)
         self.mass_model = MassModel(mass_diagonal, flexible)
@@ -73,13 +77,15 @@ class NumericProblem:
         self.title = title
         self.drawing = list(drawing)
         self.driver_laws = list(driver_laws)
+        self.joints = dict(joints or {})
+        self.driver_joints = dict(driver_joints or {})
         self.counters = Counters()
         self.flexible = tuple(flexible)
         self.constant_mass = self.mass_model.constant
         flex_starts = {fb.start for fb in self.flexible}
         rigid = [s for s in self.body_starts.values() if s is not None and s not in flex_starts]
         self.load_model = Loads(self.n, gravity, self.mass_diagonal, rigid, springs, loads,
-                                flexible)
+                                flexible, torsion)
         self.gravity = self.load_model.gravity
         self.springs, self.loads = self.load_model.springs, self.load_model.loads
         self.solver = SchurSolver(self.mass_model, self._banded_form)
@@ -213,6 +219,17 @@ class NumericProblem:
                 out.append(float(sum(lam[i] * phi_t[i] for i in self.rheonomic_rows
                                      if self.constraint_owners[i] == owner)))
         return np.array(out, float)
+
+    def rows_of(self, owner: str) -> list[int]:
+        """The rows of Φ that the joint or driver named `owner` wrote."""
+        return [i for i, o in enumerate(self.constraint_owners) if o == owner]
+
+    def multipliers(self, T, Q, V, passages=()):
+        """λ at the consistent states (T[i], Q[i], V[i]), with the rows whose share is not
+        unique there (`mechsim.problem.multipliers`; `passages`: the (t_start, t_end) of a
+        run's singular passages): a `Multipliers`."""
+        from .multipliers import multipliers
+        return multipliers(self, T, Q, V, passages)
 
     def kinetic_energy(self, q, v) -> np.ndarray:
         return self.mass_model.kinetic_energy(q, v)

@@ -100,7 +100,8 @@ class SimulationResult:
     def __init__(self, t, q, v, coordinate_names, *, problem=None, status="success",
                  message="", stats=None, singular_passages=(), switches=(),
                  energy: EnergyLog | None = None, constraint_violation=None,
-                 exception: BaseException | None = None, work: WorkRecord | None = None):
+                 exception: BaseException | None = None, work: WorkRecord | None = None,
+                 saved_reactions: dict | None = None):
         self.t = np.asarray(t, float)
         self.q = np.asarray(q, float)
         self.v = np.asarray(v, float)
@@ -113,6 +114,7 @@ class SimulationResult:
         self.singular_passages = list(singular_passages)
         self.switches = list(switches)
         self._work = work
+        self._saved_reactions = saved_reactions
         if energy is not None:
             self.__dict__["energy"] = energy
         if constraint_violation is not None:
@@ -180,6 +182,46 @@ class SimulationResult:
             _, J, _, gamma = p.terms(q, v, t)
             out[i] = p.accelerations(J, p.forces(t, q, v), gamma, q)[0]
         return out
+
+    # --- reactions, efforts and joint coordinates ---------------------------------------------
+    @cached_property
+    def reactions(self):
+        """The `ReactionTable` of this result (`mechsim.engineering.reactions`): the Lagrange
+        multipliers at every sample, computed on first use, and which reactions are not
+        unique where (`reactions.note()`, `reactions.flagged`)."""
+        from ..engineering.reactions import ReactionTable
+        return ReactionTable(self.t, self.q, self.v, self.problem, self._saved_reactions,
+                             passages=self.singular_passages)
+
+    def joint_force(self, joint, frame: str = "global") -> np.ndarray:
+        """The force [N] the joint applies to `joint.body_b` at each sample, shape (n, 2): in
+        global axes, or with frame="body" in body_b's axes. The force on body_a is its
+        opposite. Where the reactions are not unique (redundant constraints, a singular
+        configuration) the minimum-norm values; `reactions.note()` says where."""
+        return self.reactions.force(joint, frame)
+
+    def joint_moment(self, joint) -> np.ndarray:
+        """The moment [N·m] the joint applies to body_b about the joint's point on body_b,
+        shape (n,): 0 for a revolute, the anti-rotation couple of a prismatic."""
+        return self.reactions.moment(joint)
+
+    def driver_effort(self, driver) -> np.ndarray:
+        """The torque [N·m] (revolute) or force [N] (prismatic) the driver applies to
+        body_b of its joint, shape (n,): what the motor or actuator must deliver."""
+        return self.reactions.effort(driver)
+
+    def driver_power(self, driver) -> np.ndarray:
+        """The power [W] the driver delivers, effort × the rate of its joint, shape (n,)."""
+        return self.reactions.effort(driver) * self.reactions.driver_rate(driver)
+
+    def joint_coordinate(self, joint) -> np.ndarray:
+        """The joint's coordinate, shape (n,): relative angle [rad] of body_b to body_a for
+        a revolute, slide [m] of a prismatic along its axis from its initial position."""
+        return self.reactions.coordinates(joint)[0]
+
+    def joint_rate(self, joint) -> np.ndarray:
+        """The rate of `joint_coordinate` [rad/s or m/s], shape (n,)."""
+        return self.reactions.coordinates(joint)[1]
 
     # --- energy and constraints --------------------------------------------------------------
     def _need_problem(self, what):
@@ -277,8 +319,10 @@ class SimulationResult:
         return export(self, path, p.drawing)
 
     # --- persistence -------------------------------------------------------------------------
-    def save(self, path) -> Path:
-        """Write the result (with its energy log and constraint violation) to an .npz file."""
+    def save(self, path, reactions: bool | None = None) -> Path:
+        """Write the result (with its energy log and constraint violation) to an .npz file.
+        `reactions`: also the joint reactions, driver efforts and joint coordinates, so a
+        loaded result answers for them (None: where they have been computed already)."""
         path = Path(path)
         meta = {"coordinate_names": self.coordinate_names, "status": self.status,
                 "message": self.message, "stats": self.stats,
@@ -295,6 +339,15 @@ class SimulationResult:
                 meta["work_includes"] = e.includes
         if self.problem is not None or "constraint_violation" in self.__dict__:
             extra["constraint_violation"] = self.constraint_violation
+        table = None
+        if reactions or (reactions is None and "reactions" in self.__dict__
+                         and self.reactions.computed):
+            table = self.reactions
+        if table is not None:
+            arrays = table.to_arrays()
+            meta["reactions"] = {"keys": list(arrays), "joints": table.joint_names,
+                                 "drivers": table.driver_names}
+            extra.update({f"reaction_{k}": a for k, a in enumerate(arrays.values())})
         np.savez_compressed(path, t=self.t, q=self.q, v=self.v,
                             meta=np.array(json.dumps(meta, default=float)), **extra)
         return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
@@ -324,13 +377,18 @@ def load_result(path) -> SimulationResult:
                 energy = EnergyLog(data["kinetic"], data["potential"], data["strain"],
                                    data["work"] if "work" in data else None)
         violation = data["constraint_violation"] if "constraint_violation" in data else None
+        saved = None
+        if "reactions" in meta:
+            r = meta["reactions"]
+            saved = {key: data[f"reaction_{k}"] for k, key in enumerate(r["keys"])}
+            saved.update(joints=r["joints"], drivers=r["drivers"])
         return SimulationResult(
             data["t"], data["q"], data["v"], meta["coordinate_names"], status=meta["status"],
             message=meta["message"], stats=meta["stats"],
             singular_passages=[SingularPassage(**{**s, "joints": tuple(s.get("joints", ()))})
                                for s in meta["singular_passages"]],
             switches=[Switch(**s) for s in meta["switches"]], energy=energy,
-            constraint_violation=violation)
+            constraint_violation=violation, saved_reactions=saved)
 
 
 SimulationResult.load = staticmethod(load_result)

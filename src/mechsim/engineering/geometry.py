@@ -1,0 +1,217 @@
+"""Joints evaluated in numbers: their coordinates, rates and the wrench their multipliers
+apply, from the same `equations(ctx, p)` and `coordinate(ctx, p)` hooks that give sympy
+their constraint equations (`mechsim.model.joints`).
+
+A joint writes its equations through a context and only does arithmetic on what the context
+hands it. `NumericContext` hands it forward-mode dual numbers (`Dual`: a value and its
+derivatives along a few chosen directions of q) over any number of states at once, so one
+pass over a joint gives, for every output sample,
+
+- its coordinate and rate (the derivative along v): `joint_coordinates`;
+- the derivatives of its equations with respect to one body's frame coordinates (x, y, θ),
+  from which the force and moment its multipliers λ apply to that body follow:
+  `joint_wrench`.
+
+No new joint needs anything else: what a joint can write for sympy it can write here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+class Dual:
+    """x + d·ε: values `x` (shape S) with derivatives `d` (shape S + (k,)) along k directions.
+    Supports what a joint's equations use: +, −, ×, / and the context's cos and sin."""
+    __slots__ = ("x", "d")
+
+    def __init__(self, x, d):
+        self.x, self.d = x, d
+
+    def __add__(self, o):
+        if isinstance(o, Dual):
+            return Dual(self.x + o.x, self.d + o.d)
+        return Dual(self.x + o, self.d)
+
+    __radd__ = __add__
+
+    def __sub__(self, o):
+        if isinstance(o, Dual):
+            return Dual(self.x - o.x, self.d - o.d)
+        return Dual(self.x - o, self.d)
+
+    def __rsub__(self, o):
+        return Dual(o - self.x, -self.d)
+
+    def __neg__(self):
+        return Dual(-self.x, -self.d)
+
+    def __mul__(self, o):
+        if isinstance(o, Dual):
+            return Dual(self.x * o.x, self.d * _col(o.x) + o.d * _col(self.x))
+        return Dual(self.x * o, self.d * _col(o))
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, o):
+        if isinstance(o, Dual):
+            return Dual(self.x / o.x, (self.d * _col(o.x) - o.d * _col(self.x)) / _col(o.x * o.x))
+        return Dual(self.x / o, self.d / _col(o))
+
+
+def _col(x):
+    """x with a trailing axis, to scale derivatives (plain numbers pass)."""
+    return x[..., None] if isinstance(x, np.ndarray) else x
+
+
+def cos(a):
+    if isinstance(a, Dual):
+        return Dual(np.cos(a.x), -np.sin(a.x)[..., None] * a.d)
+    return np.cos(a)
+
+
+def sin(a):
+    if isinstance(a, Dual):
+        return Dual(np.sin(a.x), np.cos(a.x)[..., None] * a.d)
+    return np.sin(a)
+
+
+def value(a):
+    """The value of a dual or of a plain number, as an array."""
+    return a.x if isinstance(a, Dual) else np.asarray(a, float)
+
+
+def derivative(a, shape):
+    """The derivatives of a dual (zeros of `shape` for a constant)."""
+    return a.d if isinstance(a, Dual) else np.zeros(shape)
+
+
+class NumericContext:
+    """What a joint sees while writing its equations (as `SymbolicContext`), in numbers.
+
+    Parameters
+    ----------
+    starts : dict id(body) -> index of the body's x in q (bodies absent: the ground)
+    q : ndarray (N, n), the states
+    seeds : ndarray (N, n, k) or (n, k): the derivative of each coordinate along each of k
+        directions (None: values only, no derivatives)
+    t : ndarray (N,)
+    """
+
+    def __init__(self, starts, q, seeds=None, t=None):
+        self.starts = starts
+        self.q = np.atleast_2d(np.asarray(q, float))
+        self.seeds = seeds
+        self.t = t
+
+    def coordinate(self, i):
+        x = self.q[:, i]
+        if self.seeds is None:
+            return x
+        d = self.seeds[..., i, :]
+        return Dual(x, np.broadcast_to(d, x.shape + d.shape[-1:]))
+
+    def frame(self, body):
+        start = self.starts.get(id(body))
+        if start is None:
+            return 0.0, 0.0, 0.0
+        return tuple(self.coordinate(start + c) for c in range(3))
+
+    def modal(self, body):
+        start = self.starts.get(id(body))
+        k = len(body.coordinate_names) - 3
+        if start is None or k <= 0:
+            return ()
+        return tuple(self.coordinate(start + 3 + c) for c in range(k))
+
+    def angle(self, body, p=None, role=None):
+        th = self.frame(body)[2]
+        for k, eta in enumerate(self.modal(body) if p is not None else (), start=1):
+            th = th + eta * p[f"{role}_r{k}"]
+        return th
+
+    def direction(self, body, ux, uy, p=None, role=None):
+        th = self.angle(body, p, role)
+        c, s = cos(th), sin(th)
+        return [c * ux - s * uy, s * ux + c * uy]
+
+    def point(self, body, sx, sy, p=None, role=None):
+        x, y, th = self.frame(body)
+        for k, eta in enumerate(self.modal(body) if p is not None else (), start=1):
+            sx = sx + eta * p[f"{role}_u{k}"]
+            sy = sy + eta * p[f"{role}_v{k}"]
+        c, s = cos(th), sin(th)
+        return [x + c * sx - s * sy, y + s * sx + c * sy]
+
+
+@dataclass(frozen=True)
+class JointGeometry:
+    """One joint of a built mechanism, for numeric evaluation: the joint (its `equations`
+    and `coordinate` hooks), its parameter values by name, the start in q of every body of
+    the mechanism by id (the ground absent) and the joint's attachment point on each body,
+    in that body's frame."""
+    joint: object
+    parameters: dict
+    starts: dict
+    local_a: tuple
+    local_b: tuple
+
+    @property
+    def start_a(self):
+        return self.starts.get(id(self.joint.body_a))
+
+    @property
+    def start_b(self):
+        return self.starts.get(id(self.joint.body_b))
+
+
+def _broadcast(a, n):
+    return np.broadcast_to(value(a), (n,))
+
+
+def joint_coordinates(geometry: JointGeometry, q, v):
+    """(s, ṡ), each shape (N,): the joint's coordinate (relative angle of a revolute, slide
+    of a prismatic, as its `coordinate` hook defines it) and its rate along v, at the states
+    q, v of shape (N, n)."""
+    q, v = np.atleast_2d(q), np.atleast_2d(v)
+    n = q.shape[0]
+    c = geometry.joint.coordinate(NumericContext(geometry.starts, q, v[:, :, None]),
+                                  geometry.parameters)
+    return _broadcast(c, n).copy(), np.broadcast_to(derivative(c, (n, 1))[..., 0], (n,)).copy()
+
+
+def joint_wrench(geometry: JointGeometry, q, lam):
+    """(F, M): the force (N, 2, global axes) the joint applies to its body_b and the moment
+    (N,) about the joint's point on body_b, from the joint's multipliers `lam` (N, rows) at
+    the states q (N, n).
+
+    The constraint forces are −Φ_qᵀ λ; on a body's frame coordinates (x, y, θ) they are the
+    force and the moment about the frame origin R, so about the attachment point P the
+    moment is M_R − (P − R) × F. Where body_b is the ground the wrench is found on body_a
+    and turned by Newton's third law (a joint's equations move with both bodies)."""
+    q = np.atleast_2d(q)
+    n = q.shape[0]
+    on_b = geometry.start_b is not None
+    start = geometry.start_b if on_b else geometry.start_a
+    role, local = ("b", geometry.local_b) if on_b else ("a", geometry.local_a)
+    joint, p = geometry.joint, geometry.parameters
+    body = joint.body_b if on_b else joint.body_a
+    seeds = np.zeros((q.shape[1], 3))
+    seeds[start:start + 3] = np.eye(3)
+    rows = joint.equations(NumericContext(geometry.starts, q, seeds), p)
+    grad = np.stack([np.broadcast_to(derivative(r, (n, 3)), (n, 3)) for r in rows], axis=1)
+    generalized = -np.einsum("nr,nrc->nc", lam, grad)      # on (x, y, θ) of the body
+    force = generalized[:, :2]
+    plain = NumericContext(geometry.starts, q)
+    px, py = (_broadcast(c, n) for c in plain.point(body, local[0], local[1], p, role))
+    rx, ry = px - q[:, start], py - q[:, start + 1]
+    moment = generalized[:, 2] - (rx * force[:, 1] - ry * force[:, 0])
+    if on_b:
+        return force, moment
+    # On body_b (the ground): the opposite wrench, its moment taken about body_b's point.
+    bx, by = (_broadcast(c, n) for c in plain.point(joint.body_b, geometry.local_b[0],
+                                                     geometry.local_b[1], p, "b"))
+    dx, dy = px - bx, py - by
+    return -force, -moment - (dx * force[:, 1] - dy * force[:, 0])

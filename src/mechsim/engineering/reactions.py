@@ -1,0 +1,216 @@
+"""Joint reactions, driver efforts and joint coordinates of a result, computed when asked.
+
+`ReactionTable` answers for one `SimulationResult`: from its model (λ once for all samples,
+`NumericProblem.multipliers`; each joint's wrench and coordinates when first asked,
+`mechsim.engineering.geometry`), or from the arrays a saved result holds. Nothing is computed
+for a run whose reactions nobody reads.
+
+Conventions (mechsim's API):
+- `force(joint)`: the force (N, 2) the joint applies to `joint.body_b`, in global axes; the
+  force on body_a is its opposite;
+- `moment(joint)`: the moment (N,) the joint applies to body_b about the joint's point on
+  body_b: 0 for a revolute, the anti-rotation couple of a prismatic;
+- `effort(driver)`: the torque (revolute) or force along the axis (prismatic) the driver
+  applies to body_b, −λ of its row (its power is effort × the joint's rate);
+- `coordinate(joint)`, `rate(joint)`: the joint's relative angle or slide and its rate.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def static_multipliers(problem, t, q):
+    """λ of the mechanism at rest in equilibrium at (t, q) (`mechsim.problem.multipliers`)."""
+    from ..problem.multipliers import static
+    return static(problem, t, q)
+
+
+def item_name(item, kind: str) -> str:
+    """The name of a joint or driver given as the object or its name."""
+    name = getattr(item, "name", item)
+    if not isinstance(name, str):
+        raise TypeError(f"expected a {kind} or its name, got {item!r}")
+    return name
+
+
+class ReactionTable:
+    """Reactions, efforts and joint coordinates of one result.
+
+    Parameters
+    ----------
+    t, q, v : the result's samples
+    problem : its NumericProblem, or None for a loaded result
+    saved : dict of arrays written by `to_arrays` (a loaded result), or None
+    multipliers : the `Multipliers` at the samples where the caller has them (a static
+        equilibrium's, `static_multipliers`); else from the equations of motion
+    passages : the run's `SingularPassage`s (inside them directions of J̃ under the
+        projection method's truncation cut are left out, `mechsim.problem.multipliers`)
+    """
+
+    def __init__(self, t, q, v, problem=None, saved=None, multipliers=None, passages=()):
+        self.t, self.q, self.v, self.problem = t, q, v, problem
+        self.passages = [(p.t_start, p.t_end) for p in passages]
+        self._multipliers = multipliers
+        self._wrenches: dict = {}
+        self._coordinates: dict = {}
+        self.saved = saved or {}
+
+    # --- names -------------------------------------------------------------------------------
+    @property
+    def joint_names(self) -> list[str]:
+        if self.problem is not None:
+            return list(self.problem.joints)
+        return list(self.saved.get("joints", []))
+
+    @property
+    def driver_names(self) -> list[str]:
+        if self.problem is not None:
+            return list(self.problem.driver_joints)
+        return list(self.saved.get("drivers", []))
+
+    def _joint(self, joint) -> str:
+        name = item_name(joint, "joint")
+        if self.problem is None and "joints" not in self.saved:
+            self._need("the reactions and joint coordinates")
+        if name not in self.joint_names:
+            raise KeyError(f"no joint {name!r} in this result; joints: "
+                           f"{', '.join(self.joint_names) or '(none)'}")
+        return name
+
+    def _driver(self, driver) -> str:
+        name = item_name(driver, "driver")
+        if self.problem is None and "drivers" not in self.saved:
+            self._need("the driver efforts")
+        if name not in self.driver_names:
+            raise KeyError(f"no driver {name!r} in this result; drivers: "
+                           f"{', '.join(self.driver_names) or '(none)'}")
+        return name
+
+    def _need(self, what):
+        if self.problem is None:
+            raise RuntimeError(f"{what} was not saved with this result and its model is not "
+                               "loaded; save results with reactions=True to keep them")
+        return self.problem
+
+    # --- multipliers -------------------------------------------------------------------------
+    @property
+    def multipliers(self):
+        """λ at every sample with the rows whose share is not unique
+        (`mechsim.problem.multipliers.Multipliers`), computed on first use."""
+        if self._multipliers is None:
+            p = self._need("the reactions")
+            self._multipliers = p.multipliers(self.t, self.q, self.v, self.passages)
+        return self._multipliers
+
+    def indeterminate(self, owner: str) -> np.ndarray:
+        """(N,) bool: the samples where the reactions of joint or driver `owner` are not
+        unique (the minimum-norm values are given there)."""
+        key = f"indeterminate:{owner}"
+        if key in self.saved:
+            return self.saved[key]
+        rows = self._need("the reactions").rows_of(owner)
+        return self.multipliers.indeterminate[:, rows].any(axis=1)
+
+    @property
+    def flagged(self) -> np.ndarray:
+        """(N,) bool: samples where some reaction or effort is not unique."""
+        if "flagged" in self.saved:
+            return self.saved["flagged"]
+        return self.multipliers.flagged
+
+    def note(self) -> str:
+        """"" where every reaction is unique; else which joints and drivers are not, where."""
+        flagged = self.flagged
+        if not flagged.any():
+            return ""
+        owners = [o for o in self.joint_names + self.driver_names
+                  if self.indeterminate(o).any()]
+        times = self.t[flagged]
+        where = (f"at {flagged.sum()} of {flagged.size} samples, t = {times[0]:.6g} … "
+                 f"{times[-1]:.6g} s")
+        return (f"reactions not unique {where} (redundant constraints or a singular "
+                f"configuration): minimum-norm values given for "
+                f"{', '.join(repr(o) for o in owners)}")
+
+    # --- joints and drivers ------------------------------------------------------------------
+    def wrench(self, joint):
+        """(force (N, 2) global, moment (N,)) the joint applies to its body_b."""
+        name = self._joint(joint)
+        if f"force:{name}" in self.saved:
+            return self.saved[f"force:{name}"], self.saved[f"moment:{name}"]
+        if name not in self._wrenches:
+            from .geometry import joint_wrench
+            p = self._need("the reactions")
+            lam = self.multipliers.lam[:, p.rows_of(name)]
+            self._wrenches[name] = joint_wrench(p.joints[name], self.q, lam)
+        return self._wrenches[name]
+
+    def force(self, joint, frame: str = "global") -> np.ndarray:
+        """The force (N, 2) the joint applies to body_b: in global axes, or with
+        frame="body" in body_b's axes (the ground's are the global ones)."""
+        if frame not in ("global", "body"):
+            raise ValueError(f"`frame` must be 'global' or 'body', got {frame!r}")
+        F = self.wrench(joint)[0]
+        if frame == "global":
+            return F
+        angle = self.body_b_angle(self._joint(joint))
+        c, s = np.cos(angle), np.sin(angle)
+        return np.stack([c * F[:, 0] + s * F[:, 1], -s * F[:, 0] + c * F[:, 1]], axis=1)
+
+    def body_b_angle(self, name) -> np.ndarray:
+        key = f"angle_b:{name}"
+        if key in self.saved:
+            return self.saved[key]
+        start = self._need("the joint's body").joints[name].start_b
+        return np.zeros(len(self.t)) if start is None else self.q[:, start + 2]
+
+    def moment(self, joint) -> np.ndarray:
+        return self.wrench(joint)[1]
+
+    def effort(self, driver) -> np.ndarray:
+        """(N,): the driver's torque or force on body_b, −λ of its row."""
+        name = self._driver(driver)
+        if f"effort:{name}" in self.saved:
+            return self.saved[f"effort:{name}"]
+        p = self._need("the driver efforts")
+        return -self.multipliers.lam[:, p.rows_of(name)[0]]
+
+    def coordinates(self, joint):
+        """(s, ṡ), each (N,): the joint's coordinate and rate."""
+        name = self._joint(joint)
+        if f"coordinate:{name}" in self.saved:
+            return self.saved[f"coordinate:{name}"], self.saved[f"rate:{name}"]
+        if name not in self._coordinates:
+            from .geometry import joint_coordinates
+            p = self._need("the joint coordinates")
+            self._coordinates[name] = joint_coordinates(p.joints[name], self.q, self.v)
+        return self._coordinates[name]
+
+    def driver_rate(self, driver) -> np.ndarray:
+        """(N,): the rate of the joint a driver drives (its power is effort × rate)."""
+        name = self._driver(driver)
+        if f"driver_rate:{name}" in self.saved:
+            return self.saved[f"driver_rate:{name}"]
+        return self.coordinates(self._need("the driver's joint").driver_joints[name])[1]
+
+    # --- persistence -------------------------------------------------------------------------
+    @property
+    def computed(self) -> bool:
+        """Whether anything has been computed or loaded (what `save` keeps by default)."""
+        return bool(self.saved) or self._multipliers is not None or bool(self._coordinates)
+
+    def to_arrays(self) -> dict:
+        """Everything this table answers, as arrays (for `SimulationResult.save`)."""
+        out = {"flagged": self.flagged}
+        for name in self.joint_names:
+            F, M = self.wrench(name)
+            s, ds = self.coordinates(name)
+            out.update({f"force:{name}": F, f"moment:{name}": M, f"coordinate:{name}": s,
+                        f"rate:{name}": ds, f"indeterminate:{name}": self.indeterminate(name),
+                        f"angle_b:{name}": self.body_b_angle(name)})
+        for name in self.driver_names:
+            out.update({f"effort:{name}": self.effort(name),
+                        f"indeterminate:{name}": self.indeterminate(name),
+                        f"driver_rate:{name}": self.driver_rate(name)})
+        return out
