@@ -37,7 +37,14 @@ def _run(args) -> int:
         t_build = time.perf_counter() - t0
         report = mech.dof()
         assembly = mech.assemble(t=scene.simulation.get("t_start", 0.0))
-        res = scene.simulate(**overrides)
+        _analyses(args, mech, scene.simulation.get("t_start", 0.0))
+        if args.kinematics:
+            settings = {**scene.simulation, **overrides}
+            t_end = settings["t_end"]
+            step = settings.get("output_step") or (t_end - settings.get("t_start", 0.0)) / 1000
+            res = mech.kinematics(t_end, step, settings.get("t_start", 0.0))
+        else:
+            res = scene.simulate(**overrides)
     except (ModelError, ValueError) as exc:
         print(f"mechsim: {exc}", file=sys.stderr)
         return 2
@@ -45,12 +52,20 @@ def _run(args) -> int:
     written = []
     if targets:
         out_dir.mkdir(parents=True, exist_ok=True)
+    wants_reactions = bool(scene.output.get("reactions") or scene.output.get("efforts"))
     for kind, path in targets:
         if kind == "energy":
             res.plot_energy(path=path)
             written.append(path)
+        elif kind == "reactions":
+            wanted = scene.output.get("reactions")
+            res.plot_reactions(wanted if isinstance(wanted, list) else None, path=path)
+            written.append(path)
+        elif kind == "efforts":
+            res.plot_efforts(path=path)
+            written.append(path)
         elif kind == "save":
-            written.append(res.save(path))
+            written.append(res.save(path, reactions=wants_reactions or None))
         else:
             written.append(res.export(path))
     for w in written:
@@ -80,6 +95,33 @@ def _output_paths(args, scene):
     return out_dir, targets
 
 
+def _analyses(args, mech, t) -> None:
+    """`--equilibrium` and `--modes`: the static equilibrium and the linearized modes about
+    it, printed before the run."""
+    if not (args.equilibrium or args.modes):
+        return
+    eq = mech.equilibrium(t)
+    print(f"equilibrium {'found' if eq.converged else 'not found'} ({eq.method}): {eq.message}")
+    if eq.converged:
+        for name, value in zip(eq.coordinates, eq.q[[mech.coordinate_names.index(c)
+                                                        for c in eq.coordinates]]):
+            print(f"           {name} = {value:.6g}")
+        for joint in mech.joints:
+            F = eq.joint_force(joint)
+            print(f"           joint '{joint.name}': force ({F[0]:.4g}, {F[1]:.4g}) N on "
+                  f"'{joint.body_b.name}'")
+        for driver in mech.drivers:
+            print(f"           driver '{driver.name}' holds {eq.driver_effort(driver):.4g}")
+    if args.modes and not eq.coordinates:
+        print("modes      none: the drivers fix every degree of freedom")
+    elif args.modes:
+        lin = mech.linearize(eq.q if eq.converged else None, t=t)
+        print(f"modes      about the {'equilibrium' if lin.equilibrium else 'assembled state'}"
+              f" in {', '.join(lin.coordinates)}:")
+        for k, (w, z) in enumerate(zip(lin.frequencies, lin.damping_ratios), start=1):
+            print(f"           {k}: ω = {w:.6g} rad/s ({w / (2 * np.pi):.6g} Hz), ζ = {z:.3g}")
+
+
 def _summary(scene, mech, res, report, assembly, t_build) -> None:
     """The run's summary on standard output."""
     print(f"scene      {scene.path}  ({mech.name})")
@@ -87,8 +129,11 @@ def _summary(scene, mech, res, report, assembly, t_build) -> None:
           f"in {t_build:.3f} s; {report}")
     print(f"assembly   {assembly}")
     s = res.stats
-    print(f"solver     {s['method']} / {s['integrator']}: {s['steps']} steps, "
-          f"{s['rhs_evaluations']} right-hand sides, {s['wall_time']:.3f} s wall")
+    if s.get("method") == "kinematics":
+        print(f"kinematics {s['samples']} configurations solved, {s['wall_time']:.3f} s wall")
+    else:
+        print(f"solver     {s['method']} / {s['integrator']}: {s['steps']} steps, "
+              f"{s['rhs_evaluations']} right-hand sides, {s['wall_time']:.3f} s wall")
     print(f"status     {res.status}: {res.message}  (t = {res.t[0]:g} … {res.t[-1]:g} s, "
           f"{len(res.t)} samples)")
     print(f"energy     final drift {res.energy_drift[-1]:+.3e}, "
@@ -112,6 +157,29 @@ def _summary(scene, mech, res, report, assembly, t_build) -> None:
     for body, local in scene.output.get("points", []):
         p = res.point(body, local)[-1]
         print(f"point      {body} {tuple(local)} at t = {res.t[-1]:g}: ({p[0]:.6f}, {p[1]:.6f})")
+    _reaction_summary(scene.output, res)
+
+
+def _reaction_summary(output, res) -> None:
+    """Peak joint forces (`[output] reactions`) and the drivers' peak and RMS effort and
+    power (`[output] efforts`)."""
+    wanted, efforts = output.get("reactions"), output.get("efforts")
+    if not (wanted or efforts):
+        return
+    figures = res.cycle_figures()
+    names = figures.joints if wanted is True else (wanted or [])
+    for name in names:
+        j = figures.joints[name]
+        print(f"reaction   joint '{name}': peak force {j['peak_force']:.4g} N at "
+              f"t = {j['at']:.4g} s")
+    for name, mu in figures.transmission.items():
+        print(f"reaction   transmission angle at '{name}': {mu['min']:.1f}° … {mu['max']:.1f}°")
+    for name, d in (figures.drivers.items() if efforts else ()):
+        print(f"effort     driver '{name}': peak {d['peak_effort']:.4g}, RMS "
+              f"{d['rms_effort']:.4g}; power peak {d['peak_power']:.4g} W, mean "
+              f"{d['mean_power']:.4g} W")
+    if figures.note:
+        print(f"reaction   {figures.note}")
 
 
 def _numbers(text, option, default) -> list[float]:
@@ -182,6 +250,13 @@ def main(argv=None) -> int:
     run.add_argument("--method", help="override the scene's method")
     run.add_argument("--t-end", type=float, help="override the scene's end time")
     run.add_argument("--no-plots", action="store_true", help="write no plots")
+    run.add_argument("--equilibrium", action="store_true",
+                     help="print the static equilibrium and its reactions first")
+    run.add_argument("--modes", action="store_true",
+                     help="print the natural frequencies about the equilibrium first")
+    run.add_argument("--kinematics", action="store_true",
+                     help="solve a fully driven mechanism's motion from its constraints "
+                          "(kinematic analysis) instead of integrating it")
     run.set_defaults(func=_run)
     bench = sub.add_parser("bench", help="work–precision table and plots for the solvers")
     bench.add_argument("problems", nargs="*",

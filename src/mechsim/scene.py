@@ -26,8 +26,9 @@
     bodies = ["ground", "crank"]
     at = [0, 0]
 
-    [[driver]]  joint = "A", expression = "150*t"
+    [[driver]]  joint = "A", expression = "150*t"   # in t and the parameters
     [[spring]]  bodies = [a, b], at_a, at_b, stiffness, rest_length, damping
+    [[rotational_spring]]  bodies = [a, b], stiffness, damping, rest_angle
     [[force]]   body, force = [fx, fy], at
     [[torque]]  body, torque
 
@@ -36,7 +37,10 @@
     method = "baumgarte"
 
     [output]
-    plots = ["energy"]           # written to the output directory
+    plots = ["energy"]           # written to the output directory (also "reactions",
+                                 # "efforts")
+    reactions = ["A", "B"]       # joints whose peak forces the summary prints (true: all)
+    efforts = true               # the drivers' peak and RMS effort and power
     save = true                  # result as <scene>.npz
     export = "motion.xdmf"       # meshio time series of the bodies (ParaView)
     points = [["coupler", [0.5, 0.0]]]   # final positions printed in the summary
@@ -59,7 +63,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 
 from .model import (Driver, FlexibleBeam, Force, Mechanism, ModelError, Prismatic, Revolute,
-                    RigidBody, Spring, Torque)
+                    RigidBody, RotationalSpring, Spring, Torque)
 from .model.expressions import ExpressionError, parse
 from .options import unknown_names
 
@@ -69,7 +73,7 @@ class SceneError(ModelError):
 
 
 MAX_SCENE_BYTES = 4 * 2 ** 20
-PLOTS = ("energy",)
+PLOTS = ("energy", "reactions", "efforts")
 
 
 def evaluate(text, names: dict, where: str) -> float:
@@ -134,17 +138,19 @@ SCHEMA = {
                "rest_length": "number", "damping": "number", "name": "name"},
     "force": {"body": "name", "force": "vector", "at": "vector", "name": "name"},
     "torque": {"body": "name", "torque": "number", "name": "name"},
+    "rotational_spring": {"bodies": "bodies", "stiffness": "number", "damping": "number",
+                          "rest_angle": "number", "name": "name"},
     "output": {"plots": "plots", "save": "flag", "points": "points", "directory": "path",
-               "export": "path"},
+               "export": "path", "reactions": "joints", "efforts": "flag"},
 }
 REQUIRED = {
     "body": ("name",), "flexible_beam": ("name", "start", "youngs_modulus", "density", "area",
                                          "second_moment"),
     "joint": ("type", "bodies"), "driver": ("joint", "expression"),
     "spring": ("bodies", "at_a", "at_b", "stiffness"), "force": ("body", "force"),
-    "torque": ("body", "torque"), "output": (),
+    "torque": ("body", "torque"), "rotational_spring": ("bodies", "stiffness"), "output": (),
 }
-_ARRAYS = ("body", "joint", "driver", "spring", "force", "torque")
+_ARRAYS = ("body", "joint", "driver", "spring", "force", "torque", "rotational_spring")
 _TOP = {"name": "name", "gravity": "vector", "parameters": "table", "simulation": "table",
         "output": "table", **{k: "array" for k in _ARRAYS}}
 
@@ -166,7 +172,15 @@ class _Reader:
                                         f"{_show(value)}")
             return value
         if kind == "driver":
-            return value          # a number or a string: `Driver` parses it, naming itself
+            # A law in t and the scene's parameters: the parameters bound to their values,
+            # the rest left to `Driver`, which parses it again and names itself.
+            if isinstance(value, str) and self.names:
+                try:
+                    law = parse(value, {"t", *self.names}, f"{self.file}: {where}")
+                except ExpressionError as exc:
+                    raise SceneError(str(exc)) from None
+                return law.bind(**{k: self.names[k] for k in law.names if k != "t"}).text
+            return value
         if kind in ("name", "text", "path"):
             if not isinstance(value, str) or (kind != "text" and not value.strip()):
                 raise self.error(where, f"expected a non-empty string, got {_kind(value)} "
@@ -197,6 +211,13 @@ class _Reader:
             if not isinstance(value, list):
                 raise self.error(where, f"expected an array of plot names, got {_show(value)}")
             return [self.value(PLOTS, v, where) for v in value]
+        if kind == "joints":
+            if value is True:
+                return True
+            if not isinstance(value, list):
+                raise self.error(where, f"expected true or an array of joint names, got "
+                                        f"{_show(value)}")
+            return [self.value("name", v, where) for v in value]
         if kind == "points":
             if not isinstance(value, list) or not all(isinstance(p, list) and len(p) == 2
                                                       for p in value):
@@ -275,6 +296,14 @@ def load_scene(path) -> Scene:
     mech = _build(r, name, gravity, tables)
     for body, _ in output.get("points", []):
         _body(r, mech, body, "[output] points")
+    wanted = output.get("reactions")
+    names = [j.name for j in mech.joints]
+    for joint in wanted if isinstance(wanted, list) else ():
+        if joint not in names:
+            raise r.error("[output] reactions", f"no joint named {joint!r}; joints: "
+                                                f"{', '.join(names) or '(none)'}")
+    if (output.get("efforts") or "efforts" in output.get("plots", ())) and not mech.drivers:
+        raise r.error("[output] efforts", "the mechanism has no driver")
     simulation = _simulation(r, data.get("simulation", {}), mech)
     return Scene(path, mech, simulation, output)
 
@@ -357,6 +386,10 @@ def _build(r, name, gravity, tables) -> Mechanism:
     for where, t in tables["torque"]:
         body = _body(r, mech, t["body"], where)
         make(where, lambda: mech.add(Torque(body, t["torque"], name=t.get("name"))))
+    for where, t in tables["rotational_spring"]:
+        a, b = (_body(r, mech, n, where) for n in t["bodies"])
+        kw = {k: t[k] for k in ("damping", "rest_angle", "name") if k in t}
+        make(where, lambda: mech.add(RotationalSpring(a, b, t["stiffness"], **kw)))
     return mech
 
 

@@ -215,3 +215,13 @@ def joint_wrench(geometry: JointGeometry, q, lam):
                                                      geometry.local_b[1], p, "b"))
     dx, dy = px - bx, py - by
     return -force, -moment - (dx * force[:, 1] - dy * force[:, 0])
+
+
+def joint_point(geometry: JointGeometry, q) -> np.ndarray:
+    """The joint's point on its body_b in global axes at the states q (N, n): (N, 2)."""
+    q = np.atleast_2d(q)
+    n = q.shape[0]
+    ctx = NumericContext(geometry.starts, q)
+    x, y = ctx.point(geometry.joint.body_b, geometry.local_b[0], geometry.local_b[1],
+                     geometry.parameters, "b")
+    return np.column_stack([_broadcast(x, n), _broadcast(y, n)])

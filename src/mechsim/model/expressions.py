@@ -74,6 +74,12 @@ class Expression:
         import sympy as sp
         return _sympy(self.tree, symbols, sp)
 
+    def bind(self, **values) -> "Expression":
+        """The same expression with the names in `values` replaced by those numbers (a
+        scene's parameters in a driver's law), written out as its canonical text."""
+        tree = _bind(self.tree, values)
+        return Expression(_canonical(tree), tree, self.names - frozenset(values))
+
     def __repr__(self):
         return f"Expression({self.text!r})"
 
@@ -248,6 +254,19 @@ def _sympy(tree, symbols, sp):
     if name == "degrees":
         return args[0] * 180 / sp.pi
     return getattr(sp, FUNCTIONS[name][2])(*args)
+
+
+def _bind(tree, values):
+    kind = tree[0]
+    if kind == "name":
+        return ("num", float(values[tree[1]])) if tree[1] in values else tree
+    if kind in ("num", "const"):
+        return tree
+    if kind == "neg":
+        return ("neg", _bind(tree[1], values))
+    if kind == "op":
+        return ("op", tree[1], _bind(tree[2], values), _bind(tree[3], values))
+    return (kind, tree[1], *(_bind(a, values) for a in tree[2:]))
 
 
 def _canonical(tree) -> str:

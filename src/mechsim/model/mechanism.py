@@ -265,19 +265,33 @@ class Mechanism:
         """The linearized equations of motion about the consistent state (q, v) at t, in the
         independent coordinates: a `Linearization` with M, C, K, A, natural frequencies,
         damping ratios and mode shapes in all coordinates. q=None: the static equilibrium
-        found from the assembled state (`equilibrium`), v=None: at rest."""
+        found from the assembled state (`equilibrium`); v=None: at rest, but for what the
+        drivers move (the consistent velocity of least kinetic energy)."""
         from ..engineering.linearize import linearize
         prob = self.problem()
         if q is None:
             eq = self.equilibrium(t)
             q = eq.q if eq.converged else self.assemble(t=t).q
-        v = np.zeros(prob.n) if v is None else v
+        if v is None:
+            v = prob.project_velocities(np.asarray(q, float), np.zeros(prob.n), t) \
+                if prob.m else np.zeros(prob.n)
         from ..solver import check_initial_state
         try:
             q, v = check_initial_state(prob, q, v, t)
         except ValueError as exc:
             raise ModelError(f"mechanism '{self.name}': linearize: {exc}") from None
         return linearize(prob, q, v, t)
+
+    def kinematics(self, t_end: float, output_step: float, t_start: float = 0.0):
+        """Kinematic analysis of a fully driven mechanism (0 degrees of freedom): its
+        positions, velocities and accelerations solved from the constraints at t_start,
+        t_start + output_step, …, t_end (no integration), as a `SimulationResult` whose
+        `driver_effort`, `joint_force` and `cycle_figures()` give the inverse dynamics: the
+        efforts the drivers need and the loads on the joints. A driver turning at constant
+        speed maps the times onto its range (`res.joint_coordinate(joint)`). See
+        `mechsim.engineering.driven`."""
+        from ..engineering.driven import kinematic_analysis
+        return kinematic_analysis(self, t_end, output_step, t_start)
 
     # --- simulation --------------------------------------------------------------------------
     def simulate(self, t_end: float, method: str | None = None, **options):

@@ -214,6 +214,13 @@ class SimulationResult:
         """The power [W] the driver delivers, effort × the rate of its joint, shape (n,)."""
         return self.reactions.effort(driver) * self.reactions.driver_rate(driver)
 
+    def cycle_figures(self):
+        """Peak and RMS driver effort and power, peak joint forces and four-bar
+        transmission angles over this result: a `CycleFigures` (printable;
+        `mechsim.engineering.figures`)."""
+        from ..engineering.figures import cycle_figures
+        return cycle_figures(self)
+
     def joint_coordinate(self, joint) -> np.ndarray:
         """The joint's coordinate, shape (n,): relative angle [rad] of body_b to body_a for
         a revolute, slide [m] of a prismatic along its axis from its initial position."""
@@ -308,6 +315,19 @@ class SimulationResult:
         Returns the matplotlib Figure; writes it to `path` (PNG/PDF/SVG) when given."""
         from .plots import plot_energy
         return plot_energy(self, path=path, ax=ax)
+
+    def plot_reactions(self, joints=None, path=None, ax=None):
+        """The magnitude of each joint's force over time (`joints`: a list of joints or
+        names; None: all), singular passages shaded, non-unique samples marked. Returns the
+        Figure; writes it to `path` when given."""
+        from .plots import plot_reactions
+        return plot_reactions(self, joints, path=path, ax=ax)
+
+    def plot_efforts(self, path=None, ax=None):
+        """Each driver's torque or force over time, its power dashed on a second axis.
+        Returns the Figure; writes it to `path` when given."""
+        from .plots import plot_efforts
+        return plot_efforts(self, path=path, ax=ax)
 
     def export(self, path) -> Path:
         """Write the motion as a meshio time series (`.xdmf` opens in ParaView; other meshio

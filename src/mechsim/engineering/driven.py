@@ -1,0 +1,164 @@
+"""Kinematic analysis and inverse dynamics of a fully driven mechanism (0 degrees of freedom).
+
+Where the drivers fix every degree of freedom the motion is not integrated but solved at
+each output time from the constraints alone:
+
+    Φ(q, t) = 0  (Newton),   Φ_q v = −Φ_t,   Φ_q q̈ = γ,
+
+and the driver efforts and joint reactions follow from M q̈ + Φ_qᵀ λ = Q (`SimulationResult`
+answers for them as for a simulation). Each time's Newton starts from the previous one's
+Taylor prediction q + h v + h²/2 q̈ (the branch the mechanism moves on); a step whose
+Newton does not converge, or corrects the prediction by more than a tenth of the motion it
+predicted (it may have jumped to the other assembly branch), is taken in halves, down to
+1/2¹² of the output step. Where Φ_q is singular (a driven change-point four-bar with all
+its bars aligned) the drivers do not decide the branch: the analysis records the passage
+(det Φ_q changing sign between two samples, or σ_min/σ_max under `SINGULAR` at one) and
+says so in its message.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..newton import newton
+
+# A Newton correction beyond this share of the predicted motion sends the step to halves.
+JUMP = 0.1
+# At most this many halvings of an output step.
+MAX_HALVINGS = 12
+# σ_min/σ_max of Φ_q below which a configuration counts as singular.
+SINGULAR = 1e-6
+
+
+class KinematicsError(ValueError):
+    """The mechanism cannot be analysed kinematically (it has degrees of freedom left)."""
+
+
+def _solve(J, b):
+    """J⁺ b (exact for a square nonsingular J, least squares for redundant constraints)."""
+    if J.shape[0] == J.shape[1]:
+        try:
+            return np.linalg.solve(J, b)
+        except np.linalg.LinAlgError:
+            pass
+    return np.linalg.lstsq(J, b, rcond=None)[0]
+
+
+class _Kinematics:
+    """The state at a time: (q, v, q̈) on the constraints."""
+
+    def __init__(self, problem, tol):
+        self.problem, self.tol = problem, tol
+
+    def velocities(self, q, t):
+        p = self.problem
+        J = p.phi_q(q, t)
+        v = _solve(J, -p.phi_t(q, t))
+        return v, _solve(J, p.gamma(q, v, t)), J
+
+    def positions(self, guess, t):
+        p = self.problem
+
+        def correct(q, phi, J, slow):
+            return q - _solve(J, phi)
+
+        return newton(guess, lambda q: p.position_terms(q, t), correct, self.tol, 25,
+                      stall=True, extra=1)
+
+    def advance(self, t0, state, t1, depth=0):
+        """The state at t1 from the state (q, v, a) at t0, halving where needed; None where
+        even the finest halves fail."""
+        q, v, a = state
+        h = t1 - t0
+        guess = q + h * v + 0.5 * h * h * a
+        done = self.positions(guess, t1)
+        motion = np.max(np.abs(guess - q))
+        if done.converged and np.max(np.abs(done.x - guess)) <= JUMP * motion + 1e3 * self.tol:
+            v1, a1, _ = self.velocities(done.x, t1)
+            return done.x, v1, a1
+        if depth >= MAX_HALVINGS:
+            return None
+        middle = self.advance(t0, state, t0 + 0.5 * h, depth + 1)
+        return None if middle is None else self.advance(t0 + 0.5 * h, middle, t1, depth + 1)
+
+
+def kinematic_analysis(mech, t_end: float, output_step: float, t_start: float = 0.0,
+                       tol: float = 1e-12):
+    """Positions, velocities and accelerations of the fully driven `mech` at t_start,
+    t_start + output_step, …, t_end, as a `SimulationResult` (its `accelerations()`,
+    `driver_effort`, `joint_force`, `cycle_figures()` answer as for a simulation). Raises
+    KinematicsError where the mechanism has degrees of freedom left."""
+    from ..results import SimulationResult, SingularPassage
+    from ..solver import output_times
+    started = time.perf_counter()
+    problem = mech.problem()
+    report = mech.assemble(t=t_start)
+    dof = problem.degrees_of_freedom(report.q, t_start)
+    if dof:
+        raise KinematicsError(f"mechanism '{mech.name}' has {dof} degree(s) of freedom left: "
+                              "kinematic analysis needs drivers that fix every one; "
+                              "simulate it instead")
+    if not (output_step > 0 and t_end > t_start):
+        raise KinematicsError(f"kinematics: need t_end > t_start and output_step > 0, got "
+                              f"t_end = {t_end!r}, output_step = {output_step!r}")
+    ts = output_times(t_start, t_end, output_step)
+    kin = _Kinematics(problem, tol)
+    state = (report.q, *kin.velocities(report.q, t_start)[:2])
+    Q, V, shape = [state[0]], [state[1]], [_shape(problem, report.q, t_start)]
+    status, message = "success", "reached t_end"
+    for t0, t1 in zip(ts[:-1], ts[1:]):
+        state = kin.advance(t0, state, t1)
+        if state is None:
+            status = "failed"
+            message = (f"no configuration followed from t = {t0:.9g} to {t1:.9g}: the "
+                       "drivers move the mechanism where it cannot assemble, or too fast for "
+                       "the output step")
+            break
+        Q.append(state[0])
+        V.append(state[1])
+        shape.append(_shape(problem, state[0], t1))
+    n = len(Q)
+    passages = _passages(ts[:n], np.array(shape))
+    if passages and status == "success":
+        message += (f"; it passed {len(passages)} singular configuration(s) (first at t = "
+                    f"{passages[0].t_min:.6g}) where the drivers do not decide the branch: it "
+                    "went on along the one it moved on, and reactions and efforts there are "
+                    "not unique")
+    return SimulationResult(
+        ts[:n], np.array(Q), np.array(V), problem.coordinate_names, problem=problem,
+        status=status, message=message, singular_passages=passages,
+        stats={"method": "kinematics", "samples": n,
+               "wall_time": time.perf_counter() - started})
+
+
+def _shape(problem, q, t):
+    """(σ_min/σ_max of Φ_q, sign of det Φ_q (0 where it is not square)) at (q, t)."""
+    J = problem.phi_q(q, t)
+    s = np.linalg.svd(J, compute_uv=False)
+    sign = float(np.linalg.slogdet(J)[0]) if J.shape[0] == J.shape[1] else 0.0
+    return (float(s[-1] / s[0]) if s.size and s[0] > 0 else 0.0), sign
+
+
+def _passages(ts, shape):
+    """SingularPassage records where det Φ_q changes sign between two samples or runs of
+    samples have σ_min/σ_max under `SINGULAR` (shape: (N, 2) of `_shape`)."""
+    from ..results import SingularPassage
+    ratios, signs = shape[:, 0], shape[:, 1]
+    low = ratios < SINGULAR
+    crossed = np.zeros(len(ts), dtype=bool)
+    crossed[:-1] = (signs[:-1] * signs[1:]) < 0
+    out, k = [], 0
+    while k < len(ts):
+        if not (low[k] or crossed[k]):
+            k += 1
+            continue
+        j = k + 1 if crossed[k] and not low[k] else k
+        while j + 1 < len(ts) and (low[j + 1] or crossed[j]):
+            j += 1
+        i = k + int(np.argmin(ratios[k:j + 1]))
+        out.append(SingularPassage(float(ts[k]), float(ts[j]), float(ratios[i]),
+                                   t_min=float(ts[i])))
+        k = j + 1
+    return out
