@@ -201,7 +201,8 @@ def _bench(args) -> int:
     problems = args.problems or [*bench.DEFAULT_PROBLEMS, "random"]
     shooting = "coulomb" in problems
     sweep = "random" in problems
-    problems = [p for p in problems if p not in ("coulomb", "random")]
+    analysis = "analysis" in problems
+    problems = [p for p in problems if p not in ("coulomb", "random", "analysis")]
     methods = args.methods.split(",") if args.methods else list(bench.DEFAULT_METHODS)
     try:
         rtols = _numbers(args.rtols, "--rtols", bench.DEFAULT_RTOLS)
@@ -227,6 +228,14 @@ def _bench(args) -> int:
             random_rows = bench.random_run(rtol=rtols[-1])
             print(bench.random_summary(random_rows))
             written += bench.write_random(random_rows, args.out)
+        if analysis:
+            print("engineering analysis: reactions against the simulation's own time; "
+                  "equilibrium and linearization of the 40-window chain")
+            print(bench.ANALYSIS_HEADER)
+            arows = bench.analysis_run(repeat=3 if args.repeat is None else args.repeat)
+            for r in arows:
+                print(bench.format_analysis(r))
+            written += bench.write_analysis(arows, args.out)
         if shooting:
             print("Coulomb oscillator: shooting against brute force to the same accuracy")
             print(bench.SHOOTING_HEADER)
@@ -263,7 +272,8 @@ def main(argv=None) -> int:
                        help="parallelogram, double-four-bar, driven-slider-crank, "
                             "forty-window, flexible-four-bar, random (12 random mechanisms: "
                             "hybrid against projection at the smallest rtol), coulomb "
-                            "(shooting against brute force); default: the first three and "
+                            "(shooting against brute force), analysis (reactions, "
+                            "equilibrium and linearization); default: the first three and "
                             "random")
     bench.add_argument("--methods", help="comma-separated (default: lu,projection,"
                        "projection-svd,hybrid,baumgarte; projection-svd is the projection "

@@ -283,6 +283,50 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
   return 0;
 }
 
+/* The Lagrange multipliers at k consistent states (NumericProblem.multipliers): row s of
+   Lam solves (J W J^T) lam = J W F - gamma at (ts[s], row s of Qs and Vs) under the applied
+   forces in row s of Fs, by the Cholesky factor where LAPACK's estimate of 1/cond_1 is
+   above min_rcond (min_rcond < 0: not estimated) and every pivot is above min_pivot
+   max S_ii; done[s] says whether it did (elsewhere Python decides). Returns the number
+   done. */
+int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
+                            const double *Qs, const double *Vs, const double *Fs,
+                            double min_rcond, double min_pivot, double *Lam, int64_t *done) {
+  const int64_t n = c->n, m = c->m;
+  const double *winv = c->winv;
+  double *J = c->J, *g = c->g, *wq = c->wq, *S = c->S;
+  char uplo = 'U';
+  int M = (int)m, nrhs = 1, info = 0;
+  int64_t count = 0;
+  for (int64_t s = 0; s < k; s++) {
+    const double *q = Qs + s * n, *v = Vs + s * n, *F = Fs + s * n;
+    double *lam = Lam + s * m;
+    memset(J, 0, m * n * sizeof(double));
+    mechsim_phi_q(q, ts[s], c->p, J);
+    memset(g, 0, m * sizeof(double));
+    mechsim_gamma(q, v, ts[s], c->p, g);
+    for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * F[j];
+    for (int64_t i = 0; i < m; i++) {
+      const double *Ji = J + i * n;
+      double e = 0.0;
+      for (int64_t j = 0; j < n; j++) e += Ji[j] * wq[j];
+      lam[i] = e - g[i];
+    }
+    done[s] = 0;
+    const double diag = complement(n, m, J, winv, S);
+    if (cholesky(c, S, diag, min_rcond)) continue;
+    int small = 0;
+    for (int64_t i = 0; i < m; i++) small |= !(S[i + i * m] * S[i + i * m] > min_pivot * diag);
+    if (small) continue;
+    mechsim_dpotrs(&uplo, &M, &nrhs, S, &M, lam, &M, &info);
+    if (info == 0) {
+      done[s] = 1;
+      count++;
+    }
+  }
+  return count;
+}
+
 /* x -= W J^T (S^-1 r), S the Cholesky factor in place; r is overwritten. */
 static int correct(mechsim_projection *c, const double *J, const double *S, double *r,
                    double *x) {

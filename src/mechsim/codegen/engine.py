@@ -146,6 +146,10 @@ def library(model):
         fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double] + \
             [ctypes.c_void_p] * 2
         fn.restype = ctypes.c_int
+        fn = lib.mechsim_multipliers
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 4 + \
+            [ctypes.c_double] * 2 + [ctypes.c_void_p] * 2
+        fn.restype = ctypes.c_int64
     except (OSError, AttributeError, KeyError):
         return None
     _LIBRARIES[model] = lib
@@ -263,6 +267,7 @@ class ProjectionEngine:
         self._project = lib.mechsim_project_state
         self._measure = lib.mechsim_measure
         self._lu_condition = lib.mechsim_lu_condition
+        self._multipliers = lib.mechsim_multipliers
         self.counters = problem.counters
 
     def accelerations(self, t, q, v, Q, min_rcond, cut=0.0):
@@ -314,6 +319,22 @@ class ProjectionEngine:
             return None
         smin, smax, dmin, dmax = out[:4].tolist()
         return smin, smax, dmin, dmax, out[4:].copy(), self.Jt.copy()
+
+    def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam):
+        """λ at the states (T[i], Q[i], V[i]) under the applied forces F[i] into the rows
+        of `lam` (N, m), where the Cholesky factor of S = J W Jᵀ has a condition estimate
+        above min_rcond (min_rcond < 0: not estimated) and every pivot is above min_pivot
+        max Sᵢᵢ; returns (N,) bool, where it did (`mechsim.problem.multipliers`)."""
+        T = np.ascontiguousarray(T, dtype=float)
+        Q, V, F = (np.ascontiguousarray(x, dtype=float) for x in (Q, V, F))
+        out = np.zeros(lam.shape)
+        done = np.zeros(len(T), dtype=np.int64)
+        self._multipliers(self._ptr, len(T), T.ctypes.data, Q.ctypes.data, V.ctypes.data,
+                          F.ctypes.data, min_rcond, min_pivot, out.ctypes.data,
+                          done.ctypes.data)
+        ok = done.astype(bool)
+        lam[ok] = out[ok]
+        return ok
 
     def lu_condition(self, t, q):
         """cond₁ of the dependent block Φ_q D that LU partitioning (`Partitioned.choose`)

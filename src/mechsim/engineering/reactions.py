@@ -45,12 +45,13 @@ class ReactionTable:
     multipliers : the `Multipliers` at the samples where the caller has them (a static
         equilibrium's, `static_multipliers`); else from the equations of motion
     passages : the run's `SingularPassage`s (inside them directions of J̃ under the
-        projection method's truncation cut are left out, `mechsim.problem.multipliers`)
+        projection method's truncation cut are left out, `mechsim.problem.multipliers`), or
+        None where no singularity monitor watched the motion
     """
 
-    def __init__(self, t, q, v, problem=None, saved=None, multipliers=None, passages=()):
+    def __init__(self, t, q, v, problem=None, saved=None, multipliers=None, passages=None):
         self.t, self.q, self.v, self.problem = t, q, v, problem
-        self.passages = [(p.t_start, p.t_end) for p in passages]
+        self.passages = None if passages is None else [(p.t_start, p.t_end) for p in passages]
         self._multipliers = multipliers
         self._wrenches: dict = {}
         self._coordinates: dict = {}

@@ -102,6 +102,15 @@ class Loads:
         self._add(t, q, v, Q, elastic=True)
         return Q
 
+    def forces_at(self, T, Q, V) -> np.ndarray:
+        """`forces` at many states (rows), shape (N, n): gravity's constant share at once,
+        the rest state by state."""
+        T = np.asarray(T, float)
+        if not (self.flexible or self.springs or self.loads or self.torsion):
+            return np.broadcast_to(self.gravity_force, (len(T), self.n)).copy()
+        return np.array([self.forces(t, q, v) for t, q, v in zip(T, Q, V)]).reshape(
+            len(T), self.n)
+
     def nonconservative_forces(self, t, q, v) -> np.ndarray:
         """The part of Q with no potential: spring damping, point forces and torques, and
         the modal damping of flexible beams."""

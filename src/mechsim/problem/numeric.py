@@ -224,12 +224,15 @@ class NumericProblem:
         """The rows of Φ that the joint or driver named `owner` wrote."""
         return [i for i, o in enumerate(self.constraint_owners) if o == owner]
 
-    def multipliers(self, T, Q, V, passages=()):
+    def multipliers(self, T, Q, V, passages=None):
         """λ at the consistent states (T[i], Q[i], V[i]), with the rows whose share is not
         unique there (`mechsim.problem.multipliers`; `passages`: the (t_start, t_end) of a
-        run's singular passages): a `Multipliers`."""
+        run's singular passages, None where no monitor watched): a `Multipliers`."""
+        from ..codegen import engine
         from .multipliers import multipliers
-        return multipliers(self, T, Q, V, passages)
+        lib = engine.for_problem(self)
+        compiled = engine.ProjectionEngine(lib, self) if lib is not None else None
+        return multipliers(self, T, Q, V, passages, engine=compiled)
 
     def kinetic_energy(self, q, v) -> np.ndarray:
         return self.mass_model.kinetic_energy(q, v)

@@ -190,8 +190,9 @@ class SimulationResult:
         multipliers at every sample, computed on first use, and which reactions are not
         unique where (`reactions.note()`, `reactions.flagged`)."""
         from ..engineering.reactions import ReactionTable
+        watched = self.stats.get("method") not in ("kinematics", "equilibrium")
         return ReactionTable(self.t, self.q, self.v, self.problem, self._saved_reactions,
-                             passages=self.singular_passages)
+                             passages=self.singular_passages if watched else None)
 
     def joint_force(self, joint, frame: str = "global") -> np.ndarray:
         """The force [N] the joint applies to `joint.body_b` at each sample, shape (n, 2): in
