@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.context import JointContext
+
 
 class Dual:
     """x + d·ε: values `x` (shape S) with derivatives `d` (shape S + (k,)) along k directions.
@@ -88,8 +90,8 @@ def derivative(a, shape):
     return a.d if isinstance(a, Dual) else np.zeros(shape)
 
 
-class NumericContext:
-    """What a joint sees while writing its equations (as `SymbolicContext`), in numbers.
+class NumericContext(JointContext):
+    """What a joint sees while writing its equations (`JointContext`), in dual numbers.
 
     Parameters
     ----------
@@ -126,24 +128,7 @@ class NumericContext:
             return ()
         return tuple(self.coordinate(start + 3 + c) for c in range(k))
 
-    def angle(self, body, p=None, role=None):
-        th = self.frame(body)[2]
-        for k, eta in enumerate(self.modal(body) if p is not None else (), start=1):
-            th = th + eta * p[f"{role}_r{k}"]
-        return th
-
-    def direction(self, body, ux, uy, p=None, role=None):
-        th = self.angle(body, p, role)
-        c, s = cos(th), sin(th)
-        return [c * ux - s * uy, s * ux + c * uy]
-
-    def point(self, body, sx, sy, p=None, role=None):
-        x, y, th = self.frame(body)
-        for k, eta in enumerate(self.modal(body) if p is not None else (), start=1):
-            sx = sx + eta * p[f"{role}_u{k}"]
-            sy = sy + eta * p[f"{role}_v{k}"]
-        c, s = cos(th), sin(th)
-        return [x + c * sx - s * sy, y + s * sx + c * sy]
+    cos, sin = staticmethod(cos), staticmethod(sin)
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,10 @@ from functools import cached_property
 
 import sympy as sp
 
+from ..model.context import JointContext
 
-class SymbolicContext:
+
+class SymbolicContext(JointContext):
     """What a joint sees while writing its equations: the symbols of the bodies' frames and
     the parameter symbols of every constraint item.
 
@@ -48,30 +50,7 @@ class SymbolicContext:
         """The modal amplitudes η of a flexible body (empty for rigid bodies)."""
         return self._frames.get(id(body), ())[3:]
 
-    def angle(self, body, p=None, role=None):
-        """Angle of the body's frame; at an attachment (`p`, `role`, see `point`) of a
-        flexible body it includes the modal rotation of that node."""
-        th = self.frame(body)[2]
-        for k, eta in enumerate(self.modal(body) if p is not None else (), start=1):
-            th = th + eta * p[f"{role}_r{k}"]
-        return th
-
-    def direction(self, body, ux, uy, p=None, role=None):
-        """A body-fixed direction (ux, uy) in global components."""
-        th = self.angle(body, p, role)
-        c, s = sp.cos(th), sp.sin(th)
-        return [c * ux - s * uy, s * ux + c * uy]
-
-    def point(self, body, sx, sy, p=None, role=None):
-        """Global position of the body-fixed point (sx, sy). On a flexible body the point
-        moves with the modes: pass the joint's parameters `p` and the side `role` ("a" or
-        "b") whose mode-shape parameters `<role>_u<k>`, `<role>_v<k>` belong to the point."""
-        x, y, th = self.frame(body)
-        for k, eta in enumerate(self.modal(body) if p is not None else (), start=1):
-            sx = sx + eta * p[f"{role}_u{k}"]
-            sy = sy + eta * p[f"{role}_v{k}"]
-        c, s = sp.cos(th), sp.sin(th)
-        return [x + c * sx - s * sy, y + s * sx + c * sy]
+    cos, sin = staticmethod(sp.cos), staticmethod(sp.sin)
 
     def parameters(self, item) -> dict:
         return self._params[id(item)]
