@@ -5,7 +5,7 @@ The parallelogram four-bar with an elastic copper coupler (1 m, 1 cm square, 10 
 equilibrium (in its independent coordinates, the constraints' second-order terms included)
 it has one swinging mode and the coupler's bending modes. Held at 40° by a torsion spring
 on its crank instead, the first bending mode couples with the links' motion; it approaches
-the free beam's pinned–pinned frequency as the links are made heavy.
+the free beam's pinned–pinned frequency as the crank is made heavy.
 
     python examples/flexible_four_bar_modes.py [--out DIR]
 """
@@ -31,11 +31,11 @@ def main(out_dir: Path):
     beam = mech.body("coupler").frequencies
     print("modes about it (rad/s):", ", ".join(f"{w:.4f}" for w in lin.frequencies))
     print("the free beam, pinned–pinned:", ", ".join(f"{w:.4f}" for w in beam))
-    print("held at 40° by a torsion spring, links of mass m:")
+    print("held at 40° by a torsion spring, the crank of mass m:")
     print(f"{'m [kg]':>10s} {'swing':>9s} {'1st bending':>12s} {'shift':>10s}")
     for mass in (1.0, 10.0, 100.0, 1000.0, 10000.0):
-        held = ms.examples.flexible_four_bar(link_mass=mass, tilt=math.radians(40.0))
-        held.add(ms.RotationalSpring(held.ground, held.body("crank"), 20 * mass * 9.81))
+        held = ms.examples.flexible_four_bar(crank_mass=mass, tilt=math.radians(40.0))
+        held.add(ms.RotationalSpring(held.ground, held.body("crank"), 20 * (mass + 1) * 9.81))
         lh = held.linearize()
         print(f"{mass:10g} {lh.frequencies[0]:9.4f} {lh.frequencies[1]:12.4f} "
               f"{lh.frequencies[1] / beam[0] - 1:10.2e}")

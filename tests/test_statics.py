@@ -219,21 +219,21 @@ def test_a_driver_delivers_the_rate_of_change_of_energy_plus_dissipation():
     assert np.max(np.abs(delivered - power)) < 1e-6 * np.max(np.abs(delivered))
 
 
-def test_heavy_links_leave_the_flexible_coupler_its_pinned_pinned_frequency():
+def test_a_heavy_crank_leaves_the_flexible_coupler_its_pinned_pinned_frequency():
     """The seed's flexible four-bar held at 40° by a torsion spring on its crank: the first
     elastic frequency couples the coupler's bending with the links' motion, and approaches
-    the beam's own pinned–pinned frequency as the links are made heavy (the shift falls as
-    1/mass)."""
+    the beam's own pinned–pinned frequency as the crank is made heavy (the shift falls as
+    1/mass: the crank, and through the loop the rocker, stand still)."""
     shifts = []
     for mass in (1.0, 100.0, 1e4):
-        mech = ms.examples.flexible_four_bar(link_mass=mass, tilt=math.radians(40.0))
-        mech.add(ms.RotationalSpring(mech.ground, mech.body("crank"), 20 * mass * G))
+        mech = ms.examples.flexible_four_bar(crank_mass=mass, tilt=math.radians(40.0))
+        mech.add(ms.RotationalSpring(mech.ground, mech.body("crank"), 20 * (mass + 1) * G))
         lin = mech.linearize()
         assert lin.equilibrium and lin.stable
         beam = mech.body("coupler").frequencies
         shifts.append(lin.frequencies[1] / beam[0] - 1.0)
         assert lin.frequencies[2] == pytest.approx(beam[1], rel=1e-9)
-    assert shifts[0] > 0.1 and shifts[0] > 30 * shifts[1] and \
+    assert shifts[0] > 0.1 and shifts[0] > 20 * shifts[1] and \
         80 < shifts[1] / shifts[2] < 120, shifts
     assert shifts[2] < 1e-4
 

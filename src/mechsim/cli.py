@@ -59,7 +59,7 @@ def _run(args) -> int:
             written.append(path)
         elif kind == "reactions":
             wanted = scene.output.get("reactions")
-            res.plot_reactions(wanted if isinstance(wanted, list) else None, path=path)
+            res.plot_reactions(path, joints=wanted if isinstance(wanted, list) else None)
             written.append(path)
         elif kind == "efforts":
             res.plot_efforts(path=path)

@@ -26,11 +26,13 @@ def four_bar(tilt: float = math.radians(10.0), length: float = 1.0, mass: float 
     return _parallelogram(mech, coupler, tilt, length, mass)
 
 
-def _parallelogram(mech, coupler, tilt, length, link_mass) -> Mechanism:
-    """Crank and rocker rods of `link_mass` at `tilt`, joined by `coupler` (already built,
-    rigid or elastic): the seed's falling four-bar with joints A, B, C, D."""
+def _parallelogram(mech, coupler, tilt, length, link_mass, crank_mass=None) -> Mechanism:
+    """Crank and rocker rods of `link_mass` (the crank of `crank_mass` if given) at `tilt`,
+    joined by `coupler` (already built, rigid or elastic): the seed's falling four-bar with
+    joints A, B, C, D."""
     c, s = length * math.cos(tilt), length * math.sin(tilt)
-    crank = mech.add(RigidBody.rod("crank", (0.0, 0.0), (c, s), link_mass))
+    crank = mech.add(RigidBody.rod("crank", (0.0, 0.0), (c, s),
+                                   link_mass if crank_mass is None else crank_mass))
     mech.add(coupler)
     rocker = mech.add(RigidBody.rod("rocker", (length, 0.0), (length + c, s), link_mass))
     mech.add(Revolute(mech.ground, crank, at=(0.0, 0.0), name="A"))
@@ -44,11 +46,13 @@ def flexible_four_bar(youngs_modulus: float = 117e9, density: float = 8910.0,
                       width: float = 0.01, n_elements: int = 10, n_modes: int = 2,
                       tilt: float = math.radians(10.0), length: float = 1.0,
                       link_mass: float = 1.0, damping_ratio: float = 0.0,
-                      rigid: bool = False, gravity=(0.0, -9.81)) -> Mechanism:
+                      rigid: bool = False, gravity=(0.0, -9.81),
+                      crank_mass: float | None = None) -> Mechanism:
     """The seed's flexible four-bar: the falling parallelogram of `four_bar` with the coupler
     an elastic beam (square section `width`, copper by default: E = 117 GPa, ρ = 8910 kg/m³;
-    10 elements, 2 pinned–pinned modes); crank and rocker rigid rods of `link_mass`. With
-    `rigid=True` the coupler is a rigid rod of the same mass (the rigid limit)."""
+    10 elements, 2 pinned–pinned modes); crank and rocker rigid rods of `link_mass` (the
+    crank of `crank_mass` if given). With `rigid=True` the coupler is a rigid rod of the
+    same mass (the rigid limit)."""
     mech = Mechanism("flexible four-bar" if not rigid else "four-bar (rigid coupler)",
                      gravity=gravity)
     c, s = length * math.cos(tilt), length * math.sin(tilt)
@@ -60,7 +64,7 @@ def flexible_four_bar(youngs_modulus: float = 117e9, density: float = 8910.0,
                                density=density, area=area, second_moment=width**4 / 12.0,
                                n_elements=n_elements, n_modes=n_modes, start=(c, s), angle=0.0,
                                damping_ratio=damping_ratio)
-    return _parallelogram(mech, coupler, tilt, length, link_mass)
+    return _parallelogram(mech, coupler, tilt, length, link_mass, crank_mass)
 
 
 def double_four_bar(n: int = 2, length: float = 1.0, mass: float = 1.0,

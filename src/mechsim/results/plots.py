@@ -48,7 +48,7 @@ def _finish(fig, ax, title, ylabel, path, xlabel="time [s]"):
     return fig
 
 
-def plot_reactions(result, joints=None, path=None, ax=None):
+def plot_reactions(result, path=None, joints=None, ax=None):
     """The magnitude of each joint's force over time (all joints where `joints` is None),
     singular passages shaded, samples whose reactions are not unique marked."""
     fig, ax = new_axes(ax)

@@ -317,12 +317,12 @@ class SimulationResult:
         from .plots import plot_energy
         return plot_energy(self, path=path, ax=ax)
 
-    def plot_reactions(self, joints=None, path=None, ax=None):
+    def plot_reactions(self, path=None, joints=None, ax=None):
         """The magnitude of each joint's force over time (`joints`: a list of joints or
         names; None: all), singular passages shaded, non-unique samples marked. Returns the
         Figure; writes it to `path` when given."""
         from .plots import plot_reactions
-        return plot_reactions(self, joints, path=path, ax=ax)
+        return plot_reactions(self, path=path, joints=joints, ax=ax)
 
     def plot_efforts(self, path=None, ax=None):
         """Each driver's torque or force over time, its power dashed on a second axis.
