@@ -19,7 +19,7 @@ from .model import (AssemblyError, Body, LoadError, DofReport, Driver, FlexibleB
 __version__ = "0.1.0"
 
 _LAZY_MODULES = {"examples", "scene", "solver", "codegen", "formulations", "integrators",
-                 "results", "linear", "bench", "shooting"}
+                 "results", "linear", "bench", "shooting", "engineering"}
 _LAZY_NAMES = {"SimulationResult": "results", "load_result": "results",
                "load_scene": "scene", "LinearSystem": "linear"}
 _ALIASES = {"rotor": "linear.rotor", "analysis": "linear.analysis",

@@ -102,7 +102,7 @@ def equilibrium(mech, t: float = 0.0, tol: float = RESIDUAL, max_iter: int = 200
     reduced = ReducedCoordinates(problem, q0, t)
     if reduced.f == 0:
         return _finish(mech, reduced, np.zeros(0), "newton", "no degree of freedom: "
-                       "the drivers hold the mechanism in its assembled configuration")
+                       "the drivers hold the mechanism in its assembled configuration", tol)
     z0 = np.zeros(reduced.f)
 
     def g(z):
@@ -117,17 +117,15 @@ def equilibrium(mech, t: float = 0.0, tol: float = RESIDUAL, max_iter: int = 200
     units = reduced.units
     sol = root(g, z0, method="hybr", options={"xtol": 1e-14, "factor": 0.5, "diag": 1.0 / units,
                                                "maxfev": max_iter * (reduced.f + 1)})
-    newton = _finish(mech, reduced, sol.x, "newton", "") \
+    newton = _finish(mech, reduced, sol.x, "newton", "", tol) \
         if _balanced(reduced, sol.x, tol) else None
     if newton is not None and (newton.stable or _balanced(reduced, z0, tol)):
         return newton
     # No root, or an unstable one reached from a state that was not at rest: follow the
     # loads from the assembled state instead (where a slow release would take it).
     z, note = _continuation(reduced, g, z0, tol, max_iter)
-    found = _finish(mech, reduced, z, "continuation", note)
-    if newton is None or (found.converged and found.stable):
-        return found
-    return _finish(mech, reduced, sol.x, "newton", "")
+    found = _finish(mech, reduced, z, "continuation", note, tol)
+    return found if newton is None or (found.converged and found.stable) else newton
 
 
 def _force_size(reduced, z) -> float:
@@ -181,14 +179,14 @@ def _continuation(reduced, g, z0, tol, max_iter):
     return (sol.x if near and _balanced(reduced, sol.x, tol) else z), ""
 
 
-def _finish(mech, reduced, z, method, note) -> Equilibrium:
+def _finish(mech, reduced, z, method, note, tol=RESIDUAL) -> Equilibrium:
     """The Equilibrium at z: its stiffness, stability, message and one-sample result."""
     from ..results import SimulationResult
     problem = reduced.problem
     q = reduced.positions(z)
     size = max(_force_size(reduced, z), 1e-300)
     residual = float(np.max(np.abs(reduced.force(z)), initial=0.0))
-    converged = residual <= RESIDUAL * size
+    converged = residual <= tol * size
     if reduced.f:
         K = -jacobian(reduced.force, z, STEP * reduced.units)
         reduced.positions(z)              # leave Newton's guess at the solution

@@ -28,6 +28,7 @@ class Dual:
     """x + d·ε: values `x` (shape S) with derivatives `d` (shape S + (k,)) along k directions.
     Supports what a joint's equations use: +, −, ×, / and the context's cos and sin."""
     __slots__ = ("x", "d")
+    __array_ufunc__ = None          # an array on the left defers to Dual's reflected operators
 
     def __init__(self, x, d):
         self.x, self.d = x, d
@@ -99,14 +100,12 @@ class NumericContext(JointContext):
     q : ndarray (N, n), the states
     seeds : ndarray (N, n, k) or (n, k): the derivative of each coordinate along each of k
         directions (None: values only, no derivatives)
-    t : ndarray (N,)
     """
 
-    def __init__(self, starts, q, seeds=None, t=None):
+    def __init__(self, starts, q, seeds=None):
         self.starts = starts
         self.q = np.atleast_2d(np.asarray(q, float))
         self.seeds = seeds
-        self.t = t
 
     def coordinate(self, i):
         x = self.q[:, i]
