@@ -52,6 +52,27 @@ def test_a_driven_change_point_four_bar_keeps_its_branch_and_says_where_it_is_si
     assert "do not decide the branch" in res.message
 
 
+def test_kinematics_over_the_driver_s_range():
+    """A crank driven by an accelerating law, analysed at every degree of its first turn:
+    the samples fall where the law reaches each angle, and the rocker is where the closed
+    form puts it for that crank angle."""
+    mech = general_four_bar(0.2, 0.6, 0.5, 0.7, theta=0.3)
+    mech.add(ms.Driver(mech.joint("O2"), "4*t + 3*t**2", name="motor"))
+    angles = np.radians(np.arange(0.0, 361.0))
+    res = mech.kinematics(over=("motor", angles))
+    assert res.success and len(res.t) == 361
+    np.testing.assert_allclose(4 * res.t + 3 * res.t ** 2, angles, atol=1e-13)
+    th4 = four_bar_angles(0.3 + angles, 0.2, 0.6, 0.5, 0.7, 1)[1]
+    assert np.max(np.abs(np.unwrap(res.coordinate("rocker.angle")) - np.unwrap(th4))) < 1e-12
+    np.testing.assert_allclose(res.joint_rate("O2"), 4 + 6 * res.t, rtol=1e-12)
+    wave = general_four_bar(0.2, 0.6, 0.5, 0.7, theta=0.3)
+    wave.add(ms.Driver(wave.joint("O2"), "sin(t)", name="motor"))
+    with pytest.raises(KinematicsError, match="not monotonic"):
+        wave.kinematics(over=("motor", [0.0, 1.5]))
+    with pytest.raises(KinematicsError, match="not both"):
+        wave.kinematics(1.0, 0.01, over=("motor", [0.0, 0.5]))
+
+
 def test_kinematic_analysis_needs_a_fully_driven_mechanism():
     with pytest.raises(KinematicsError, match="1 degree"):
         general_four_bar(0.2, 0.6, 0.5, 0.7, theta=0.3).kinematics(1.0, 0.01)

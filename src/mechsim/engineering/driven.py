@@ -1,7 +1,8 @@
 """Kinematic analysis and inverse dynamics of a fully driven mechanism (0 degrees of freedom).
 
 Where the drivers fix every degree of freedom the motion is not integrated but solved at
-each output time from the constraints alone:
+each output time (or at the times a driver's law reaches given values: over the driver's
+range) from the constraints alone:
 
     Φ(q, t) = 0  (Newton),   Φ_q v = −Φ_t,   Φ_q q̈ = γ,
 
@@ -84,13 +85,15 @@ class _Kinematics:
         return None if middle is None else self.advance(t0 + 0.5 * h, middle, t1, depth + 1)
 
 
-def kinematic_analysis(mech, t_end: float, output_step: float, t_start: float = 0.0,
-                       tol: float = 1e-12):
+def kinematic_analysis(mech, t_end: float | None = None, output_step: float | None = None,
+                       t_start: float = 0.0, over=None, tol: float = 1e-12):
     """Positions, velocities and accelerations of the fully driven `mech` at t_start,
-    t_start + output_step, …, t_end, as a `SimulationResult` (its `accelerations()`,
-    `driver_effort`, `joint_force`, `cycle_figures()` answer as for a simulation). Raises
-    KinematicsError where the mechanism has degrees of freedom left."""
-    from ..results import SimulationResult, SingularPassage
+    t_start + output_step, …, t_end, or over a driver's range (`over` = (driver, values):
+    the times where the driver's law reaches each value, see `times_of`), as a
+    `SimulationResult` (its `accelerations()`, `driver_effort`, `joint_force`,
+    `cycle_figures()` answer as for a simulation). Raises KinematicsError where the
+    mechanism has degrees of freedom left or the arguments do not describe the samples."""
+    from ..results import SimulationResult
     from ..solver import output_times
     started = time.perf_counter()
     problem = mech.problem()
@@ -100,10 +103,17 @@ def kinematic_analysis(mech, t_end: float, output_step: float, t_start: float = 
         raise KinematicsError(f"mechanism '{mech.name}' has {dof} degree(s) of freedom left: "
                               "kinematic analysis needs drivers that fix every one; "
                               "simulate it instead")
-    if not (output_step > 0 and t_end > t_start):
-        raise KinematicsError(f"kinematics: need t_end > t_start and output_step > 0, got "
-                              f"t_end = {t_end!r}, output_step = {output_step!r}")
-    ts = output_times(t_start, t_end, output_step)
+    if over is not None:
+        if t_end is not None or output_step is not None:
+            raise KinematicsError("kinematics: give `t_end` and `output_step`, or `over`, "
+                                  "not both")
+        ts = times_of(mech, *over, t_start=t_start)
+    elif not (isinstance(t_end, (int, float)) and isinstance(output_step, (int, float))
+              and output_step > 0 and t_end > t_start):
+        raise KinematicsError(f"kinematics: need t_end > t_start and output_step > 0 (or "
+                              f"`over`), got t_end = {t_end!r}, output_step = {output_step!r}")
+    else:
+        ts = output_times(t_start, t_end, output_step)
     kin = _Kinematics(problem, tol)
     state = (report.q, *kin.velocities(report.q, t_start)[:2])
     Q, V, shape = [state[0]], [state[1]], [_shape(problem, report.q, t_start)]
@@ -131,6 +141,48 @@ def kinematic_analysis(mech, t_end: float, output_step: float, t_start: float = 
         status=status, message=message, singular_passages=passages,
         stats={"method": "kinematics", "samples": n,
                "wall_time": time.perf_counter() - started})
+
+
+def times_of(mech, driver, values, t_start=0.0, horizon=1e6) -> np.ndarray:
+    """The times from t_start at which `driver`'s law f(t) (the change of its joint's
+    coordinate) takes each of `values` in turn: f is sampled forward (doubling the span
+    up to `horizon` s) until it covers them, must be monotonic there, and is inverted by
+    Brent's method. KinematicsError where it is not monotonic or does not reach them."""
+    from scipy.optimize import brentq
+    if not any(d is driver or d.name == getattr(driver, "name", driver) for d in mech.drivers):
+        raise KinematicsError(f"kinematics: `over` names no driver of mechanism "
+                              f"'{mech.name}'; drivers: "
+                              f"{', '.join(d.name for d in mech.drivers) or '(none)'}")
+    driver = next(d for d in mech.drivers
+                  if d is driver or d.name == getattr(driver, "name", driver))
+    values = np.asarray(values, float).ravel()
+    if values.size < 2 or not np.all(np.isfinite(values)) or \
+            not (np.all(np.diff(values) > 0) or np.all(np.diff(values) < 0)):
+        raise KinematicsError("kinematics: `over` needs at least two finite values, "
+                              "strictly increasing or decreasing")
+    f = np.vectorize(driver.value, otypes=[float])
+    span = 1.0
+    while True:
+        grid = t_start + np.linspace(0.0, span, 4097)
+        law = f(grid)
+        rising = np.diff(law)
+        if not (np.all(rising >= 0) or np.all(rising <= 0)):
+            raise KinematicsError(f"kinematics: driver '{driver.name}' ({driver.expression}) "
+                                  "is not monotonic where it would have to reach `over`")
+        if law.min() <= values.min() and law.max() >= values.max():
+            break
+        span *= 2.0
+        if span > horizon:
+            raise KinematicsError(f"kinematics: driver '{driver.name}' ({driver.expression}) "
+                                  f"does not reach {values.min():g} … {values.max():g}")
+    out, sign = [], 1.0 if law[-1] >= law[0] else -1.0
+    for target in values:
+        k = int(np.clip(np.searchsorted(sign * law, sign * target), 1, len(grid) - 1))
+        a, b = grid[k - 1], grid[k]
+        fa, fb = law[k - 1] - target, law[k] - target
+        out.append(a if fa == 0 else b if fb == 0 else
+                   brentq(lambda x: driver.value(x) - target, a, b, xtol=1e-14, rtol=1e-15))
+    return np.array(out)
 
 
 def _shape(problem, q, t):

@@ -282,16 +282,18 @@ class Mechanism:
             raise ModelError(f"mechanism '{self.name}': linearize: {exc}") from None
         return linearize(prob, q, v, t)
 
-    def kinematics(self, t_end: float, output_step: float, t_start: float = 0.0):
+    def kinematics(self, t_end: float | None = None, output_step: float | None = None,
+                   t_start: float = 0.0, over=None):
         """Kinematic analysis of a fully driven mechanism (0 degrees of freedom): its
         positions, velocities and accelerations solved from the constraints at t_start,
-        t_start + output_step, …, t_end (no integration), as a `SimulationResult` whose
-        `driver_effort`, `joint_force` and `cycle_figures()` give the inverse dynamics: the
-        efforts the drivers need and the loads on the joints. A driver turning at constant
-        speed maps the times onto its range (`res.joint_coordinate(joint)`). See
+        t_start + output_step, …, t_end (no integration), or over a driver's range with
+        `over=(driver, values)` (the times where its law reaches each change of its
+        joint's coordinate, e.g. `(motor, np.radians(np.arange(0, 361)))`), as a
+        `SimulationResult` whose `driver_effort`, `joint_force` and `cycle_figures()` give
+        the inverse dynamics: the efforts the drivers need and the loads on the joints. See
         `mechsim.engineering.driven`."""
         from ..engineering.driven import kinematic_analysis
-        return kinematic_analysis(self, t_end, output_step, t_start)
+        return kinematic_analysis(self, t_end, output_step, t_start, over=over)
 
     # --- simulation --------------------------------------------------------------------------
     def simulate(self, t_end: float, method: str | None = None, **options):
