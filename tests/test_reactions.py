@@ -273,24 +273,24 @@ def test_redundant_constraints_give_minimum_norm_reactions_and_say_so(method):
     res = mech.simulate(1.2, method=method, rtol=1e-9, atol=1e-11, output_step=2e-3)
     assert res.success, res.message
     # The motion: the parallelogram through its singular passages (crank horizontal,
-    # 0.308 s and 0.924 s), energy kept.
+    # 0.308 s and 0.924 s), stepped through (the bridge's one-step crossing is for
+    # mechanisms without redundancy), energy kept to the tolerance.
     assert [round(p.t_min, 2) for p in res.singular_passages] == [0.31, 0.92]
-    assert np.max(np.abs(res.energy_drift)) < 1e-7
+    assert not any(p.bridged for p in res.singular_passages)
+    assert np.max(np.abs(res.energy_drift)) < 10 * 1e-9
     assert res.reactions.flagged.all()
     note = res.reactions.note()
     assert "not unique" in note and all(f"'{j}'" in note for j in "ABCDEF")
     # Newton–Euler has a line of solutions here: its least-norm one is mechsim's. At the
-    # samples closest to the singular configurations a second direction is left out, as
-    # the projection method left it out of the motion; around them (the passages) both
-    # solutions are ill-conditioned (by (σ_max/σ_min)²) and not compared.
+    # samples closest to the singular configurations (cranks horizontal) a second direction
+    # is left out, as the projection method left it out of the motion; within 5° of them
+    # both solutions are ill-conditioned (by (σ_max/σ_min)²) and not compared.
     ne = NewtonEuler(mech, res)
     assert ne.residual < 1e-6 * np.max(np.abs(ne.x))
     dropped = res.reactions.multipliers.dropped[ne.sl]
-    assert set(np.unique(dropped)) == {1, 2}
+    assert set(np.unique(dropped)) <= {1, 2} and np.sum(dropped == 1) > 0.9 * len(dropped)
     assert np.all(np.min(np.abs(ne.t[dropped == 2, None] - [0.308, 0.924]), axis=1) < 0.01)
-    only = np.ones(len(ne.t), dtype=bool)
-    for p in res.singular_passages:
-        only &= (ne.t < p.t_start) | (ne.t > p.t_end)
+    only = np.abs(np.sin(res.coordinate("crank.angle")[ne.sl])) > math.sin(math.radians(5))
     assert only.sum() > 0.5 * len(ne.t)
     for joint in mech.joints:
         ours, theirs = res.joint_force(joint)[ne.sl][only], ne.joint_force(joint)[only]

@@ -48,6 +48,7 @@ class Hybrid(Formulation):
         self.engine = self.proj.engine if problem.m < SPARSE_MIN else None
 
     def initial_state(self, t, q, v):
+        self.proj.monitor = self.monitor
         if self.monitor is not None and self.monitor.redundant:
             # Redundant constraints: a partition's dependent block is not square, so LU
             # would go without its chord and its branch test; the projection method's
@@ -69,7 +70,7 @@ class Hybrid(Formulation):
 
     @property
     def bridging(self):
-        return self.active is self.proj and self.bridge is not None
+        return self.active is self.proj and self.proj.bridging
 
     def resume(self, t, q, v):
         return self.active.resume(t, q, v)
