@@ -60,32 +60,33 @@ class ReactionTable:
     # --- names -------------------------------------------------------------------------------
     @property
     def joint_names(self) -> list[str]:
-        if self.problem is not None:
-            return list(self.problem.joints)
-        return list(self.saved.get("joints", []))
+        return self._names("joints")
 
     @property
     def driver_names(self) -> list[str]:
+        return self._names("drivers")
+
+    def _names(self, kind) -> list[str]:
         if self.problem is not None:
-            return list(self.problem.driver_joints)
-        return list(self.saved.get("drivers", []))
+            return list(self.problem.joints if kind == "joints" else self.problem.driver_joints)
+        return list(self.saved.get(kind, []))
 
     def _joint(self, joint) -> str:
-        name = item_name(joint, "joint")
-        if self.problem is None and "joints" not in self.saved:
-            self._need("the reactions and joint coordinates")
-        if name not in self.joint_names:
-            raise KeyError(f"no joint {name!r} in this result; joints: "
-                           f"{', '.join(self.joint_names) or '(none)'}")
-        return name
+        return self._named(joint, "joint", "the reactions and joint coordinates")
 
     def _driver(self, driver) -> str:
-        name = item_name(driver, "driver")
-        if self.problem is None and "drivers" not in self.saved:
-            self._need("the driver efforts")
-        if name not in self.driver_names:
-            raise KeyError(f"no driver {name!r} in this result; drivers: "
-                           f"{', '.join(self.driver_names) or '(none)'}")
+        return self._named(driver, "driver", "the driver efforts")
+
+    def _named(self, item, kind, what) -> str:
+        """The name of a joint or driver (`kind`) of this result, given as the object or its
+        name; KeyError listing the valid ones, RuntimeError where nothing was saved."""
+        name = item_name(item, kind)
+        if self.problem is None and f"{kind}s" not in self.saved:
+            self._need(what)
+        names = self._names(f"{kind}s")
+        if name not in names:
+            raise KeyError(f"no {kind} {name!r} in this result; {kind}s: "
+                           f"{', '.join(names) or '(none)'}")
         return name
 
     def _need(self, what):
