@@ -10,7 +10,7 @@ Heavy dependencies load only when used: sympy when a model is not in the cache, 
 simulation starts, matplotlib when a plot is drawn, meshio when a result is exported.
 """
 
-from importlib import import_module
+from importlib import import_module as _import_module
 
 from .model import (AssemblyError, Body, LoadError, DofReport, Driver, FlexibleBeam, Force, Ground, Joint,
                     Mechanism, ModelError, Prismatic, Revolute, RigidBody, RotationalSpring, Spring,
@@ -28,16 +28,20 @@ _ALIASES = {"rotor": "linear.rotor", "analysis": "linear.analysis",
 
 def __getattr__(name):
     if name in _LAZY_MODULES:
-        return import_module(f".{name}", __name__)
+        return _import_module(f".{name}", __name__)
     if name in _ALIASES:
-        return import_module(f".{_ALIASES[name]}", __name__)
+        return _import_module(f".{_ALIASES[name]}", __name__)
     if name in _LAZY_NAMES:
-        return getattr(import_module(f".{_LAZY_NAMES[name]}", __name__), name)
+        return getattr(_import_module(f".{_LAZY_NAMES[name]}", __name__), name)
     raise AttributeError(f"module 'mechsim' has no attribute {name!r}")
+
+
+def __dir__():
+    """The public names, those loaded on first use included."""
+    return sorted(set(__all__) | _LAZY_MODULES | set(_ALIASES) | {"__version__"})
 
 
 __all__ = ["AssemblyError", "Body", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Ground", "Joint",
            "LinearSystem", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody",
-           "RotationalSpring",
-           "SimulationResult",
-           "Spring", "Torque", "load_result", "load_scene"]
+           "RotationalSpring", "SimulationResult", "Spring", "Torque", "load_result",
+           "load_scene"]

@@ -22,11 +22,10 @@ def _run(args) -> int:
         print(f"mechsim: {exc}", file=sys.stderr)
         return 2
     mech = scene.mechanism
-    overrides = {}
-    if args.method:
-        overrides["method"] = args.method
-    if args.t_end is not None:
-        overrides["t_end"] = args.t_end
+    overrides = {key: value for key, value in (
+        ("method", args.method), ("t_end", args.t_end), ("rtol", args.rtol),
+        ("atol", args.atol), ("max_step", args.max_step), ("output_step", args.output_step),
+        ("h", args.fixed_step), ("integrator", args.integrator)) if value is not None}
     try:
         if overrides:
             from .solver import check_simulate_arguments
@@ -37,7 +36,8 @@ def _run(args) -> int:
         t_build = time.perf_counter() - t0
         report = mech.dof()
         assembly = mech.assemble(t=scene.simulation.get("t_start", 0.0))
-        _analyses(args, mech, scene.simulation.get("t_start", 0.0))
+        if not args.quiet:
+            _analyses(args, mech, scene.simulation.get("t_start", 0.0))
         if args.kinematics:
             settings = {**scene.simulation, **overrides}
             t_end = settings["t_end"]
@@ -48,7 +48,10 @@ def _run(args) -> int:
     except (ModelError, ValueError) as exc:
         print(f"mechsim: {exc}", file=sys.stderr)
         return 2
-    _summary(scene, mech, res, report, assembly, t_build)
+    if not args.quiet:
+        _summary(scene, mech, res, report, assembly, t_build)
+    elif not res.success:
+        print(f"mechsim: {res.status}: {res.message}", file=sys.stderr)
     written = []
     if targets:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -68,7 +71,7 @@ def _run(args) -> int:
             written.append(res.save(path, reactions=wants_reactions or None))
         else:
             written.append(res.export(path))
-    for w in written:
+    for w in written if not args.quiet else ():
         print(f"wrote      {w}")
     return 0 if res.success else 1
 
@@ -251,13 +254,24 @@ def _bench(args) -> int:
 
 
 def main(argv=None) -> int:
+    from . import __version__
     parser = argparse.ArgumentParser(prog="mechsim", description="Planar mechanism simulator")
+    parser.add_argument("--version", action="version", version=f"mechsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="simulate a scene file, print a summary, write plots")
     run.add_argument("scene", help="a TOML scene file (see mechanisms/)")
     run.add_argument("--out", help="output directory (default: out/<scene name>)")
     run.add_argument("--method", help="override the scene's method")
     run.add_argument("--t-end", type=float, help="override the scene's end time")
+    run.add_argument("--integrator", help="override the method's integrator (DOP853, adams, "
+                                          "Radau, BDF, LSODA, trapezoidal, …)")
+    run.add_argument("--rtol", type=float, help="relative tolerance")
+    run.add_argument("--atol", type=float, help="absolute tolerance")
+    run.add_argument("--max-step", type=float, help="largest step [s]")
+    run.add_argument("--output-step", type=float, help="spacing of the output samples [s]")
+    run.add_argument("--fixed-step", type=float, metavar="H",
+                     help="the step of a fixed-step method such as ss-newmark [s]")
+    run.add_argument("--quiet", action="store_true", help="print errors only")
     run.add_argument("--no-plots", action="store_true", help="write no plots")
     run.add_argument("--equilibrium", action="store_true",
                      help="print the static equilibrium and its reactions first")

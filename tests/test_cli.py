@@ -1,0 +1,94 @@
+"""The command line's options change what `mechsim run` does, each checked against the same
+run made through the API."""
+
+import re
+import textwrap
+
+import numpy as np
+import pytest
+
+import mechsim as ms
+from mechsim.cli import main
+
+SCENE = textwrap.dedent("""
+    name = "pendulum"
+    [[body]]
+    name = "rod"
+    rod = [[0, 0], [1, 0]]
+    mass = 1.0
+    [[joint]]
+    type = "revolute"
+    name = "pin"
+    bodies = ["ground", "rod"]
+    at = [0, 0]
+    [simulation]
+    t_end = 1.0
+    rtol = 1e-8
+    atol = 1e-10
+    output_step = 0.01
+    [output]
+    save = true
+""")
+
+
+@pytest.fixture
+def scene(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    path = tmp_path / "pendulum.toml"
+    path.write_text(SCENE)
+    return path
+
+
+def run(capsys, *argv):
+    code = main(["run", *map(str, argv)])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def steps(out) -> int:
+    return int(re.search(r"(\d+) steps", out).group(1))
+
+
+def api(**settings):
+    return ms.load_scene("pendulum.toml").simulate(**settings)
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.strip() == f"mechsim {ms.__version__}"
+
+
+def test_quiet_prints_only_errors(scene, capsys):
+    code, out, err = run(capsys, scene, "--quiet")
+    assert code == 0 and out == "" and err == ""
+    assert (scene.parent / "out" / "pendulum" / "pendulum.npz").exists()
+    code, out, err = run(capsys, scene, "--quiet", "--rtol", "-1")
+    assert code == 2 and out == "" and "`rtol` must be" in err
+
+
+@pytest.mark.parametrize("option, value, setting", [
+    ("--rtol", 1e-4, "rtol"), ("--atol", 1e-3, "atol"), ("--max-step", 0.002, "max_step"),
+])
+def test_tolerances_and_max_step(scene, capsys, option, value, setting):
+    code, out, _ = run(capsys, scene, option, value)
+    assert code == 0
+    assert steps(out) == api(**{setting: value}).stats["steps"] != api().stats["steps"]
+
+
+def test_output_step(scene, capsys):
+    code, out, _ = run(capsys, scene, "--output-step", 0.25)
+    assert code == 0 and "5 samples" in out
+
+
+def test_integrator_and_fixed_step(scene, capsys):
+    code, out, _ = run(capsys, scene, "--integrator", "Radau")
+    assert code == 0 and "hybrid / Radau" in out
+    code, out, _ = run(capsys, scene, "--method", "ss-newmark", "--fixed-step", 0.01)
+    assert code == 0 and steps(out) == 100
+    res = ms.load_result("out/pendulum/pendulum.npz")
+    ref = api(method="ss-newmark", h=0.01)
+    np.testing.assert_array_equal(res.q, ref.q)
+    code, out, err = run(capsys, scene, "--integrator", "Radua")
+    assert code == 2 and "did you mean 'Radau'" in err
