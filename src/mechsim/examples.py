@@ -231,23 +231,24 @@ def general_four_bar(a, b, c, d, theta: float, speed: float = 0.0, branch: int =
                      name: str = "four-bar") -> Mechanism:
     """A four-bar of uniform rods (crank a from the pivot O2 at the origin, coupler b,
     rocker c from O4 at (d, 0)), assembled at crank angle `theta` on `branch` (see
-    `four_bar_angles`), the crank turning at `speed` (the others' speeds follow at
-    assembly). Joints O2, A (crank–coupler), B (coupler–rocker), O4."""
+    `four_bar_angles`), the crank turning at `speed` (`Mechanism.set_speed` on O2: the
+    others' speeds follow at assembly). Joints O2, A (crank–coupler), B (coupler–rocker),
+    O4."""
     th3, th4 = four_bar_angles(theta, a, b, c, d, branch)
     if not np.isfinite(th3):
         raise ValueError(f"four-bar {a}, {b}, {c}, {d}: no assembly at crank angle {theta}")
     tip = (a * math.cos(theta), a * math.sin(theta))
     joint = (d + c * math.cos(float(th4)), c * math.sin(float(th4)))
     mech = Mechanism(name, gravity=gravity)
-    crank = mech.add(RigidBody.rod("crank", (0.0, 0.0), tip, masses[0],
-                                   velocity=(-tip[1] * speed / 2, tip[0] * speed / 2),
-                                   angular_velocity=speed))
+    crank = mech.add(RigidBody.rod("crank", (0.0, 0.0), tip, masses[0]))
     coupler = mech.add(RigidBody.rod("coupler", tip, joint, masses[1]))
     rocker = mech.add(RigidBody.rod("rocker", (d, 0.0), joint, masses[2]))
-    mech.add(Revolute(mech.ground, crank, at=(0.0, 0.0), name="O2"))
+    pivot = mech.add(Revolute(mech.ground, crank, at=(0.0, 0.0), name="O2"))
     mech.add(Revolute(crank, coupler, at=tip, name="A"))
     mech.add(Revolute(coupler, rocker, at=joint, name="B"))
     mech.add(Revolute(mech.ground, rocker, at=(d, 0.0), name="O4"))
+    if speed:
+        mech.set_speed(pivot, speed)
     return mech
 
 

@@ -209,3 +209,11 @@ def joint_point(geometry: JointGeometry, q) -> np.ndarray:
     x, y = ctx.point(geometry.joint.body_b, geometry.local_b[0], geometry.local_b[1],
                      geometry.parameters, "b")
     return np.column_stack([_broadcast(x, n), _broadcast(y, n)])
+
+
+def joint_gradient(geometry: JointGeometry, q) -> np.ndarray:
+    """∂s/∂q of the joint's coordinate s at the state q (n,): shape (n,) (its rate is ∂s/∂q v)."""
+    q = np.asarray(q, float)
+    ctx = NumericContext(geometry.starts, q[None], np.eye(q.size))
+    c = geometry.joint.coordinate(ctx, geometry.parameters)
+    return np.broadcast_to(derivative(c, (1, q.size)), (1, q.size))[0].copy()

@@ -73,6 +73,7 @@ class Mechanism:
         self.joints: list[Joint] = []
         self.drivers: list[Driver] = []
         self.loads: list = []                 # springs, rotational springs, forces, torques
+        self.speeds: dict[str, float] = {}   # joint name -> its prescribed initial rate
         self._problem = None
         self._assembled: AssemblyReport | None = None
 
@@ -220,20 +221,69 @@ class Mechanism:
                 f"mechanism '{self.name}' cannot be assembled: after {iterations} Newton "
                 f"iterations the largest residual is {prob.worst_constraint(prob.phi(q, t))}. "
                 "Check that joint's points and the link lengths it implies.")
-        J = prob.phi_q(q, t)
-        residual = J @ v0 + prob.phi_t(q, t)
-        vscale = max(1.0, float(np.max(np.abs(v0))) if v0.size else 1.0)
-        v = v0 if np.max(np.abs(residual), initial=0.0) <= tol * vscale \
-            else prob.project_velocities(q, v0, t)
-        r_after = np.max(np.abs(prob.phi_q(q, t) @ v + prob.phi_t(q, t)), initial=0.0)
-        if r_after > 1e-8 * vscale:
-            raise AssemblyError(f"mechanism '{self.name}': no velocity satisfies the "
-                                f"constraints (residual {r_after:.3g}); check the drivers")
+        v = self._velocities(prob, q, v0, t, tol)
         self._assembled = AssemblyReport(
             q, v, iterations, float(np.max(np.abs(q - q0), initial=0.0)),
             float(np.max(np.abs(v - v0), initial=0.0)),
             float(np.max(np.abs(prob.phi(q, t)), initial=0.0)))
         return self._assembled
+
+    def _velocities(self, prob, q, v0, t, tol):
+        """Consistent velocities nearest the given ones (mass metric) with the joint rates
+        of `set_speed`; a warning where a velocity the user gave (non-zero) had to change."""
+        extra = None
+        if self.speeds:
+            from ..engineering.geometry import joint_gradient
+            G = np.array([joint_gradient(prob.joints[name], q) for name in self.speeds])
+            extra = (G, np.array(list(self.speeds.values())))
+        J = prob.phi_q(q, t)
+        rows = [J @ v0 + prob.phi_t(q, t)] + ([extra[0] @ v0 - extra[1]] if extra else [])
+        vscale = max(1.0, float(np.max(np.abs(v0))) if v0.size else 1.0,
+                     *(abs(r) for r in self.speeds.values()))
+        v = v0 if np.max(np.abs(np.concatenate(rows)), initial=0.0) <= tol * vscale \
+            else prob.project_velocities(q, v0, t, extra)
+        r_after = np.max(np.abs(prob.phi_q(q, t) @ v + prob.phi_t(q, t)), initial=0.0)
+        missed = np.abs(extra[0] @ v - extra[1]) if extra is not None else np.zeros(1)
+        if extra is not None and max(r_after, np.max(missed)) > 1e-8 * vscale:
+            name = list(self.speeds)[int(np.argmax(missed))]
+            raise AssemblyError(f"mechanism '{self.name}': the joint rates of set_speed "
+                                f"cannot all hold with the constraints and drivers (joint "
+                                f"'{name}' off by {np.max(missed):.3g}, the constraints by "
+                                f"{r_after:.3g}); the mechanism has fewer degrees of "
+                                "freedom than rates set")
+        if r_after > 1e-8 * vscale:
+            raise AssemblyError(f"mechanism '{self.name}': no velocity satisfies the "
+                                f"constraints (residual {r_after:.3g}); check the drivers")
+        given = np.flatnonzero(v0 != 0.0)
+        change = np.abs(v - v0)[given]
+        if change.size and np.max(change) > 1e-6 * vscale:
+            import warnings
+            k = given[int(np.argmax(change))]
+            warnings.warn(
+                f"mechsim: assembling mechanism '{self.name}' changed the initial velocity "
+                f"'{prob.coordinate_names[k]}' from {v0[k]:.6g} to {v[k]:.6g}: the velocities "
+                "given do not satisfy the joints, and the nearest ones that do were taken. "
+                "Give the speeds of joints instead (Mechanism.set_speed(joint, rate)).",
+                stacklevel=3)
+        return v
+
+    def set_speed(self, joint, rate: float) -> None:
+        """Start the joint's coordinate (relative angle of a revolute, slide of a prismatic)
+        at `rate` [rad/s or m/s]: assembly then finds the velocities of every body that move
+        it so (nearest the bodies' given velocities in the mass metric), instead of
+        re-projecting body velocities that do not fit the joints. A driven joint's rate is
+        its driver's."""
+        owner = f"mechanism '{self.name}': set_speed"
+        joint = self.joint(joint) if isinstance(joint, str) else joint
+        if not any(j is joint for j in self.joints):
+            raise ModelError(f"{owner}: {joint!r} is not a joint of this mechanism")
+        if type(joint).coordinate is Joint.coordinate:
+            raise ModelError(f"{owner}: a {joint.kind} joint has no rate to set")
+        if any(d.joint is joint for d in self.drivers):
+            raise ModelError(f"{owner}: joint '{joint.name}' is driven; its driver sets its rate")
+        from .checks import scalar
+        self.speeds[joint.name] = scalar(rate, "rate", f"{owner}({joint.name!r})")
+        self._assembled = None
 
     def set_state(self, q, v=None, t: float = 0.0) -> AssemblyReport:
         """Start later simulations from the consistent state (q, v) (v default zeros),

@@ -300,9 +300,16 @@ class NumericProblem:
         r = J @ v + self.phi_t(q, t)
         return q, v - f.right(f.cols(J).T @ solve(r))
 
-    def project_velocities(self, q, v, t):
-        """v − W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ (Φ_q v + Φ_t): the nearest consistent velocity."""
+    def project_velocities(self, q, v, t, extra=None):
+        """v − W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ (Φ_q v + Φ_t): the nearest consistent velocity in the
+        mass metric. `extra` = (G, r): also G v = r (prescribed joint rates), the same way
+        with [Φ_q; G] (least squares where the rows cannot all hold)."""
         J = self.phi_q(q, t)
         r = J @ v + self.phi_t(q, t)
         f = self.mass_factor(q)
+        if extra is not None:
+            G, rates = extra
+            A, r = np.vstack([J, G]), np.concatenate([r, G @ v - rates])
+            At = f.cols(A)
+            return v - f.right(At.T @ dense().solve_psd(At @ At.T, r))
         return v - f.right(f.cols(J).T @ self.solver.solve(J, r, f))
