@@ -92,3 +92,11 @@ def test_integrator_and_fixed_step(scene, capsys):
     np.testing.assert_array_equal(res.q, ref.q)
     code, out, err = run(capsys, scene, "--integrator", "Radua")
     assert code == 2 and "did you mean 'Radau'" in err
+
+
+def test_animate(scene, capsys):
+    code, out, _ = run(capsys, scene, "--animate", "--output-step", 0.05)
+    assert code == 0 and "pendulum.gif" in out
+    from PIL import Image
+    with Image.open(scene.parent / "out" / "pendulum" / "pendulum.gif") as im:
+        assert im.n_frames == 21

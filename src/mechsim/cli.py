@@ -69,6 +69,8 @@ def _run(args) -> int:
             written.append(path)
         elif kind == "save":
             written.append(res.save(path, reactions=wants_reactions or None))
+        elif kind == "animate":
+            written.append(res.animate(path, trace=scene.output.get("points", [])))
         else:
             written.append(res.export(path))
     for w in written if not args.quiet else ():
@@ -90,6 +92,8 @@ def _output_paths(args, scene):
         targets.append(("save", out_dir / f"{stem}.npz"))
     if out.get("export"):
         targets.append(("export", out_dir / out["export"]))
+    if out.get("animate") or args.animate:
+        targets.append(("animate", out_dir / f"{stem}.gif"))
     base = out_dir.resolve()
     for _, path in targets:
         if not path.resolve().is_relative_to(base):
@@ -272,6 +276,8 @@ def main(argv=None) -> int:
     run.add_argument("--fixed-step", type=float, metavar="H",
                      help="the step of a fixed-step method such as ss-newmark [s]")
     run.add_argument("--quiet", action="store_true", help="print errors only")
+    run.add_argument("--animate", action="store_true",
+                     help="write <scene>.gif of the motion (tracing the scene's points)")
     run.add_argument("--no-plots", action="store_true", help="write no plots")
     run.add_argument("--equilibrium", action="store_true",
                      help="print the static equilibrium and its reactions first")

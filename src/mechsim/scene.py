@@ -41,6 +41,7 @@
                                  # "efforts")
     reactions = ["A", "B"]       # joints whose peak forces the summary prints (true: all)
     efforts = true               # the drivers' peak and RMS effort and power
+    animate = true               # <scene>.gif of the motion, tracing `points`
     save = true                  # result as <scene>.npz
     export = "motion.xdmf"       # meshio time series of the bodies (ParaView)
     points = [["coupler", [0.5, 0.0]]]   # final positions printed in the summary
@@ -141,7 +142,7 @@ SCHEMA = {
     "rotational_spring": {"bodies": "bodies", "stiffness": "number", "damping": "number",
                           "rest_angle": "number", "name": "name"},
     "output": {"plots": "plots", "save": "flag", "points": "points", "directory": "path",
-               "export": "path", "reactions": "joints", "efforts": "flag"},
+               "export": "path", "reactions": "joints", "efforts": "flag", "animate": "flag"},
 }
 REQUIRED = {
     "body": ("name",), "flexible_beam": ("name", "start", "youngs_modulus", "density", "area",

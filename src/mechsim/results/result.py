@@ -330,6 +330,22 @@ class SimulationResult:
         from .plots import plot_efforts
         return plot_efforts(self, path=path, ax=ax)
 
+    def plot_motion(self, path=None, trace=(), snapshots=6, exaggeration=1.0, ax=None):
+        """`snapshots` states of the mechanism evenly over the result (the earlier ones
+        faded), with the whole paths of the `trace` points [(body, local point), …] (a
+        coupler curve); beams deformed by `exaggeration` times their modes. Returns the
+        Figure; writes it to `path` when given (`mechsim.results.animation`)."""
+        from .animation import plot_motion
+        return plot_motion(self, path, trace, snapshots, exaggeration, ax)
+
+    def animate(self, path, trace=(), fps=30, exaggeration=1.0, max_frames=None) -> Path:
+        """Write the motion as a GIF (Pillow) or an MP4 (where ffmpeg is installed) at `fps`
+        frames a second, at most 12 s long (longer results decimated; or `max_frames`),
+        the `trace` points' paths drawn as they are covered and the singular passages
+        shaded on a time bar. Returns the path (`mechsim.results.animation`)."""
+        from .animation import animate
+        return animate(self, path, trace, fps, exaggeration, max_frames)
+
     def export(self, path) -> Path:
         """Write the motion as a meshio time series (`.xdmf` opens in ParaView; other meshio
         formats give one file per output time): rigid bodies as lines through their joints,

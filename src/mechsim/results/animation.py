@@ -1,0 +1,270 @@
+"""Pictures of a result's motion: snapshots with traced paths (`plot_motion`) and animations
+(`animate`, GIF through Pillow, MP4 through ffmpeg where it is installed).
+
+A body is drawn as the polyline `SimulationResult.export` draws (a rigid body through its
+joints, load points and centre of mass; a beam along its axis, deformed by its modes times
+`exaggeration`), a revolute joint as a pin, a prismatic joint as a pin on a guide line over
+the slide it covers, a spring as a zig-zag, a traced point as the path it has covered. Under
+the mechanism a time bar shades the singular passages and marks the present time.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..kinematics import frame_point
+
+# An animation plays at most this many seconds: longer results are decimated.
+MAX_SECONDS = 12.0
+COILS = 8                       # zig-zags of a drawn spring
+
+
+class Scene:
+    """The drawing of `result` at the sample indices `frames` (geometry only, no artists)."""
+
+    def __init__(self, result, frames, trace=(), exaggeration=1.0):
+        p = result.problem
+        if p is None:
+            raise RuntimeError("drawing the motion needs the mechanism's geometry, which is "
+                               "not saved with a result; simulate it again to draw it")
+        self.result, self.problem, self.frames = result, p, np.asarray(frames)
+        q = result.q[self.frames]
+        self.bodies = [(name, self._polyline(q, start, local, modal, exaggeration))
+                       for name, start, local, modal in p.drawing]
+        from ..engineering.geometry import joint_coordinates, joint_point
+        self.pins = {name: joint_point(g, q) for name, g in p.joints.items()}
+        self.guides = []
+        for name, g in p.joints.items():
+            if g.joint.kind == "prismatic":
+                s = joint_coordinates(g, result.q, result.v)[0]
+                self.guides.append(self._guide(g, q, s.min(), s.max()))
+        self.springs = [self._spring(q, sp) for sp in p.springs]
+        self.traces = [(self._label(body, local), result.point(body, local))
+                       for body, local in trace]
+
+    @staticmethod
+    def _label(body, local):
+        return f"{getattr(body, 'name', body)} ({float(local[0]):g}, {float(local[1]):g})"
+
+    @staticmethod
+    def _polyline(q, start, local, modal, exaggeration):
+        """(K, p, 2) positions of a body's drawing points at the states q (K, n)."""
+        out = np.empty((q.shape[0], len(local), 2))
+        for i, s in enumerate(local):
+            m = None if modal is None else exaggeration * modal[i]
+            out[:, i] = frame_point(q, start, s, m)
+        return out
+
+    @staticmethod
+    def _guide(g, q, lowest, highest):
+        """(K, 2, 2) ends of a prismatic joint's guide line: along its axis (turning with
+        body_a) through the slides the whole result covers, with a margin."""
+        from ..engineering.geometry import NumericContext, value
+        ctx = NumericContext(g.starts, q)
+        p = g.parameters
+        ax, ay = (value(c) * np.ones(q.shape[0]) for c in ctx.point(
+            g.joint.body_a, g.local_a[0], g.local_a[1], p, "a"))
+        ux, uy = (value(c) * np.ones(q.shape[0]) for c in ctx.direction(
+            g.joint.body_a, p["ux"], p["uy"], p, "a"))
+        margin = 0.15 * max(highest - lowest, 1e-3)
+        ends = [lowest - margin, highest + margin]
+        return np.stack([np.column_stack([ax + e * ux, ay + e * uy]) for e in ends], axis=1)
+
+    @staticmethod
+    def _spring(q, sp):
+        """(K, 2 COILS + 2, 2) zig-zag of a spring between its attachment points."""
+        a = frame_point(q, sp.a, sp.sa, sp.modal_a)
+        b = frame_point(q, sp.b, sp.sb, sp.modal_b)
+        d = b - a
+        length = np.linalg.norm(d, axis=1, keepdims=True)
+        normal = np.column_stack([-d[:, 1], d[:, 0]]) / np.where(length > 0, length, 1.0)
+        u = np.linspace(0.0, 1.0, 2 * COILS + 2)
+        side = np.zeros_like(u)
+        side[1:-1] = np.where(np.arange(1, u.size - 1) % 2, 1.0, -1.0)
+        width = 0.06 * np.median(length)
+        return a[:, None] + u[None, :, None] * d[:, None] + \
+            width * side[None, :, None] * normal[:, None]
+
+    def limits(self):
+        """(x range, y range) holding every drawn point with a 5 % margin, equal aspect."""
+        pts = [pl.reshape(-1, 2) for _, pl in self.bodies]
+        pts += [p for p in self.pins.values()] + [t for _, t in self.traces]
+        pts += [g.reshape(-1, 2) for g in self.guides]
+        allp = np.vstack(pts)
+        lo, hi = allp.min(axis=0), allp.max(axis=0)
+        size = max(np.max(hi - lo), 1e-6)
+        mid = (lo + hi) / 2
+        half = 0.55 * size
+        return (mid[0] - half, mid[0] + half), (mid[1] - half, mid[1] + half)
+
+
+def frame_indices(t, fps, max_frames=None) -> np.ndarray:
+    """Sample indices to draw: every sample, or evenly spaced ones where there are more than
+    fps × MAX_SECONDS (or `max_frames`)."""
+    limit = int(max_frames if max_frames is not None else fps * MAX_SECONDS)
+    if len(t) <= limit:
+        return np.arange(len(t))
+    return np.unique(np.round(np.linspace(0, len(t) - 1, max(limit, 2))).astype(int))
+
+
+def _figure():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(6.4, 6.0), layout="constrained")
+    FigureCanvasAgg(fig)                       # the writers read its pixels
+    grid = fig.add_gridspec(2, 1, height_ratios=(12, 1))
+    return fig, fig.add_subplot(grid[0]), fig.add_subplot(grid[1])
+
+
+def _time_bar(ax, result):
+    t0, t1 = result.t[0], result.t[-1]
+    for k, sp in enumerate(result.singular_passages):
+        ax.axvspan(sp.t_start, max(sp.t_end, sp.t_start + 1e-3 * (t1 - t0)), color="C3",
+                   alpha=0.35, lw=0, label="singular passage" if k == 0 else None)
+    ax.set_xlim(t0, t1 if t1 > t0 else t0 + 1.0)
+    ax.set_yticks([])
+    ax.set_xlabel("time [s]")
+    return ax.axvline(t0, color="k", lw=2)
+
+
+class Artists:
+    """The lines of one drawn state, updated in place from frame to frame."""
+
+    def __init__(self, ax, scene, faded=False):
+        self.scene = scene
+        alpha = 0.25 if faded else 1.0
+        self.bodies = [ax.plot([], [], "-", lw=3, color=f"C{k % 10}", alpha=alpha,
+                               solid_capstyle="round", label=None if faded else name)[0]
+                       for k, (name, _) in enumerate(scene.bodies)]
+        self.guides = [ax.plot([], [], "-", lw=1, color="0.5", alpha=alpha)[0]
+                       for _ in scene.guides]
+        self.springs = [ax.plot([], [], "-", lw=1, color="0.3", alpha=alpha)[0]
+                        for _ in scene.springs]
+        self.pins = ax.plot([], [], "o", ms=6, mfc="white", mec="k", alpha=alpha)[0]
+
+    def show(self, i):
+        """Draw the state of frame i (an index into `scene.frames`)."""
+        s = self.scene
+        for line, (_, pl) in zip(self.bodies, s.bodies):
+            line.set_data(pl[i, :, 0], pl[i, :, 1])
+        for line, g in zip(self.guides, s.guides):
+            line.set_data(g[i, :, 0], g[i, :, 1])
+        for line, z in zip(self.springs, s.springs):
+            line.set_data(z[i, :, 0], z[i, :, 1])
+        pins = np.array([p[i] for p in s.pins.values()]) if s.pins else np.zeros((0, 2))
+        self.pins.set_data(pins[:, 0], pins[:, 1])
+
+
+def _axes(ax, scene, title):
+    (x0, x1), (y0, y1) = scene.limits()
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.grid(True, alpha=0.3)
+    ax.set_title(title)
+
+
+def plot_motion(result, path=None, trace=(), snapshots=6, exaggeration=1.0, ax=None):
+    """`snapshots` states evenly over the result (the earlier ones faded) with the whole
+    paths of the `trace` points [(body, local point), …]. Returns the Figure."""
+    k = np.unique(np.round(np.linspace(0, len(result.t) - 1, max(snapshots, 1))).astype(int))
+    scene = Scene(result, k, trace, exaggeration)
+    if ax is None:
+        from matplotlib.figure import Figure
+        fig = Figure(figsize=(6.4, 5.4), layout="constrained")
+        ax = fig.add_subplot()
+    fig = ax.figure
+    for i in range(len(k)):
+        Artists(ax, scene, faded=i < len(k) - 1).show(i)
+    for j, (label, xy) in enumerate(scene.traces):
+        ax.plot(xy[:, 0], xy[:, 1], "--", lw=1, color=f"C{(j + 5) % 10}", label=f"path of {label}")
+    _axes(ax, scene, f"{scene.problem.title}: {len(k)} states, t = {result.t[0]:.3g} … "
+                     f"{result.t[-1]:.3g} s")
+    ax.legend(loc="best", fontsize="x-small")
+    if path is not None:
+        fig.savefig(path, dpi=120)
+    return fig
+
+
+def animate(result, path, trace=(), fps=30, exaggeration=1.0, max_frames=None) -> Path:
+    """Write the motion to `path`: a GIF (Pillow) or an MP4 (ffmpeg, where installed), at
+    `fps` frames a second, decimated to at most fps × MAX_SECONDS frames (or `max_frames`),
+    with the `trace` points' paths drawn as they are covered. Returns the path.
+
+    A GIF's still parts (axes, ticks, legend, time bar) are drawn once and each frame
+    redraws only the moving lines over them (blitting); its frames share the first one's
+    palette. An MP4 is drawn whole, frame by frame, by matplotlib's ffmpeg writer."""
+    from matplotlib import animation
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".gif", ".mp4"):
+        raise ValueError(f"animate: the file must end in .gif or .mp4, got {str(path)!r}")
+    if suffix == ".mp4" and not animation.writers.is_available("ffmpeg"):
+        raise ValueError("animate: writing MP4 needs ffmpeg, which is not installed; "
+                         "write a .gif instead")
+    if not (isinstance(fps, (int, float)) and 1 <= fps <= 120):
+        raise ValueError(f"animate: `fps` must be between 1 and 120, got {fps!r}")
+    frames = frame_indices(result.t, fps, max_frames)
+    scene = Scene(result, frames, trace, exaggeration)
+    fig, ax, bar = _figure()
+    artists = Artists(ax, scene)
+    paths = [ax.plot([], [], "--", lw=1, color=f"C{(j + 5) % 10}", label=f"path of {label}")[0]
+             for j, (label, _) in enumerate(scene.traces)]
+    _axes(ax, scene, " ")
+    ax.legend(loc="upper right", fontsize="x-small")
+    now = _time_bar(bar, result)
+    clock = ax.text(0.02, 0.97, "", transform=ax.transAxes, va="top", fontsize="small")
+    moving = [*artists.bodies, *artists.guides, *artists.springs, artists.pins, *paths,
+              clock]
+    ax.set_title(scene.problem.title)
+    canvas = fig.canvas
+    canvas.draw()                                # the layout, found once
+    fig.set_layout_engine("none")
+    for a in moving + [now]:
+        a.set_visible(False)
+    canvas.draw()
+    still = canvas.copy_from_bbox(fig.bbox)
+    for a in moving + [now]:
+        a.set_visible(True)
+
+    def show(i):
+        artists.show(i)
+        k = frames[i]
+        for line, (_, xy) in zip(paths, scene.traces):
+            line.set_data(xy[:k + 1, 0], xy[:k + 1, 1])
+        now.set_xdata([result.t[k]])
+        clock.set_text(f"t = {result.t[k]:.4f} s")
+
+    def frame(i):
+        show(i)
+        canvas.restore_region(still)
+        for a in moving:
+            ax.draw_artist(a)
+        bar.draw_artist(now)
+        return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if suffix == ".gif":
+        _write_gif(path, [frame(i) for i in range(len(frames))], fps)
+    else:
+        writer = animation.FFMpegWriter(fps=fps)
+        with writer.saving(fig, path, dpi=fig.dpi):
+            for i in range(len(frames)):
+                show(i)
+                writer.grab_frame()
+    return path
+
+
+def _write_gif(path, images, fps):
+    """A looping GIF of the RGB arrays `images` through Pillow (which matplotlib requires),
+    every frame in the first one's adaptive palette."""
+    from PIL import Image
+    first = Image.fromarray(images[0]).quantize(colors=255, method=Image.Quantize.MEDIANCUT)
+    rest = [Image.fromarray(im).quantize(palette=first, dither=Image.Dither.NONE)
+            for im in images[1:]]
+    first.save(path, save_all=True, append_images=rest, duration=round(1000 / fps), loop=0,
+               optimize=False)
