@@ -77,3 +77,43 @@ def test_animation_arguments_are_checked(tmp_path):
     saved = ms.load_result(res.save(tmp_path / "r.npz"))
     with pytest.raises(RuntimeError, match="geometry"):
         saved.animate(tmp_path / "y.gif")
+
+
+def test_plot_draws_what_it_is_asked_for():
+    mech = ms.examples.slider_crank(driven=True)
+    res = mech.simulate(0.05, output_step=1e-3)
+    fig = res.plot(coordinates=["crank.angle"], points=[("slider", (0.0, 0.0))],
+                   joints=["B"], reactions=["A"], efforts=[mech.drivers[0]])
+    panels = [ax for ax in fig.axes]
+    assert len(panels) == 5
+
+    def data(ax, label):
+        (line,) = [ln for ln in ax.lines if ln.get_label() == label]
+        return line.get_ydata()
+    np.testing.assert_array_equal(data(panels[0], "crank.angle"), res.coordinate("crank.angle"))
+    np.testing.assert_array_equal(data(panels[1], "slider (0, 0) x"),
+                                  res.point("slider", (0.0, 0.0))[:, 0])
+    np.testing.assert_array_equal(data(panels[2], "B"), res.joint_coordinate("B"))
+    np.testing.assert_allclose(data(panels[3], "A"),
+                               np.linalg.norm(res.joint_force("A"), axis=1), rtol=1e-15)
+    np.testing.assert_array_equal(data(panels[4], mech.drivers[0].name),
+                                  res.driver_effort(mech.drivers[0]))
+    with pytest.raises(ValueError, match="name something to plot"):
+        res.plot()
+
+
+def test_the_energy_plot_names_its_mechanism_and_scale_and_summarizes_many_switches(
+        monkeypatch):
+    from mechsim.results import plots
+    res = ms.examples.four_bar().simulate(2.0, output_step=0.01)
+    fig = res.plot_energy()
+    ax = fig.axes[0]
+    assert "four-bar" in ax.get_title() and "3 singular passages" in ax.get_title()
+    assert f"{res.energy_scale:.4g} J" in ax.get_ylabel()
+    assert res.switches
+    assert len([ln for ln in ax.lines if ln.get_linestyle() == "--"]) == len(res.switches)
+    monkeypatch.setattr(plots, "MAX_SWITCH_LINES", 0)
+    ax = res.plot_energy().axes[0]
+    assert not [ln for ln in ax.lines if ln.get_linestyle() == "--"]
+    assert f"{len(res.switches)} solver switches" in \
+        [t.get_text() for t in ax.get_legend().get_texts()]

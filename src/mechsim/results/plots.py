@@ -12,26 +12,34 @@ def new_axes(ax, size=(7.0, 3.6)):
     return fig, fig.add_subplot()
 
 
+# Beyond this many solver switches, they are marked as ticks on the time axis, not lines.
+MAX_SWITCH_LINES = 12
+
+
 def plot_energy(result, path=None, ax=None):
+    """The energy balance (E − E₀ − W) / scale over time, titled with the mechanism and its
+    scale in joules, singular passages shaded, solver switches marked (as lines, or as ticks
+    with their count where they are many)."""
     fig, ax = new_axes(ax)
     ax.plot(result.t, result.energy_drift, lw=1.2, color="C0", label="energy drift")
-    for k, sp in enumerate(result.singular_passages):
-        ax.axvspan(sp.t_start, max(sp.t_end, sp.t_start + 1e-9 * (result.t[-1] - result.t[0])),
-                   color="C3", alpha=0.2, lw=0, label="singular passage" if k == 0 else None)
-    for k, sw in enumerate(result.switches):
-        ax.axvline(sw.t, color="C2", ls="--", lw=0.8,
-                   label="solver switch" if k == 0 else None)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("(E − E₀ − W) / E_scale")
-    ax.set_title(f"Energy drift ({result.stats.get('method', '?')})")
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize="small")
-    if path is not None:
-        fig.savefig(path, dpi=120)
-    return fig
+    _shade_passages(ax, result)
+    switches = result.switches
+    if len(switches) <= MAX_SWITCH_LINES:
+        for k, sw in enumerate(switches):
+            ax.axvline(sw.t, color="C2", ls="--", lw=0.8,
+                       label="solver switch" if k == 0 else None)
+    else:
+        ax.plot([sw.t for sw in switches], [0.0] * len(switches), "|", color="C2", ms=10,
+                transform=ax.get_xaxis_transform(), label=f"{len(switches)} solver switches")
+    name = result.problem.title if result.problem is not None else "result"
+    passages = len(result.singular_passages)
+    ax.set_title(f"Energy balance: {name} ({result.stats.get('method', '?')}"
+                 + (f", {passages} singular passages" if passages else "") + ")")
+    return _finish(fig, ax, None, f"(E − E₀ − W) / {result.energy_scale:.4g} J", path)
 
 
 def _shade_passages(ax, result):
+    """The singular passages as shaded spans (one legend entry for all of them)."""
     for k, sp in enumerate(result.singular_passages):
         ax.axvspan(sp.t_start, max(sp.t_end, sp.t_start + 1e-9 * (result.t[-1] - result.t[0])),
                    color="C3", alpha=0.15, lw=0, label="singular passage" if k == 0 else None)
@@ -40,7 +48,8 @@ def _shade_passages(ax, result):
 def _finish(fig, ax, title, ylabel, path, xlabel="time [s]"):
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_title(title)
+    if title is not None:
+        ax.set_title(title)
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
     if path is not None:
@@ -94,3 +103,45 @@ def plot_efforts(result, path=None, ax=None):
 def _magnitude(F):
     import numpy as np
     return np.hypot(F[:, 0], F[:, 1])
+
+
+def plot_quantities(result, coordinates=(), points=(), joints=(), reactions=(), efforts=(),
+                    path=None):
+    """One panel per kind asked for, over time: coordinates by name, points [(body, local
+    point)] (x and y), joint coordinates, joint forces (magnitude) and driver efforts.
+    Returns the Figure."""
+    from matplotlib.figure import Figure
+    panels = []
+    if coordinates:
+        panels.append(("coordinates", [(n, result.coordinate(n)) for n in coordinates]))
+    if points:
+        lines = []
+        for body, local in points:
+            xy = result.point(body, local)
+            label = f"{getattr(body, 'name', body)} ({float(local[0]):g}, {float(local[1]):g})"
+            lines += [(f"{label} x", xy[:, 0]), (f"{label} y", xy[:, 1])]
+        panels.append(("position [m]", lines))
+    if joints:
+        panels.append(("joint coordinate", [(getattr(j, "name", j), result.joint_coordinate(j))
+                                            for j in joints]))
+    if reactions:
+        panels.append(("|F| [N]", [(getattr(j, "name", j),
+                                    _magnitude(result.joint_force(j))) for j in reactions]))
+    if efforts:
+        panels.append(("effort [N·m or N]", [(getattr(d, "name", d), result.driver_effort(d))
+                                              for d in efforts]))
+    if not panels:
+        raise ValueError("plot: name something to plot (coordinates=, points=, joints=, "
+                         "reactions= or efforts=)")
+    fig = Figure(figsize=(7.0, 2.2 + 1.8 * len(panels)), layout="constrained")
+    axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (ylabel, lines) in zip(axes, panels):
+        for label, y in lines:
+            ax.plot(result.t, y, lw=1.2, label=label)
+        _shade_passages(ax, result)
+        _finish(fig, ax, None, ylabel, None, xlabel="")
+    axes[-1].set_xlabel("time [s]")
+    axes[0].set_title(result.problem.title if result.problem is not None else "result")
+    if path is not None:
+        fig.savefig(path, dpi=120)
+    return fig

@@ -317,6 +317,15 @@ class SimulationResult:
         from .plots import plot_energy
         return plot_energy(self, path=path, ax=ax)
 
+    def plot(self, path=None, *, coordinates=(), points=(), joints=(), reactions=(),
+             efforts=()):
+        """Quantities over time, one panel per kind: `coordinates` by name ("crank.angle"),
+        `points` [(body, local point)] (x and y), `joints` (their coordinates), `reactions`
+        (joint force magnitudes), `efforts` (drivers). Returns the Figure; writes it to
+        `path` when given."""
+        from .plots import plot_quantities
+        return plot_quantities(self, coordinates, points, joints, reactions, efforts, path)
+
     def plot_reactions(self, path=None, joints=None, ax=None):
         """The magnitude of each joint's force over time (`joints`: a list of joints or
         names; None: all), singular passages shaded, non-unique samples marked. Returns the
