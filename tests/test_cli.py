@@ -100,3 +100,20 @@ def test_animate(scene, capsys):
     from PIL import Image
     with Image.open(scene.parent / "out" / "pendulum" / "pendulum.gif") as im:
         assert im.n_frames == 21
+
+
+def test_progress_bar_reports_simulated_time_and_changes_nothing(capsys):
+    mech = ms.examples.pendulum()
+    plain = mech.simulate(1.0, rtol=1e-8, output_step=0.1)
+    shown = mech.simulate(1.0, rtol=1e-8, output_step=0.1, progress=True)
+    err = capsys.readouterr().err
+    assert "100%" in err and "t = 1 of 1 s" in err
+    np.testing.assert_array_equal(shown.q, plain.q)
+
+
+def test_progress_without_tqdm_warns_and_runs(monkeypatch):
+    import sys
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)       # as if not installed
+    with pytest.warns(UserWarning, match="needs tqdm"):
+        res = ms.examples.pendulum().simulate(0.2, progress=True)
+    assert res.success

@@ -37,7 +37,10 @@ def _run(args) -> int:
         report = mech.dof()
         assembly = mech.assemble(t=scene.simulation.get("t_start", 0.0))
         if not args.quiet:
+            _header(scene, mech, report, assembly, t_build)
             _analyses(args, mech, scene.simulation.get("t_start", 0.0))
+            if sys.stderr.isatty():                 # a progress bar on a terminal only
+                overrides["progress"] = True
         if args.kinematics:
             settings = {**scene.simulation, **overrides}
             t_end = settings["t_end"]
@@ -49,7 +52,7 @@ def _run(args) -> int:
         print(f"mechsim: {exc}", file=sys.stderr)
         return 2
     if not args.quiet:
-        _summary(scene, mech, res, report, assembly, t_build)
+        _summary(scene, res)
     elif not res.success:
         print(f"mechsim: {res.status}: {res.message}", file=sys.stderr)
     written = []
@@ -129,12 +132,16 @@ def _analyses(args, mech, t) -> None:
             print(f"           {k}: ω = {w:.6g} rad/s ({w / (2 * np.pi):.6g} Hz), ζ = {z:.3g}")
 
 
-def _summary(scene, mech, res, report, assembly, t_build) -> None:
-    """The run's summary on standard output."""
+def _header(scene, mech, report, assembly, t_build) -> None:
+    """What is about to run, printed before it runs."""
     print(f"scene      {scene.path}  ({mech.name})")
     print(f"model      {'loaded from cache' if mech.from_cache else 'compiled and cached'} "
           f"in {t_build:.3f} s; {report}")
-    print(f"assembly   {assembly}")
+    print(f"assembly   {assembly}", flush=True)
+
+
+def _summary(scene, res) -> None:
+    """The run's summary on standard output."""
     s = res.stats
     if s.get("method") == "kinematics":
         print(f"kinematics {s['samples']} configurations solved, {s['wall_time']:.3f} s wall")

@@ -232,6 +232,34 @@ class Settings:
     max_steps: int | None
     ts: np.ndarray | None           # the output grid (None: every step)
     work: bool
+    progress: bool = False          # a progress bar (tqdm) over [t_start, t_end]
+
+
+class Progress:
+    """A progress bar of simulated time (tqdm, where it is installed; without it a warning
+    once and no bar)."""
+
+    def __init__(self, t_start, t_end, title):
+        self.bar, self.t = None, t_start
+        try:
+            from tqdm.auto import tqdm
+        except ImportError:
+            import warnings
+            warnings.warn("mechsim: progress=True needs tqdm (pip install 'mechsim[progress]');"
+                          " running without a progress bar", stacklevel=4)
+            return
+        self.bar = tqdm(total=t_end - t_start, desc=title, unit="s", unit_scale=True,
+                        bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g} of "
+                                   "{total:.4g} s [{elapsed}<{remaining}]")
+
+    def update(self, t):
+        if self.bar is not None and t > self.t:
+            self.bar.update(t - self.t)
+            self.t = t
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
 
 
 class Run:
@@ -281,10 +309,13 @@ class Run:
 
     # --- the loop ------------------------------------------------------------------------------
     def execute(self) -> SimulationResult:
+        progress = Progress(self.s.t_start, self.s.t_end, self.problem.title) \
+            if self.s.progress else None
         try:
             self.solver = self.make(self.s.t_start, self.y0, self.s.first_step)
             while self.solver.status == "running" and self._advance():
-                pass
+                if progress is not None:
+                    progress.update(self.solver.t)
         except KeyboardInterrupt:
             self.status, self.message = "interrupted", "interrupted by the user"
         except FAILURES as exc:
@@ -293,6 +324,9 @@ class Run:
             self.status = "failed"
             self.message = f"{type(exc).__name__} after t = {t:.9g}: {exc}"
             self.exception = exc
+        finally:
+            if progress is not None:
+                progress.close()
         self._explain()
         return self._result()
 

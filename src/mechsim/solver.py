@@ -47,6 +47,7 @@ SETTINGS = {
     "max_steps": Option.integer(None, low=1, optional=True),
     "h": Option.positive(None, optional=True),
     "work": Option.flag(True),
+    "progress": Option.flag(False),
 }
 # An output grid is refused where its arrays would take more than this share of the
 # machine's memory.
@@ -145,7 +146,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
              integrator: str | None = None, first_step: float | None = None,
              singular_thresholds: tuple[float, float] = (0.07, 0.14),
              max_steps: int | None = None, h: float | None = None, work: bool = True,
-             **options) -> SimulationResult:
+             progress: bool = False, **options) -> SimulationResult:
     """Integrate the constrained equations of motion from a consistent (q0, v0) at t_start.
 
     Parameters
@@ -164,13 +165,14 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         (`mechsim.results.work`), so the energy balance measures the solver, not the output
         spacing; it costs 9 evaluations of the powers per step, and only mechanisms with such
         forces pay it. False: the balance integrates the power over the output samples
+    progress : show a progress bar of simulated time (needs tqdm, the `progress` extra)
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
     cls, solver_cls, t_end, checked = check_settings(
         problem.n, t_end, method, integrator,
         dict(t_start=t_start, rtol=rtol, atol=atol, max_step=max_step, output_step=output_step,
              first_step=first_step, singular_thresholds=singular_thresholds,
-             max_steps=max_steps, h=h, work=work), options)
+             max_steps=max_steps, h=h, work=work, progress=progress), options)
     t_start, rtol, atol = checked["t_start"], checked["rtol"], checked["atol"]
     max_step, output_step, h = checked["max_step"], checked["output_step"], checked["h"]
     max_steps, singular_thresholds = checked["max_steps"], checked["singular_thresholds"]
@@ -194,6 +196,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         form = cls(problem, rtol, atol, **options)
     form.monitor = SingularityMonitor(problem, *singular_thresholds, redundant=redundant)
     settings = Settings(t_start, t_end, rtol, atol, max_step, first_step, h, max_steps,
-                        output_times(t_start, t_end, output_step), checked["work"])
+                        output_times(t_start, t_end, output_step), checked["work"],
+                        checked["progress"])
     return Run(problem, form, solver_cls, settings, q0, v0, method=cls.name,
                fully_driven=fully_driven).execute()
