@@ -198,5 +198,11 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     settings = Settings(t_start, t_end, rtol, atol, max_step, first_step, h, max_steps,
                         output_times(t_start, t_end, output_step), checked["work"],
                         checked["progress"])
-    return Run(problem, form, solver_cls, settings, q0, v0, method=cls.name,
-               fully_driven=fully_driven).execute()
+    res = Run(problem, form, solver_cls, settings, q0, v0, method=cls.name,
+              fully_driven=fully_driven).execute()
+    # What `SimulationResult.extend` goes on with.
+    res.settings = dict(method=cls.name, integrator=integrator, rtol=rtol, atol=atol,
+                        max_step=max_step, output_step=output_step,
+                        singular_thresholds=singular_thresholds, max_steps=max_steps, h=h,
+                        work=checked["work"], **options)
+    return res

@@ -115,6 +115,7 @@ class SimulationResult:
         self.switches = list(switches)
         self._work = work
         self._saved_reactions = saved_reactions
+        self.settings: dict = {}      # simulate's settings (what `extend` goes on with)
         if energy is not None:
             self.__dict__["energy"] = energy
         if constraint_violation is not None:
@@ -182,6 +183,27 @@ class SimulationResult:
             _, J, _, gamma = p.terms(q, v, t)
             out[i] = p.accelerations(J, p.forces(t, q, v), gamma, q)[0]
         return out
+
+    # --- continuing -----------------------------------------------------------------------------
+    def extend(self, t_end: float, **overrides) -> "SimulationResult":
+        """This run continued from its last sample to `t_end` with the same settings (or
+        `overrides` of them), joined into one result: samples, passages, switches and
+        statistics, and the work of every channel carried on from where it stood, so the
+        energy balance keeps its baseline. The integrator starts afresh at the join; the
+        joined run equals an uninterrupted one to the integration tolerance."""
+        from ..solver import simulate
+        p = self._need_problem("extending the run")
+        if not self.settings:
+            raise RuntimeError("this result does not hold the settings of the run that made "
+                               "it; simulate again from its last state instead")
+        t_end = float(t_end)
+        if not t_end > self.t[-1]:
+            raise ValueError(f"extend: `t_end` must be after the last sample "
+                             f"t = {self.t[-1]:.9g}, got {t_end!r}")
+        settings = {**self.settings, **overrides}
+        rest = simulate(p, self.q[-1], self.v[-1], t_start=float(self.t[-1]), t_end=t_end,
+                        **settings)
+        return join(self, rest)
 
     # --- reactions, efforts and joint coordinates ---------------------------------------------
     @cached_property
@@ -397,6 +419,29 @@ class SimulationResult:
         np.savez_compressed(path, t=self.t, q=self.q, v=self.v,
                             meta=np.array(json.dumps(meta, default=float)), **extra)
         return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
+
+
+def join(first: SimulationResult, rest: SimulationResult) -> SimulationResult:
+    """`rest`, which starts at `first`'s last sample, appended to `first`."""
+    stats = dict(rest.stats)
+    for key, value in first.stats.items():
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and \
+                isinstance(rest.stats.get(key), (int, float)):
+            stats[key] = value + rest.stats[key]
+    work = None
+    a, b = first._work, rest._work
+    if a is not None and b is not None and a.channels == b.channels and \
+            len(a.values) == len(first.t) and len(b.values):
+        work = WorkRecord(a.channels, np.vstack([a.values, b.values[1:] + a.values[-1]]),
+                          "; ".join(n for n in (a.note, b.note) if n))
+    out = SimulationResult(
+        np.concatenate([first.t, rest.t[1:]]), np.vstack([first.q, rest.q[1:]]),
+        np.vstack([first.v, rest.v[1:]]), first.coordinate_names, problem=first.problem,
+        status=rest.status, message=rest.message, stats=stats,
+        singular_passages=first.singular_passages + rest.singular_passages,
+        switches=first.switches + rest.switches, exception=rest.exception, work=work)
+    out.settings = dict(rest.settings)
+    return out
 
 
 def _cumulative_integral(y, t):

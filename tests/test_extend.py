@@ -1,0 +1,51 @@
+"""A run continued where it stopped (`SimulationResult.extend`) equals the uninterrupted run
+to the integration tolerance, its energy balance and passages carried on."""
+
+import numpy as np
+import pytest
+
+import mechsim as ms
+
+
+def damped_engine():
+    mech = ms.examples.slider_crank(driven=True)
+    mech.add(ms.Spring(mech.ground, mech.body("slider"), at_a=(0.6, 0.0), at_b=(0.45, 0.0),
+                       stiffness=200.0, damping=3.0, name="buffer"))
+    return mech
+
+
+def test_an_extended_run_equals_the_uninterrupted_one():
+    mech = damped_engine()
+    run = dict(rtol=1e-9, atol=1e-11, output_step=1e-3)
+    full = mech.simulate(0.2, **run)
+    joined = mech.simulate(0.1, **run).extend(0.2)
+    np.testing.assert_allclose(joined.t, full.t, rtol=0, atol=1e-15)
+    assert np.max(np.abs(joined.q - full.q)) < 1e-9
+    # The work of the damper and the motor carried on: the balance keeps its baseline.
+    assert joined.energy.channels == full.energy.channels
+    assert np.max(np.abs(joined.energy.work - full.energy.work)) < \
+        1e-8 * np.max(np.abs(full.energy.work))
+    assert np.max(np.abs(joined.energy_drift)) < 100 * 1e-9
+    assert joined.stats["steps"] > 0 and joined.settings["rtol"] == 1e-9
+
+
+def test_extending_through_singular_passages_keeps_them():
+    mech = ms.examples.four_bar()
+    run = dict(rtol=1e-9, atol=1e-11, output_step=1e-3)
+    full = mech.simulate(2.0, **run)
+    joined = mech.simulate(0.5, **run).extend(1.2).extend(2.0)
+    assert [round(p.t_min, 3) for p in joined.singular_passages] == \
+        [round(p.t_min, 3) for p in full.singular_passages]
+    assert np.max(np.abs(joined.q - full.q)) < 1e-8
+    # Overrides of the settings apply to the part they extend.
+    coarse = mech.simulate(0.5, **run).extend(1.0, output_step=0.01)
+    assert np.allclose(np.diff(coarse.t[coarse.t > 0.5]), 0.01)
+
+
+def test_extend_checks_its_arguments(tmp_path):
+    res = ms.examples.pendulum().simulate(0.2, output_step=0.05)
+    with pytest.raises(ValueError, match="after the last sample"):
+        res.extend(0.1)
+    loaded = ms.load_result(res.save(tmp_path / "p.npz"))
+    with pytest.raises(RuntimeError, match="extending the run"):
+        loaded.extend(1.0)
