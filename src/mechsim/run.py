@@ -48,6 +48,8 @@ BRANCH_RETRIES = 6
 FAILURES = (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError)
 # A driver moving faster than this (rad/s or m/s) is named where a run fails.
 DRIVER_RATE_LIMIT = 1e8
+# Output samples inside one step are interpolated and solved for this many at a time.
+CHUNK = 1024
 
 
 class NonFiniteState(RuntimeError):
@@ -93,42 +95,82 @@ def troubled_drivers(problem, times) -> str:
     return "".join(f"; {o}" for o in out)
 
 
+class Rows:
+    """Rows of `width` numbers in one preallocated array, grown in place (by a quarter) as
+    rows come and trimmed in place when handed over: a run's memory is its samples' plus a
+    quarter at most, never a list of small arrays or a copy of the whole."""
+
+    def __init__(self, width, capacity):
+        self.data = np.empty((max(capacity, 1), width))
+        self.count = 0
+
+    @property
+    def rows(self):
+        return self.data[:self.count]
+
+    def room(self, k=1) -> None:
+        if self.count + k > len(self.data):
+            self.data.resize((max(self.count + k, int(1.25 * len(self.data)) + 16),
+                              self.data.shape[1]), refcheck=False)
+
+    def append(self, row) -> None:
+        self.room()
+        self.data[self.count] = row
+        self.count += 1
+
+    def extend(self, rows) -> None:
+        rows = np.asarray(rows, float).reshape(-1, self.data.shape[1])
+        self.room(len(rows))
+        self.data[self.count:self.count + len(rows)] = rows
+        self.count += len(rows)
+
+    def take(self) -> np.ndarray:
+        """The rows as one array of exactly their size (the buffer itself, trimmed)."""
+        self.data.resize((self.count, self.data.shape[1]), refcheck=False)
+        return self.data
+
+
 class Recorder:
     """The output samples of a run: times `t`, positions `q`, velocities `v` (rows), and the
-    work of each of `channels` at the first `len(work)` of them. `ts` is the output grid
-    (None: a sample at every accepted step); `next` the index of its next sample.
-    Samples pass `check_finite` as they are recorded."""
+    work of each of `channels` at the first `work.count` of them (`Rows`). `ts` is the output
+    grid (None: a sample at every accepted step), which sizes the arrays at once; `next`
+    the index of its next sample. Samples pass `check_finite` as they are recorded."""
 
     def __init__(self, problem, ts, channels=()):
         self.problem, self.ts, self.next = problem, ts, 0
         capacity = len(ts) if ts is not None else 256
-        self._t = np.empty(capacity)
-        self._q = np.empty((capacity, problem.n))
-        self._v = np.empty((capacity, problem.n))
-        self.count = 0
-        self.work = []                  # rows: W of each channel at samples 0, 1, …
+        self.samples = Rows(1 + 2 * problem.n, capacity)     # [t, q, v] per sample
+        self.work = Rows(len(channels), capacity if channels else 0)
+        self.n = problem.n
+
+    @property
+    def count(self):
+        return self.samples.count
 
     @property
     def t(self):
-        return self._t[:self.count]
+        return self.samples.rows[:, 0]
 
     @property
     def q(self):
-        return self._q[:self.count]
+        return self.samples.rows[:, 1:1 + self.n]
 
     @property
     def v(self):
-        return self._v[:self.count]
+        return self.samples.rows[:, 1 + self.n:]
 
     def record(self, t, q, v) -> None:
         check_finite(self.problem, t, q, v)
-        if self.count == len(self._t):
-            grow = max(16, len(self._t))
-            self._t = np.concatenate([self._t, np.empty(grow)])
-            self._q = np.vstack([self._q, np.empty((grow, self.problem.n))])
-            self._v = np.vstack([self._v, np.empty((grow, self.problem.n))])
-        self._t[self.count], self._q[self.count], self._v[self.count] = t, q, v
-        self.count += 1
+        s = self.samples
+        s.room()
+        row = s.data[s.count]
+        row[0], row[1:1 + self.n], row[1 + self.n:] = t, q, v
+        s.count += 1
+
+    def take(self):
+        """(t, q, v) of the run, views into its one trimmed array (no copy)."""
+        data = self.samples.take()
+        return data[:, 0], data[:, 1:1 + self.n], data[:, 1 + self.n:]
 
     def due(self, t) -> bool:
         """Whether a sample falls exactly at the end of a step at t."""
@@ -142,15 +184,17 @@ class Recorder:
 
     def within(self, t_lo, t_hi, through, values, states) -> None:
         """Record the output samples in (t_lo, t_hi), or (t_lo, t_hi] with `through`, from
-        one call of the interpolant `values(times)` and one of `states(times, Y) -> (Q, V)`
-        (rows: the samples)."""
+        calls of the interpolant `values(times)` and of `states(times, Y) -> (Q, V)` (rows:
+        the samples), `CHUNK` samples at a time: a step over many samples (a fine output
+        grid, a loose tolerance) needs no more memory than one over a few."""
         ts, first = self.ts, self.next
-        while self.next < len(ts) and (ts[self.next] < t_hi or
-                                       through and ts[self.next] == t_hi):
-            self.next += 1
-        inside = np.array([tk for tk in ts[first:self.next] if tk > t_lo])
-        if not inside.size:
-            return
+        self.next = int(np.searchsorted(ts, t_hi, side="right" if through else "left"))
+        inside = ts[first:self.next]
+        inside = inside[inside > t_lo]
+        for k in range(0, inside.size, CHUNK):
+            self._chunk(inside[k:k + CHUNK], values, states)
+
+    def _chunk(self, inside, values, states) -> None:
         Y = np.atleast_2d(values(inside).T)
         try:
             Q, V = states(inside, Y)
@@ -582,8 +626,8 @@ class Run:
 
     def _result(self) -> SimulationResult:
         out = self.out
-        return SimulationResult(out.t.copy(), out.q.copy(), out.v.copy(),
-                                self.problem.coordinate_names, problem=self.problem,
+        t, q, v = out.take()
+        return SimulationResult(t, q, v, self.problem.coordinate_names, problem=self.problem,
                                 status=self.status, message=self.message,
                                 stats=self._statistics(),
                                 singular_passages=self.monitor.passages,
@@ -601,7 +645,7 @@ class Run:
             notes.append(f"{work.unresolved} piece(s) of steps not resolved to the "
                          "quadrature's tolerance")
         return WorkRecord(tuple(work.channels),
-                          np.array(self.out.work).reshape(-1, len(work.channels)),
+                          self.out.work.take(),
                           "; ".join(notes))
 
 
