@@ -12,10 +12,18 @@ mesh holds the positions at the first output time; each time step carries point 
 
 and the cell data `body`, an index into the body names listed in `<stem>_body_names.txt`
 beside the file. The positions are (x, y, 0): ParaView expects three components.
+
+An `.xdmf` file keeps its heavy data in `<stem>.h5` beside it (HDF5, where h5py is
+installed: the `hdf5` extra), else inline as XML text (several times larger and slower); a
+`.vtu` series is one compressed binary file per time with a `<stem>.pvd` collection that
+ParaView opens as one time series. `every=k` writes every k-th sample (and the last). The
+point data are single precision (a drawing's, to 1e-7 of their size).
 """
 
 from __future__ import annotations
 
+import contextlib
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -34,15 +42,19 @@ def check_format(path) -> None:
                          f"{', '.join(FORMATS)}, got {suffix or 'no suffix'!r}")
 
 
-def export(result, path, drawing) -> Path:
+def export(result, path, drawing, every: int = 1) -> Path:
     """Write `result` to `path` (.xdmf: one time series file; any other meshio format: one
-    file per output time, `<stem>_<i><suffix>`). `drawing` is the problem's list of
-    `(body name, start index, local points (p, 2), modal shapes (p, 2, k) or None)`."""
+    file per output time, `<stem>_<i><suffix>`, and for .vtu a `<stem>.pvd` collection).
+    `drawing` is the problem's list of `(body name, start index, local points (p, 2),
+    modal shapes (p, 2, k) or None)`; `every`: write every k-th sample (and the last)."""
     check_format(path)
+    if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
+        raise ValueError(f"export: `every` must be a whole number ≥ 1, got {every!r}")
     import meshio
 
     path = Path(path)
-    q, v, t = result.q, result.v, result.t
+    keep = np.unique(np.append(np.arange(0, len(result.t), every), len(result.t) - 1))
+    q, v, t = result.q[keep], result.v[keep], result.t[keep]
     n = len(t)
     positions, velocities, elastic, cells, body_index = [], [], [], [], []
     eta_fields: dict[int, list] = {}
@@ -83,25 +95,53 @@ def export(result, path, drawing) -> Path:
     names = [d[0] for d in drawing]
 
     def point_data(i):
+        # Single precision: a drawing's fields to 1e-7 of their size, at half the bytes.
         data = {"displacement": xyz(pos[i] - pos[0]), "velocity": xyz(vel[i]),
                 "elastic_displacement": xyz(el[i])}
         data.update({f"eta{k + 1}": etas[k][i] for k in etas})
-        return data
+        return {key: value.astype(np.float32) for key, value in data.items()}
 
     path.parent.mkdir(parents=True, exist_ok=True)
     path.with_name(path.stem + "_body_names.txt").write_text(
         "".join(f"{i} {name}\n" for i, name in enumerate(names)))
     if path.suffix.lower() == ".xdmf":
-        # Inline XML data: HDF5 would need h5py, and meshio's "Binary" format writes its
-        # .bin files into the working directory rather than beside the .xdmf file.
-        with meshio.xdmf.TimeSeriesWriter(path, data_format="XML") as writer:
+        fmt = _xdmf_format()
+        # meshio's writer puts its heavy-data file in the working directory (its reader looks
+        # beside the .xdmf file): write from the file's own directory.
+        with contextlib.chdir(path.parent.resolve()), \
+                meshio.xdmf.TimeSeriesWriter(path.name, data_format=fmt) as writer:
             writer.write_points_cells(points0, cell_blocks)
             for i in range(n):
                 writer.write_data(float(t[i]), point_data=point_data(i), cell_data=cell_data)
         return path
     width = len(str(n - 1))
+    files = []
     for i in range(n):
         mesh = meshio.Mesh(xyz(pos[i]), cell_blocks, point_data=point_data(i),
                            cell_data=cell_data)
-        meshio.write(path.with_name(f"{path.stem}_{i:0{width}d}{path.suffix}"), mesh)
+        files.append(path.with_name(f"{path.stem}_{i:0{width}d}{path.suffix}"))
+        meshio.write(files[-1], mesh)
+    if path.suffix.lower() == ".vtu":
+        _collection(path.with_suffix(".pvd"), t, files)
     return path
+
+
+def _xdmf_format() -> str:
+    """"HDF" where h5py is installed, else "XML" (with a warning: several times larger)."""
+    try:
+        import h5py  # noqa: F401
+        return "HDF"
+    except ImportError:
+        warnings.warn("mechsim: writing XDMF with its data inline as XML text, several times "
+                      "larger and slower than HDF5; install h5py (pip install "
+                      "'mechsim[hdf5]') for compact files", stacklevel=4)
+        return "XML"
+
+
+def _collection(path, times, files) -> None:
+    """A ParaView data collection (.pvd): the time series of `files` at `times`."""
+    from xml.sax.saxutils import quoteattr
+    rows = "".join(f'    <DataSet timestep="{float(tk)!r}" part="0" '
+                   f"file={quoteattr(f.name)}/>\n" for tk, f in zip(times, files))
+    path.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
+                    f"  <Collection>\n{rows}  </Collection>\n</VTKFile>\n")

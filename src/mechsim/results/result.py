@@ -377,14 +377,15 @@ class SimulationResult:
         from .animation import animate
         return animate(self, path, trace, fps, exaggeration, max_frames)
 
-    def export(self, path) -> Path:
-        """Write the motion as a meshio time series (`.xdmf` opens in ParaView; other meshio
-        formats give one file per output time): rigid bodies as lines through their joints,
-        beams as deformed polylines with displacement, velocity and modal fields. See
-        `mechsim.results.export`."""
+    def export(self, path, every: int = 1) -> Path:
+        """Write the motion as a meshio time series (`.xdmf` opens in ParaView, its data in
+        HDF5 beside it where h5py is installed; `.vtu` gives one binary file per output time
+        and a `.pvd` collection): rigid bodies as lines through their joints, beams as
+        deformed polylines with displacement, velocity and modal fields; `every`: every k-th
+        sample. See `mechsim.results.export`."""
         from .export import export
         p = self._need_problem("the body geometry for export")
-        return export(self, path, p.drawing)
+        return export(self, path, p.drawing, every)
 
     # --- persistence -------------------------------------------------------------------------
     def save(self, path, reactions: bool | None = None) -> Path:
