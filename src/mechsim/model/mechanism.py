@@ -9,7 +9,6 @@ import numpy as np
 from .checks import ModelError, name_or_default, vector2
 from .bodies import Body, Ground
 from .drivers import Driver
-from .flexible_beam import FlexibleBeam
 from .forces import Force, RotationalSpring, Spring, Torque, load_points
 from .joints import Joint
 

@@ -54,37 +54,9 @@ def export(result, path, drawing, every: int = 1) -> Path:
 
     path = Path(path)
     keep = np.unique(np.append(np.arange(0, len(result.t), every), len(result.t) - 1))
-    q, v, t = result.q[keep], result.v[keep], result.t[keep]
+    t = result.t[keep]
     n = len(t)
-    positions, velocities, elastic, cells, body_index = [], [], [], [], []
-    eta_fields: dict[int, list] = {}
-    max_modes = max((d[3].shape[2] for d in drawing if d[3] is not None), default=0)
-    offset = 0
-    for b, (name, start, local, modal) in enumerate(drawing):
-        p = len(local)
-        pos = np.stack([frame_point(q, start, s, None if modal is None else modal[i])
-                        for i, s in enumerate(local)], axis=1)             # (n, p, 2)
-        vel = np.stack([frame_point_velocity(q, v, start, s,
-                                             None if modal is None else modal[i])
-                        for i, s in enumerate(local)], axis=1)
-        if modal is None:
-            el = np.zeros((n, p, 2))
-        else:                     # the deformed points less the same points of the frame
-            el = pos - np.stack([frame_point(q, start, s) for s in local], axis=1)
-        for k in range(max_modes):
-            value = q[:, start + 3 + k] if modal is not None and k < modal.shape[2] \
-                else np.zeros(n)
-            eta_fields.setdefault(k, []).append(np.repeat(value[:, None], p, axis=1))
-        positions.append(pos)
-        velocities.append(vel)
-        elastic.append(el)
-        cells.append(np.column_stack([offset + np.arange(p - 1), offset + np.arange(1, p)]))
-        body_index.append(np.full(p - 1, b))
-        offset += p
-    pos = np.concatenate(positions, axis=1)
-    vel = np.concatenate(velocities, axis=1)
-    el = np.concatenate(elastic, axis=1)
-    etas = {k: np.concatenate(f, axis=1) for k, f in eta_fields.items()}
+    pos, vel, el, etas, cells, body_index = _fields(result.q[keep], result.v[keep], drawing)
 
     def xyz(a):
         return np.concatenate([a, np.zeros(a.shape[:-1] + (1,))], axis=-1)
@@ -124,6 +96,40 @@ def export(result, path, drawing, every: int = 1) -> Path:
     if path.suffix.lower() == ".vtu":
         _collection(path.with_suffix(".pvd"), t, files)
     return path
+
+
+def _fields(q, v, drawing):
+    """(positions, velocities, elastic displacements (n, points, 2), modal amplitudes per
+    point {k: (n, points)}, line cells, body index per cell) of the drawn points."""
+    n = len(q)
+    positions, velocities, elastic, cells, body_index = [], [], [], [], []
+    eta_fields: dict[int, list] = {}
+    max_modes = max((d[3].shape[2] for d in drawing if d[3] is not None), default=0)
+    offset = 0
+    for b, (name, start, local, modal) in enumerate(drawing):
+        p = len(local)
+        pos = np.stack([frame_point(q, start, s, None if modal is None else modal[i])
+                        for i, s in enumerate(local)], axis=1)             # (n, p, 2)
+        vel = np.stack([frame_point_velocity(q, v, start, s,
+                                             None if modal is None else modal[i])
+                        for i, s in enumerate(local)], axis=1)
+        if modal is None:
+            el = np.zeros((n, p, 2))
+        else:                     # the deformed points less the same points of the frame
+            el = pos - np.stack([frame_point(q, start, s) for s in local], axis=1)
+        for k in range(max_modes):
+            value = q[:, start + 3 + k] if modal is not None and k < modal.shape[2] \
+                else np.zeros(n)
+            eta_fields.setdefault(k, []).append(np.repeat(value[:, None], p, axis=1))
+        positions.append(pos)
+        velocities.append(vel)
+        elastic.append(el)
+        cells.append(np.column_stack([offset + np.arange(p - 1), offset + np.arange(1, p)]))
+        body_index.append(np.full(p - 1, b))
+        offset += p
+    etas = {k: np.concatenate(f, axis=1) for k, f in eta_fields.items()}
+    return (np.concatenate(positions, axis=1), np.concatenate(velocities, axis=1),
+            np.concatenate(elastic, axis=1), etas, cells, body_index)
 
 
 def _xdmf_format() -> str:

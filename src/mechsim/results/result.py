@@ -113,7 +113,7 @@ class SimulationResult:
         self.stats = dict(stats or {})
         self.singular_passages = list(singular_passages)
         self.switches = list(switches)
-        self._work = work
+        self.work_record = work      # the work integrated with the motion, if any
         self._saved_reactions = saved_reactions
         self.settings: dict = {}      # simulate's settings (what `extend` goes on with)
         if energy is not None:
@@ -269,7 +269,7 @@ class SimulationResult:
         if not channels:
             return EnergyLog(*energies)
         n = len(self.t)
-        record = self._work
+        record = self.work_record
         if record is not None and record.channels == channels and len(record.values):
             W = np.empty((n, len(channels)))
             done = min(len(record.values), n)
@@ -430,7 +430,7 @@ def join(first: SimulationResult, rest: SimulationResult) -> SimulationResult:
                 isinstance(rest.stats.get(key), (int, float)):
             stats[key] = value + rest.stats[key]
     work = None
-    a, b = first._work, rest._work
+    a, b = first.work_record, rest.work_record
     if a is not None and b is not None and a.channels == b.channels and \
             len(a.values) == len(first.t) and len(b.values):
         work = WorkRecord(a.channels, np.vstack([a.values, b.values[1:] + a.values[-1]]),

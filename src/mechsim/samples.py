@@ -1,0 +1,170 @@
+"""The output samples of a run (`mechsim.run`): recorded into one growing array, checked
+finite as they come, and handed to the result without a copy."""
+
+from __future__ import annotations
+
+import numpy as np
+
+# What a formulation raises when a run cannot go on: the run stops with its partial result.
+FAILURES = (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError)
+# A driver moving faster than this (rad/s or m/s) is named where a run fails.
+DRIVER_RATE_LIMIT = 1e8
+# Output samples inside one step are interpolated and solved for this many at a time.
+CHUNK = 1024
+
+
+class NonFiniteState(RuntimeError):
+    """The motion became infinite or NaN: the run stops there with its partial result."""
+
+
+def check_finite(problem, t, q, v) -> None:
+    """NonFiniteState where q or v holds an infinite or NaN value, naming the coordinate
+    and, where one is the cause, the driver whose prescribed motion is not finite there."""
+    for name, x in (("position", q), ("velocity", v)):
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            break
+    else:
+        return
+    raise NonFiniteState(f"the motion became non-finite at t = {t:.9g} ({name} of "
+                         f"'{problem.coordinate_names[bad[0]]}' = {x[bad[0]]})"
+                         f"{troubled_drivers(problem, (t,))}")
+
+
+def troubled_drivers(problem, times) -> str:
+    """"; driver 'd' …" for each driver whose law at one of `times` is undefined, not finite
+    (or beyond 1e100) or changing faster than `DRIVER_RATE_LIMIT`: the likely cause of a
+    failed run; "" where there is none."""
+    out = []
+    for driver, law in problem.driver_laws:
+        for t in times:
+            dt = 1e-9 * max(1.0, abs(t))
+            try:
+                value, ahead = law.value(t=t), law.value(t=t + dt)
+            except (ArithmeticError, ValueError) as exc:
+                out.append(f"driver '{driver}' prescribes {law.text}, undefined at "
+                           f"t ≈ {t:.9g} ({exc})")
+                break
+            if not (abs(value) < 1e100 and abs(ahead) < 1e100):
+                out.append(f"driver '{driver}' prescribes {law.text} = {value:.3g} at "
+                           f"t = {t:.9g}")
+                break
+            if abs(ahead - value) > DRIVER_RATE_LIMIT * dt:
+                out.append(f"driver '{driver}' prescribes {law.text}, changing at "
+                           f"{(ahead - value) / dt:.3g}/s at t = {t:.9g}")
+                break
+    return "".join(f"; {o}" for o in out)
+
+
+class Rows:
+    """Rows of `width` numbers in one preallocated array, grown in place (by a quarter) as
+    rows come and trimmed in place when handed over: a run's memory is its samples' plus a
+    quarter at most, never a list of small arrays or a copy of the whole."""
+
+    def __init__(self, width, capacity):
+        self.data = np.empty((max(capacity, 1), width))
+        self.count = 0
+
+    @property
+    def rows(self):
+        return self.data[:self.count]
+
+    def room(self, k=1) -> None:
+        if self.count + k > len(self.data):
+            self.data.resize((max(self.count + k, int(1.25 * len(self.data)) + 16),
+                              self.data.shape[1]), refcheck=False)
+
+    def append(self, row) -> None:
+        self.room()
+        self.data[self.count] = row
+        self.count += 1
+
+    def extend(self, rows) -> None:
+        rows = np.asarray(rows, float).reshape(-1, self.data.shape[1])
+        self.room(len(rows))
+        self.data[self.count:self.count + len(rows)] = rows
+        self.count += len(rows)
+
+    def take(self) -> np.ndarray:
+        """The rows as one array of exactly their size (the buffer itself, trimmed)."""
+        self.data.resize((self.count, self.data.shape[1]), refcheck=False)
+        return self.data
+
+
+class Recorder:
+    """The output samples of a run: times `t`, positions `q`, velocities `v` (rows), and the
+    work of each of `channels` at the first `work.count` of them (`Rows`). `ts` is the output
+    grid (None: a sample at every accepted step), which sizes the arrays at once; `next`
+    the index of its next sample. Samples pass `check_finite` as they are recorded."""
+
+    def __init__(self, problem, ts, channels=()):
+        self.problem, self.ts, self.next = problem, ts, 0
+        capacity = len(ts) if ts is not None else 256
+        self.samples = Rows(1 + 2 * problem.n, capacity)     # [t, q, v] per sample
+        self.work = Rows(len(channels), capacity if channels else 0)
+        self.n = problem.n
+
+    @property
+    def count(self):
+        return self.samples.count
+
+    @property
+    def t(self):
+        return self.samples.rows[:, 0]
+
+    @property
+    def q(self):
+        return self.samples.rows[:, 1:1 + self.n]
+
+    @property
+    def v(self):
+        return self.samples.rows[:, 1 + self.n:]
+
+    def record(self, t, q, v) -> None:
+        check_finite(self.problem, t, q, v)
+        s = self.samples
+        s.room()
+        row = s.data[s.count]
+        row[0], row[1:1 + self.n], row[1 + self.n:] = t, q, v
+        s.count += 1
+
+    def take(self):
+        """(t, q, v) of the run, views into its one trimmed array (no copy)."""
+        data = self.samples.take()
+        return data[:, 0], data[:, 1:1 + self.n], data[:, 1 + self.n:]
+
+    def due(self, t) -> bool:
+        """Whether a sample falls exactly at the end of a step at t."""
+        ts = self.ts
+        return ts is None or (self.next < len(ts) and ts[self.next] == t)
+
+    def record_due(self, t, q, v) -> None:
+        """The sample at a step's end (`due`)."""
+        self.record(t, q, v)
+        self.next += 1
+
+    def within(self, t_lo, t_hi, through, values, states) -> None:
+        """Record the output samples in (t_lo, t_hi), or (t_lo, t_hi] with `through`, from
+        calls of the interpolant `values(times)` and of `states(times, Y) -> (Q, V)` (rows:
+        the samples), `CHUNK` samples at a time: a step over many samples (a fine output
+        grid, a loose tolerance) needs no more memory than one over a few."""
+        ts, first = self.ts, self.next
+        self.next = int(np.searchsorted(ts, t_hi, side="right" if through else "left"))
+        inside = ts[first:self.next]
+        inside = inside[inside > t_lo]
+        for k in range(0, inside.size, CHUNK):
+            self._chunk(inside[k:k + CHUNK], values, states)
+
+    def _chunk(self, inside, values, states) -> None:
+        Y = np.atleast_2d(values(inside).T)
+        try:
+            Q, V = states(inside, Y)
+        except FAILURES:
+            # One by one: the samples before the one that fails are kept (a run that
+            # cannot go on returns them).
+            for k in range(inside.size):
+                q, v = states(inside[k:k + 1], Y[k:k + 1])
+                self.record(inside[k], q[0], v[0])
+            return
+        for tk, q, v in zip(inside, Q, V):
+            self.record(tk, q, v)
