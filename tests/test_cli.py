@@ -117,3 +117,20 @@ def test_progress_without_tqdm_warns_and_runs(monkeypatch):
     with pytest.warns(UserWarning, match="needs tqdm"):
         res = ms.examples.pendulum().simulate(0.2, progress=True)
     assert res.success
+
+
+def test_an_interrupt_while_writing_leaves_no_partial_file(scene, capsys, monkeypatch):
+    """Ctrl-C during an export: the files it had begun are removed, the run says so and
+    what it had written before, and exits with 130."""
+    scene.write_text(SCENE.replace("save = true", 'save = true\nexport = "motion.vtu"'))
+
+    def export(self, path, every=1):
+        path.with_name("motion_0.vtu").write_text("half")       # a partial series
+        raise KeyboardInterrupt
+    monkeypatch.setattr(ms.SimulationResult, "export", export)
+    code, out, err = run(capsys, scene)
+    assert code == 130
+    assert "interrupted while writing" in err and "1 partial file(s) removed" in err
+    assert "pendulum.npz" in err                              # the save came first
+    assert sorted(p.name for p in (scene.parent / "out" / "pendulum").iterdir()) == \
+        ["pendulum.npz"]

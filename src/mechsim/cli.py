@@ -60,25 +60,40 @@ def _run(args) -> int:
         out_dir.mkdir(parents=True, exist_ok=True)
     wants_reactions = bool(scene.output.get("reactions") or scene.output.get("efforts"))
     for kind, path in targets:
-        if kind == "energy":
-            res.plot_energy(path=path)
-            written.append(path)
-        elif kind == "reactions":
-            wanted = scene.output.get("reactions")
-            res.plot_reactions(path, joints=wanted if isinstance(wanted, list) else None)
-            written.append(path)
-        elif kind == "efforts":
-            res.plot_efforts(path=path)
-            written.append(path)
-        elif kind == "save":
-            written.append(res.save(path, reactions=wants_reactions or None))
-        elif kind == "animate":
-            written.append(res.animate(path, trace=scene.output.get("points", [])))
-        else:
-            written.append(res.export(path))
+        before = set(path.parent.iterdir()) if path.parent.exists() else set()
+        try:
+            written.append(_write(kind, path, res, scene.output, wants_reactions))
+        except KeyboardInterrupt:
+            # Interrupted while writing: what this output wrote so far goes, and the run
+            # says what it kept and what it did not write.
+            partial = sorted(set(path.parent.iterdir()) - before)
+            for f in partial:
+                f.unlink(missing_ok=True)
+            kept = ", ".join(str(w) for w in written) or "nothing"
+            print(f"mechsim: interrupted while writing {path}: its {len(partial)} partial "
+                  f"file(s) removed; written before: {kept}", file=sys.stderr)
+            return 130
     for w in written if not args.quiet else ():
         print(f"wrote      {w}")
     return 0 if res.success else 1
+
+
+def _write(kind, path, res, output, wants_reactions):
+    """Write one of a run's outputs; returns its path."""
+    if kind == "energy":
+        res.plot_energy(path=path)
+    elif kind == "reactions":
+        wanted = output.get("reactions")
+        res.plot_reactions(path, joints=wanted if isinstance(wanted, list) else None)
+    elif kind == "efforts":
+        res.plot_efforts(path=path)
+    elif kind == "save":
+        return res.save(path, reactions=wants_reactions or None)
+    elif kind == "animate":
+        return res.animate(path, trace=output.get("points", []))
+    else:
+        return res.export(path)
+    return path
 
 
 def _output_paths(args, scene):
