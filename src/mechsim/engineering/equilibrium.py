@@ -59,15 +59,27 @@ STEP = 1e-4
 class Equilibrium:
     """A static equilibrium (`Mechanism.equilibrium`).
 
-    q : (n,) the configuration; v : (n,) zeros;  t : the time the drivers are held at
-    converged : g = 0 was met (`residual` ≤ RESIDUAL of the forces' size)
-    stable : the reduced stiffness K is positive definite; `stability`: "stable",
-        "unstable" or "neutral"
-    stiffness : K (f, f) in the independent `coordinates` (names)
-    method : "newton" (Powell's hybrid from the assembled state) or "continuation"
-    message : what was found, or why not
-    result : a one-sample `SimulationResult` at the equilibrium: reactions, efforts and
-        points are read from it (`eq.joint_force(j)` is `eq.result.joint_force(j)[0]`)
+    Attributes
+    ----------
+    q, v : ndarray (n,)
+        The configuration; zero velocities.
+    t : float
+        The time the drivers are held at.
+    converged : bool
+        g = 0 was met (`residual` ≤ RESIDUAL of the forces' size).
+    stable : bool
+        The reduced stiffness K is positive definite.
+    stability : str
+        "stable", "unstable" or "neutral".
+    stiffness : ndarray (f, f)
+        K in the independent `coordinates` (their names).
+    method : str
+        "newton" (Powell's hybrid from the assembled state) or "continuation".
+    message : str
+        What was found, or why not.
+    result : SimulationResult
+        One sample at the equilibrium: reactions, efforts and points are read from it
+        (`eq.joint_force(j)` is `eq.result.joint_force(j)[0]`).
     """
     q: np.ndarray
     v: np.ndarray

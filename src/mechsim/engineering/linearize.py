@@ -10,7 +10,7 @@ never the full equations with their multipliers). About a state (z₀, ż₀):
 the Jacobians by central differences with Richardson extrapolation. Modes: where C is zero
 (to working precision) the undamped problem K φ = ω² M φ (real, mass-normalized shapes;
 ω² < 0 is an unstable mode, reported with damping ratio −1); else the eigenvalues s of A,
-one mode per conjugate pair with ω = |s| and ζ = −Re s/|s| (and one per real eigenvalue,
+one mode per conjugate pair with ω = abs(s) and ζ = −Re s / abs(s) (and one per real eigenvalue,
 ζ = ±1), with complex shapes. Shapes are mapped to all coordinates by R.
 """
 
@@ -28,15 +28,27 @@ from .reduced import ReducedCoordinates
 class Linearization:
     """A mechanism linearized about (q, v, t) (`Mechanism.linearize`).
 
-    coordinates : names of the f independent coordinates z
-    M, C, K : (f, f) mass, damping and stiffness in z;  A : (2f, 2f) the first-order form
-    tangent : R = dq/dz (n, f), which maps shapes in z to all coordinates
-    eigenvalues : (2f,) complex eigenvalues of A
-    frequencies : (k,) natural angular frequencies [rad/s], ascending
-    damping_ratios : (k,) ζ of each (−1: an unstable, divergent mode)
-    modes : (k, n) shapes in all coordinates (real and mass-normalized in z for an undamped
-        system; complex, largest entry 1, for a damped one)
-    equilibrium : whether (q, v) is at rest in equilibrium (F and ż vanish there)
+    Attributes
+    ----------
+    coordinates : list of str
+        Names of the f independent coordinates z.
+    M, C, K : ndarray (f, f)
+        Mass, damping and stiffness in z.
+    A : ndarray (2f, 2f)
+        The first-order form.
+    tangent : ndarray (n, f)
+        R = dq/dz, which maps shapes in z to all coordinates.
+    eigenvalues : ndarray (2f,)
+        Complex eigenvalues of A.
+    frequencies : ndarray (k,)
+        Natural angular frequencies [rad/s], ascending.
+    damping_ratios : ndarray (k,)
+        ζ of each (−1: an unstable, divergent mode).
+    modes : ndarray (k, n)
+        Shapes in all coordinates (real and mass-normalized in z for an undamped system;
+        complex, largest entry 1, for a damped one).
+    equilibrium : bool
+        Whether (q, v) is at rest in equilibrium (F and ż vanish there).
     """
     q: np.ndarray
     v: np.ndarray

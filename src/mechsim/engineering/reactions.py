@@ -6,6 +6,7 @@
 for a run whose reactions nobody reads.
 
 Conventions (mechsim's API):
+
 - `force(joint)`: the force (N, 2) the joint applies to `joint.body_b`, in global axes; the
   force on body_a is its opposite;
 - `moment(joint)`: the moment (N,) the joint applies to body_b about the joint's point on
@@ -44,7 +45,7 @@ class ReactionTable:
     saved : dict of arrays written by `to_arrays` (a loaded result), or None
     multipliers : the `Multipliers` at the samples where the caller has them (a static
         equilibrium's, `static_multipliers`); else from the equations of motion
-    passages : the run's `SingularPassage`s (inside them directions of J̃ under the
+    passages : the run's `SingularPassage` records (inside them directions of J̃ under the
         projection method's truncation cut are left out, `mechsim.problem.multipliers`), or
         None where no singularity monitor watched the motion
     """

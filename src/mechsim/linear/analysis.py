@@ -5,10 +5,12 @@ The amplification matrix A_m (q_{n+1} = A_m q_n, q = [ẋ; x]) of every method i
 stepping the unit states with the method itself, so the analysis and the integrator can
 never disagree. For "ss-newmark" it equals eq. 11, (I − h/2 A)⁻¹ (I + h/2 A).
 
-From the eigenvalues λ = R e^{±iφ} of A_m:
-  spectral radius  ρ = max |λ|                           (≤ 1: stable)
+From the eigenvalues λ = R e^{±iφ} of A_m::
+
+  spectral radius  ρ = max abs(λ)                        (≤ 1: stable)
   period error     e_p = (T̄ − T)/T · 100 %, T = 2π/ω_d, T̄ = 2π h/φ       (eq. 23)
   amplitude error  e_A = Rⁿ − e^{−ζω n h}                                  (eq. 26)
+
 These are exact for any h (the Taylor series of eqs. 22 and 24 are their small-step limits).
 """
 
@@ -58,7 +60,7 @@ def period_error(method: str, omega: float, zeta: float, h: float) -> float:
 
 
 def amplitude_error(method: str, omega: float, zeta: float, h: float, n: int) -> float:
-    """Rⁿ − e^{−ζω n h} (eq. 26), R = |λ| of the oscillating eigenpair."""
+    """Rⁿ − e^{−ζω n h} (eq. 26), R = abs(λ) of the oscillating eigenpair."""
     if int(n) != n or n < 0:
         raise ValueError(f"`n` must be a non-negative whole number of steps, got {n!r}")
     lam = np.linalg.eigvals(amplification_matrix(method, omega, zeta, h))

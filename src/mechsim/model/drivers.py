@@ -16,7 +16,7 @@ class Driver:
     so `Driver(crank_pivot, "150*t")` turns the crank at 150 rad/s from where it was drawn. If
     f(0) ≠ 0, `Mechanism.assemble` moves the joint there. `expression` is a number or an
     arithmetic expression in `t` (`mechsim.model.expressions`: numbers, t, pi, e,
-    + − * / **, parentheses and sin, cos, tan, asin, acos, atan, atan2, sinh, cosh, tanh,
+    ``+ − * / **``, parentheses and sin, cos, tan, asin, acos, atan, atan2, sinh, cosh, tanh,
     exp, log, sqrt, abs, hypot, radians, degrees). It is parsed here, not evaluated by
     Python: anything else, an unknown name among them, is a ModelError naming the driver.
     """

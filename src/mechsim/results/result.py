@@ -297,7 +297,7 @@ class SimulationResult:
 
     @property
     def energy_scale(self) -> float:
-        """The scale drift is measured against: the largest of |E(0)|, the peak kinetic energy
+        """The scale drift is measured against: the largest of abs(E(0)), the peak kinetic energy
         and the peak change of potential energy, so a mechanism whose total starts near zero
         still has a meaningful relative drift."""
         e = self.energy

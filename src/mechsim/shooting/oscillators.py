@@ -1,11 +1,13 @@
 """Periodically forced oscillators for shooting (seed 002), with event-exact nonsmooth flows.
 
-A periodic problem is anything with
+A periodic problem is anything with::
+
     period : float
     n : number of unknowns
     initial_state(u) -> full state at t = 0 from the unknowns u
     flow(u) -> Trajectory over one period (t, x, and the events it met)
     residual(u) -> g(u), zero at a periodic steady state
+
 so users can shoot their own problems by writing these. Optional: `residual_jacobian(u) ->
 (g, ∂g/∂u)` from one flow (exact Newton, e.g. with a closed-form monodromy), and
 `singular_jacobian = True` where the solutions come in a continuous family (Newton then
@@ -214,7 +216,7 @@ class LinearOscillator(PeriodicProblem):
 class CoulombOscillator(LinearOscillator):
     """Eq. 10: ẍ + 2ζω_n ẋ + ω_n² x + sign(ẋ) μ g = δ_st ω_n² cos ωt, with true sticking.
 
-    At ẋ = 0 the mass sticks while |x − δ_st cos ωt| < μ g / ω_n² (eq. 13) and leaves in the
+    At ẋ = 0 the mass sticks while abs(x − δ_st cos ωt) < μ g / ω_n² (eq. 13) and leaves in the
     direction of the net force (eq. 12). Slip phases are linear with constant friction, so
     for ζ < 1 they are evaluated in closed form and each stop ẋ = 0 is the root of a
     closed-form function (brentq to round-off); stick phases are exact — x is constant — and
@@ -394,7 +396,7 @@ class CoulombOscillator(LinearOscillator):
             s.status == 1
 
     def _stick_end(self, t0, x, t_end):
-        """First time after t0 at which |x − δ cos ωt| reaches μg/ω_n² (or t_end)."""
+        """First time after t0 at which abs(x − δ cos ωt) reaches μg/ω_n² (or t_end)."""
         f = lambda tt: abs(self._excess(tt, x)) - self.limit
         grid = np.linspace(t0, t_end, 257)
         vals = np.abs(x - self.delta_st * np.cos(self.omega * grid)) - self.limit
@@ -429,7 +431,7 @@ _SCAN_CHUNK = 250
 
 class ImpactPair(PeriodicProblem):
     """Seed 002, Fig. 5: m1 forced, m1 ẍ1 = −m1 ω² A cos(ωt + φ); m2 moves freely between two
-    walls of m1 at clearance r and impacts when |x1 − x2| = r, with restitution e (eq. 17).
+    walls of m1 at clearance r and impacts when abs(x1 − x2) = r, with restitution e (eq. 17).
 
     Unknowns u = (x1(0), ẋ1(0), ẋ2(0), φ) with x2(0) = x1(0) (eq. 19); the residual is the
     4-vector x(0) − x(T) of (x1, ẋ1, x2, ẋ2) (eq. 18). Between impacts the motion is known in
@@ -487,7 +489,7 @@ class ImpactPair(PeriodicProblem):
                                 self.initial_state(u), rel_step)
 
     def state_flow(self, y0, phi, t_span=None, samples=400) -> Trajectory:
-        """The motion from any state y0 = (x1, ẋ1, x2, ẋ2) at phase φ (|x1 − x2| ≤ r)."""
+        """The motion from any state y0 = (x1, ẋ1, x2, ẋ2) at phase φ (abs(x1 − x2) ≤ r)."""
         t, t_end = t_span or (0.0, self.period)
         s = np.array(y0, float)
         ts, xs, events = [np.array([t])], [s[None, :].copy()], []

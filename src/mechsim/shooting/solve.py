@@ -226,7 +226,7 @@ def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: i
     ----------
     guess : the unknowns' starting values (for "warner", the other n guess vectors are
         `guess · scale^k`, as in the paper's tables, unless `guesses` gives all n+1)
-    tol : stop when max |g| < tol (the paper's eq. 8: 1e-6)
+    tol : stop when max abs(g) < tol (the paper's eq. 8: 1e-6)
     max_halvings : "newton" halves a step at most this often looking for a smaller ‖g‖
         (fewer makes hopeless starts fail sooner, e.g. in a regime map); "warner" halves a
         new guess back towards the best one at most this often where its flow fails
