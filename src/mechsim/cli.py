@@ -174,19 +174,33 @@ def _summary(scene, res) -> None:
               f"t = {res.t[np.argmax(res.energy.strain)]:.4f} s")
     print(f"constraint max ‖Φ‖ {res.constraint_violation.max():.3e}")
     if res.singular_passages:
-        print(f"singular   {len(res.singular_passages)} passage(s):")
-        for p, jump in zip(res.singular_passages, res.passage_drift()):
+        drift = res.passage_drift()
+        print(f"singular   {len(res.singular_passages)} passage(s), largest energy drift across "
+              f"one {np.max(np.abs(drift)):.1e}:")
+        for p, jump in list(zip(res.singular_passages, drift))[:LISTED]:
             joints = f", joints {', '.join(p.joints)}" if p.joints else ""
             how = "; crossed by the passage bridge" if p.bridged else ""
             print(f"           {p.t_start:.4f} – {p.t_end:.4f} s, closest at {p.t_min:.4f} s "
                   f"(σ_min/σ_max = {p.min_sigma:.3g}, energy drift {jump:+.1e} across)"
                   f"{joints}{how}")
-    for sw in res.switches:
+        _more(len(res.singular_passages), "passages")
+    for sw in res.switches[:LISTED]:
         print(f"switch     t = {sw.t:.4f} s: {sw.from_method} → {sw.to_method} ({sw.reason})")
+    _more(len(res.switches), "switches")
     for body, local in scene.output.get("points", []):
         p = res.point(body, local)[-1]
         print(f"point      {body} {tuple(local)} at t = {res.t[-1]:g}: ({p[0]:.6f}, {p[1]:.6f})")
     _reaction_summary(scene.output, res)
+
+
+# The summary lists this many passages and switches; a saved result holds them all.
+LISTED = 4
+
+
+def _more(count, what) -> None:
+    if count > LISTED:
+        print(f"           … {count - LISTED} more {what} (all of them in the saved result's "
+              f"singular_passages and switches)")
 
 
 def _reaction_summary(output, res) -> None:
