@@ -116,6 +116,7 @@ class Settings:
     ts: np.ndarray | None           # the output grid (None: every step)
     work: bool
     progress: bool = False          # a progress bar (tqdm) over [t_start, t_end]
+    stream: object = None           # a directory the samples are streamed to, or None
 
 
 class Progress:
@@ -168,7 +169,7 @@ class Run:
                       + problem.strain_energy(q0))
             self.work = WorkIntegral(channels, problem.work_rates, settings.rtol,
                                      float(energy), settings.t_end - settings.t_start)
-        self.out = Recorder(problem, settings.ts, channels)
+        self.out = Recorder(problem, settings.ts, channels, settings.stream)
         self.bound = StepBound(settings.max_step, bound_read_at_start(solver_cls))
         self.stats = Statistics()
         self.bridge = form.bridge
@@ -248,6 +249,7 @@ class Run:
         y_here = self._accept(t_old, solver.t, solver.y)
         if self.bridge is not None and self.solver.status == "running":
             self._bridge(self.solver.t, y_here)
+        self.out.flush()
         return True
 
     def _accept(self, t_old, t_new, y_new):
@@ -383,7 +385,7 @@ class Run:
         (from index `recorded`, and `more` times still to be recorded)."""
         if self.work is None:
             return
-        times = list(self.out.t[recorded:]) + list(more)
+        times = list(self.out.times_since(recorded)) + list(more)
         W = self.work.add(a, b, states, times)
         if W is not None:
             self.out.work.extend(W)

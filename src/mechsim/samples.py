@@ -59,36 +59,78 @@ def troubled_drivers(problem, times) -> str:
 class Rows:
     """Rows of `width` numbers in one preallocated array, grown in place (by a quarter) as
     rows come and trimmed in place when handed over: a run's memory is its samples' plus a
-    quarter at most, never a list of small arrays or a copy of the whole."""
+    quarter at most, never a list of small arrays or a copy of the whole. `count` rows in
+    all; the ones in memory start at global index `first` (0 here; see `DiskRows`)."""
 
     def __init__(self, width, capacity):
         self.data = np.empty((max(capacity, 1), width))
-        self.count = 0
+        self.held, self.first = 0, 0
+
+    @property
+    def count(self) -> int:
+        return self.first + self.held
 
     @property
     def rows(self):
-        return self.data[:self.count]
+        return self.data[:self.held]
+
+    def since(self, k):
+        """The rows from global index k on (they are in memory: recorded in this step)."""
+        return self.data[k - self.first:self.held]
 
     def room(self, k=1) -> None:
-        if self.count + k > len(self.data):
-            self.data.resize((max(self.count + k, int(1.25 * len(self.data)) + 16),
+        if self.held + k > len(self.data):
+            self.data.resize((max(self.held + k, int(1.25 * len(self.data)) + 16),
                               self.data.shape[1]), refcheck=False)
 
     def append(self, row) -> None:
         self.room()
-        self.data[self.count] = row
-        self.count += 1
+        self.data[self.held] = row
+        self.held += 1
 
     def extend(self, rows) -> None:
         rows = np.asarray(rows, float).reshape(-1, self.data.shape[1])
         self.room(len(rows))
-        self.data[self.count:self.count + len(rows)] = rows
-        self.count += len(rows)
+        self.data[self.held:self.held + len(rows)] = rows
+        self.held += len(rows)
+
+    def flush(self) -> None:
+        """Between steps: nothing to do for rows kept in memory."""
 
     def take(self) -> np.ndarray:
         """The rows as one array of exactly their size (the buffer itself, trimmed)."""
-        self.data.resize((self.count, self.data.shape[1]), refcheck=False)
+        self.data.resize((self.held, self.data.shape[1]), refcheck=False)
         return self.data
+
+
+class DiskRows(Rows):
+    """`Rows` streamed to the raw float64 file `path` (row-major) a chunk at a time: between
+    steps, once more than `chunk` rows are held, all but the last go to the file (the last
+    stays, for whoever reads the latest sample). `take()` writes the rest and returns the
+    file as a read-only memory map of exactly `count` rows: memory for a chunk, not the
+    run."""
+
+    def __init__(self, width, path, chunk=4096):
+        super().__init__(width, chunk)
+        self.path, self.chunk = path, chunk
+        self.file = open(path, "wb")
+
+    def flush(self) -> None:
+        if self.held > self.chunk:
+            k = self.held - 1
+            self.file.write(self.data[:k].tobytes())
+            self.data[0] = self.data[k]
+            self.first, self.held = self.first + k, 1
+
+    def take(self) -> np.ndarray:
+        self.file.write(self.data[:self.held].tobytes())
+        self.first, self.held = self.first + self.held, 0
+        self.file.close()
+        self.data = np.empty((1, self.data.shape[1]))
+        width = self.data.shape[1]
+        if not self.count or not width:
+            return np.zeros((self.count, width))
+        return np.memmap(self.path, dtype=np.float64, mode="r", shape=(self.count, width))
 
 
 class Recorder:
@@ -97,12 +139,16 @@ class Recorder:
     grid (None: a sample at every accepted step), which sizes the arrays at once; `next`
     the index of its next sample. Samples pass `check_finite` as they are recorded."""
 
-    def __init__(self, problem, ts, channels=()):
+    def __init__(self, problem, ts, channels=(), stream=None):
         self.problem, self.ts, self.next = problem, ts, 0
+        self.n = problem.n
+        if stream is not None:       # a directory: samples.bin, work.bin
+            self.samples = DiskRows(1 + 2 * problem.n, stream / "samples.bin")
+            self.work = DiskRows(len(channels), stream / "work.bin")
+            return
         capacity = len(ts) if ts is not None else 256
         self.samples = Rows(1 + 2 * problem.n, capacity)     # [t, q, v] per sample
         self.work = Rows(len(channels), capacity if channels else 0)
-        self.n = problem.n
 
     @property
     def count(self):
@@ -120,13 +166,22 @@ class Recorder:
     def v(self):
         return self.samples.rows[:, 1 + self.n:]
 
+    def times_since(self, k):
+        """The times of the samples from global index k on (recorded in this step)."""
+        return self.samples.since(k)[:, 0]
+
     def record(self, t, q, v) -> None:
         check_finite(self.problem, t, q, v)
         s = self.samples
         s.room()
-        row = s.data[s.count]
+        row = s.data[s.held]
         row[0], row[1:1 + self.n], row[1 + self.n:] = t, q, v
-        s.count += 1
+        s.held += 1
+
+    def flush(self) -> None:
+        """Between steps: samples and work beyond a chunk go to disk (when streamed)."""
+        self.samples.flush()
+        self.work.flush()
 
     def take(self):
         """(t, q, v) of the run, views into its one trimmed array (no copy)."""

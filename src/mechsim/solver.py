@@ -60,7 +60,8 @@ def check_settings(n, t_end, method, integrator, settings: dict, options: dict):
     says what is wrong (an unknown name gets the closest valid one, or the methods that
     take it). Returns (formulation class, integrator class, t_end, settings)."""
     cls = formulation_class(method)
-    valid = {**SETTINGS, **cls.options, "t_end": None, "method": None, "integrator": None}
+    valid = {**SETTINGS, **cls.options, "t_end": None, "method": None, "integrator": None,
+             "stream": None}
     message = unknown_names(options, valid, f"simulate (method {cls.name!r})")
     if message:
         elsewhere = {name: [m for m, c in METHODS.items() if name in c.options]
@@ -87,6 +88,7 @@ def check_simulate_arguments(n, t_end, method=None, options=None):
     """`check_settings` for the keyword arguments as `Mechanism.simulate` takes them."""
     options = dict(options or {})
     integrator = options.pop("integrator", None)
+    options.pop("stream", None)                  # checked where the run starts
     settings = {k: options.pop(k) for k in list(options) if k in SETTINGS}
     return check_settings(n, t_end, method, integrator, settings, options)
 
@@ -146,7 +148,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
              integrator: str | None = None, first_step: float | None = None,
              singular_thresholds: tuple[float, float] = (0.07, 0.14),
              max_steps: int | None = None, h: float | None = None, work: bool = True,
-             progress: bool = False, **options) -> SimulationResult:
+             progress: bool = False, stream=None, **options) -> SimulationResult:
     """Integrate the constrained equations of motion from a consistent (q0, v0) at t_start.
 
     Parameters
@@ -166,6 +168,10 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         spacing; it costs 9 evaluations of the powers per step, and only mechanisms with such
         forces pay it. False: the balance integrates the power over the output samples
     progress : show a progress bar of simulated time (needs tqdm, the `progress` extra)
+    stream : a directory (created; empty, or a stream written before): the samples go to its
+        files a chunk at a time and the result reads them back as memory maps, so a run of
+        any length needs memory for a chunk (and the output grid's times, 8 bytes a
+        sample); `mechsim.load_result(stream)` loads it again
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
     cls, solver_cls, t_end, checked = check_settings(
@@ -178,6 +184,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     max_steps, singular_thresholds = checked["max_steps"], checked["singular_thresholds"]
     first_step = checked["first_step"] if h is None else h
     q0, v0 = check_initial_state(problem, q0, v0, t_start)
+    stream = stream_directory(stream)
     problem.start_run()
     dof = problem.degrees_of_freedom(q0, t_start) if problem.m else problem.n
     fully_driven = problem.m >= problem.n and dof == 0
@@ -197,7 +204,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     form.monitor = SingularityMonitor(problem, *singular_thresholds, redundant=redundant)
     settings = Settings(t_start, t_end, rtol, atol, max_step, first_step, h, max_steps,
                         output_times(t_start, t_end, output_step), checked["work"],
-                        checked["progress"])
+                        checked["progress"], stream)
     res = Run(problem, form, solver_cls, settings, q0, v0, method=cls.name,
               fully_driven=fully_driven).execute()
     # What `SimulationResult.extend` goes on with.
@@ -205,4 +212,28 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                         max_step=max_step, output_step=output_step,
                         singular_thresholds=singular_thresholds, max_steps=max_steps, h=h,
                         work=checked["work"], **options)
+    if stream is not None:
+        from .results.result import finish_stream
+        finish_stream(res, stream)
     return res
+
+
+def stream_directory(stream):
+    """The directory a run streams to (created), or None; a ValueError where it is not a
+    directory or holds files other than an earlier stream's."""
+    if stream is None:
+        return None
+    from pathlib import Path
+    from .results.result import STREAM_FILES
+    try:
+        path = Path(stream)
+    except TypeError:
+        raise ValueError(f"`stream` must be a directory path, got {stream!r:.60}") from None
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"`stream` must be a directory, got the file {str(path)!r}")
+    path.mkdir(parents=True, exist_ok=True)
+    others = [p.name for p in path.iterdir() if p.name not in STREAM_FILES]
+    if others:
+        raise ValueError(f"`stream` directory {str(path)!r} holds other files "
+                         f"({', '.join(sorted(others)[:3])}…); give an empty one")
+    return path

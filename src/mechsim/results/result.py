@@ -116,6 +116,7 @@ class SimulationResult:
         self.work_record = work      # the work integrated with the motion, if any
         self._saved_reactions = saved_reactions
         self.settings: dict = {}      # simulate's settings (what `extend` goes on with)
+        self.stream_path = None       # the directory a streamed run's samples are in
         if energy is not None:
             self.__dict__["energy"] = energy
         if constraint_violation is not None:
@@ -393,10 +394,7 @@ class SimulationResult:
         `reactions`: also the joint reactions, driver efforts and joint coordinates, so a
         loaded result answers for them (None: where they have been computed already)."""
         path = Path(path)
-        meta = {"coordinate_names": self.coordinate_names, "status": self.status,
-                "message": self.message, "stats": self.stats,
-                "singular_passages": [asdict(s) for s in self.singular_passages],
-                "switches": [asdict(s) for s in self.switches]}
+        meta = _meta(self)
         extra = {}
         if self.problem is not None or "energy" in self.__dict__:
             e = self.energy
@@ -454,8 +452,64 @@ def _cumulative_integral(y, t):
     return cumulative_simpson(y, x=t, initial=0.0, axis=0)
 
 
+def _meta(result) -> dict:
+    """The JSON-able description of a result (names, status, statistics, passages,
+    switches) that `save` and a stream's meta.json keep."""
+    return {"coordinate_names": result.coordinate_names, "status": result.status,
+            "message": result.message, "stats": result.stats,
+            "singular_passages": [asdict(s) for s in result.singular_passages],
+            "switches": [asdict(s) for s in result.switches]}
+
+
+# The files a streamed run writes into its directory (`simulate(stream=...)`).
+STREAM_FILES = ("samples.bin", "work.bin", "meta.json")
+
+
+def finish_stream(result: SimulationResult, directory) -> None:
+    """Write beside a streamed run's samples what reading them back needs (meta.json)."""
+    directory = Path(directory)
+    meta = _meta(result)
+    meta["width"] = 1 + 2 * len(result.coordinate_names)
+    meta["samples"] = len(result.t)
+    work = result.work_record
+    if work is not None:
+        meta["work"] = {"channels": list(work.channels), "rows": len(work.values),
+                        "note": work.note}
+    meta["settings"] = result.settings
+    (directory / "meta.json").write_text(json.dumps(meta, default=float))
+    result.stream_path = directory
+
+
+def _load_stream(directory) -> SimulationResult:
+    """A streamed run read back (its samples as read-only memory maps)."""
+    directory = Path(directory)
+    meta = json.loads((directory / "meta.json").read_text())
+    n = len(meta["coordinate_names"])
+    samples = np.memmap(directory / "samples.bin", dtype=np.float64, mode="r",
+                        shape=(meta["samples"], meta["width"])) if meta["samples"] else \
+        np.zeros((0, 1 + 2 * n))
+    work = None
+    if "work" in meta and meta["work"]["rows"]:
+        w = meta["work"]
+        values = np.memmap(directory / "work.bin", dtype=np.float64, mode="r",
+                           shape=(w["rows"], len(w["channels"])))
+        work = WorkRecord(tuple(w["channels"]), values, w["note"])
+    res = SimulationResult(
+        samples[:, 0], samples[:, 1:1 + n], samples[:, 1 + n:], meta["coordinate_names"],
+        status=meta["status"], message=meta["message"], stats=meta["stats"],
+        singular_passages=[SingularPassage(**{**s, "joints": tuple(s.get("joints", ()))})
+                           for s in meta["singular_passages"]],
+        switches=[Switch(**s) for s in meta["switches"]], work=work)
+    res.settings = meta.get("settings", {})
+    res.stream_path = directory
+    return res
+
+
 def load_result(path) -> SimulationResult:
-    """Read a result written by `SimulationResult.save`."""
+    """Read a result written by `SimulationResult.save`, or the directory a run streamed
+    to (`simulate(stream=...)`)."""
+    if Path(path).is_dir():
+        return _load_stream(path)
     with np.load(path, allow_pickle=False) as data:
         meta = json.loads(str(data["meta"]))
         energy = None
