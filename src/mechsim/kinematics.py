@@ -59,6 +59,17 @@ def frame_point_velocity(q: np.ndarray, v: np.ndarray, start: int | None, s,
     return np.stack([v[..., start] + dx, v[..., start + 1] + dy], axis=-1)
 
 
+def drawn_points(q: np.ndarray, start: int | None, local, modal=None,
+                 scale: float = 1.0) -> np.ndarray:
+    """(K, p, 2) global positions of a body's drawing points `local` (p, 2) at the states
+    q (K, n); `modal` (p, 2, k) their mode shapes (None: rigid), scaled by `scale` (a
+    drawing's exaggeration of the elastic displacement)."""
+    out = np.empty((q.shape[0], len(local), 2))
+    for i, s in enumerate(local):
+        out[:, i] = frame_point(q, start, s, None if modal is None else scale * modal[i])
+    return out
+
+
 # --- scalar: one state q of shape (n,), results as tuples of floats ----------------------------
 def _moved(q, start, s, modal):
     if modal is None:

@@ -23,6 +23,7 @@ import time
 
 import numpy as np
 
+from .. import dense
 from ..newton import newton
 
 # A Newton correction beyond this share of the predicted motion sends the step to halves.
@@ -41,7 +42,7 @@ def _solve(J, b):
     """J⁺ b (exact for a square nonsingular J, least squares for redundant constraints)."""
     if J.shape[0] == J.shape[1]:
         try:
-            return np.linalg.solve(J, b)
+            return dense.solve(J, b)
         except np.linalg.LinAlgError:
             pass
     return np.linalg.lstsq(J, b, rcond=None)[0]

@@ -179,36 +179,36 @@ def joint_wrench(geometry: JointGeometry, q, lam):
     n = q.shape[0]
     on_b = geometry.start_b is not None
     start = geometry.start_b if on_b else geometry.start_a
-    role, local = ("b", geometry.local_b) if on_b else ("a", geometry.local_a)
     joint, p = geometry.joint, geometry.parameters
-    body = joint.body_b if on_b else joint.body_a
     seeds = np.zeros((q.shape[1], 3))
     seeds[start:start + 3] = np.eye(3)
     rows = joint.equations(NumericContext(geometry.starts, q, seeds), p)
     grad = np.stack([np.broadcast_to(derivative(r, (n, 3)), (n, 3)) for r in rows], axis=1)
     generalized = -np.einsum("nr,nrc->nc", lam, grad)      # on (x, y, θ) of the body
     force = generalized[:, :2]
-    plain = NumericContext(geometry.starts, q)
-    px, py = (_broadcast(c, n) for c in plain.point(body, local[0], local[1], p, role))
-    rx, ry = px - q[:, start], py - q[:, start + 1]
-    moment = generalized[:, 2] - (rx * force[:, 1] - ry * force[:, 0])
+    P = _attachment(geometry, q, "b" if on_b else "a")
+    r = P - q[:, start:start + 2]
+    moment = generalized[:, 2] - (r[:, 0] * force[:, 1] - r[:, 1] * force[:, 0])
     if on_b:
         return force, moment
     # On body_b (the ground): the opposite wrench, its moment taken about body_b's point.
-    bx, by = (_broadcast(c, n) for c in plain.point(joint.body_b, geometry.local_b[0],
-                                                     geometry.local_b[1], p, "b"))
-    dx, dy = px - bx, py - by
-    return -force, -moment - (dx * force[:, 1] - dy * force[:, 0])
+    d = P - joint_point(geometry, q)
+    return -force, -moment - (d[:, 0] * force[:, 1] - d[:, 1] * force[:, 0])
 
 
 def joint_point(geometry: JointGeometry, q) -> np.ndarray:
     """The joint's point on its body_b in global axes at the states q (N, n): (N, 2)."""
-    q = np.atleast_2d(q)
-    n = q.shape[0]
-    ctx = NumericContext(geometry.starts, q)
-    x, y = ctx.point(geometry.joint.body_b, geometry.local_b[0], geometry.local_b[1],
-                     geometry.parameters, "b")
-    return np.column_stack([_broadcast(x, n), _broadcast(y, n)])
+    return _attachment(geometry, np.atleast_2d(q), "b")
+
+
+def _attachment(geometry: JointGeometry, q, role: str) -> np.ndarray:
+    """(N, 2) global position of the joint's point on its body_a or body_b (`role` "a" or
+    "b") at the states q (N, n)."""
+    body, local = ((geometry.joint.body_b, geometry.local_b) if role == "b"
+                   else (geometry.joint.body_a, geometry.local_a))
+    x, y = NumericContext(geometry.starts, q).point(body, local[0], local[1],
+                                                    geometry.parameters, role)
+    return np.column_stack([_broadcast(x, q.shape[0]), _broadcast(y, q.shape[0])])
 
 
 def joint_gradient(geometry: JointGeometry, q) -> np.ndarray:

@@ -86,7 +86,8 @@ def linearize(problem, q, v, t: float = 0.0) -> Linearization:
     zd0 = np.asarray(v, float)[reduced.ind]
     z_steps = STEP * reduced.units
     zd_steps = z_steps * max(np.max(np.abs(zd0), initial=0.0), 1.0)     # per second
-    R = reduced.tangent(reduced.positions(np.zeros(f)))
+    q0 = reduced.positions(np.zeros(f))
+    R = reduced.tangent(q0)
     if f == 0:
         empty = np.zeros((0, 0))
         return Linearization(q, v, t, [], empty, empty, empty, empty, R, np.zeros(0),
@@ -96,12 +97,12 @@ def linearize(problem, q, v, t: float = 0.0) -> Linearization:
     F0 = reduced.accelerations(z0, zd0)
     dFdz = jacobian(lambda z: reduced.accelerations(z, zd0), z0, z_steps)
     dFdzd = jacobian(lambda zd: reduced.accelerations(z0, zd), zd0, zd_steps)
-    reduced.positions(z0)
-    M = reduced.mass(reduced.positions(z0), R)
+    M = reduced.mass(q0, R)
     K, C = -M @ dFdz, -M @ dFdzd
     A = np.block([[np.zeros((f, f)), np.eye(f)], [dFdz, dFdzd]])
-    eigenvalues = np.linalg.eigvals(A)
-    frequencies, ratios, shapes = _modes(M, C, K, A)
+    from scipy.linalg import eig
+    eigenvalues, vectors = eig(A)
+    frequencies, ratios, shapes = _modes(M, C, K, eigenvalues, vectors)
     scale = max(np.max(np.abs(dFdz)), 1e-300) * reduced.size
     at_rest = np.max(np.abs(zd0), initial=0.0) == 0.0 and \
         np.max(np.abs(F0), initial=0.0) <= 1e-8 * scale
@@ -110,9 +111,10 @@ def linearize(problem, q, v, t: float = 0.0) -> Linearization:
                          bool(at_rest), list(problem.coordinate_names))
 
 
-def _modes(M, C, K, A):
-    """(frequencies, damping ratios, shapes in z (k, f)) as the module docstring says."""
-    from scipy.linalg import eig, eigh
+def _modes(M, C, K, s, vectors):
+    """(frequencies, damping ratios, shapes in z (k, f)) as the module docstring says, from
+    the eigenvalues s and eigenvectors of A where the system is damped."""
+    from scipy.linalg import eigh
     f = M.shape[0]
     Ks = 0.5 * (K + K.T)
     # Undamped where C is round-off against critical damping's scale 2 √(‖K‖ ‖M‖).
@@ -122,7 +124,6 @@ def _modes(M, C, K, A):
         order = np.argsort(np.abs(w2))
         w2, phi = w2[order], phi[:, order]
         return np.sqrt(np.abs(w2)), np.where(w2 < 0.0, -1.0, 0.0), phi.T
-    s, vectors = eig(A)
     keep = [k for k in range(2 * f) if s[k].imag > 0.0 or s[k].imag == 0.0]
     s, vectors = s[keep], vectors[:f, keep]
     order = np.argsort(np.abs(s))

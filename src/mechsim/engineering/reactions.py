@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .geometry import joint_coordinates, joint_wrench
+
 
 def static_multipliers(problem, t, q):
     """λ of the mechanism at rest in equilibrium at (t, q) (`mechsim.problem.multipliers`)."""
@@ -54,8 +56,7 @@ class ReactionTable:
         self.t, self.q, self.v, self.problem = t, q, v, problem
         self.passages = None if passages is None else [(p.t_start, p.t_end) for p in passages]
         self._multipliers = multipliers
-        self._wrenches: dict = {}
-        self._coordinates: dict = {}
+        self._computed: dict = {}
         self.saved = saved or {}
 
     # --- names -------------------------------------------------------------------------------
@@ -142,12 +143,9 @@ class ReactionTable:
         name = self._joint(joint)
         if f"force:{name}" in self.saved:
             return self.saved[f"force:{name}"], self.saved[f"moment:{name}"]
-        if name not in self._wrenches:
-            from .geometry import joint_wrench
-            p = self._need("the reactions")
-            lam = self.multipliers.lam[:, p.rows_of(name)]
-            self._wrenches[name] = joint_wrench(p.joints[name], self.q, lam)
-        return self._wrenches[name]
+        p = self._need("the reactions")
+        return self._memo(("wrench", name), joint_wrench, p.joints[name], self.q,
+                          self.multipliers.lam[:, p.rows_of(name)])
 
     def force(self, joint, frame: str = "global") -> np.ndarray:
         """The force (N, 2) the joint applies to body_b: in global axes, or with
@@ -184,11 +182,15 @@ class ReactionTable:
         name = self._joint(joint)
         if f"coordinate:{name}" in self.saved:
             return self.saved[f"coordinate:{name}"], self.saved[f"rate:{name}"]
-        if name not in self._coordinates:
-            from .geometry import joint_coordinates
-            p = self._need("the joint coordinates")
-            self._coordinates[name] = joint_coordinates(p.joints[name], self.q, self.v)
-        return self._coordinates[name]
+        p = self._need("the joint coordinates")
+        return self._memo(("coordinates", name), joint_coordinates, p.joints[name], self.q,
+                          self.v)
+
+    def _memo(self, key, compute, *args):
+        """compute(*args), once per key."""
+        if key not in self._computed:
+            self._computed[key] = compute(*args)
+        return self._computed[key]
 
     def driver_rate(self, driver) -> np.ndarray:
         """(N,): the rate of the joint a driver drives (its power is effort × rate)."""
@@ -201,7 +203,7 @@ class ReactionTable:
     @property
     def computed(self) -> bool:
         """Whether anything has been computed or loaded (what `save` keeps by default)."""
-        return bool(self.saved) or self._multipliers is not None or bool(self._coordinates)
+        return bool(self.saved) or self._multipliers is not None or bool(self._computed)
 
     def to_arrays(self) -> dict:
         """Everything this table answers, as arrays (for `SimulationResult.save`)."""

@@ -8,7 +8,7 @@ method does, and measured from it) parametrizes the configurations near that sta
     v(z, ż) = R ż − D (Φ_q D)⁺ Φ_t
     (Rᵀ M R) z̈ = Rᵀ (Q − M s),   s = D (Φ_q D)⁺ γ                 (Wehage and Haug)
 
-The reduced equations are those of the "lu" method (`mechsim.formulations.partitioned`):
+The reduced equations are the "lu" method's own (`partitioned.reduced_accelerations`):
 their conditioning is that of the partition and of the reduced inertia, not that of the
 constraint forces. Redundant constraints (Φ_q D not square) are solved in the least-squares
 sense. Static equilibrium (`mechsim.engineering.equilibrium`), linearization
@@ -50,15 +50,14 @@ class ReducedCoordinates:
     """
 
     def __init__(self, problem, q_ref, t: float = 0.0, tol: float = 1e-13):
+        from ..formulations.basis import CoordinateBasis
         from ..formulations.partitioned import Partitioned
         self.problem, self.t, self.tol = problem, float(t), tol
         self.q_ref = np.array(q_ref, float)
         J = problem.phi_q(self.q_ref, self.t)
-        self.basis = Partitioned(problem, 1e-8, 1e-10).choose(J) if problem.m else None
-        if self.basis is None:
-            self.ind, self.dep = np.arange(problem.n), np.zeros(0, dtype=np.intp)
-        else:
-            self.ind, self.dep = self.basis.ind, self.basis.dep
+        self.basis = Partitioned(problem, 1e-8, 1e-10).choose(J) if problem.m else \
+            CoordinateBasis(np.arange(problem.n), np.zeros(0, dtype=np.intp))
+        self.ind, self.dep = self.basis.ind, self.basis.dep
         self.f = self.ind.size
         self.names = [problem.coordinate_names[i] for i in self.ind]
         self.size = size_of(problem, self.q_ref)
@@ -130,23 +129,23 @@ class ReducedCoordinates:
         return ", ".join(f"{n} = {x:.6g}" for n, x in
                          zip(self.names, self.q_ref[self.ind] + np.asarray(z, float)))
 
-    def tangent(self, q, t=None) -> np.ndarray:
-        """R = dq/dz at the configuration q, shape (n, f)."""
+    def tangent(self, q, t=None, J=None) -> np.ndarray:
+        """R = dq/dz at the configuration q, shape (n, f) (`J`: Φ_q there, if known)."""
         t = self.t if t is None else t
         R = np.zeros((self.problem.n, self.f))
         R[self.ind, np.arange(self.f)] = 1.0
         if self.dep.size:
-            J = self.problem.phi_q(q, t)
+            J = self.problem.phi_q(q, t) if J is None else J
             R[self.dep] = -self._dependent_solve(J, J[:, self.ind])
         return R
 
-    def velocities(self, q, zd, t=None) -> np.ndarray:
-        """v = R ż − D (Φ_q D)⁺ Φ_t at the configuration q."""
+    def velocities(self, q, zd, t=None, J=None) -> np.ndarray:
+        """v = R ż − D (Φ_q D)⁺ Φ_t at the configuration q (`J`: Φ_q there, if known)."""
         t = self.t if t is None else t
         v = np.zeros(self.problem.n)
         v[self.ind] = zd
         if self.dep.size:
-            J = self.problem.phi_q(q, t)
+            J = self.problem.phi_q(q, t) if J is None else J
             v[self.dep] = -self._dependent_solve(J, J[:, self.ind] @ np.asarray(zd, float)
                                                  + self.problem.phi_t(q, t))
         return v
@@ -167,16 +166,9 @@ class ReducedCoordinates:
 
     def accelerations(self, z, zd, t=None) -> np.ndarray:
         """z̈ of the reduced equations at (z, ż)."""
+        from ..formulations.partitioned import reduced_accelerations
         t = self.t if t is None else t
-        prob = self.problem
         q = self.positions(z, t)
-        v = self.velocities(q, zd, t)
-        R = self.tangent(q, t)
-        s = np.zeros(prob.n)
-        if self.dep.size:
-            J = prob.phi_q(q, t)
-            s[self.dep] = self._dependent_solve(J, prob.gamma(q, v, t))
-        Q = prob.forces(t, q, v)
-        MR = prob.mass_diagonal[:, None] * R if prob.constant_mass else prob.mass(q) @ R
-        Ms = prob.mass_diagonal * s if prob.constant_mass else prob.mass(q) @ s
-        return np.linalg.solve(R.T @ MR, R.T @ (Q - Ms))
+        J = self.problem.phi_q(q, t)
+        v = self.velocities(q, zd, t, J)
+        return reduced_accelerations(self.problem, self.basis, t, q, v, J)[self.ind]

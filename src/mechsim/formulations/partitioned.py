@@ -36,8 +36,7 @@ from .. import dense
 from ..newton import CHORD_CONTRACTION, newton
 from ..options import Option
 from .base import Formulation
-from .basis import (SPARSE_MIN, ConstraintSolveError, CoordinateBasis, DenseBlock,
-                    MatrixBasis, condition_number, numerical_rank)
+from .basis import ConstraintSolveError, CoordinateBasis, MatrixBasis, numerical_rank
 
 
 # A partition is given up when cond(Φ_q D) has grown this many times beyond its value at
@@ -364,37 +363,9 @@ class Partitioned(Formulation):
         return np.concatenate([self.basis.Bt(v), self.basis.Bt(qdd)])
 
     def _qdd(self, t, q, v, J, block=None):
-        """q̈ of the consistent state (q, v), Φ_q = J there (`block`: Φ_q D there, factored,
-        if the caller has it), from the partition's reduced equations
-
-            (Rᵀ M R) z̈ = Rᵀ (Q − M s),    q̈ = R z̈ + s,
-
-        R = B − D A⁻¹ Φ_q B spanning the motions the constraints allow, s = D A⁻¹ γ, A = Φ_q D
-        (Wehage and Haug's partitioned equations). Their conditioning is that of the
-        partition (A, kept below `cond_max`) and of the mechanism's reduced inertia, not
-        that of the constraint forces' Schur complement Φ_q M⁻¹ Φ_qᵀ, which grows with the
-        ratio of the masses: a 1 kg point mass (inertia 1e-9 kg·m²) on a 0.5 m link makes
-        it 1e8, a 1e20 kg body with unit inertia 1e20. Redundant constraints (A not
-        square) take the least-squares Schur path."""
-        prob, bs = self.problem, self.basis
-        Q, gamma = prob.forces(t, q, v), prob.gamma(q, v, t)
-        if not self._square:
-            return prob.accelerations(J, Q, gamma, q)[0]
-        if block is None:
-            block = bs.block(J)
-        sol = block.solve(np.column_stack([bs.JB(J), gamma]))
-        X, s_dep = sol[:, :-1], sol[:, -1]
-        R = bs.assemble(np.eye(bs.f), -X)                    # n × f
-        s = bs.assemble(np.zeros(bs.f), s_dep)
-        if prob.constant_mass:
-            m = prob.mass_diagonal
-            MR, Ms = R * m[:, None], m * s
-        else:
-            M = prob.mass(q)
-            MR, Ms = M @ R, M @ s
-        prob.counters.factorizations += 1
-        zdd = dense.solve_psd(R.T @ MR, R.T @ (Q - Ms))
-        return R @ zdd + s
+        """q̈ of the consistent state (q, v) from this partition's reduced equations
+        (`reduced_accelerations`)."""
+        return reduced_accelerations(self.problem, self.basis, t, q, v, J, block)
 
     def _threshold(self, condition):
         """The condition of Φ_q D at which a partition of `condition` is given up."""
@@ -489,3 +460,36 @@ class SVDPartitioned(Partitioned):
         _, _, Vt = np.linalg.svd(J)
         self.independent = ()
         return MatrixBasis(Vt[r:].T, Vt[:r].T)
+
+
+def reduced_accelerations(problem, basis, t, q, v, J, block=None):
+    """q̈ of the consistent state (q, v), Φ_q = J there (`block`: Φ_q D there, factored,
+    if the caller has it), from the partition `basis`'s reduced equations
+
+        (Rᵀ M R) z̈ = Rᵀ (Q − M s),    q̈ = R z̈ + s,
+
+    R = B − D A⁻¹ Φ_q B spanning the motions the constraints allow, s = D A⁻¹ γ, A = Φ_q D
+    (Wehage and Haug's partitioned equations). Their conditioning is that of the partition
+    (A, kept below `cond_max`) and of the mechanism's reduced inertia, not that of the
+    constraint forces' Schur complement Φ_q M⁻¹ Φ_qᵀ, which grows with the ratio of the
+    masses: a 1 kg point mass (inertia 1e-9 kg·m²) on a 0.5 m link makes it 1e8, a 1e20 kg
+    body with unit inertia 1e20. Redundant constraints (A not square) take the
+    least-squares Schur path. Also the reduced map of `mechsim.engineering.reduced`."""
+    Q, gamma = problem.forces(t, q, v), problem.gamma(q, v, t)
+    if basis.r != J.shape[0]:
+        return problem.accelerations(J, Q, gamma, q)[0]
+    if block is None:
+        block = basis.block(J)
+    sol = block.solve(np.column_stack([basis.JB(J), gamma]))
+    X, s_dep = sol[:, :-1], sol[:, -1]
+    R = basis.assemble(np.eye(basis.f), -X)              # n × f
+    s = basis.assemble(np.zeros(basis.f), s_dep)
+    if problem.constant_mass:
+        m = problem.mass_diagonal
+        MR, Ms = R * m[:, None], m * s
+    else:
+        M = problem.mass(q)
+        MR, Ms = M @ R, M @ s
+    problem.counters.factorizations += 1
+    zdd = dense.solve_psd(R.T @ MR, R.T @ (Q - Ms))
+    return R @ zdd + s

@@ -39,9 +39,10 @@ class RotationalSpringData:
     rest: float
 
     def angles(self, x):
-        """θ_b − θ_a (or ω_b − ω_a from velocities) over leading dimensions of x."""
-        out = x[..., self.b + 2] if self.b is not None else 0.0
-        return out - x[..., self.a + 2] if self.a is not None else out + 0.0 * x[..., 0]
+        """θ_b − θ_a (or ω_b − ω_a from velocities) over leading dimensions of x (at most
+        one of a, b is the ground, whose angle is 0)."""
+        b = x[..., self.b + 2] if self.b is not None else 0.0
+        return b - x[..., self.a + 2] if self.a is not None else b
 
 
 @dataclass(frozen=True)

@@ -132,23 +132,27 @@ def static(problem, t, q) -> Multipliers:
     J = problem.phi_q(q, t)
     Q = problem.forces(t, q, np.zeros_like(q))
     U, s, Vt = np.linalg.svd(J, full_matrices=True)
-    keep = s > INDETERMINATE * (s[0] if s.size else 0.0)
-    k = int(np.sum(keep))
+    k, rows = _kept(U, s, INDETERMINATE)
     lam = U[:, :k] @ ((Vt[:k] @ Q) / s[:k])
-    dropped = U[:, k:]
-    rows = np.max(np.abs(dropped), axis=1) > ROW_WEIGHT if dropped.size else \
-        np.zeros(problem.m, dtype=bool)
-    return Multipliers(lam[None], rows[None], np.array([dropped.shape[1]]))
+    return Multipliers(lam[None], rows[None], np.array([U.shape[1] - k]))
 
 
 def minimum_norm(Jt, b, cut=INDETERMINATE):
     """(λ, rows, count) of J̃J̃ᵀ λ = b with the least ‖λ‖ (the directions of the SVD of J̃
     with σ < cut σ_max, `count` of them, get no share) and the rows of those directions."""
     U, s, _ = np.linalg.svd(Jt, full_matrices=True)
-    k = int(np.sum(s > cut * (s[0] if s.size else 0.0)))
+    k, rows = _kept(U, s, cut)
     Uk = U[:, :k]
     lam = Uk @ ((Uk.T @ b) / s[:k] ** 2)
+    return lam, rows, U.shape[1] - k
+
+
+def _kept(U, s, cut):
+    """(k, rows) of an SVD U diag(s) …: the count of singular values above
+    cut σ_max, and the rows (m,) with a share above `ROW_WEIGHT` in the directions past
+    them (the left singular vectors U[:, k:])."""
+    k = int(np.sum(s > cut * (s[0] if s.size else 0.0)))
     dropped = U[:, k:]
     rows = np.max(np.abs(dropped), axis=1) > ROW_WEIGHT if dropped.size else \
-        np.zeros(len(b), dtype=bool)
-    return lam, rows, dropped.shape[1]
+        np.zeros(U.shape[0], dtype=bool)
+    return k, rows

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..kinematics import frame_point
+from ..kinematics import drawn_points, frame_point
 
 # An animation plays at most this many seconds: longer results are decimated.
 MAX_SECONDS = 12.0
@@ -31,7 +31,7 @@ class Scene:
                                "not saved with a result; simulate it again to draw it")
         self.result, self.problem, self.frames = result, p, np.asarray(frames)
         q = result.q[self.frames]
-        self.bodies = [(name, self._polyline(q, start, local, modal, exaggeration))
+        self.bodies = [(name, drawn_points(q, start, local, modal, exaggeration))
                        for name, start, local, modal in p.drawing]
         from ..engineering.geometry import joint_coordinates, joint_point
         self.pins = {name: joint_point(g, q) for name, g in p.joints.items()}
@@ -47,15 +47,6 @@ class Scene:
     @staticmethod
     def _label(body, local):
         return f"{getattr(body, 'name', body)} ({float(local[0]):g}, {float(local[1]):g})"
-
-    @staticmethod
-    def _polyline(q, start, local, modal, exaggeration):
-        """(K, p, 2) positions of a body's drawing points at the states q (K, n)."""
-        out = np.empty((q.shape[0], len(local), 2))
-        for i, s in enumerate(local):
-            m = None if modal is None else exaggeration * modal[i]
-            out[:, i] = frame_point(q, start, s, m)
-        return out
 
     @staticmethod
     def _guide(g, q, lowest, highest):

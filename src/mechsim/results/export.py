@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..kinematics import frame_point, frame_point_velocity
+from ..kinematics import drawn_points, frame_point_velocity
 
 # The formats written: ones whose meshio writers take line cells and point data per time.
 FORMATS = (".xdmf", ".vtu", ".vtk")
@@ -108,15 +108,14 @@ def _fields(q, v, drawing):
     offset = 0
     for b, (name, start, local, modal) in enumerate(drawing):
         p = len(local)
-        pos = np.stack([frame_point(q, start, s, None if modal is None else modal[i])
-                        for i, s in enumerate(local)], axis=1)             # (n, p, 2)
+        pos = drawn_points(q, start, local, modal)                          # (n, p, 2)
         vel = np.stack([frame_point_velocity(q, v, start, s,
                                              None if modal is None else modal[i])
                         for i, s in enumerate(local)], axis=1)
         if modal is None:
             el = np.zeros((n, p, 2))
         else:                     # the deformed points less the same points of the frame
-            el = pos - np.stack([frame_point(q, start, s) for s in local], axis=1)
+            el = pos - drawn_points(q, start, local)
         for k in range(max_modes):
             value = q[:, start + 3 + k] if modal is not None and k < modal.shape[2] \
                 else np.zeros(n)
