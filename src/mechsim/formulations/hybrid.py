@@ -48,25 +48,25 @@ class Hybrid(Formulation):
         self.engine = self.proj.engine if problem.m < SPARSE_MIN else None
 
     def initial_state(self, t, q, v):
-        self.proj.monitor = self.monitor
-        if self.monitor is not None and self.monitor.redundant:
+        self.proj.monitor = mon = self.monitor
+        reason = None
+        if mon is not None and mon.redundant:
             # Redundant constraints: a partition's dependent block is not square, so LU
             # would go without its chord and its branch test; the projection method's
             # truncation drops the redundant directions exactly.
-            self.active = self.proj
-            self.switches.append(Switch(t, "lu", "projection", f"{self.monitor.redundant} "
-                                        "redundant constraint equation(s)"))
-            return self.proj.initial_state(t, q, v)
-        s = self.monitor.measure(q, t)[0] if self.monitor else 1.0
-        # Starts on a singular configuration, or with redundant constraints: no partition
-        # is safe. (A small σ_min/σ_max alone may come from very unequal masses, with Φ_q
-        # of full rank and a well-conditioned partition, which LU's reduced equations take.)
-        if s < 1e-8 and not self._full_rank_partition(q, t):
-            self.active = self.proj
-            self.switches.append(Switch(t, "lu", "projection",
-                                        f"starts near a singular configuration (σ ratio {s:.3g})"))
-            return self.proj.initial_state(t, q, v)
-        return self.lu.initial_state(t, q, v)
+            reason = f"{mon.redundant} redundant constraint equation(s)"
+        else:
+            # Starts on a singular configuration: no partition is safe. (A small
+            # σ_min/σ_max alone may come from very unequal masses, with Φ_q of full rank
+            # and a well-conditioned partition, which LU's reduced equations take.)
+            s = mon.measure(q, t)[0] if mon is not None else 1.0
+            if s < 1e-8 and not self._full_rank_partition(q, t):
+                reason = f"starts near a singular configuration (σ ratio {s:.3g})"
+        if reason is None:
+            return self.lu.initial_state(t, q, v)
+        self.active = self.proj
+        self.switches.append(Switch(t, "lu", "projection", reason))
+        return self.proj.initial_state(t, q, v)
 
     @property
     def bridging(self):
