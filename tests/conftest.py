@@ -1,5 +1,5 @@
 """Test setup: a private model cache per test session, so runs neither read nor pollute the
-user's cache, and tolerance-scaled error helpers."""
+user's cache, the fused build, and tolerance-scaled error helpers."""
 
 import os
 import tempfile
@@ -8,6 +8,10 @@ import numpy as np
 import pytest
 
 os.environ["MECHSIM_CACHE_DIR"] = tempfile.mkdtemp(prefix="mechsim-test-cache-")
+# The suite runs the fused models (compiled where small) it was written against, built in
+# its own process: no test depends on when a background build finishes. The assembled
+# models and the "auto" choice between the two are tested in test_assembly.py.
+os.environ.setdefault("MECHSIM_BUILD", "fused")
 
 
 def scaled_error(y, y_ref, rtol, atol):

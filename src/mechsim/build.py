@@ -12,7 +12,8 @@ import math
 
 import numpy as np
 
-from .model import Driver, FlexibleBeam, Force, LoadError, RotationalSpring, Spring
+from .model import (Driver, FlexibleBeam, Force, LoadError, ModelError, RotationalSpring,
+                    Spring)
 from .model.forces import load_points
 from .model.checks import call_user
 from .problem import FlexibleData, NumericProblem, PointLoad, RotationalSpringData, SpringData
@@ -27,19 +28,56 @@ def body_starts(mech) -> dict:
     return starts
 
 
-def build_problem(mech) -> tuple[NumericProblem, bool]:
-    """(the NumericProblem of `mech`, whether its generated model came from the cache)."""
-    from .codegen import load_model, structure_key
+BUILDS = ("auto", "fused", "assembled")
 
-    items = mech.joints + mech.drivers
+
+def build_mode(build: str | None = None) -> str:
+    """The build asked for: `build`, else `$MECHSIM_BUILD`, else "auto" (see
+    `constraint_model`); a ModelError names anything else."""
+    import os
+    mode = build if build is not None else (os.environ.get("MECHSIM_BUILD") or "auto")
+    if mode not in BUILDS:
+        source = "`build`" if build is not None else "MECHSIM_BUILD"
+        raise ModelError(f"{source} must be one of {', '.join(BUILDS)}; got {mode!r:.40}")
+    return mode
+
+
+def constraint_model(mech, items, build: str = "auto"):
+    """(the model of `mech`'s constraint equations, whether no sympy ran for it).
+
+    - "fused": one generated module for the whole mechanism (`mechsim.codegen`), with the
+      compiled evaluations of small rigid ones: the fastest per evaluation, but a new
+      structure costs a sympy run and a C compile, growing with its size.
+    - "assembled": the system assembled from joint-type kernels (`mechsim.assembly`): a
+      new structure of known joint types costs milliseconds at any size.
+    - "auto": the fused model where the cache has it; else the assembled one, and for a
+      small mechanism (fewer than `compiled.C_MIN_COORDINATES` coordinates, where fusing
+      pays most) the fused model is built in a background process for the runs after
+      (`mechsim.codegen.background`).
+    """
+    from .codegen import background, cached_model, load_model
+
     structure = mech.structure()
+    if build != "assembled":
+        model = cached_model(structure)
+        if model is not None:
+            return model, True
+        if build == "fused":
+            return load_model(structure, lambda: background.fused_source(mech.bodies, items,
+                                                                         structure))
+    from .assembly import AssembledModel
+    from .codegen.compiled import C_MIN_COORDINATES
+    model = AssembledModel(mech.bodies, items)
+    if build == "auto" and model.N < C_MIN_COORDINATES:
+        background.start(mech.bodies, items, structure)
+    return model, model.from_cache
 
-    def generate() -> str:
-        from .codegen.printer import model_source
-        from .symbolic import build_system
-        return model_source(build_system(mech.bodies, items), structure_key(structure))
 
-    model, from_cache = load_model(structure, generate)
+def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]:
+    """(the NumericProblem of `mech`, whether its model came without a sympy run);
+    `build`: "auto", "fused" or "assembled" (`constraint_model`; None: `build_mode()`)."""
+    items = mech.joints + mech.drivers
+    model, from_cache = constraint_model(mech, items, build_mode(build))
     starts = body_starts(mech)
     params = [x for item in items for x in item.parameter_values()]
     names, owners, kinds = [], [], []

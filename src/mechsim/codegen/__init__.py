@@ -15,6 +15,6 @@ module is imported from the cache directory and sympy is never imported. A large
 functions run as compiled C where a compiler is available (`mechsim.codegen.compiled`).
 """
 
-from .cache import CODEGEN_VERSION, cache_dir, load_model, structure_key
+from .cache import CODEGEN_VERSION, cache_dir, cached_model, load_model, structure_key
 
-__all__ = ["CODEGEN_VERSION", "cache_dir", "load_model", "structure_key"]
+__all__ = ["CODEGEN_VERSION", "cache_dir", "cached_model", "load_model", "structure_key"]

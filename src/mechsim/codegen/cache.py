@@ -172,30 +172,46 @@ def _module(name: str, source: str, path: Path | None) -> ModuleType:
 _loaded: dict[str, ModuleType] = {}
 
 
+def cached_model(structure) -> ModuleType | None:
+    """The module of `structure` if this process or the disk cache has it (a damaged disk
+    entry is said in a warning and treated as missing); None otherwise. Never builds."""
+    from .compiled import attach
+
+    key = structure_key(structure)
+    if key in _loaded:
+        return _loaded[key]
+    name = f"mechsim_model_{key}"
+    path = store() / f"{name}.py"
+    data = read_verified(path)
+    if data is None:
+        if path.exists():
+            warnings.warn(f"mechsim: cache entry {path} does not match its digest; "
+                          "rebuilding it")
+        return None
+    try:
+        module = _module(name, data.decode(), path)
+        if getattr(module, "KEY", None) != key:
+            raise ImportError(f"it holds the model {getattr(module, 'KEY', None)!r}")
+    except Exception as exc:  # a damaged entry is rebuilt, never fatal
+        warnings.warn(f"mechsim: ignoring unreadable cache entry {path}: {exc}")
+        return None
+    attach(module, path)
+    _loaded[key] = module
+    return module
+
+
 def load_model(structure, build: Callable[[], str]) -> tuple[ModuleType, bool]:
     """Return (module, from_cache). `build()` produces the module source on a miss (or where
     the cached entry fails its digest, or does not import: then it is rebuilt with a
     warning)."""
     from .compiled import attach
 
+    module = cached_model(structure)
+    if module is not None:
+        return module, True
     key = structure_key(structure)
-    if key in _loaded:
-        return _loaded[key], True
     name = f"mechsim_model_{key}"
     path = store() / f"{name}.py"
-    data = read_verified(path)
-    if data is not None:
-        try:
-            module = _module(name, data.decode(), path)
-            if getattr(module, "KEY", None) == key:
-                attach(module, path)
-                _loaded[key] = module
-                return module, True
-            raise ImportError(f"it holds the model {getattr(module, 'KEY', None)!r}")
-        except Exception as exc:  # a damaged entry is rebuilt, never fatal
-            warnings.warn(f"mechsim: ignoring unreadable cache entry {path}: {exc}")
-    elif path.exists():
-        warnings.warn(f"mechsim: cache entry {path} does not match its digest; rebuilding it")
     source = build()
     try:
         write_entry(path, source.encode())

@@ -33,6 +33,13 @@ import numpy as np
 
 from .cache import adopt, env_flag, read_verified, verified_file, warn_once, write_entry
 
+# Mechanisms with at least this many coordinates call C twins of their functions: there a
+# Python kernel costs far more than a foreign call's overhead (docs/design-notes.md); below
+# it the Python kernels are as fast as a foreign call, and the C twins of
+# Φ, Φ_q, Φ_t and γ serve only inside the compiled partitioned engine. It is also where a
+# fused model stops paying for its build (`mechsim.build.constraint_model`).
+C_MIN_COORDINATES = 60
+
 # Why the compiled path does not serve, by library path (see `status`).
 _declined: dict[str, str] = {}
 
@@ -211,6 +218,10 @@ def compilation(problem) -> Compilation:
     if not (kernels or served):
         if env_flag("MECHSIM_NO_COMPILE"):
             reason = "MECHSIM_NO_COMPILE is set"
+        elif getattr(model, "ASSEMBLED", False):
+            reason = ("the model is assembled from joint-type kernels (numpy); the fused "
+                      "compiled model serves builds after it is in the cache "
+                      "(`Mechanism.problem(build=\"fused\")` builds it now)")
         elif path is None:
             reason = "the model is kept in memory only (its cache could not be written)"
         else:

@@ -11,6 +11,8 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
+from .compiled import C_MIN_COORDINATES
+
 
 
 class _Printer(PythonCodePrinter):
@@ -148,11 +150,6 @@ def kernel_source(q, v, p, functions, key: str) -> str:
     return w.module(key)
 
 
-# Mechanisms with at least this many coordinates call C twins of their functions: there a
-# Python kernel costs far more than a foreign call's overhead (docs/design-notes.md); below
-# it the Python kernels are as fast as a foreign call, and the C twins of
-# Φ, Φ_q, Φ_t and γ serve only inside the compiled partitioned engine.
-C_MIN_COORDINATES = 60
 ENGINE_KERNELS = ("phi", "phi_q", "phi_t", "gamma")
 
 

@@ -48,8 +48,13 @@ class Driver:
         return (self.joint.initial_coordinate(),)
 
     def equations(self, ctx, p):
-        f = self.law.to_sympy({"t": ctx.t})
-        return [self.joint.coordinate(ctx, ctx.parameters(self.joint)) - p["offset"] - f]
+        return [self.displacement(ctx, p) - self.law.to_sympy({"t": ctx.t})]
+
+    def displacement(self, ctx, p):
+        """The joint's coordinate less its initial value: the equation's part that does not
+        depend on time (Φ = displacement − f(t)). The type kernels of `mechsim.assembly`
+        differentiate it once for every driver of its kind and take f from the law."""
+        return self.joint.coordinate(ctx, ctx.parameters(self.joint)) - p["offset"]
 
     def structure(self, index) -> tuple:
         """Its kind, the driven joint's position `index(joint)` and its law."""

@@ -70,6 +70,15 @@ class Expression:
         ValueError where it is undefined (log of a negative number, overflow)."""
         return float(_evaluate(self.tree, values))
 
+    def jet(self, name: str, value: float, **values) -> tuple[float, float, float]:
+        """(f, df/dx, d²f/dx²) at `name` = `value` (the other free names bound to `values`),
+        by second-order forward differentiation of the tree in floats (`Jet`): what a
+        driver's Φ, Φ_t and γ need of its law, exact to round-off and with no sympy."""
+        out = _evaluate(self.tree, {**values, name: Jet(float(value), 1.0, 0.0)})
+        if isinstance(out, Jet):
+            return float(out.f), float(out.d1), float(out.d2)
+        return float(out), 0.0, 0.0
+
     def to_sympy(self, symbols: dict):
         import sympy as sp
         return _sympy(self.tree, symbols, sp)
@@ -189,6 +198,119 @@ class _Builder:
             self.fail(f"{_canonical(tree)} is out of range (magnitude up to {MAX_CONSTANT:g})")
 
 
+class Jet:
+    """A truncated Taylor series f + d1 h + d2 h²/2 in one variable: the value with its
+    first and second derivatives, carried through the arithmetic and functions of
+    `FUNCTIONS` (each by its own chain rule, f(u)'' = f''(u) u'² + f'(u) u'')."""
+
+    __slots__ = ("f", "d1", "d2")
+
+    def __init__(self, f, d1, d2):
+        self.f, self.d1, self.d2 = f, d1, d2
+
+    @staticmethod
+    def of(x) -> "Jet":
+        return x if isinstance(x, Jet) else Jet(float(x), 0.0, 0.0)
+
+    def chain(self, f, df, ddf) -> "Jet":
+        """g(self) given g = f, g' = df, g'' = ddf at self.f."""
+        return Jet(f, df * self.d1, ddf * self.d1 * self.d1 + df * self.d2)
+
+    def __add__(self, o):
+        o = Jet.of(o)
+        return Jet(self.f + o.f, self.d1 + o.d1, self.d2 + o.d2)
+
+    __radd__ = __add__
+
+    def __neg__(self):
+        return Jet(-self.f, -self.d1, -self.d2)
+
+    def __sub__(self, o):
+        return self + (-Jet.of(o))
+
+    def __rsub__(self, o):
+        return Jet.of(o) + (-self)
+
+    def __mul__(self, o):
+        o = Jet.of(o)
+        return Jet(self.f * o.f, self.d1 * o.f + self.f * o.d1,
+                   self.d2 * o.f + 2.0 * self.d1 * o.d1 + self.f * o.d2)
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, o):
+        o = Jet.of(o)
+        return self * o.chain(1.0 / o.f, -1.0 / o.f ** 2, 2.0 / o.f ** 3)
+
+    def __rtruediv__(self, o):
+        return Jet.of(o) / self
+
+    def __pow__(self, o):
+        o = Jet.of(o)
+        if o.d1 == 0.0 and o.d2 == 0.0:            # a constant exponent: x**c
+            c, x = o.f, self.f
+            value = x ** c
+            if isinstance(value, complex):
+                raise ValueError(f"({x:g})**({c:g}) is not real")
+            if c in (0.0, 1.0):
+                return Jet(value, c * self.d1, c * self.d2)
+            return self.chain(value, c * x ** (c - 1.0), c * (c - 1.0) * x ** (c - 2.0))
+        return _exp(o * _log(self))                # a varying exponent: exp(b log a)
+
+    def __rpow__(self, o):
+        return Jet.of(o) ** self
+
+    def derivative(self) -> "Jet":
+        """d/dx of the series as a series one order shorter: its value and first
+        derivative are exact, its second is not known (left 0, and never read)."""
+        return Jet(self.d1, self.d2, 0.0)
+
+
+def _exp(u):
+    e = math.exp(u.f)
+    return u.chain(e, e, e)
+
+
+def _log(u):
+    return u.chain(math.log(u.f), 1.0 / u.f, -1.0 / u.f ** 2)
+
+
+def _sqrt(u):
+    r = math.sqrt(u.f)
+    return u.chain(r, 0.5 / r, -0.25 / (r * u.f))
+
+
+def _atan2(y, x):
+    y, x = Jet.of(y), Jet.of(x)
+    r2 = x * x + y * y
+    rate = (x * y.derivative() - y * x.derivative()) / r2     # d atan2 / dx and its slope
+    return Jet(math.atan2(y.f, x.f), rate.f, rate.d1)
+
+# name: u -> the function of a jet u, by f(u), f'(u), f''(u) at u's value
+_JETS = {
+    "sin": lambda u: u.chain(math.sin(u.f), math.cos(u.f), -math.sin(u.f)),
+    "cos": lambda u: u.chain(math.cos(u.f), -math.sin(u.f), -math.cos(u.f)),
+    "tan": lambda u: u.chain(math.tan(u.f), 1.0 + math.tan(u.f) ** 2,
+                             2.0 * math.tan(u.f) * (1.0 + math.tan(u.f) ** 2)),
+    "asin": lambda u: u.chain(math.asin(u.f), 1.0 / math.sqrt(1.0 - u.f ** 2),
+                              u.f / (1.0 - u.f ** 2) ** 1.5),
+    "acos": lambda u: u.chain(math.acos(u.f), -1.0 / math.sqrt(1.0 - u.f ** 2),
+                              -u.f / (1.0 - u.f ** 2) ** 1.5),
+    "atan": lambda u: u.chain(math.atan(u.f), 1.0 / (1.0 + u.f ** 2),
+                              -2.0 * u.f / (1.0 + u.f ** 2) ** 2),
+    "sinh": lambda u: u.chain(math.sinh(u.f), math.cosh(u.f), math.sinh(u.f)),
+    "cosh": lambda u: u.chain(math.cosh(u.f), math.sinh(u.f), math.cosh(u.f)),
+    "tanh": lambda u: u.chain(math.tanh(u.f), 1.0 - math.tanh(u.f) ** 2,
+                              -2.0 * math.tanh(u.f) * (1.0 - math.tanh(u.f) ** 2)),
+    "exp": _exp, "log": _log, "sqrt": _sqrt,
+    "abs": lambda u: u.chain(abs(u.f), math.copysign(1.0, u.f), 0.0),
+    "atan2": _atan2,
+    "hypot": lambda x, y: _sqrt(Jet.of(x) * x + Jet.of(y) * y),
+    "radians": lambda u: u * (math.pi / 180.0),
+    "degrees": lambda u: u * (180.0 / math.pi),
+}
+
+
 def _is_constant(tree) -> bool:
     kind = tree[0]
     if kind in ("num", "const"):
@@ -224,10 +346,15 @@ def _evaluate(tree, values):
         if op == "/":
             return a / b
         out = a ** b
+        if isinstance(out, Jet):
+            return out
         if isinstance(out, complex):
             raise ValueError(f"({a:g})**({b:g}) is not real")
         return out
-    return FUNCTIONS[tree[1]][1](*(_evaluate(a, values) for a in tree[2:]))
+    args = [_evaluate(a, values) for a in tree[2:]]
+    if any(isinstance(a, Jet) for a in args):
+        return _JETS[tree[1]](*(Jet.of(a) for a in args))
+    return FUNCTIONS[tree[1]][1](*args)
 
 
 def _sympy(tree, symbols, sp):

@@ -74,6 +74,7 @@ class Mechanism:
         self.loads: list = []                 # springs, rotational springs, forces, torques
         self.speeds: dict[str, float] = {}   # joint name -> its prescribed initial rate
         self._problem = None
+        self._build = None                    # the build asked for by `problem(build=)`
         self._assembled: AssemblyReport | None = None
 
     # --- building ----------------------------------------------------------------------------
@@ -168,14 +169,20 @@ class Mechanism:
                 "constraints": [list(item.structure(lambda x: index[id(x)]))
                                 for item in self.joints + self.drivers]}
 
-    def problem(self):
-        """The NumericProblem of this mechanism (compiled once; from the disk cache if seen;
-        see `mechsim.build`)."""
-        if self._problem is None:
+    def problem(self, build: str | None = None):
+        """The NumericProblem of this mechanism, built once (`mechsim.build`). `build`:
+        "fused" (one generated model for the whole mechanism, compiled where small),
+        "assembled" (from joint-type kernels: no sympy run for a new structure), or
+        "auto" (the fused model where the cache has it, else the assembled one); None:
+        `$MECHSIM_BUILD`, else "auto". Asking for another build than the one made
+        rebuilds."""
+        from ..build import build_mode, build_problem
+        mode = None if build is None else build_mode(build)
+        if self._problem is None or (mode is not None and mode != self._build):
             if not self.bodies:
                 raise ModelError(f"mechanism '{self.name}' has no moving bodies")
-            from ..build import build_problem
-            self._problem, self.from_cache = build_problem(self)
+            self._build = build_mode(build)
+            self._problem, self.from_cache = build_problem(self, self._build)
         return self._problem
 
     # --- analysis ----------------------------------------------------------------------------

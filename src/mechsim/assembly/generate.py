@@ -1,0 +1,91 @@
+"""The source of one type kernel: a joint kind's equations between two kinds of bodies,
+differentiated by sympy once and printed as numpy code vectorized over every joint of the
+type. Imported only when a type's kernel is not in the cache (it imports sympy).
+
+A kernel's functions take the stacked coordinates `Q` (N, nq) of the N joints' bodies
+(body_a's then body_b's; the ground has none), their velocities `V` and parameters `P`
+(N, np), and return
+
+    phi(Q, P)          -> Φ (N, r)
+    jacobian(Q, P)     -> Φ_q (N, r, nq)
+    position(Q, P)     -> (Φ, Φ_q)
+    gamma(Q, V, P)     -> −(Φ_q v)_q v (N, r)
+    terms(Q, V, P)     -> (Φ, Φ_q, −(Φ_q v)_q v)
+    dynamics(Q, V, P)  -> (Φ_q, −(Φ_q v)_q v)
+
+with `PATTERN`, the (row, column) entries of Φ_q that can be non-zero. Joints do not depend
+on time; a driver's kernel is its `Driver.displacement`, and its law enters numerically
+(`mechsim.assembly.model`).
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+from sympy.printing.numpy import NumPyPrinter
+
+from ..model import Driver
+from ..symbolic import SymbolicContext
+
+
+def kernel_source(item, key: str) -> str:
+    """The module text of the kernel of `item`'s type (any joint or driver of it serves)."""
+    joint = item.joint if isinstance(item, Driver) else item
+    bodies = [b for b in (joint.body_a, joint.body_b) if b.coordinate_names]
+    ctx = SymbolicContext(bodies, [joint, item] if item is not joint else [joint])
+    p = ctx.parameters(item)
+    rows = [item.displacement(ctx, p)] if item is not joint else item.equations(ctx, p)
+    q, v = sp.Matrix(ctx.q), sp.Matrix(ctx.v)
+    phi = sp.Matrix(rows)
+    J = phi.jacobian(q)
+    gamma = -((J * v).jacobian(q) * v)
+    writer = _Writer(ctx)
+    writer.function("phi", ("Q", "P"), [phi])
+    writer.function("jacobian", ("Q", "P"), [J])
+    writer.function("position", ("Q", "P"), [phi, J])
+    writer.function("gamma", ("Q", "V", "P"), [gamma])
+    writer.function("terms", ("Q", "V", "P"), [phi, J, gamma])
+    writer.function("dynamics", ("Q", "V", "P"), [J, gamma])
+    pattern = [(i, j) for i in range(J.rows) for j in range(J.cols) if J[i, j] != 0]
+    header = ['"""A mechsim type kernel. Generated: rebuilt when missing."""', "import numpy", "",
+              f"KEY = {key!r}", f"ROWS = {phi.rows}", f"COLUMNS = {len(ctx.q)}",
+              f"PARAMETERS = {len(ctx.p)}", f"PATTERN = {pattern!r}", ""]
+    return "\n".join(header + ["\n\n".join(writer.functions), ""])
+
+
+class _Writer:
+    """Prints functions of the kernel's matrices with their common subexpressions shared;
+    a symbol is a column of Q, V or P (symbol names are generated, never the user's)."""
+
+    def __init__(self, ctx):
+        self.columns = {"Q": list(ctx.q), "V": list(ctx.v), "P": list(ctx.p)}
+        self.printer = NumPyPrinter({"fully_qualified_modules": True})
+        self.functions: list[str] = []
+
+    def function(self, name: str, args: tuple[str, ...], outputs: list):
+        pr = self.printer
+        entries, layout = [], []
+        for mat in outputs:
+            nz = [(i, j) for i in range(mat.rows) for j in range(mat.cols) if mat[i, j] != 0]
+            layout.append((mat.rows, mat.cols, nz))
+            entries += [mat[i, j] for i, j in nz]
+        repl, reduced = sp.cse(entries, symbols=sp.numbered_symbols("_c"))
+        used = set().union(*(e.free_symbols for e in reduced),
+                           *(r.free_symbols for _, r in repl)) if entries else set()
+        lines = [f"def {name}({', '.join(args)}):", "    n = len(Q)"]
+        for arg in args:
+            for k, sym in enumerate(self.columns[arg]):
+                if sym in used:
+                    lines.append(f"    {pr.doprint(sym)} = {arg}[:, {k}]")
+        lines += [f"    {pr.doprint(sym)} = {pr.doprint(expr)}" for sym, expr in repl]
+        names, k = [], 0
+        for idx, (rows, cols, nz) in enumerate(layout):
+            out = f"_o{idx}"
+            vector = cols == 1
+            shape = f"(n, {rows})" if vector else f"(n, {rows}, {cols})"
+            lines.append(f"    {out} = numpy.zeros({shape})")
+            for (i, j), e in zip(nz, reduced[k:k + len(nz)]):
+                lines.append(f"    {out}[:, {i}{'' if vector else f', {j}'}] = {pr.doprint(e)}")
+            k += len(nz)
+            names.append(out)
+        lines.append(f"    return {names[0] if len(names) == 1 else ', '.join(names)}")
+        self.functions.append("\n".join(lines))

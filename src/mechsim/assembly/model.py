@@ -1,0 +1,214 @@
+"""A mechanism's constraint system assembled in numbers from the kernels of its joint types.
+
+Joints of one type (kind, the kinds of the two bodies, the parameter names) share one
+kernel (`mechsim.assembly.generate`), generated once per machine and cached on disk; a
+model is then only tables: for each type, the rows its joints write, the columns of their
+bodies' coordinates, and where their parameters sit in p. Evaluating Φ is one vectorized
+kernel call per type and one scatter, so a new model of known types costs no sympy and no
+compiler, however large it is, and a changed topology or geometry costs nothing.
+
+A driver's type is its joint's: its kernel is the displacement of the joint's coordinate,
+and its law f(t) with f' and f'' comes from `Expression.jet` (Φ −= f, Φ_t = −f',
+γ += f''), so drivers with different laws share a kernel too.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ..codegen import load_model, structure_key
+from ..model import Driver
+
+# Bump when the kernels' generated code changes meaning.
+KERNEL_VERSION = 1
+
+
+def _side(body):
+    return "ground" if not body.coordinate_names else [type(body).__name__,
+                                                       list(body.coordinate_names)]
+
+
+def type_key(item) -> list:
+    """What a joint's or driver's kernel depends on: its kind, the kinds of its bodies
+    (the ground, or a body class with its coordinates) and its parameter names."""
+    if isinstance(item, Driver):
+        return ["driver", type_key(item.joint)]
+    return [item.kind, _side(item.body_a), _side(item.body_b), list(item.parameter_names)]
+
+
+def load_kernel(item):
+    """(the kernel module of `item`'s type, whether it came from the cache)."""
+    structure = {"type kernel": type_key(item), "version": KERNEL_VERSION}
+
+    def generate() -> str:
+        from .generate import kernel_source
+        return kernel_source(item, structure_key(structure))
+    return load_model(structure, generate)
+
+
+class _Group:
+    """The joints (or drivers) of one type: their kernel and index tables."""
+
+    def __init__(self, kernel):
+        self.kernel = kernel
+        self.rows, self.cols, self.params, self.laws = [], [], [], []
+
+    def freeze(self, n: int):
+        self.rows = np.array(self.rows, dtype=np.intp).reshape(-1, self.kernel.ROWS)
+        self.cols = np.array(self.cols, dtype=np.intp).reshape(-1, self.kernel.COLUMNS)
+        self.params = np.array(self.params, dtype=np.intp).reshape(-1, self.kernel.PARAMETERS)
+        # Φ_q's entries of each joint, as flat indices into the (m, n) matrix
+        self.flat = self.rows[:, :, None] * n + self.cols[:, None, :]
+        # the (row, column) entries of a joint's block that can be non-zero
+        self.pattern = tuple(np.array(x, dtype=np.intp).reshape(-1)
+                             for x in zip(*self.kernel.PATTERN)) or (np.zeros(0, np.intp),) * 2
+
+
+class AssembledModel:
+    """The generated-module interface (`mechsim.codegen`: phi, phi_q, phi_t, gamma,
+    position_terms, terms, dynamics_terms of (q, [v,] t, p), with `M`, `N` and the
+    Jacobian's pattern) for the joints and drivers `items` acting on `bodies`, evaluated
+    from type kernels. `from_cache`: every kernel was in the cache (no sympy ran)."""
+
+    COMPILED = False
+    ASSEMBLED = True
+    __file__ = None
+
+    def __init__(self, bodies, items):
+        start, starts = 0, {}
+        for b in bodies:
+            starts[id(b)] = range(start, start + len(b.coordinate_names))
+            start += len(b.coordinate_names)
+        self.N = n = start
+        first_param, k = {}, 0
+        for item in items:
+            first_param[id(item)] = k
+            k += len(item.parameter_names)
+        groups, self.from_cache = {}, True
+        row, law_rows, self.laws = 0, [], []
+        for item in items:
+            key = json.dumps(type_key(item))
+            if key not in groups:
+                kernel, cached = load_kernel(item)
+                groups[key] = _Group(kernel)
+                self.from_cache &= cached
+            g = groups[key]
+            joint = item.joint if isinstance(item, Driver) else item
+            g.rows += range(row, row + g.kernel.ROWS)
+            g.cols += [c for b in (joint.body_a, joint.body_b) for c in starts.get(id(b), ())]
+            own = range(first_param[id(item)], first_param[id(item)] + len(item.parameter_names))
+            if item is not joint:
+                g.params += range(first_param[id(joint)],
+                                  first_param[id(joint)] + len(joint.parameter_names))
+                law_rows.append(row)
+                self.laws.append(item.law)
+            g.params += own
+            row += g.kernel.ROWS
+        self.M = row
+        self.groups = list(groups.values())
+        for g in self.groups:
+            g.freeze(n)
+        self.law_rows = np.array(law_rows, dtype=np.intp)
+        pattern = [(g.rows[:, i], g.cols[:, j]) for g in self.groups for i, j in g.kernel.PATTERN]
+        rows = np.concatenate([r for r, _ in pattern]) if pattern else np.zeros(0, np.intp)
+        cols = np.concatenate([c for _, c in pattern]) if pattern else np.zeros(0, np.intp)
+        self.JACOBIAN_ROWS, self.JACOBIAN_COLS = rows.tolist(), cols.tolist()
+        # CSR of that pattern: entries in row-major order, and where each group's come from
+        self._csr_order = np.lexsort((cols, rows))
+        self._csr_indices = cols[self._csr_order]
+        self._csr_indptr = np.searchsorted(rows[self._csr_order], np.arange(self.M + 1))
+        self._seen_p = self._tables = None
+        self._seen_t = self._law_values = None
+
+    # --- inputs --------------------------------------------------------------------------
+    def _p(self, p):
+        """Each group's parameter table (N, np) for the parameter values `p` (kept for
+        the last `p` seen: a problem passes the same tuple every call)."""
+        if p is not self._seen_p:
+            values = np.asarray(p, dtype=float)
+            self._tables = [values[g.params] for g in self.groups]
+            self._seen_p = p
+        return self._tables
+
+    def _law(self, t):
+        """(f, f', f'') of every driver's law at t, each shape (drivers,)."""
+        if t != self._seen_t:
+            jets = [law.jet("t", t) for law in self.laws]
+            self._law_values = np.array(jets, dtype=float).reshape(-1, 3).T
+            self._seen_t = t
+        return self._law_values
+
+    # --- the constraint system --------------------------------------------------------------
+    def phi(self, q, t, p):
+        q = np.asarray(q, dtype=float)
+        out = np.empty(self.M)
+        for g, P in zip(self.groups, self._p(p)):
+            out[g.rows] = g.kernel.phi(q[g.cols], P)
+        if self.laws:
+            out[self.law_rows] -= self._law(t)[0]
+        return out
+
+    def phi_q(self, q, t, p):
+        q = np.asarray(q, dtype=float)
+        out = np.zeros(self.M * self.N)
+        for g, P in zip(self.groups, self._p(p)):
+            out[g.flat] = g.kernel.jacobian(q[g.cols], P)
+        return out.reshape(self.M, self.N)
+
+    def phi_q_csr(self, q, t, p):
+        """Φ_q as a `scipy.sparse.csr_array` of the fixed pattern (`JACOBIAN_ROWS`,
+        `JACOBIAN_COLS`; structural zeros are kept, so every call has the same indices)."""
+        from scipy.sparse import csr_array
+        q = np.asarray(q, dtype=float)
+        values = [g.kernel.jacobian(q[g.cols], P)[:, g.pattern[0], g.pattern[1]].T.ravel()
+                  for g, P in zip(self.groups, self._p(p))]
+        data = np.concatenate(values)[self._csr_order] if values else np.zeros(0)
+        return csr_array((data, self._csr_indices, self._csr_indptr), shape=(self.M, self.N))
+
+    def phi_t(self, q, t, p):
+        out = np.zeros(self.M)
+        if self.laws:
+            out[self.law_rows] = -self._law(t)[1]
+        return out
+
+    def gamma(self, q, v, t, p):
+        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+        out = np.empty(self.M)
+        for g, P in zip(self.groups, self._p(p)):
+            out[g.rows] = g.kernel.gamma(q[g.cols], v[g.cols], P)
+        if self.laws:
+            out[self.law_rows] += self._law(t)[2]
+        return out
+
+    def position_terms(self, q, t, p):
+        q = np.asarray(q, dtype=float)
+        phi, J = np.empty(self.M), np.zeros(self.M * self.N)
+        for g, P in zip(self.groups, self._p(p)):
+            phi[g.rows], J[g.flat] = g.kernel.position(q[g.cols], P)
+        if self.laws:
+            phi[self.law_rows] -= self._law(t)[0]
+        return phi, J.reshape(self.M, self.N)
+
+    def terms(self, q, v, t, p):
+        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+        phi, J, gamma = np.empty(self.M), np.zeros(self.M * self.N), np.empty(self.M)
+        for g, P in zip(self.groups, self._p(p)):
+            phi[g.rows], J[g.flat], gamma[g.rows] = g.kernel.terms(q[g.cols], v[g.cols], P)
+        phi_t = np.zeros(self.M)
+        if self.laws:
+            f, f1, f2 = self._law(t)
+            phi[self.law_rows] -= f
+            phi_t[self.law_rows] = -f1
+            gamma[self.law_rows] += f2
+        return phi, J.reshape(self.M, self.N), phi_t, gamma
+
+    def dynamics_terms(self, q, v, t, p):
+        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+        J, gamma = np.zeros(self.M * self.N), np.empty(self.M)
+        for g, P in zip(self.groups, self._p(p)):
+            J[g.flat], gamma[g.rows] = g.kernel.dynamics(q[g.cols], v[g.cols], P)
+        if self.laws:
+            gamma[self.law_rows] += self._law(t)[2]
+        return J.reshape(self.M, self.N), gamma

@@ -1,0 +1,73 @@
+"""The fused model of a small mechanism, built in a separate process while its first runs
+go on the assembled one (`mechsim.assembly`).
+
+A small mechanism's fused model (one generated module with common subexpressions across
+all its joints, and the compiled evaluations of `mechsim.codegen.engine`) evaluates several
+times faster than its assembly from type kernels, but costs a sympy run and a C compile
+(about a second). `start` hands the mechanism's bodies and constraint items to a new
+Python process (`python -m mechsim.codegen.background`, through a pipe, never a file) that
+builds both into the model cache and exits; builds of the same structure after it has
+finished load the fused model. The process outlives a short script that started it. It is
+not started where `MECHSIM_BACKGROUND` is set false, or where the cache is not the
+configured directory (another process could not find it).
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import subprocess
+import sys
+
+from .cache import cache_dir, env_flag, store, structure_key
+
+_started: set[str] = set()
+
+
+def enabled() -> bool:
+    """Whether background builds may start (`MECHSIM_BACKGROUND`, on by default)."""
+    value = os.environ.get("MECHSIM_BACKGROUND")
+    return value is None or env_flag("MECHSIM_BACKGROUND")
+
+
+def start(bodies, items, structure) -> bool:
+    """Start building the fused model of `structure` (the mechanism's `bodies` and
+    constraint `items`) in a new process, once per structure and process; True if one
+    was started."""
+    key = structure_key(structure)
+    if key in _started or not enabled() or store() != cache_dir():
+        return False
+    try:
+        payload = pickle.dumps((bodies, items, structure))
+        child = subprocess.Popen([sys.executable, "-m", "mechsim.codegen.background"],
+                                 stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.DEVNULL, start_new_session=True)
+        child.stdin.write(payload)
+        child.stdin.close()
+    except (OSError, pickle.PicklingError, TypeError, AttributeError):
+        return False                  # the assembled model serves; nothing is lost
+    _started.add(key)
+    return True
+
+
+def fused_source(bodies, items, structure) -> str:
+    """The fused module's text (sympy): what `mechsim.build` compiles on a miss."""
+    from ..symbolic import build_system
+    from .printer import model_source
+    return model_source(build_system(bodies, items), structure_key(structure))
+
+
+def build(bodies, items, structure):
+    """The fused model (from the cache, or built into it), with its compiled evaluations
+    where they serve; returns the module."""
+    from ..model import FlexibleBeam
+    from . import engine
+    from .cache import load_model
+    module, _ = load_model(structure, lambda: fused_source(bodies, items, structure))
+    if not any(isinstance(b, FlexibleBeam) for b in bodies):
+        engine.library(module)             # the compiled evaluations take rigid models only
+    return module
+
+
+if __name__ == "__main__":
+    build(*pickle.load(sys.stdin.buffer))

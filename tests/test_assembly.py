@@ -1,0 +1,208 @@
+"""Constraint systems assembled from joint-type kernels (`mechsim.assembly`) against the
+fused per-mechanism model on every scene and example mechanism, against finite differences,
+and the build choice ("auto": fused where cached, else assembled with the fused model built
+in the background)."""
+
+import importlib.util
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mechsim as ms
+from mechsim import examples
+from mechsim.assembly import AssembledModel
+from mechsim.model.expressions import parse
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _engine_example():
+    spec = importlib.util.spec_from_file_location("engine_sizing",
+                                                  ROOT / "examples" / "engine_sizing.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.engine(3000.0)
+
+
+MECHANISMS = {
+    **{f"scene {p.stem}": (lambda p=p: ms.load_scene(p).mechanism)
+       for p in sorted((ROOT / "mechanisms").glob("*.toml"))},
+    "four_bar": examples.four_bar,
+    "rigid flexible_four_bar": lambda: examples.flexible_four_bar(rigid=True),
+    "flexible_four_bar 3 modes": lambda: examples.flexible_four_bar(n_modes=3),
+    "double_four_bar": examples.double_four_bar,
+    "10-window": lambda: examples.double_four_bar(10),
+    "slider_crank": examples.slider_crank,
+    "driven slider_crank": lambda: examples.slider_crank(driven=True, crank_speed=100.0),
+    "pendulum": examples.pendulum,
+    "spring_mass": examples.spring_mass,
+    "general_four_bar": lambda: examples.general_four_bar(1.0, 1.0, 1.0, 1.0, theta=0.6),
+    "turning_parallelogram": lambda: examples.turning_parallelogram(0.5, 1.0, 0.4, 2.0),
+    **{f"random {kind}": (lambda kind=kind: examples.random_mechanism(
+        np.random.default_rng(7), kind)[0]) for kind in examples.RANDOM_KINDS},
+    "engine_sizing example": _engine_example,
+}
+
+
+def _state(mech, prob, seed=3):
+    rng = np.random.default_rng(seed)
+    q = mech.initial_coordinates() + 0.05 * rng.standard_normal(prob.n)
+    return q, rng.standard_normal(prob.n), 0.37
+
+
+@pytest.mark.parametrize("name", list(MECHANISMS))
+def test_assembled_equals_fused(name):
+    """Φ, Φ_q, Φ_t, γ and the shared-term groups equal the fused model's to round-off,
+    with the same Jacobian pattern; the loads are the same numeric code on both."""
+    mech = MECHANISMS[name]()
+    fused = mech.problem(build="fused")
+    assembled = mech.problem(build="assembled")
+    assert isinstance(assembled.model, AssembledModel)
+    assert not isinstance(fused.model, AssembledModel)
+    assert assembled.p == fused.p and assembled.m == fused.m
+    q, v, t = _state(mech, fused)
+    a, f, p = assembled.model, fused.model, fused.p
+    pairs = [(a.phi(q, t, p), f.phi(q, t, p)), (a.phi_q(q, t, p), f.phi_q(q, t, p)),
+             (a.phi_t(q, t, p), f.phi_t(q, t, p)), (a.gamma(q, v, t, p), f.gamma(q, v, t, p)),
+             *zip(a.terms(q, v, t, p), f.terms(q, v, t, p)),
+             *zip(a.position_terms(q, t, p), f.position_terms(q, t, p)),
+             *zip(a.dynamics_terms(q, v, t, p), f.dynamics_terms(q, v, t, p))]
+    for x, y in pairs:
+        assert x.shape == y.shape
+        scale = 1.0 + np.max(np.abs(y), initial=0.0)
+        assert np.max(np.abs(x - y), initial=0.0) <= 1e-13 * scale
+    assert sorted(zip(a.JACOBIAN_ROWS, a.JACOBIAN_COLS)) == \
+        sorted(zip(f.JACOBIAN_ROWS, f.JACOBIAN_COLS))
+    assert np.array_equal(a.phi_q_csr(q, t, p).toarray(), a.phi_q(q, t, p))
+
+
+@pytest.mark.parametrize("name", ["scene driven_slider_crank", "scene flexible_slider_crank",
+                                  "flexible_four_bar 3 modes", "random double-rocker"])
+def test_assembled_against_finite_differences(name):
+    """Φ_q and Φ_t are the derivatives of Φ, and γ = −d²Φ/ds² along q + s v, t + s (the
+    path with q̈ = 0), by central differences: first derivatives at h = 1e-5 (truncation
+    ~1e-10, round-off ~1e-11), the second at h = 1e-4 (both ~1e-8)."""
+    mech = MECHANISMS[name]()
+    prob = mech.problem(build="assembled")
+    a, p = prob.model, prob.p
+    q, v, t = _state(mech, prob, seed=11)
+    h = 1e-5
+    J = a.phi_q(q, t, p)
+    fd = np.column_stack([(a.phi(q + h * e, t, p) - a.phi(q - h * e, t, p)) / (2 * h)
+                          for e in np.eye(prob.n)])
+    assert np.max(np.abs(J - fd)) < 1e-8 * (1 + np.max(np.abs(J)))
+    phi_t = (a.phi(q, t + h, p) - a.phi(q, t - h, p)) / (2 * h)
+    assert np.max(np.abs(a.phi_t(q, t, p) - phi_t)) < 1e-7
+    h = 1e-4
+    second = (a.phi(q + h * v, t + h, p) - 2 * a.phi(q, t, p) + a.phi(q - h * v, t - h, p)) / h**2
+    gamma = a.gamma(q, v, t, p)
+    assert np.max(np.abs(gamma + second)) < 1e-5 * (1 + np.max(np.abs(gamma)))
+
+
+def test_driver_laws_share_a_kernel_and_their_jets_are_exact():
+    """Two cranks driven by different laws are one kernel group; each law's f, f', f''
+    (Φ, −Φ_t, γ's share) equal sympy's derivatives."""
+    import sympy as sp
+    mech = examples.double_four_bar(2)
+    laws = ["2*pi*t + 0.3*sin(3*t)", "atan2(sin(t) + 2, cos(t) + 0.5*t) + exp(-t)*t**2"]
+    for name, law in zip(("A1", "A3"), laws):
+        mech.add(ms.Driver(mech.joint(name), law))
+    a = mech.problem(build="assembled").model
+    assert len(a.groups) == 3              # ground pins, coupler pins, drivers
+    t = sp.Symbol("t", real=True)
+    for law in laws:
+        f = parse(law, {"t"}, "law").to_sympy({"t": t})
+        want = [float(f.subs(t, 0.8)), float(f.diff(t).subs(t, 0.8)),
+                float(f.diff(t, 2).subs(t, 0.8))]
+        assert np.allclose(parse(law, {"t"}, "law").jet("t", 0.8), want, rtol=1e-14,
+                           atol=1e-14)
+
+
+@pytest.mark.parametrize("factory, method", [
+    (examples.four_bar, "hybrid"),
+    (lambda: examples.slider_crank(driven=True, crank_speed=100.0), "lu"),
+    (examples.flexible_four_bar, "projection"),
+])
+def test_assembled_runs_equal_fused_runs(factory, method):
+    """The same simulation on both builds: the same steps, states within 1e-9."""
+    runs = []
+    for build in ("fused", "assembled"):
+        mech = factory()
+        mech.problem(build=build)
+        runs.append(mech.simulate(t_end=0.2, method=method, rtol=1e-9, output_step=0.01))
+    fused, assembled = runs
+    assert fused.status == assembled.status == "success"
+    assert fused.stats["steps"] == assembled.stats["steps"]
+    assert np.max(np.abs(fused.q - assembled.q)) < 1e-9
+
+
+def _python(code: str, cache: Path, **env) -> str:
+    full = {**os.environ, "MECHSIM_CACHE_DIR": str(cache), **env}
+    full.pop("MECHSIM_BUILD", None)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=full, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+_BUILD = """
+import json, sys, mechsim as ms
+mech = ms.examples.double_four_bar({n})
+prob = mech.problem()
+print(json.dumps(dict(kind=type(prob.model).__name__, from_cache=mech.from_cache,
+                      sympy="sympy" in sys.modules, engine=mech.compilation().engine)))
+"""
+
+
+def test_auto_build_assembles_then_fuses_in_the_background(tmp_path):
+    """A new small mechanism runs assembled at once while a background process fuses it;
+    a later build loads the fused model with its compiled evaluations. A new topology of
+    the same joint types (the 10-window chain after the 2-window one) runs assembled with
+    no sympy import and no background build (it is large)."""
+    first = json.loads(_python(_BUILD.format(n=2), tmp_path))
+    assert first == dict(kind="AssembledModel", from_cache=False, sympy=True, engine=False)
+    deadline = time.monotonic() + 120
+    while True:
+        later = json.loads(_python(_BUILD.format(n=2), tmp_path))
+        if later["kind"] != "AssembledModel" or time.monotonic() > deadline:
+            break
+        time.sleep(1.0)
+    assert later == dict(kind="module", from_cache=True, sympy=False, engine=True)
+    chain = json.loads(_python(_BUILD.format(n=10), tmp_path))
+    assert chain == dict(kind="AssembledModel", from_cache=True, sympy=False, engine=False)
+    assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 3   # 2 kernels, 1 fused
+
+
+def test_background_builds_can_be_switched_off(tmp_path):
+    _python(_BUILD.format(n=2), tmp_path, MECHSIM_BACKGROUND="0")
+    time.sleep(3.0)
+    assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 2   # the kernels only
+
+
+def test_unknown_build_is_an_error(monkeypatch):
+    mech = examples.four_bar()
+    with pytest.raises(ms.ModelError, match="`build` must be one of auto, fused, assembled"):
+        mech.problem(build="fast")
+    monkeypatch.setenv("MECHSIM_BUILD", "quick")
+    with pytest.raises(ms.ModelError, match="MECHSIM_BUILD must be one of"):
+        examples.pendulum().problem()
+
+
+def test_assembled_kernels_survive_a_damaged_cache_entry(tmp_path):
+    """A kernel whose cache entry was edited is rebuilt with a warning."""
+    _python(_BUILD.format(n=1), tmp_path, MECHSIM_BACKGROUND="0")
+    for path in tmp_path.glob("mechsim_model_*.py"):
+        path.write_text(path.read_text().replace("numpy.zeros", "numpy.ones"))
+    code = _BUILD.format(n=1) + "print(abs(prob.phi(mech.initial_coordinates(), 0.0)).max())"
+    out = _python(code, tmp_path, MECHSIM_BACKGROUND="0")
+    report, residual = out.splitlines()
+    assert json.loads(report)["from_cache"] is False
+    assert float(residual) < 1e-12
+    assert math.isfinite(float(residual))
