@@ -19,9 +19,11 @@ from .model import (AssemblyError, Body, LoadError, DofReport, Driver, FlexibleB
 __version__ = "0.1.0"
 
 _LAZY_MODULES = {"examples", "scene", "solver", "codegen", "formulations", "integrators",
-                 "results", "linear", "bench", "shooting", "engineering"}
+                 "results", "linear", "bench", "shooting", "engineering", "study",
+                 "assembly"}
 _LAZY_NAMES = {"SimulationResult": "results", "load_result": "results",
-               "load_scene": "scene", "LinearSystem": "linear"}
+               "load_scene": "scene", "LinearSystem": "linear", "sweep": "study",
+               "Study": "study"}
 _ALIASES = {"rotor": "linear.rotor", "analysis": "linear.analysis",
             "oscillators": "shooting.oscillators"}
 
@@ -43,5 +45,5 @@ def __dir__():
 
 __all__ = ["AssemblyError", "Body", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Ground", "Joint",
            "LinearSystem", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody",
-           "RotationalSpring", "SimulationResult", "Spring", "Torque", "load_result",
-           "load_scene"]
+           "RotationalSpring", "SimulationResult", "Spring", "Study", "Torque", "load_result",
+           "load_scene", "sweep"]

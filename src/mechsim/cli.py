@@ -150,8 +150,10 @@ def _analyses(args, mech, t) -> None:
 def _header(scene, mech, report, assembly, t_build) -> None:
     """What is about to run, printed before it runs."""
     print(f"scene      {scene.path}  ({mech.name})")
-    print(f"model      {'loaded from cache' if mech.from_cache else 'compiled and cached'} "
-          f"in {t_build:.3f} s; {report}")
+    assembled = getattr(mech.problem().model, "ASSEMBLED", False)
+    how = ("assembled from joint-type kernels" if assembled else "fused model") + \
+        (", loaded from cache" if mech.from_cache else ", generated and cached")
+    print(f"model      {how} in {t_build:.3f} s; {report}")
     print(f"assembly   {assembly}", flush=True)
 
 

@@ -1,7 +1,7 @@
 """Impact-mode regime map of the impact pair over excitation amplitude × frequency (seed 002,
 Fig. 8): each point is a periodic steady state found by shooting, continued from its
 neighbour, with its stability from the Floquet multipliers; rows of constant amplitude run
-in parallel on a process pool.
+in parallel, as a parameter study's samples (`mechsim.study.run_tasks`).
 
 Where continuation finds no periodic state, the map says what the pair does there instead:
 it simulates `SETTLE` periods from the nearest state found and looks for a motion that
@@ -20,12 +20,11 @@ and (2, 3) periods for a thousand periods.
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..study import run_tasks
 from .oscillators import ImpactPair
 from .solve import solve
 
@@ -210,10 +209,13 @@ def _row(args):
 
 
 def regime_map(amplitudes, omegas, seed, seed_amplitude, seed_omega, m1=0.2799,
-               m2=0.000545, clearance=0.028, restitution=0.7, processes=None) -> RegimeMap:
+               m2=0.000545, clearance=0.028, restitution=0.7, processes=None, client=None,
+               progress=False) -> RegimeMap:
     """Modes over `amplitudes` × `omegas`, continued from `seed` (a steady state
     (x1, ẋ1, ẋ2, φ) at (seed_amplitude, seed_omega)): first down the column of the seed's
-    frequency, then along every row in parallel."""
+    frequency, then along every row in parallel, as the samples of a parameter study run
+    (`mechsim.study.run_tasks`): on `processes` local processes (None: every core; 1: in
+    this process) or on a dask.distributed `client`; `progress`: a bar of finished rows."""
     import time
     start = time.perf_counter()
     params = dict(m1=m1, m2=m2, clearance=clearance, restitution=restitution)
@@ -230,12 +232,11 @@ def regime_map(amplitudes, omegas, seed, seed_amplitude, seed_omega, m1=0.2799,
                 guess = x
             seeds[i] = guess
     tasks = [(params, A, omegas, j0, seeds[i]) for i, A in enumerate(amplitudes)]
-    workers = processes or os.cpu_count() or 1
-    if workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            rows = list(pool.map(_row, tasks))
-    else:
-        rows = [_row(t) for t in tasks]
+    rows = run_tasks(_row, tasks, client=client, workers=processes, progress=progress,
+                     desc="regime map rows")
+    failed = next((r for r in rows if isinstance(r, BaseException)), None)
+    if failed is not None:
+        raise failed
     x0, modes, stable, periods, cycles = (np.array([r[k] for r in rows]) for k in range(5))
     return RegimeMap(amplitudes, omegas, modes, x0, time.perf_counter() - start, stable,
                      periods, cycles)
