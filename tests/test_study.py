@@ -3,8 +3,10 @@ a dask.distributed LocalCluster; measures against the closed forms; failing samp
 recorded; one compiled model for the whole study; the parameter sets of grids and Monte
 Carlo tables; bad arguments."""
 
+import csv
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -166,3 +168,73 @@ def test_bad_study_arguments_fail_before_any_sample(kwargs, message):
         raise AssertionError("no sample may run")
     with pytest.raises(ms.ModelError, match=message):
         ms.sweep(**{"build": build, **kwargs})
+
+
+# --- study files and `mechsim sweep` -------------------------------------------------------------
+SCENE = Path(__file__).resolve().parents[1] / "mechanisms" / "driven_slider_crank.toml"
+STUDY = f"""
+scene = "{SCENE}"
+samples = 6
+seed = 2
+
+[vary]
+r = {{ normal = [0.05, 0.0005] }}
+m_rod = {{ uniform = [0.5, 0.7] }}
+w = ["2*pi*25", "2*pi*50"]
+
+[[measure]]
+name = "stroke"
+range = "piston.x"
+
+[[measure]]
+peak_effort = "motor"
+"""
+
+
+def test_sweep_command_runs_a_study_file(tmp_path, capsys):
+    """`mechsim sweep` writes the table and summarises it: 12 samples (6 draws × 2 speeds,
+    the same draws at each speed); the piston's stroke is 2r in each (at 1500 and 3000 rpm
+    the output grid holds both dead centres), and the motor's peak torque grows with
+    speed."""
+    from mechsim.cli import main
+    study = tmp_path / "study.toml"
+    study.write_text(STUDY)
+    out = tmp_path / "table.csv"
+    assert main(["sweep", str(study), "--out", str(out), "--workers", "2"]) == 0
+    printed = capsys.readouterr().out
+    assert "samples    12 in" in printed and "12 succeeded" in printed
+    assert "peak_effort motor" in printed and f"wrote {out}" in printed
+    with open(out) as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 12 and all(r["status"] == "success" for r in rows)
+    for r in rows:
+        assert abs(float(r["stroke"]) - 2 * float(r["r"])) < 1e-8
+    slow, fast = rows[:6], rows[6:]
+    assert [r["r"] for r in slow] == [r["r"] for r in fast]
+    assert all(float(b["peak_effort motor"]) > float(a["peak_effort motor"])
+               for a, b in zip(slow, fast))
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("samples = 6", "samples = 6\nthreads = 2"), "unknown top-level key(s) 'threads'"),
+    (("r = {", "radius = {"), "[vary] radius: the scene has no such parameter"),
+    (("normal = [0.05, 0.0005]", "normal = [0.05, -1]"), "normal needs standard deviation > 0"),
+    (("normal = [0.05, 0.0005]", "gauss = [0.05, 1]"), "a distribution is { normal"),
+    (('range = "piston.x"', 'range = "piston.z"'), "range: no coordinate 'piston.z'"),
+    (('peak_effort = "motor"', 'peak_effort = "pump"'), "no driver 'pump'; drivers: motor"),
+    (('peak_effort = "motor"', 'peak_force = "motor"'), "no joint 'motor'"),
+    (("samples = 6\n", ""), "give `samples`"),
+    (("r = { normal = [0.05, 0.0005] }\nm_rod = { uniform = [0.5, 0.7] }\n", ""),
+     "`samples` is for [vary] distributions"),
+    (('name = "stroke"', 'name = "status"'), "`name` must be a new column name"),
+    (('w = ["2*pi*25", "2*pi*50"]', 'w = ["__import__(\'os\')"]'), "unknown function '__import__'"),
+])
+def test_bad_study_files_are_refused_before_any_sample(tmp_path, capsys, edit, message):
+    from mechsim.cli import main
+    study = tmp_path / "study.toml"
+    old, new = edit
+    assert old in STUDY
+    study.write_text(STUDY.replace(old, new))
+    assert main(["sweep", str(study), "--out", str(tmp_path / "t.csv")]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "t.csv").exists()

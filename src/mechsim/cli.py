@@ -1,8 +1,9 @@
-"""Command line: `mechsim run SCENE`, `mechsim bench [PROBLEM ...]`."""
+"""Command line: `mechsim run SCENE`, `mechsim sweep STUDY`, `mechsim bench [PROBLEM ...]`."""
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -295,6 +296,45 @@ def _bench(args) -> int:
     return 0
 
 
+def _sweep(args) -> int:
+    from .model import ModelError
+    from .study_file import load_study, summary, write_table
+
+    try:
+        study_file = load_study(args.study)
+        if args.workers is not None and args.workers < 1:
+            raise ModelError(f"--workers must be a count ≥ 1, got {args.workers}")
+    except (ModelError, OSError) as exc:
+        print(f"mechsim: {exc}", file=sys.stderr)
+        return 2
+    output = Path(args.out) if args.out else study_file.output
+    client = None
+    if args.scheduler:
+        try:
+            from distributed import Client
+        except ImportError:
+            print("mechsim: --scheduler needs dask.distributed (pip install 'mechsim[dask]')",
+                  file=sys.stderr)
+            return 2
+        client = Client(args.scheduler)
+    if not args.quiet:
+        where = f"dask scheduler {args.scheduler}" if client else \
+            f"{args.workers or study_file.workers or os.cpu_count()} local process(es)"
+        print(f"study      {study_file.path} of scene {study_file.scene}, on {where}",
+              flush=True)
+    try:
+        study = study_file.run(client=client, workers=args.workers,
+                               progress=not args.quiet and sys.stderr.isatty())
+    finally:
+        if client is not None:
+            client.close()
+    write_table(study, output)
+    if not args.quiet:
+        print("\n".join(summary(study)))
+        print(f"wrote {output}")
+    return 0 if not len(study.failed) else 1
+
+
 def main(argv=None) -> int:
     from . import __version__
     parser = argparse.ArgumentParser(prog="mechsim", description="Planar mechanism simulator")
@@ -349,6 +389,16 @@ def main(argv=None) -> int:
                             "(default: 1e-4,1e-6,1e-8,1e-10)")
     bench.add_argument("--out", default="out/bench", help="where to write CSV and plots")
     bench.set_defaults(func=_bench)
+    study = sub.add_parser("sweep", help="run a parameter study of a scene (a TOML study "
+                                         "file, see mechanisms/studies/)")
+    study.add_argument("study", help="the study file")
+    study.add_argument("--workers", type=int, help="local processes (default: the file's "
+                                                   "`workers`, else every core)")
+    study.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run on this dask.distributed scheduler instead")
+    study.add_argument("--out", help="the CSV table (default: the file's `output`)")
+    study.add_argument("--quiet", action="store_true", help="print errors only")
+    study.set_defaults(func=_sweep)
     args = parser.parse_args(argv)
     try:
         return args.func(args)

@@ -252,9 +252,11 @@ class _Reader:
                 for key, value in raw.items()}
 
 
-def load_scene(path) -> Scene:
+def load_scene(path, parameters: dict | None = None) -> Scene:
     """Build the mechanism described by the TOML file at `path`, checking every table and
-    key first (see the module docstring); a malformed scene is a SceneError."""
+    key first (see the module docstring); a malformed scene is a SceneError. `parameters`:
+    numbers that replace the values of the scene's `[parameters]` of those names (the
+    later parameters computed from them follow), as a parameter study varies them."""
     path = Path(path)
     f = path.name
     data = _read_toml(path)
@@ -271,11 +273,17 @@ def load_scene(path) -> Scene:
                 isinstance(data[key], list) and all(isinstance(t, dict) for t in data[key])):
             raise SceneError(f"{f}: `{key}` must be an array of tables [[{key}]], got "
                              f"{_kind(data[key])} {_show(data[key])}")
-    for key, value in data.get("parameters", {}).items():
+    declared = data.get("parameters", {})
+    given = dict(parameters or {})
+    unknown = [k for k in given if k not in declared]
+    if unknown:
+        raise SceneError(f"{f}: no [parameters] named {', '.join(map(repr, unknown))} to "
+                         f"replace; parameters: {', '.join(declared) or '(none)'}")
+    for key, value in declared.items():
         if not key.isidentifier():
             raise SceneError(f"{f}: [parameters] {key!r} is not a valid name (letters, digits "
                              "and underscores, not starting with a digit)")
-        r.names[key] = evaluate(value, r.names, f"{f}: [parameters] {key}")
+        r.names[key] = evaluate(given.get(key, value), r.names, f"{f}: [parameters] {key}")
     name = r.value("name", data.get("name", path.stem), "name")
     gravity = r.value("vector", data.get("gravity", [0.0, -9.81]), "gravity")
     tables = {key: [] for key in _ARRAYS}
