@@ -138,6 +138,8 @@ def test_failures_of_every_stage_are_recorded(capsys):
 def test_parameter_sets_factorial_monte_carlo_and_lists():
     assert parameter_sets({"a": [1, 2], "b": [10, 20, 30], "c": 5.0}) == [
         {"c": 5.0, "a": a, "b": b} for a in (1, 2) for b in (10, 20, 30)]
+    assert list(parameter_sets({"m": [1, 2], "r": stats.uniform(0, 1), "k": 3.0},
+                               samples=2)[0]) == ["m", "r", "k"]       # the table's order
     assert parameter_sets([{"a": 1}, {"a": 2, "b": 3}]) == [{"a": 1}, {"a": 2, "b": 3}]
     sets = parameter_sets({"r": stats.norm(0.15, 1e-3), "speed": [50.0, 100.0]}, samples=400,
                           seed=3)

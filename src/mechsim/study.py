@@ -195,8 +195,9 @@ def parameter_sets(grid, samples=None, seed=None) -> list[dict]:
                          "`rvs`, e.g. scipy.stats.norm(mean, sd)); this grid has none")
     else:
         monte_carlo = [{}]
-    return [{**constants, **dict(zip(axes, point)), **mc}
+    sets = [{**constants, **dict(zip(axes, point)), **mc}
             for point in itertools.product(*axes.values()) for mc in monte_carlo]
+    return [{name: s[name] for name in grid} for s in sets]      # in the grid's order
 
 
 # Columns every study's table has besides its parameters and measures.

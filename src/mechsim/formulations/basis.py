@@ -46,13 +46,6 @@ def inverse_or_none(A):
         return None
 
 
-def numerical_rank(J) -> int:
-    if J.shape[0] == 0:
-        return 0
-    s = dense.svdvals(J)
-    return int(np.sum(s > max(J.shape) * np.finfo(float).eps * 1e3 * s[0]))
-
-
 
 class DenseBlock:
     """Φ_q D as a dense matrix. `solve` is LAPACK's (least squares when the block is not

@@ -91,7 +91,9 @@ def settle_samples(problem, ts, Q, V, accept) -> None:
     round-off (`ROUND_OFF` of its largest coordinate). Rigid mechanisms take one Newton
     step for all such samples at once (stacked Schur complements; a sample off by an
     integrator's error lands within round-off) and each velocity its projection at the new
-    positions; a sample that does not land, and every sample of a flexible mechanism, is
+    positions; a sample that does not land, every sample of a long chain (whose banded
+    complement costs O(n) where a stacked dense one costs O(n³)) and every sample of a
+    flexible mechanism, is
     projected on its own (`NumericProblem.project_state`, the full projections where its
     chord fails). A sample at a singular configuration, where the projection ends above
     `accept`, is kept as it was."""
@@ -102,7 +104,7 @@ def settle_samples(problem, ts, Q, V, accept) -> None:
     off = np.flatnonzero(np.max(np.abs(phis), axis=1) > floors)
     if not off.size:
         return
-    if problem.constant_mass:
+    if problem.constant_mass and problem.schur is None:
         off = _settle_together(problem, ts, Q, V, phis, floors, off)
     for k in off:
         t = ts[k]
@@ -122,7 +124,7 @@ def _settle_together(problem, ts, Q, V, phis, floors, off):
     tk = ts[off]
     J = np.array([problem.phi_q(Q[k], t) for k, t in zip(off, tk)])        # (s, m, n)
     try:
-        lam = np.linalg.solve(np.einsum("smn,n,spn->smp", J, w, J), phis[off][..., None])
+        lam = np.linalg.solve((J * w) @ J.transpose(0, 2, 1), phis[off][..., None])
     except np.linalg.LinAlgError:
         return off
     q_new = Q[off] - w * np.einsum("smn,sm->sn", J, lam[..., 0])
@@ -136,7 +138,7 @@ def _settle_together(problem, ts, Q, V, phis, floors, off):
     if problem.rheonomic_rows:
         r += np.array([problem.phi_t(q, t) for q, t in zip(q_new, tk)])
     try:
-        mu = np.linalg.solve(np.einsum("smn,n,spn->smp", J, w, J), r[..., None])[..., 0]
+        mu = np.linalg.solve((J * w) @ J.transpose(0, 2, 1), r[..., None])[..., 0]
     except np.linalg.LinAlgError:
         return off
     Q[idx] = q_new

@@ -36,7 +36,7 @@ from .. import dense
 from ..newton import CHORD_CONTRACTION, newton
 from ..options import Option
 from .base import Formulation
-from .basis import ConstraintSolveError, CoordinateBasis, MatrixBasis, numerical_rank
+from .basis import ConstraintSolveError, CoordinateBasis, MatrixBasis
 
 
 # A partition is given up when cond(Φ_q D) has grown this many times beyond its value at
@@ -90,7 +90,7 @@ class Partitioned(Formulation):
     def choose(self, J, rank=None) -> CoordinateBasis:
         """The independent and dependent directions at Φ_q = J (f = n − r and r of them).
         `rank`: Φ_q's rank if the caller knows it (its SVD is dear on long chains)."""
-        r = numerical_rank(J) if rank is None else rank
+        r = self.problem.rank(J) if rank is None else rank
         with warnings.catch_warnings():      # a rank-deficient Φ_q (redundancy) is expected
             warnings.simplefilter("ignore", sla.LinAlgWarning)
             _, piv = sla.lu_factor(J.T, check_finite=False)
@@ -446,7 +446,7 @@ class QRPartitioned(Partitioned):
     name = "qr"
 
     def choose(self, J, rank=None):
-        r = numerical_rank(J) if rank is None else rank
+        r = self.problem.rank(J) if rank is None else rank
         _, P = sla.qr(J, pivoting=True, mode="r", check_finite=False)
         return self._coordinate_bases(P[r:], P[:r])
 
@@ -456,7 +456,7 @@ class SVDPartitioned(Partitioned):
     moving_basis = True
 
     def choose(self, J, rank=None):
-        r = numerical_rank(J) if rank is None else rank
+        r = self.problem.rank(J) if rank is None else rank
         _, _, Vt = np.linalg.svd(J)
         self.independent = ()
         return MatrixBasis(Vt[r:].T, Vt[:r].T)

@@ -154,13 +154,25 @@ class NumericProblem:
         return [i for i, name in enumerate(self.constraint_kinds) if name == "driver"]
 
     def degrees_of_freedom(self, q, t) -> int:
-        """n − rank Φ_q at (q, t) (the rank from the SVD, as `Mechanism.dof`)."""
-        if self.m == 0:
-            return self.n
-        J = self.phi_q(q, t)
+        """n − rank Φ_q at (q, t) (`rank`)."""
+        return self.n - self.rank(self.phi_q(q, t)) if self.m else self.n
+
+    def rank(self, J) -> int:
+        """The numerical rank of Φ_q = J: the number of its singular values above
+        1e3 ε max(m, n) σ_max (as `Mechanism.dof`). A long chain's banded complement
+        settles the common case in O(n): where its smallest eigenvalue is above 1e-12 of
+        its largest (σ_min > 1e-6 σ_max, far above the cut), J has full row rank; anything
+        else takes the dense SVD."""
+        band = self.schur
+        if band is not None:
+            c = band.factor(J, scaled=True)
+            low = band.smallest(c) if c is not None else None
+            if low is not None and low[0] > 1e-12 * band.largest()[0]:
+                return self.m
+        if J.shape[0] == 0:
+            return 0
         s = dense().svdvals(J)
-        tol = max(J.shape) * np.finfo(float).eps * 1e3 * (s[0] if s.size else 1.0)
-        return self.n - int(np.sum(s > tol))
+        return int(np.sum(s > max(J.shape) * np.finfo(float).eps * 1e3 * s[0]))
 
     # --- mass and forces -------------------------------------------------------------------
     def mass(self, q=None) -> np.ndarray:
