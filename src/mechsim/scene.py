@@ -259,7 +259,7 @@ def load_scene(path, parameters: dict | None = None) -> Scene:
     later parameters computed from them follow), as a parameter study varies them."""
     path = Path(path)
     f = path.name
-    data = _read_toml(path)
+    data = read_toml(path)
     r = _Reader(f)
     message = unknown_names(data, _TOP, "a scene")
     if message:
@@ -317,7 +317,9 @@ def load_scene(path, parameters: dict | None = None) -> Scene:
     return Scene(path, mech, simulation, output)
 
 
-def _read_toml(path: Path) -> dict:
+def read_toml(path: Path) -> dict:
+    """The TOML file at `path` as a dict; a SceneError names the file where it is missing,
+    too large or not TOML."""
     f = path.name
     try:
         if path.stat().st_size > MAX_SCENE_BYTES:

@@ -35,7 +35,7 @@ import numpy as np
 
 from .model import ModelError
 from .options import unknown_names
-from .scene import SceneError, _read_toml, evaluate, load_scene
+from .scene import SceneError, evaluate, load_scene, read_toml
 
 _TOP = {"scene", "samples", "seed", "output", "workers", "vary", "measure"}
 _DISTRIBUTIONS = {"normal": ("mean", "standard deviation"), "uniform": ("low", "high")}
@@ -105,7 +105,7 @@ def load_study(path) -> StudyFile:
     errors here); a StudyError names the file, the table and the key."""
     path = Path(path)
     f = path.name
-    data = _read_toml(path)
+    data = read_toml(path)
     message = unknown_names(data, {k: None for k in _TOP}, "a study")
     if message:
         raise StudyError(f"{f}: " + message.replace("a study does not take",
@@ -116,11 +116,9 @@ def load_study(path) -> StudyFile:
     scene_path = Path(os.path.normpath(path.parent / data["scene"]))
     try:
         base = load_scene(scene_path)
-    except FileNotFoundError:
-        raise StudyError(f"{f}: `scene`: no file {scene_path}") from None
     except SceneError as exc:
         raise StudyError(f"{f}: `scene`: {exc}") from None
-    declared = {k for k in _read_toml(scene_path).get("parameters", {})}
+    declared = {k for k in read_toml(scene_path).get("parameters", {})}
     grid = _grid(f, data.get("vary", {}), declared)
     measures = _measures(f, data.get("measure", []), base.mechanism)
     samples = _count(f, data, "samples")
