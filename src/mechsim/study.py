@@ -320,13 +320,13 @@ def sweep(build, grid, simulate=None, measure=None, client=None, *, analyse=None
     Parameters
     ----------
     build : callable
-        build(**params) -> Mechanism.
+        ``build(**params)`` returns a Mechanism.
     grid : dict or list of dict
     simulate : dict, optional
         Keyword arguments of `Mechanism.simulate` (with no `analyse`).
     measure : callable, optional
-        measure(result) -> {name: number}; the result is the simulation's, or what
-        `analyse` returned.
+        ``measure(result)`` returns ``{name: number}``; the result is the simulation's, or
+        what `analyse` returned.
     client : dask.distributed.Client, optional
     progress : bool
         A tqdm progress bar of finished samples.

@@ -12,7 +12,7 @@
 
     [[measure]]
     name = "wrist pin peak"     # the column (default: the kind and its subject)
-    peak_force = "wrist pin"    # max |force| of a joint over the run
+    peak_force = "wrist pin"    # a joint's largest force magnitude over the run
 
 Measure kinds (one per table): `peak_force` (a joint), `peak_effort`, `rms_effort`,
 `peak_power` (a driver), and of a coordinate ("body.x", "crank.angle", …) `final`, `max`,
