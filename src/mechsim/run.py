@@ -124,17 +124,11 @@ class Progress:
     once and no bar)."""
 
     def __init__(self, t_start, t_end, title):
-        self.bar, self.t = None, t_start
-        try:
-            from tqdm.auto import tqdm
-        except ImportError:
-            import warnings
-            warnings.warn("mechsim: progress=True needs tqdm (pip install 'mechsim[progress]');"
-                          " running without a progress bar", stacklevel=4)
-            return
-        self.bar = tqdm(total=t_end - t_start, desc=title, unit="s", unit_scale=True,
-                        bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g} of "
-                                   "{total:.4g} s [{elapsed}<{remaining}]")
+        from .progress import tqdm_bar
+        self.t = t_start
+        self.bar = tqdm_bar(total=t_end - t_start, desc=title, unit="s", unit_scale=True,
+                            bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g} of "
+                                       "{total:.4g} s [{elapsed}<{remaining}]")
 
     def update(self, t):
         if self.bar is not None and t > self.t:

@@ -42,7 +42,6 @@ import time
 import traceback
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
-from functools import partial
 
 import numpy as np
 
@@ -145,16 +144,9 @@ class _NoBar:
 
 
 def _bar(progress, total, desc):
-    if not progress:
-        return _NoBar()
-    try:
-        from tqdm.auto import tqdm
-    except ImportError:
-        import warnings
-        warnings.warn("mechsim: progress=True needs tqdm (pip install 'mechsim[progress]'); "
-                      "running without a progress bar", stacklevel=4)
-        return _NoBar()
-    return tqdm(total=total, desc=desc, unit="sample")
+    from .progress import tqdm_bar
+    bar = tqdm_bar(total=total, desc=desc, unit="sample") if progress else None
+    return _NoBar() if bar is None else bar
 
 
 # --- the samples -------------------------------------------------------------------------------

@@ -36,6 +36,7 @@ import numpy as np
 from .model import ModelError
 from .options import unknown_names
 from .scene import SceneError, evaluate, load_scene, read_toml
+from .study import RESERVED
 
 _TOP = {"scene", "samples", "seed", "output", "workers", "vary", "measure"}
 _DISTRIBUTIONS = {"normal": ("mean", "standard deviation"), "uniform": ("low", "high")}
@@ -194,7 +195,7 @@ def _measures(f, tables, mech) -> list:
                              f"{', '.join(known) or '(none)'}")
         column = table.get("name", f"{kind} {subject}")
         if not isinstance(column, str) or not column.strip() or \
-                column in ("status", "message", "time") or column in [c for c, _, _ in out]:
+                column in RESERVED or column in [c for c, _, _ in out]:
             raise StudyError(f"{where}: `name` must be a new column name, got {column!r:.60}")
         out.append((column, kind, subject))
     return out

@@ -23,6 +23,7 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 
+from ..codegen.printer import shared_terms
 from ..model import Driver
 from ..symbolic import SymbolicContext
 
@@ -63,14 +64,7 @@ class _Writer:
 
     def function(self, name: str, args: tuple[str, ...], outputs: list):
         pr = self.printer
-        entries, layout = [], []
-        for mat in outputs:
-            nz = [(i, j) for i in range(mat.rows) for j in range(mat.cols) if mat[i, j] != 0]
-            layout.append((mat.rows, mat.cols, nz))
-            entries += [mat[i, j] for i, j in nz]
-        repl, reduced = sp.cse(entries, symbols=sp.numbered_symbols("_c"))
-        used = set().union(*(e.free_symbols for e in reduced),
-                           *(r.free_symbols for _, r in repl)) if entries else set()
+        layout, repl, reduced, used = shared_terms(outputs)
         lines = [f"def {name}({', '.join(args)}):", "    n = len(Q)"]
         for arg in args:
             for k, sym in enumerate(self.columns[arg]):

@@ -141,21 +141,50 @@ class AssembledModel:
         return self._law_values
 
     # --- the constraint system --------------------------------------------------------------
-    def phi(self, q, t, p):
-        q = np.asarray(q, dtype=float)
-        out = np.empty(self.M)
-        for g, P in zip(self.groups, self._p(p)):
-            out[g.rows] = g.kernel.phi(q[g.cols], P)
+    def _evaluate(self, function, outputs, q, v, t, p):
+        """The system arrays named in `outputs` ("phi", "J", "phi_t", "gamma"), from each
+        group's kernel `function` (returning those of them but Φ_t, in that order; None:
+        no kernel) and the drivers' laws at t; Φ_q shaped (m, n)."""
+        arrays = [np.zeros(self.M * self.N) if name == "J" else np.zeros(self.M)
+                  for name in outputs]
+        filled = [(a, name == "J") for a, name in zip(arrays, outputs) if name != "phi_t"]
+        if function is not None:
+            q = np.asarray(q, dtype=float)
+            v = None if v is None else np.asarray(v, dtype=float)
+            for g, P in zip(self.groups, self._p(p)):
+                fn = getattr(g.kernel, function)
+                values = fn(q[g.cols], P) if v is None else fn(q[g.cols], v[g.cols], P)
+                for (a, jacobian), value in zip(filled, values if len(filled) > 1
+                                                else (values,)):
+                    a[g.flat if jacobian else g.rows] = value
         if self.laws:
-            out[self.law_rows] -= self._law(t)[0]
-        return out
+            law = dict(zip(("phi", "phi_t", "gamma"), self._law(t) * [[-1.0], [-1.0], [1.0]]))
+            for a, name in zip(arrays, outputs):
+                if name in law:
+                    a[self.law_rows] += law[name]
+        return tuple(a.reshape(self.M, self.N) if name == "J" else a
+                     for a, name in zip(arrays, outputs))
+
+    def phi(self, q, t, p):
+        return self._evaluate("phi", ("phi",), q, None, t, p)[0]
 
     def phi_q(self, q, t, p):
-        q = np.asarray(q, dtype=float)
-        out = np.zeros(self.M * self.N)
-        for g, P in zip(self.groups, self._p(p)):
-            out[g.flat] = g.kernel.jacobian(q[g.cols], P)
-        return out.reshape(self.M, self.N)
+        return self._evaluate("jacobian", ("J",), q, None, t, p)[0]
+
+    def phi_t(self, q, t, p):
+        return self._evaluate(None, ("phi_t",), q, None, t, p)[0]
+
+    def gamma(self, q, v, t, p):
+        return self._evaluate("gamma", ("gamma",), q, v, t, p)[0]
+
+    def position_terms(self, q, t, p):
+        return self._evaluate("position", ("phi", "J"), q, None, t, p)
+
+    def terms(self, q, v, t, p):
+        return self._evaluate("terms", ("phi", "J", "phi_t", "gamma"), q, v, t, p)
+
+    def dynamics_terms(self, q, v, t, p):
+        return self._evaluate("dynamics", ("J", "gamma"), q, v, t, p)
 
     def phi_q_csr(self, q, t, p):
         """Φ_q as a `scipy.sparse.csr_array` of the fixed pattern (`JACOBIAN_ROWS`,
@@ -166,49 +195,3 @@ class AssembledModel:
                   for g, P in zip(self.groups, self._p(p))]
         data = np.concatenate(values)[self._csr_order] if values else np.zeros(0)
         return csr_array((data, self._csr_indices, self._csr_indptr), shape=(self.M, self.N))
-
-    def phi_t(self, q, t, p):
-        out = np.zeros(self.M)
-        if self.laws:
-            out[self.law_rows] = -self._law(t)[1]
-        return out
-
-    def gamma(self, q, v, t, p):
-        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
-        out = np.empty(self.M)
-        for g, P in zip(self.groups, self._p(p)):
-            out[g.rows] = g.kernel.gamma(q[g.cols], v[g.cols], P)
-        if self.laws:
-            out[self.law_rows] += self._law(t)[2]
-        return out
-
-    def position_terms(self, q, t, p):
-        q = np.asarray(q, dtype=float)
-        phi, J = np.empty(self.M), np.zeros(self.M * self.N)
-        for g, P in zip(self.groups, self._p(p)):
-            phi[g.rows], J[g.flat] = g.kernel.position(q[g.cols], P)
-        if self.laws:
-            phi[self.law_rows] -= self._law(t)[0]
-        return phi, J.reshape(self.M, self.N)
-
-    def terms(self, q, v, t, p):
-        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
-        phi, J, gamma = np.empty(self.M), np.zeros(self.M * self.N), np.empty(self.M)
-        for g, P in zip(self.groups, self._p(p)):
-            phi[g.rows], J[g.flat], gamma[g.rows] = g.kernel.terms(q[g.cols], v[g.cols], P)
-        phi_t = np.zeros(self.M)
-        if self.laws:
-            f, f1, f2 = self._law(t)
-            phi[self.law_rows] -= f
-            phi_t[self.law_rows] = -f1
-            gamma[self.law_rows] += f2
-        return phi, J.reshape(self.M, self.N), phi_t, gamma
-
-    def dynamics_terms(self, q, v, t, p):
-        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
-        J, gamma = np.zeros(self.M * self.N), np.empty(self.M)
-        for g, P in zip(self.groups, self._p(p)):
-            J[g.flat], gamma[g.rows] = g.kernel.dynamics(q[g.cols], v[g.cols], P)
-        if self.laws:
-            gamma[self.law_rows] += self._law(t)[2]
-        return J.reshape(self.M, self.N), gamma

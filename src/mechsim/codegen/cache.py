@@ -172,16 +172,21 @@ def _module(name: str, source: str, path: Path | None) -> ModuleType:
 _loaded: dict[str, ModuleType] = {}
 
 
+def _entry(structure) -> tuple[str, str, Path]:
+    """(key, module name, cache path) of a structure's module."""
+    key = structure_key(structure)
+    name = f"mechsim_model_{key}"
+    return key, name, store() / f"{name}.py"
+
+
 def cached_model(structure) -> ModuleType | None:
     """The module of `structure` if this process or the disk cache has it (a damaged disk
     entry is said in a warning and treated as missing); None otherwise. Never builds."""
     from .compiled import attach
 
-    key = structure_key(structure)
+    key, name, path = _entry(structure)
     if key in _loaded:
         return _loaded[key]
-    name = f"mechsim_model_{key}"
-    path = store() / f"{name}.py"
     data = read_verified(path)
     if data is None:
         if path.exists():
@@ -209,9 +214,7 @@ def load_model(structure, build: Callable[[], str]) -> tuple[ModuleType, bool]:
     module = cached_model(structure)
     if module is not None:
         return module, True
-    key = structure_key(structure)
-    name = f"mechsim_model_{key}"
-    path = store() / f"{name}.py"
+    key, name, path = _entry(structure)
     source = build()
     try:
         write_entry(path, source.encode())

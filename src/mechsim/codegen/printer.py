@@ -14,10 +14,25 @@ from sympy.printing.pycode import PythonCodePrinter
 from .compiled import C_MIN_COORDINATES
 
 
-
 class _Printer(PythonCodePrinter):
     def __init__(self):
         super().__init__({"fully_qualified_modules": True, "standard": "python3"})
+
+
+def shared_terms(outputs):
+    """The non-zero entries of the matrices `outputs` with their common subexpressions
+    shared (sympy.cse): (layout, one (rows, cols, non-zero (i, j) list) per output;
+    replacements [(symbol, expression)]; the entries in terms of them, in layout order;
+    the free symbols they use)."""
+    entries, layout = [], []
+    for mat in outputs:
+        nz = [(i, j) for i in range(mat.rows) for j in range(mat.cols) if mat[i, j] != 0]
+        layout.append((mat.rows, mat.cols, nz))
+        entries += [mat[i, j] for i, j in nz]
+    repl, reduced = sp.cse(entries, symbols=sp.numbered_symbols("_c"))
+    used = set().union(*(e.free_symbols for e in reduced),
+                       *(r.free_symbols for _, r in repl)) if entries else set()
+    return layout, repl, reduced, used
 
 
 class _ModuleWriter:
@@ -44,18 +59,10 @@ class _ModuleWriter:
     def function(self, name: str, args: tuple[str, ...], outputs: list[sp.Matrix], doc: str):
         """Write one function; returns each output's non-zero (i, j) entries."""
         sysm, pr = self.sys, self.printer
-        # Nonzero entries of every output, cse'd together.
-        entries, layout = [], []
-        for mat in outputs:
-            nz = [(i, j) for i in range(mat.rows) for j in range(mat.cols) if mat[i, j] != 0]
-            layout.append((mat.rows, mat.cols, nz))
-            entries += [mat[i, j] for i, j in nz]
-        repl, reduced = sp.cse(entries, symbols=sp.numbered_symbols("_c"))
+        layout, repl, reduced, used = shared_terms(outputs)
         if self.c_kernels is None or name in self.c_kernels:
             self._c_function(name, "_v" in args, layout, repl, reduced)
         lines = [f"def {name}({', '.join(args)}):", f'    """{doc}"""']
-        used = set().union(*(e.free_symbols for e in reduced), *(r.free_symbols for _, r in repl)) \
-            if entries else set()
         unpack = {"_q": sysm.q, "_v": sysm.v, "_p": sysm.p}
         for arg in args:
             syms = unpack.get(arg)

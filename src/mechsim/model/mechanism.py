@@ -181,7 +181,7 @@ class Mechanism:
         if self._problem is None or (mode is not None and mode != self._build):
             if not self.bodies:
                 raise ModelError(f"mechanism '{self.name}' has no moving bodies")
-            self._build = build_mode(build)
+            self._build = mode or build_mode()
             self._problem, self.from_cache = build_problem(self, self._build)
         return self._problem
 
