@@ -115,6 +115,24 @@ def test_ten_window_chain_hybrid_bridges_its_passages(ten_window):
                                exact_crossings(3.0, 10), atol=1e-4)
 
 
+def test_a_hundred_window_chain_bridges_its_passages_within_tolerance():
+    """A long chain's σ_min/σ_max peaks near 0.6/N and moves as slowly through a passage:
+    with the cut at 1e-4 of σ_max the 100-window chain's band lasted 12 ms, its bridges read
+    error estimates of 8 and 1183 and the second passage was stepped through with an SVD
+    of J̃ at every evaluation (minutes). With the cut relative to the chain's own level
+    both passages of the first 1.3 s are bridged within tolerance (16 steps)."""
+    mech = ms.examples.double_four_bar(100)
+    mech.problem(build="assembled")
+    res = mech.simulate(t_end=1.3, method="hybrid", rtol=1e-8, atol=1e-10, output_step=0.01,
+                        max_steps=60)
+    assert res.status == "success", res.message
+    assert res.stats["bridges"] == 2 == len(res.singular_passages)
+    assert res.stats["bridges_over_tolerance"] == 0
+    assert tip_error(res, 100) <= 1e-7
+    np.testing.assert_allclose([p.t_min for p in res.singular_passages],
+                               exact_crossings(1.3, 100), atol=1e-4)
+
+
 def test_a_noise_limited_bridge_takes_its_best_declined_attempt():
     """The seed's falling four-bar at rtol 1e-9 with its 10 ms step bound: at the third
     passage the bridge reads an estimate of 1.27 and, landed closer, 2.17 (the round-off

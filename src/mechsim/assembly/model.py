@@ -116,9 +116,17 @@ class AssembledModel:
         cols = np.concatenate([c for _, c in pattern]) if pattern else np.zeros(0, np.intp)
         self.JACOBIAN_ROWS, self.JACOBIAN_COLS = rows.tolist(), cols.tolist()
         # CSR of that pattern: entries in row-major order, and where each group's come from
-        self._csr_order = np.lexsort((cols, rows))
-        self._csr_indices = cols[self._csr_order]
-        self._csr_indptr = np.searchsorted(rows[self._csr_order], np.arange(self.M + 1))
+        order = np.lexsort((cols, rows))
+        self._csr_indices = cols[order]
+        self._csr_indptr = np.searchsorted(rows[order], np.arange(self.M + 1))
+        where = np.empty(order.size, np.intp)
+        where[order] = np.arange(order.size)
+        start = 0
+        for g in self.groups:
+            size = g.pattern[0].size * g.rows.shape[0]
+            # the CSR slots of the group's pattern entries, (entries, joints)
+            g.csr = where[start:start + size].reshape(g.pattern[0].size, -1)
+            start += size
         self._seen_p = self._tables = None
         self._seen_t = self._law_values = None
 
@@ -144,26 +152,34 @@ class AssembledModel:
     def _evaluate(self, function, outputs, q, v, t, p):
         """The system arrays named in `outputs` ("phi", "J", "phi_t", "gamma"), from each
         group's kernel `function` (returning those of them but Φ_t, in that order; None:
-        no kernel) and the drivers' laws at t; Φ_q shaped (m, n)."""
-        arrays = [np.zeros(self.M * self.N) if name == "J" else np.zeros(self.M)
-                  for name in outputs]
-        filled = [(a, name == "J") for a, name in zip(arrays, outputs) if name != "phi_t"]
+        no kernel) and the drivers' laws at t; Φ_q shaped (m, n), or "Jcsr": Φ_q as a
+        CSR array of the pattern (`mechsim.sparse`)."""
+        size = {"J": self.M * self.N, "Jcsr": self._csr_indices.size}
+        arrays = [np.zeros(size.get(name, self.M)) for name in outputs]
+        filled = [(a, name) for a, name in zip(arrays, outputs) if name != "phi_t"]
         if function is not None:
             q = np.asarray(q, dtype=float)
             v = None if v is None else np.asarray(v, dtype=float)
             for g, P in zip(self.groups, self._p(p)):
                 fn = getattr(g.kernel, function)
                 values = fn(q[g.cols], P) if v is None else fn(q[g.cols], v[g.cols], P)
-                for (a, jacobian), value in zip(filled, values if len(filled) > 1
-                                                else (values,)):
-                    a[g.flat if jacobian else g.rows] = value
+                for (a, name), value in zip(filled, values if len(filled) > 1
+                                            else (values,)):
+                    if name == "Jcsr":
+                        a[g.csr] = value[:, g.pattern[0], g.pattern[1]].T
+                    else:
+                        a[g.flat if name == "J" else g.rows] = value
         if self.laws:
             law = dict(zip(("phi", "phi_t", "gamma"), self._law(t) * [[-1.0], [-1.0], [1.0]]))
             for a, name in zip(arrays, outputs):
                 if name in law:
                     a[self.law_rows] += law[name]
-        return tuple(a.reshape(self.M, self.N) if name == "J" else a
-                     for a, name in zip(arrays, outputs))
+        return tuple(a.reshape(self.M, self.N) if name == "J" else
+                     self._csr(a) if name == "Jcsr" else a for a, name in zip(arrays, outputs))
+
+    def _csr(self, data):
+        from scipy.sparse import csr_array
+        return csr_array((data, self._csr_indices, self._csr_indptr), shape=(self.M, self.N))
 
     def phi(self, q, t, p):
         return self._evaluate("phi", ("phi",), q, None, t, p)[0]
@@ -188,10 +204,14 @@ class AssembledModel:
 
     def phi_q_csr(self, q, t, p):
         """Φ_q as a `scipy.sparse.csr_array` of the fixed pattern (`JACOBIAN_ROWS`,
-        `JACOBIAN_COLS`; structural zeros are kept, so every call has the same indices)."""
-        from scipy.sparse import csr_array
-        q = np.asarray(q, dtype=float)
-        values = [g.kernel.jacobian(q[g.cols], P)[:, g.pattern[0], g.pattern[1]].T.ravel()
-                  for g, P in zip(self.groups, self._p(p))]
-        data = np.concatenate(values)[self._csr_order] if values else np.zeros(0)
-        return csr_array((data, self._csr_indices, self._csr_indptr), shape=(self.M, self.N))
+        `JACOBIAN_COLS`; structural zeros are kept, so every call has the same indices:
+        `mechsim.sparse`)."""
+        return self._evaluate("jacobian", ("Jcsr",), q, None, t, p)[0]
+
+    def position_terms_csr(self, q, t, p):
+        """`position_terms` with Φ_q as `phi_q_csr` gives it."""
+        return self._evaluate("position", ("phi", "Jcsr"), q, None, t, p)
+
+    def dynamics_terms_csr(self, q, v, t, p):
+        """`dynamics_terms` with Φ_q as `phi_q_csr` gives it."""
+        return self._evaluate("dynamics", ("Jcsr", "gamma"), q, v, t, p)

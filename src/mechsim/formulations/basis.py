@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import dense
+from .. import dense, sparse
 
 # Dependent blocks Φ_q D at least this large are factored sparse (`SparseBlock`).
 SPARSE_MIN = 40
@@ -158,6 +158,7 @@ class CoordinateBasis:
             rows, cols, new = rows[order], cols[order], new[order]
             indptr = np.searchsorted(new, np.arange(self.r + 1))
             self._csc = (rows, cols, rows.copy(), indptr)
+        self._slots = None                 # where Φ_q D's entries sit in a CSR Φ_q
 
     @property
     def sparse(self) -> bool:
@@ -165,12 +166,16 @@ class CoordinateBasis:
         return self._csc is not None
 
     def block(self, J):
-        """Φ_q D at Φ_q = J, ready to solve with (`DenseBlock` or `SparseBlock`)."""
+        """Φ_q D at Φ_q = J (dense, or CSR: `mechsim.sparse`), ready to solve with
+        (`DenseBlock` or `SparseBlock`)."""
         if self._csc is None or J.shape[0] != self.r:
             return DenseBlock(self.JD(J))
         from scipy.sparse import csc_matrix
         rows, cols, indices, indptr = self._csc
-        return SparseBlock(csc_matrix((J[rows, cols], indices, indptr), shape=(self.r, self.r)))
+        if not sparse.is_dense(J) and self._slots is None:
+            self._slots = sparse.positions(J, rows, cols)
+        return SparseBlock(csc_matrix((sparse.values(J, rows, cols, self._slots), indices,
+                                       indptr), shape=(self.r, self.r)))
 
     def combine(self, base, z, w):
         return base + self.assemble(z, w)
@@ -180,10 +185,10 @@ class CoordinateBasis:
         return np.concatenate((z, w))[self._order]
 
     def JB(self, J):
-        return J[..., self.ind]
+        return J[..., self.ind] if sparse.is_dense(J) else sparse.columns(J, self.ind)
 
     def JD(self, J):
-        return J[..., self.dep]
+        return J[..., self.dep] if sparse.is_dense(J) else sparse.columns(J, self.dep)
 
     def Bt(self, x):
         return x[self.ind]

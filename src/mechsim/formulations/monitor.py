@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import dense
+from .. import dense, sparse
 from ..results import SingularPassage
 
 
@@ -84,8 +84,8 @@ class SingularityMonitor:
         self.engine = _compiled(problem) if not self.redundant else None
 
     def _jacobian(self, q, t):
-        """J̃ = Φ_q L⁻ᵀ, the mass-scaled Jacobian."""
-        return self.problem.mass_factor(q).cols(self.problem.phi_q(q, t))
+        """J̃ = Φ_q L⁻ᵀ, the mass-scaled Jacobian (CSR for a long chain: `mechsim.sparse`)."""
+        return self.problem.mass_factor(q).cols(self.problem.solver_phi_q(q, t))
 
     def measure(self, q, t, v=None):
         """(s, ṡ, left singular vector of σ_min); ṡ = 0 when v is None."""
@@ -111,7 +111,7 @@ class SingularityMonitor:
             return 1.0, 0.0, np.zeros(0), 1.0, 1.0, J
         pair = self._banded(J)
         if pair is None:
-            U, sig, Vt = dense.svd(J)
+            U, sig, Vt = dense.svd(sparse.dense(J))
             k = m - 1 - self.redundant
             if k >= sig.size or k < 0 or sig[0] <= 0.0:
                 return 0.0, 0.0, U[:, -1], 0.0, 0.0, J
@@ -120,9 +120,9 @@ class SingularityMonitor:
         s = float(smin / smax)
         rate = 0.0
         if eps:
-            dJ = (self._jacobian(q + eps * v, t + eps) - J) / eps
-            d_min = u_min @ dJ @ v_min
-            d_max = u_max @ dJ @ v_max
+            dJ = sparse.difference(self._jacobian(q + eps * v, t + eps), J, 1.0 / eps)
+            d_min = u_min @ (dJ @ v_min)
+            d_max = u_max @ (dJ @ v_max)
             rate = float((d_min * smax - smin * d_max) / smax ** 2)
         return s, rate, u_min, float(smin), float(smax), J
 
@@ -166,7 +166,7 @@ class SingularityMonitor:
             return False, None
         Jm, smin, smax = self._measured
         J = self._jacobian(q, t)
-        E = float(np.linalg.norm(J - Jm))
+        E = sparse.frobenius(sparse.difference(J, Jm))
         return max(smin - E, 0.0) / (smax + E) > 2.0 * self.enter * self.peak, J
 
     def observe(self, t, q, v=None, state_at=None, t_old=None) -> float:
@@ -236,8 +236,8 @@ class SingularityMonitor:
         if speed == 0.0:
             return 0.0
         eps = 1e-7 / speed
-        dJ = (self._jacobian(q + eps * v, t + eps) - J) / eps
-        return 2.0 * float(np.linalg.norm(dJ)) / smax
+        dJ = sparse.difference(self._jacobian(q + eps * v, t + eps), J, 1.0 / eps)
+        return 2.0 * sparse.frobenius(dJ) / smax
 
     def _hidden_minimum(self, a, b, state_at, ratio_speed=0.0):
         """The passages hidden inside the step from a = (t0, s0/peak, rate) to b, as

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .. import dense
+from .. import dense, sparse
 from ..newton import CHORD_CONTRACTION, newton
 from ..options import Option
 from .base import Formulation
@@ -91,9 +91,13 @@ class Partitioned(Formulation):
         """The independent and dependent directions at Φ_q = J (f = n − r and r of them).
         `rank`: Φ_q's rank if the caller knows it (its SVD is dear on long chains)."""
         r = self.problem.rank(J) if rank is None else rank
+        band = self.problem.schur
+        if band is not None:                 # a long chain: banded LU (`mechsim.banded`)
+            perm = band.pivoted_coordinates(J)
+            return self._coordinate_bases(perm[r:], perm[:r])
         with warnings.catch_warnings():      # a rank-deficient Φ_q (redundancy) is expected
             warnings.simplefilter("ignore", sla.LinAlgWarning)
-            _, piv = sla.lu_factor(J.T, check_finite=False)
+            _, piv = sla.lu_factor(sparse.dense(J).T, check_finite=False)
         perm = np.arange(self.n)
         for i, p in enumerate(piv):
             perm[i], perm[p] = perm[p], perm[i]
@@ -221,7 +225,7 @@ class Partitioned(Formulation):
                 fresh[0] = True
             if fresh[0]:
                 fresh[1] += 1
-                return w - bs.block(prob.phi_q(q, t)).solve(phi)
+                return w - bs.block(prob.solver_phi_q(q, t)).solve(phi)
             return w - self._chord.chord(phi)
 
         done = newton(w, residual, correct, self.newton_tol, self.max_newton,
@@ -251,7 +255,7 @@ class Partitioned(Formulation):
         bs = self.basis
         z, zd = y[:bs.f], y[bs.f:]
         q, n_fresh = self._positions(z, t)
-        J = self.problem.phi_q(q, t)
+        J = self.problem.solver_phi_q(q, t)
         block = bs.block(J)
         r = -(bs.JB(J) @ zd)
         if self._rheonomic:
@@ -447,7 +451,7 @@ class QRPartitioned(Partitioned):
 
     def choose(self, J, rank=None):
         r = self.problem.rank(J) if rank is None else rank
-        _, P = sla.qr(J, pivoting=True, mode="r", check_finite=False)
+        _, P = sla.qr(sparse.dense(J), pivoting=True, mode="r", check_finite=False)
         return self._coordinate_bases(P[r:], P[:r])
 
 
@@ -457,7 +461,7 @@ class SVDPartitioned(Partitioned):
 
     def choose(self, J, rank=None):
         r = self.problem.rank(J) if rank is None else rank
-        _, _, Vt = np.linalg.svd(J)
+        _, _, Vt = np.linalg.svd(sparse.dense(J))
         self.independent = ()
         return MatrixBasis(Vt[r:].T, Vt[:r].T)
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import dense
+from .. import dense, sparse
 from ..newton import newton
 from .bridge import PassageBridge
 from ..options import Option
@@ -47,6 +47,8 @@ _CLUSTER = 10.0
 _MAX_CLUSTER = 4
 # The truncation cut follows a mechanism's own level of σ_min/σ_max below this (`cut`).
 SCALE_REF = 1e-3
+# ... and a long chain's (banded, `mechsim.banded`) below this.
+CHAIN_REF = 0.1
 
 
 class Projection(FullCoordinates):
@@ -87,10 +89,19 @@ class Projection(FullCoordinates):
         unequal (a point mass on a link, a heavy body of small inertia), not because the
         configuration is singular, and a fixed cut would drop one of the mechanism's own
         constraint equations. The cut keeps its place relative to the mechanism's own
-        level; for every mechanism whose ratio reaches SCALE_REF it is `rcond`."""
+        level; for every mechanism whose ratio reaches SCALE_REF it is `rcond`.
+
+        A long chain (one with the banded Schur complement) is never well conditioned
+        either, because of its length: σ_min/σ_max peaks near 0.6/N for N windows, and
+        near a passage it moves as slowly, so a fixed cut leaves a band whose duration
+        grows with N (12 ms on the 100-window chain, more than the passage bridge's
+        Adams step can span: its error estimates read 8 to 1200 at rtol 1e-8). There the
+        cut is `rcond` relative to the chain's own level, `CHAIN_REF`, which keeps the
+        band as short as a short chain's."""
         mon = self.monitor
         peak = mon.peak if mon is not None and mon.peak > 0.0 else 1.0
-        return self.rcond * min(1.0, max(peak, 1e-12) / SCALE_REF)
+        ref = CHAIN_REF if self.problem.schur is not None else SCALE_REF
+        return self.rcond * min(1.0, max(peak, 1e-12) / ref)
 
     @property
     def _min_rcond(self) -> float:
@@ -234,12 +245,13 @@ class Projection(FullCoordinates):
     def _accelerations(self, t, q, v, Q, far):
         """`accelerations` in Python, under the applied forces Q."""
         prob = self.problem
-        J, gamma = prob.dynamics_terms(q, v, t)
+        J, gamma = prob.solver_dynamics_terms(q, v, t)
         m = J.shape[0]
         banded = m and prob.schur is not None
         c = self._banded(J) if banded else None
         if c is not None:
             return prob.accelerations(J, Q, gamma, factor=c)[0]
+        J = sparse.dense(J)
         f = prob.mass_factor(q)
         x = f.left(Q)                                      # L⁻¹ Q
         if m:
@@ -331,7 +343,7 @@ class Projection(FullCoordinates):
                 ts = t + h
                 qs, _, _ = prob.project_positions(q + h * v + 0.5 * h * h * a, ts, tol=1e-13)
                 vs = prob.project_velocities(qs, v + h * a, ts)
-                Js, gs = prob.dynamics_terms(qs, vs, ts)
+                Js, gs = prob.solver_dynamics_terms(qs, vs, ts)
                 acc, _ = prob.accelerations(Js, prob.forces(ts, qs, vs), gs, qs)
                 mean += 0.5 * acc
             x = x + W @ (W.T @ (f.unright(mean) - x))
@@ -358,7 +370,7 @@ class Projection(FullCoordinates):
                 return None
             if done is not None:
                 return np.concatenate(done)
-        phi, J = prob.position_terms(q, t)
+        phi, J = prob.solver_position_terms(q, t)
         if max(abs(phi).tolist()) <= self.projection_tol:
             return None
         solve = self._clear_solver(J, prob.mass_factor(q))
@@ -371,7 +383,7 @@ class Projection(FullCoordinates):
         q = np.array(q, float)
         tol = 0.01 * self.projection_tol
         f = prob.mass_factor(q)
-        if self._clear_at(prob.phi_q(q, t), f):
+        if self._clear_at(prob.solver_phi_q(q, t), f):
             return prob.project_positions(q, t, tol=tol)      # clear of the band: exact Schur
         pinv = self._pinv_exact if self.exact_projection else self._pinv
 
@@ -385,10 +397,11 @@ class Projection(FullCoordinates):
 
     def project_velocities(self, q, v, t):
         prob = self.problem
-        J = prob.phi_q(q, t)
+        J = prob.solver_phi_q(q, t)
         f = prob.mass_factor(q)
         if self._clear_at(J, f):
             return prob.project_velocities(q, v, t)
+        J = sparse.dense(J)
         Jt = f.cols(J)
         V, Ui, _ = self._pinv_exact(Jt) if self.exact_projection else self._pinv(Jt)
         return v - f.right(V @ (Ui @ (J @ v + prob.phi_t(q, t))))

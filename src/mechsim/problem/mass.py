@@ -13,6 +13,8 @@ import functools
 
 import numpy as np
 
+from .. import sparse
+
 
 class MassFactor:
     """M = L Lᵀ at one configuration, applied as L⁻¹ and L⁻ᵀ. For constant diagonal mass
@@ -23,8 +25,10 @@ class MassFactor:
         self.s, self.Linv = s, Linv
 
     def cols(self, J):
-        """J L⁻ᵀ: the mass-scaled Jacobian."""
-        return J * self.s if self.Linv is None else J @ self.Linv.T
+        """J L⁻ᵀ: the mass-scaled Jacobian (CSR where J is: `mechsim.sparse`)."""
+        if self.Linv is None:
+            return sparse.scale_columns(J, self.s)
+        return J @ self.Linv.T
 
     def left(self, x):
         """L⁻¹ x."""
@@ -122,6 +126,7 @@ class SchurSolver:
 
     def complement(self, J, f=None):
         """The dense S."""
+        J = sparse.dense(J)
         if f is None:
             return (J * self.mass.inverse_diagonal) @ J.T
         Jt = f.cols(J)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import sparse
 from ..newton import newton
 from .loads import Loads
 from .mass import MassFactor, MassModel, SchurSolver, dense
@@ -89,6 +90,7 @@ class NumericProblem:
         self.gravity = self.load_model.gravity
         self.springs, self.loads = self.load_model.springs, self.load_model.loads
         self.solver = SchurSolver(self.mass_model, self._banded_form)
+        self._sparse = None               # decided on first use (`sparse`)
 
     def _banded_form(self):
         from ..banded import for_problem
@@ -104,6 +106,20 @@ class NumericProblem:
     @schur.setter
     def schur(self, value):
         self.solver.band = value
+
+    @property
+    def sparse(self) -> bool:
+        """Do the solvers take Φ_q as a CSR array of its fixed pattern (`mechsim.sparse`)?
+        For a long chain (one with the banded Schur complement) whose model gives it (an
+        assembled model): its Φ_q has a handful of entries a row, and a dense m × n array
+        would make every evaluation O(mn). Assign False to force dense arrays."""
+        if self._sparse is None:
+            self._sparse = self.schur is not None and hasattr(self.model, "dynamics_terms_csr")
+        return self._sparse
+
+    @sparse.setter
+    def sparse(self, value):
+        self._sparse = bool(value)
 
     def start_run(self):
         """Forget what earlier runs left behind (the banded form's eigenvector warm starts):
@@ -139,6 +155,21 @@ class NumericProblem:
         self.counters.constraint_terms += 1
         return self.model.dynamics_terms(q, v, t, self.p)
 
+    # Φ_q in the form the solvers take: CSR where `sparse`, else dense (`mechsim.sparse`).
+    def solver_phi_q(self, q, t):
+        return self.model.phi_q_csr(q, t, self.p) if self.sparse else self.phi_q(q, t)
+
+    def solver_position_terms(self, q, t):
+        if self.sparse:
+            return self.model.position_terms_csr(q, t, self.p)
+        return self.position_terms(q, t)
+
+    def solver_dynamics_terms(self, q, v, t):
+        if not self.sparse:
+            return self.dynamics_terms(q, v, t)
+        self.counters.constraint_terms += 1
+        return self.model.dynamics_terms_csr(q, v, t, self.p)
+
     def worst_constraint(self, phi) -> str:
         """'<residual> in '<equation>' of '<joint or driver>'' for the largest |Φ_i|: how
         failures name the model object at fault."""
@@ -171,7 +202,7 @@ class NumericProblem:
                 return self.m
         if J.shape[0] == 0:
             return 0
-        s = dense().svdvals(J)
+        s = dense().svdvals(sparse.dense(J))
         return int(np.sum(s > max(J.shape) * np.finfo(float).eps * 1e3 * s[0]))
 
     # --- mass and forces -------------------------------------------------------------------
@@ -273,8 +304,8 @@ class NumericProblem:
             self.counters.projections += 1
             return q - f.right(f.cols(J).T @ self.solver.solve(J, phi, f))
 
-        done = newton(np.array(q, float), lambda q: self.position_terms(q, t), correct, tol,
-                      max_iter, stall=True)
+        done = newton(np.array(q, float), lambda q: self.solver_position_terms(q, t), correct,
+                      tol, max_iter, stall=True)
         return done.x, done.iterations, done.residual
 
     def project_state(self, q, v, t, tol, extra=0, max_iter=8, solve=None):
@@ -287,7 +318,7 @@ class NumericProblem:
         (`complement_solver`) if the caller has it. None where the complement cannot be
         factored or the chord does not converge; the full projections serve there."""
         f = self.mass_factor(q)
-        phi, J = self.position_terms(q, t)
+        phi, J = self.solver_position_terms(q, t)
         if solve is None:
             solve = self.complement_solver(J, f)
             if solve is None:
@@ -307,7 +338,7 @@ class NumericProblem:
         if not done.converged:
             return None
         q = done.x
-        J = self.phi_q(q, t)
+        J = self.solver_phi_q(q, t)
         f = self.mass_factor(q)
         r = J @ v + self.phi_t(q, t)
         return q, v - f.right(f.cols(J).T @ solve(r))
@@ -316,7 +347,7 @@ class NumericProblem:
         """v − W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ (Φ_q v + Φ_t): the nearest consistent velocity in the
         mass metric. `extra` = (G, r): also G v = r (prescribed joint rates), the same way
         with [Φ_q; G] (least squares where the rows cannot all hold)."""
-        J = self.phi_q(q, t)
+        J = self.solver_phi_q(q, t) if extra is None else self.phi_q(q, t)
         r = J @ v + self.phi_t(q, t)
         f = self.mass_factor(q)
         if extra is not None:

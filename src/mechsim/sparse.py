@@ -1,0 +1,68 @@
+"""Φ_q of a long chain as a CSR matrix of a fixed pattern.
+
+An assembled model (`mechsim.assembly`) gives Φ_q as a `scipy.sparse.csr_array` whose
+entries are its pattern's (`JACOBIAN_ROWS`, `JACOBIAN_COLS`), one per entry, in row-major
+order, at every call: structural zeros are kept, so the same (row, column) always sits at
+the same place in `data`. A long chain's solvers (`NumericProblem.sparse`) work with it
+where a dense m × n array would cost O(mn) to fill, scale and multiply: gathers become
+indexing into `data`, products CSR products. These helpers take either form, so that the
+code around them reads the same for a four-bar and a chain of hundreds of windows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def is_dense(J) -> bool:
+    return isinstance(J, np.ndarray)
+
+
+def dense(J) -> np.ndarray:
+    """J as a dense array (itself if it is one)."""
+    return J if is_dense(J) else J.toarray()
+
+
+def positions(J, rows, cols) -> np.ndarray:
+    """Where the entries (rows[k], cols[k]) of the CSR matrix J sit in `J.data`. Raises
+    ValueError if one is not in its pattern."""
+    m, n = J.shape
+    counts = np.diff(J.indptr)
+    keys = np.repeat(np.arange(m, dtype=np.int64), counts) * n + J.indices
+    wanted = np.asarray(rows, np.int64) * n + np.asarray(cols, np.int64)
+    at = np.searchsorted(keys, wanted)
+    if wanted.size and (at.max() >= keys.size or np.any(keys[np.minimum(at, keys.size - 1)]
+                                                            != wanted)):
+        raise ValueError("an entry is outside the Jacobian's sparsity pattern")
+    return at
+
+
+def values(J, rows, cols, where=None):
+    """J[rows, cols] as a 1-d array; `where`: their `positions` in a CSR J, if known."""
+    if is_dense(J):
+        return J[rows, cols]
+    return J.data[positions(J, rows, cols) if where is None else where]
+
+
+def scale_columns(J, s):
+    """J diag(s)."""
+    if is_dense(J):
+        return J * s
+    return type(J)((J.data * s[J.indices], J.indices, J.indptr), shape=J.shape)
+
+
+def difference(J1, J0, scale=1.0):
+    """(J1 − J0) · scale, for two Jacobians of the same pattern."""
+    if is_dense(J1):
+        return (J1 - J0) * scale
+    return type(J1)(((J1.data - J0.data) * scale, J1.indices, J1.indptr), shape=J1.shape)
+
+
+def frobenius(J) -> float:
+    """‖J‖_F."""
+    return float(np.linalg.norm(J if is_dense(J) else J.data))
+
+
+def columns(J, index) -> np.ndarray:
+    """J[:, index] as a dense array."""
+    return J[:, index] if is_dense(J) else J[:, index].toarray()
