@@ -76,6 +76,7 @@ class Mechanism:
         self._problem = None
         self._build = None                    # the build asked for by `problem(build=)`
         self._assembled: AssemblyReport | None = None
+        self._lookup = None                   # see `_names`
 
     # --- building ----------------------------------------------------------------------------
     def add(self, item):
@@ -85,22 +86,25 @@ class Mechanism:
         if isinstance(item, Body):
             if isinstance(item, Ground):
                 raise ModelError(f"{owner}: the ground exists already as `mechanism.ground`")
-            if any(b.name == item.name for b in self._all_bodies()):
+            if item.name in self._names()[0]:
                 raise ModelError(f"{owner}: a body named '{item.name}' exists already")
             self.bodies.append(item)
+            self._noted(item)
         elif isinstance(item, Joint):
-            self._check_names(item, self.joints + self.drivers)
+            self._check_names(item)
             for body in (item.body_a, item.body_b):
                 self._check_member(body, f"{item.kind} joint '{item.name}'")
             self.joints.append(item)
+            self._noted(item)
         elif isinstance(item, Driver):
             if not any(j is item.joint for j in self.joints):
                 raise ModelError(f"driver '{item.name}': joint '{item.joint.name}' is not in "
                                  f"{owner}; add the joint first")
             if any(d.joint is item.joint for d in self.drivers):
                 raise ModelError(f"driver '{item.name}': joint '{item.joint.name}' is driven already")
-            self._check_names(item, self.joints + self.drivers)
+            self._check_names(item)
             self.drivers.append(item)
+            self._noted(item)
         elif isinstance(item, (Spring, Force, Torque, RotationalSpring)):
             for body in item.bodies:
                 self._check_member(body, f"'{item.name}'")
@@ -121,14 +125,35 @@ class Mechanism:
     def _all_bodies(self):
         return [self.ground] + self.bodies
 
+    def _names(self):
+        """(body names, ids of the bodies, joint and driver names), rebuilt whenever the
+        lists have changed length since: checking each added item against every earlier
+        one made building a 200-window chain cost 0.07 s."""
+        key = (len(self.bodies), len(self.joints), len(self.drivers))
+        if self._lookup is None or self._lookup[0] != key:
+            bodies = self._all_bodies()
+            self._lookup = (key, {b.name for b in bodies}, {id(b) for b in bodies},
+                            {x.name for x in self.joints + self.drivers})
+        return self._lookup[1:]
+
+    def _noted(self, item):
+        """Add the item just appended to the lookup of `_names` (current before it)."""
+        key, names, ids, joint_names = self._lookup
+        if isinstance(item, Body):
+            names.add(item.name)
+            ids.add(id(item))
+        else:
+            joint_names.add(item.name)
+        self._lookup = ((len(self.bodies), len(self.joints), len(self.drivers)), names, ids,
+                        joint_names)
+
     def _check_member(self, body, who):
-        if not any(body is b for b in self._all_bodies()):
+        if id(body) not in self._names()[1]:
             raise ModelError(f"{who}: body '{body.name}' is not in mechanism '{self.name}'; "
                              "add the body first")
 
-    @staticmethod
-    def _check_names(item, existing):
-        if any(e.name == item.name for e in existing):
+    def _check_names(self, item):
+        if item.name in self._names()[2]:
             raise ModelError(f"a joint or driver named '{item.name}' exists already; "
                              "give it a `name=`")
 
