@@ -145,10 +145,10 @@ class BandedSchur:
 
     def largest(self):
         """(λ_max, u) of the latest S. From the previous call's vector, Lanczos (ARPACK,
-        O(m kd) a product) settles in a few products, consecutive calls being close: 2 ms
-        on the 400-window chain. The first call, or one that does not settle, takes the
-        eigenvalue from LAPACK's banded solver (dsbevx, that one value only: its reduction
-        to tridiagonal form is O(m² kd), 40 ms there) and its vector by two steps of
+        O(m kd) a product) settles in a few products, consecutive calls being close. The
+        first call, or one that does not settle, takes the eigenvalue from LAPACK's banded
+        solver (dsbevx, that one value only: its reduction to tridiagonal form is
+        O(m² kd)) and its vector by two steps of
         inverse iteration shifted just past it. The top of a long chain's spectrum is
         crowded (many alike joints): Lanczos from a cold start, or power iteration, would
         crawl."""
@@ -204,8 +204,8 @@ class BandedSchur:
         """The coordinates in the order LU with partial pivoting of Φ_qᵀ = Jᵀ picks them
         (the first rank of them are a partition's dependent ones, as
         `scipy.linalg.lu_factor` of the dense Jᵀ gives them), from LAPACK's banded LU
-        (dgbtrf) of Jᵀ laid out as a band: O(n kl (kl + ku)) where the dense LU is O(n m²),
-        0.2 s on the 400-window chain. The constraints are taken in the band's order, so
+        (dgbtrf) of Jᵀ laid out as a band: O(n kl (kl + ku)) where the dense LU is
+        O(n m²). The constraints are taken in the band's order, so
         the pivots may differ from the dense LU's; they are as good a choice."""
         from scipy.linalg import lapack
         order, (slot_row, slot_col), kl, ku = self._layout()

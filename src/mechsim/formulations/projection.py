@@ -94,8 +94,8 @@ class Projection(FullCoordinates):
         A long chain (one with the banded Schur complement) is never well conditioned
         either, because of its length: σ_min/σ_max peaks near 0.6/N for N windows, and
         near a passage it moves as slowly, so a fixed cut leaves a band whose duration
-        grows with N (12 ms on the 100-window chain, more than the passage bridge's
-        Adams step can span: its error estimates read 8 to 1200 at rtol 1e-8). There the
+        grows with N, beyond what the passage bridge's Adams step can span at tight
+        tolerances (docs/benchmarks.md, long chains). There the
         cut is `rcond` relative to the chain's own level, `CHAIN_REF`, which keeps the
         band as short as a short chain's."""
         mon = self.monitor

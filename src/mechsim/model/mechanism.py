@@ -127,8 +127,8 @@ class Mechanism:
 
     def _names(self):
         """(body names, ids of the bodies, joint and driver names), rebuilt whenever the
-        lists have changed length since: checking each added item against every earlier
-        one made building a 200-window chain cost 0.07 s."""
+        lists have changed other than by `add` (which keeps it current): building a
+        mechanism costs O(n), not a scan of every earlier item per item."""
         key = (len(self.bodies), len(self.joints), len(self.drivers))
         if self._lookup is None or self._lookup[0] != key:
             bodies = self._all_bodies()
