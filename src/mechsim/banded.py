@@ -182,7 +182,6 @@ class BandedSchur:
         self._high = u
         return lam, u
 
-
     def _layout(self):
         """Jᵀ (n × m) as a band: its columns (the constraints) in the order of S, its rows
         (the coordinates) by the first of their constraints in that order; (row order,

@@ -125,11 +125,17 @@ class Mechanism:
     def _all_bodies(self):
         return [self.ground] + self.bodies
 
+    def _lookup_key(self):
+        """What tells whether the lists changed since `_names` looked: their lengths and
+        last items."""
+        return tuple((len(x), id(x[-1]) if x else None)
+                     for x in (self.bodies, self.joints, self.drivers))
+
     def _names(self):
-        """(body names, ids of the bodies, joint and driver names), rebuilt whenever the
-        lists have changed other than by `add` (which keeps it current): building a
-        mechanism costs O(n), not a scan of every earlier item per item."""
-        key = (len(self.bodies), len(self.joints), len(self.drivers))
+        """(body names, ids of the bodies, joint and driver names), kept current by `add`
+        and rebuilt where the lists were changed otherwise: building a mechanism costs
+        O(n), not a scan of every earlier item per item."""
+        key = self._lookup_key()
         if self._lookup is None or self._lookup[0] != key:
             bodies = self._all_bodies()
             self._lookup = (key, {b.name for b in bodies}, {id(b) for b in bodies},
@@ -138,14 +144,13 @@ class Mechanism:
 
     def _noted(self, item):
         """Add the item just appended to the lookup of `_names` (current before it)."""
-        key, names, ids, joint_names = self._lookup
+        _, names, ids, joint_names = self._lookup
         if isinstance(item, Body):
             names.add(item.name)
             ids.add(id(item))
         else:
             joint_names.add(item.name)
-        self._lookup = ((len(self.bodies), len(self.joints), len(self.drivers)), names, ids,
-                        joint_names)
+        self._lookup = (self._lookup_key(), names, ids, joint_names)
 
     def _check_member(self, body, who):
         if id(body) not in self._names()[1]:
