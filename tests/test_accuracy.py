@@ -80,9 +80,11 @@ CASES = {
 @pytest.mark.parametrize("case", CASES)
 @pytest.mark.parametrize("method", METHOD_NAMES)
 def test_the_error_follows_rtol(case, method):
-    """Within 50 rtol at every rtol from 1e-6 to 1e-12 (the projection and Baumgarte
-    methods within 2; the partitioned ones reach 20–35 at 1e-12 on the double pendulum),
-    and at least 3 times smaller for each 100 times smaller rtol."""
+    """Within 50 rtol at every rtol from 1e-6 to 1e-12, and at least 3 times smaller for
+    each 100 times smaller rtol. Measured with four BLAS kernels (Haswell, SkylakeX,
+    Sandybridge, Prescott): at most 6.5 rtol, and at least 19 times smaller per step.
+    (The partitioned methods' dependent coordinates were solved to no better than 1e-13:
+    at rtol 1e-12 their error was 8–92 rtol, depending on the kernel.)"""
     build, t_end, exact, names = CASES[case]
     mech = build()
     errors = []
@@ -110,15 +112,16 @@ def test_a_run_through_unresolved_passages_says_its_branch_is_in_doubt(method, w
     assert ("may have left its branch" in res.message) is warned, res.message
 
 
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("method", ["lu", "qr", "svd", "hybrid", "projection"])
 def test_every_passage_of_a_turning_parallelogram_is_reported(method, seed):
     """A parallelogram turning in zero gravity keeps its speed and aligns every π/|ω| s,
-    first at π/(2|ω|). The methods that follow its branch report each alignment within
-    1e-3 s; the partitioned ones, which may leave the branch at any of them (and say so),
-    report at least the first, also where a step crosses it (a partitioned method strides
-    through this exactly uniform motion: 7 passages in 5 steps, of which it reported 1
-    or 2)."""
+    first at π/(2|ω|). Every method reports each alignment within 1e-3 s, also where one
+    step of a partitioned method strides over several of them (this exactly uniform motion
+    lets it take 7 passages in 5 steps): the search inside a step goes on bisecting beside
+    a dip it found, since a second passage may hide next to it. (With the search stopping
+    at the first dip, LU reported 5 of 7 on one CPU's round-off and 7 on another's.) The
+    partitioned methods, which may leave the branch at any of them, say so."""
     rng = np.random.default_rng(seed)
     length, mass = rng.uniform(0.3, 2.0), rng.uniform(0.5, 3.0)
     w = rng.uniform(2.0, 8.0) * rng.choice([-1.0, 1.0])
@@ -129,13 +132,9 @@ def test_every_passage_of_a_turning_parallelogram_is_reported(method, seed):
     expected = [(math.pi / 2 + k * math.pi) / abs(w) for k in range(12)]
     expected = [t for t in expected if t < 3.0]
     found = sorted(p.t_min for p in res.singular_passages)
-    if method in ("hybrid", "projection"):
-        assert len(found) == len(expected), (found, expected)
-        assert np.allclose(found, expected, atol=1e-3), (found, expected)
-    else:
-        # Its states inside a step that strides the passage come from Newton on an
-        # ill-conditioned partition: the minimum is placed within 1e-2 s.
-        assert found and abs(found[0] - expected[0]) < 1e-2, (found, expected)
+    assert len(found) == len(expected), (found, expected)
+    assert np.allclose(found, expected, atol=1e-3), (found, expected)
+    if method not in ("hybrid", "projection"):
         assert "may have left its branch" in res.message
 
 

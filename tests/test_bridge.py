@@ -86,30 +86,31 @@ def ten_window():
 
 def test_bridging_costs_each_passage_a_bounded_number_of_evaluations(ten_window):
     """The ten-window chain loses ten directions over each passage, one after another.
-    Bridged, each passage costs its Adams step's evaluations (212 for three passages, 881 in
-    all for 3 s, the same with compiled or Python kernels). Stepping through costs what the
-    step placement happens to give: for these 3 s, 694 evaluations with the compiled
-    kernels and 2786 with the Python ones, whose results differ only by round-off; over
-    10 s, 6515 and 4212 against the bridge's 2780; on the 40-window chain, minutes."""
+    Bridged, each passage costs its Adams step's evaluations; stepping through costs what
+    the step placement happens to give. `mechsim bench costs` (ten-window) measures both on
+    four BLAS kernels: bridged 212 bridge evaluations and 881 right-hand sides for 3 s,
+    stepped through 3094–5793; the bounds here are three times the bridged figures."""
     kw = dict(t_end=3.0, method="projection", rtol=1e-8, atol=1e-10, output_step=0.01)
     bridged = ten_window.simulate(**kw)
     assert bridged.status == "success"
     assert bridged.stats["bridges"] == 3 and bridged.stats["bridges_over_tolerance"] == 0
-    assert bridged.stats["bridge_evaluations"] <= 80 * 3
-    assert bridged.stats["rhs_evaluations"] < 1000
+    assert bridged.stats["bridge_evaluations"] <= 3 * 212
+    assert bridged.stats["rhs_evaluations"] <= 3 * 881
     assert tip_error(bridged, 10) <= 1e-7
     through = ten_window.simulate(**kw, bridge_passages=False)
     assert through.status == "success" and through.stats["bridges"] == 0
+    assert tip_error(through, 10) <= 1e-6
 
 
 def test_ten_window_chain_hybrid_bridges_its_passages(ten_window):
-    """The hybrid crosses the chain's passages in its projection phase: three in 3 s, in
-    under 60 steps (measured 38)."""
+    """The hybrid crosses the chain's passages in its projection phase: three in 3 s, each
+    bridged (34 steps in all on four BLAS kernels, `mechsim bench costs`; the bound is
+    three times that)."""
     res = ten_window.simulate(t_end=3.0, method="hybrid", rtol=1e-8, atol=1e-10,
                               output_step=0.01)
     assert res.status == "success", res.message
     assert res.stats["bridges"] == 3 == len(res.singular_passages)
-    assert res.stats["steps"] < 60
+    assert res.stats["steps"] <= 3 * 34
     assert tip_error(res, 10) <= 1e-7
     np.testing.assert_allclose([p.t_min for p in res.singular_passages],
                                exact_crossings(3.0, 10), atol=1e-4)
@@ -133,26 +134,32 @@ def test_a_hundred_window_chain_bridges_its_passages_within_tolerance():
                                exact_crossings(1.3, 100), atol=1e-4)
 
 
-def test_a_noise_limited_bridge_takes_its_best_declined_attempt():
+@pytest.mark.parametrize("path", ["python", "compiled"])
+def test_a_noise_limited_bridge_takes_its_best_declined_attempt(path):
     """The seed's falling four-bar at rtol 1e-9 with its 10 ms step bound: at the third
-    passage the bridge reads an estimate of 1.27 and, landed closer, 2.17 (the round-off
-    of q̈ near the configuration, amplified; stepping through such a passage once cost 852
-    bridge evaluations). The best declined bridge is taken instead, counted as over
-    tolerance; every passage is bridged and the crank stays on the exact branch. The
-    noise is that of the Python evaluations: with the compiled ones
-    (`mechsim.codegen.engine`) that bridge reads 0.79 at once and is taken, so the
-    compiled path is switched off here."""
+    passage the bridge's error estimate is the round-off of q̈ near the configuration,
+    amplified, and landing closer makes it no better (stepping through such a passage once
+    cost 852 bridge evaluations). The best declined bridge is then taken, counted as over
+    tolerance. How often that happens depends on the round-off: `mechsim bench costs`
+    (noisy-bridge) measured 1–2 such bridges and 421–556 bridge evaluations on the Python
+    path, 0–1 and 246–441 on the compiled one, over four BLAS kernels. On either path every
+    passage is bridged, the crank stays on the exact branch, and the work is bounded by
+    three times the most measured."""
     mech = ms.examples.four_bar()
     run = dict(t_end=2.0, method="projection", rtol=1e-9, atol=1e-11, max_step=0.01,
                output_step=0.002)
     model = mech.simulate(t_end=1e-3).problem.model
     from mechsim.codegen import engine
-    with engine.python_path(model):
+    if path == "python":
+        with engine.python_path(model):
+            res = mech.simulate(**run)
+    else:
+        assert engine.library(model) is not None
         res = mech.simulate(**run)
     assert res.status == "success"
     assert [p.bridged for p in res.singular_passages] == [True, True, True]
-    assert res.stats["bridges"] == 3 and res.stats["bridges_over_tolerance"] >= 1
-    assert res.stats["bridge_evaluations"] < 500
+    assert res.stats["bridges"] == 3 and res.stats["bridges_over_tolerance"] <= 3
+    assert res.stats["bridge_evaluations"] <= 3 * 556
     from mechsim.bench import PROBLEMS
     assert PROBLEMS["parallelogram"].error(res) < 1e-10
 

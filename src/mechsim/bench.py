@@ -89,6 +89,28 @@ PROBLEMS["driven-slider-crank"] = Problem(
     exact=_slider_error, quantity="max slider error [m]",
     description="crank driven at 150 rad/s (0 DOF), 0.2 s")
 
+def _crank_rocker():
+    """A Grashof crank-rocker (crank 0.3 m, coupler 0.9 m, rocker 0.7 m, ground 1 m)
+    falling from rest at 60°: a smooth motion with no singular configuration."""
+    return examples.general_four_bar(0.3, 0.9, 0.7, 1.0, math.radians(60.0),
+                                     masses=(1.0, 1.5, 1.0), name="crank-rocker")
+
+
+@functools.cache
+def _crank_rocker_reference():
+    # At the bench's output times (t_end / 1000), so that the error needs no interpolation.
+    return _crank_rocker().simulate(3.0, method="projection", rtol=1e-12, atol=1e-14,
+                                    output_step=3e-3)
+
+
+PROBLEMS["crank-rocker"] = Problem(
+    "crank-rocker", _crank_rocker, 3.0, math.radians(60.0), 0.0, 1,
+    reference=_crank_rocker_reference, quantity="max coupler-point error [m]",
+    description="Grashof crank-rocker falling from rest, 3 s, no singular passage")
+PROBLEMS["ten-window"] = Problem(
+    "ten-window", lambda: examples.double_four_bar(10), 3.0, math.pi / 2, -1.0, 10,
+    description="10-window four-bar, 3 s, 63 coordinates, 3 singular passages")
+
 DEFAULT_PROBLEMS = ("parallelogram", "double-four-bar", "driven-slider-crank")
 DEFAULT_METHODS = ("lu", "projection", "projection-svd", "hybrid", "baumgarte")
 # Benchmark names for a method with options: the seed's projection method takes an SVD at
@@ -254,7 +276,7 @@ def format_within(name: str, error: float, best: dict) -> str:
     return f"within error {error:.0e}, {name}: " + ", ".join(parts)
 
 
-def _write_csv(rows, path: Path, fields) -> Path:
+def write_csv(rows, path: Path, fields) -> Path:
     """One CSV row per row of `rows` with the attributes `fields`, under a header of them."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as f:
@@ -269,7 +291,7 @@ def write(rows: list[Row], out_dir) -> list[Path]:
     """CSV of all rows and one error-vs-time plot per problem."""
     from matplotlib.figure import Figure
     out_dir = Path(out_dir)
-    written = [_write_csv(rows, out_dir / "bench.csv", list(Row.__dataclass_fields__))]
+    written = [write_csv(rows, out_dir / "bench.csv", list(Row.__dataclass_fields__))]
     for name in dict.fromkeys(r.problem for r in rows):
         fig = Figure(figsize=(6.4, 4.4), layout="constrained")
         ax = fig.add_subplot()
@@ -374,7 +396,7 @@ def random_summary(rows: list[RandomRow], method="hybrid", against="projection")
 
 def write_random(rows: list[RandomRow], out_dir) -> list[Path]:
     """CSV of the random sweep's rows."""
-    return [_write_csv(rows, Path(out_dir) / "bench_random.csv",
+    return [write_csv(rows, Path(out_dir) / "bench_random.csv",
                        list(RandomRow.__dataclass_fields__))]
 
 
@@ -489,7 +511,7 @@ def write_shooting(rows: list[ShootingRow], out_dir) -> list[Path]:
     """CSV of the rows and a plot of wall time against accuracy, per case and method."""
     from matplotlib.figure import Figure
     out_dir = Path(out_dir)
-    path = _write_csv(rows, out_dir / "bench_coulomb.csv",
+    path = write_csv(rows, out_dir / "bench_coulomb.csv",
                       list(ShootingRow.__dataclass_fields__) + ["speedup"])
     fig = Figure(figsize=(6.4, 4.4), layout="constrained")
     ax = fig.add_subplot()
@@ -566,5 +588,5 @@ def format_analysis(r: AnalysisRow) -> str:
 
 
 def write_analysis(rows: list[AnalysisRow], out_dir) -> list[Path]:
-    return [_write_csv(rows, Path(out_dir) / "bench_analysis.csv",
+    return [write_csv(rows, Path(out_dir) / "bench_analysis.csv",
                        list(AnalysisRow.__dataclass_fields__))]

@@ -248,7 +248,8 @@ def _bench(args) -> int:
     shooting = "coulomb" in problems
     sweep = "random" in problems
     analysis = "analysis" in problems
-    problems = [p for p in problems if p not in ("coulomb", "random", "analysis")]
+    costs = "costs" in problems
+    problems = [p for p in problems if p not in ("coulomb", "random", "analysis", "costs")]
     methods = args.methods.split(",") if args.methods else list(bench.DEFAULT_METHODS)
     try:
         rtols = _numbers(args.rtols, "--rtols", bench.DEFAULT_RTOLS)
@@ -282,6 +283,11 @@ def _bench(args) -> int:
             for r in arows:
                 print(bench.format_analysis(r))
             written += bench.write_analysis(arows, args.out)
+        if costs:
+            from . import costs as cost_cases
+            print("the work of the cases whose counts the tests bound loosely")
+            print(cost_cases.HEADER)
+            written += cost_cases.write(cost_cases.run(), args.out)
         if shooting:
             print("Coulomb oscillator: shooting against brute force to the same accuracy")
             print(bench.SHOOTING_HEADER)
@@ -371,7 +377,9 @@ def main(argv=None) -> int:
                             "forty-window, flexible-four-bar, random (12 random mechanisms: "
                             "hybrid against projection at the smallest rtol), coulomb "
                             "(shooting against brute force), analysis (reactions, "
-                            "equilibrium and linearization); default: the first three and "
+                            "equilibrium and linearization), crank-rocker, ten-window, "
+                            "costs (steps, right-hand sides and bridge evaluations of the "
+                            "cases the tests bound loosely); default: the first three and "
                             "random")
     bench.add_argument("--methods", help="comma-separated (default: lu,projection,"
                        "projection-svd,hybrid,baumgarte; projection-svd is the projection "

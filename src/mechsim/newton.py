@@ -30,9 +30,11 @@ STALL_RATIO = 0.5
 STALL_SPAN = 1e3
 
 
-def newton_stalled(err: float, prev: float, tol: float) -> bool:
-    """Has a Newton iteration on Φ reached round-off (see the module docstring)?"""
-    return err > STALL_RATIO * prev and err <= STALL_SPAN * tol
+def newton_stalled(err: float, prev: float, tol: float, round_off: float | None = None) -> bool:
+    """Has a Newton iteration on Φ reached round-off (see the module docstring)? Within
+    `round_off` of zero if given, else within `STALL_SPAN` tol."""
+    return err > STALL_RATIO * prev and err <= (STALL_SPAN * tol if round_off is None
+                                                else round_off)
 
 
 def max_abs(phi) -> float:
@@ -55,8 +57,8 @@ class NewtonResult:
 
 
 def newton(x, residual: Callable, correct: Callable, tol: float, max_iter: int, *,
-           stall: bool = False, contraction: float | None = None,
-           extra: int = 0) -> NewtonResult:
+           stall: bool = False, round_off: float | None = None,
+           contraction: float | None = None, extra: int = 0) -> NewtonResult:
     """Iterate x ← correct(x, Φ, aux, slow) until Φ(x) = 0 within `tol`.
 
     Parameters
@@ -68,6 +70,8 @@ def newton(x, residual: Callable, correct: Callable, tol: float, max_iter: int, 
         where the residual shrank by less than `contraction` in the last iteration
     tol, max_iter : stop at ‖Φ‖∞ ≤ tol; at most max_iter corrections
     stall : also stop (converged) at round-off, `newton_stalled`
+    round_off : the residual under which a stall counts as round-off (default
+        `STALL_SPAN` tol)
     contraction : the factor by which each iteration must shrink ‖Φ‖∞ (`CHORD_CONTRACTION`
         for a chord), or None for no such test
     extra : corrections applied after convergence (a projection that should land below
@@ -78,7 +82,7 @@ def newton(x, residual: Callable, correct: Callable, tol: float, max_iter: int, 
     while True:
         phi, aux = residual(x)
         err = max_abs(phi)
-        if err <= tol or (stall and newton_stalled(err, prev, tol)):
+        if err <= tol or (stall and newton_stalled(err, prev, tol, round_off)):
             break
         if k == max_iter or not math.isfinite(err):
             return NewtonResult(x, aux, k, err, False)

@@ -71,7 +71,8 @@ static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double 
     mechsim_phi(q, t, c->p, phi);
     const double err = max_abs(m, phi);
     if (isnan(err)) return 1;
-    if (err <= c->newton_tol) break;
+    if (err <= c->newton_tol ||
+        (err > c->stall_ratio * err_prev && err <= c->stall_span * c->newton_tol)) break;
     if (it == c->max_newton || !isfinite(err) || !(err <= c->chord_contraction * err_prev))
       return 1;
     err_prev = err;

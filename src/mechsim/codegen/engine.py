@@ -177,7 +177,8 @@ class PartitionedEngine:
     writes, and the calls. `accept` loads an accepted step's predictor and chord factor;
     `state` and `accelerations` mirror `Partitioned.full_state` and its q̈ solve."""
 
-    def __init__(self, lib, problem, basis, newton_tol, max_newton, rheonomic):
+    def __init__(self, lib, problem, basis, newton_tol, max_newton, rheonomic,
+                 round_off=None):
         n, m, f = problem.n, problem.m, basis.f
         r = n - f
         self.f = f
@@ -196,7 +197,9 @@ class PartitionedEngine:
             "p", "q_ref", "P", "C", "winv", "ind", "dep", "y", "q", "v", "J", "Q", "out")}}
         self.ctx = PARTITION.make(dict(
             n=n, m=m, f=f, max_newton=max_newton, rheonomic=int(rheonomic),
-            newton_tol=newton_tol, chord_contraction=CHORD_CONTRACTION, t_last=0.0), arrays)
+            newton_tol=newton_tol, chord_contraction=CHORD_CONTRACTION, t_last=0.0,
+            stall_ratio=STALL_RATIO,
+            stall_span=0.0 if round_off is None else round_off / newton_tol), arrays)
         self._ptr = ctypes.addressof(self.ctx)
         self._state, self._acc = lib.mechsim_lu_state, lib.mechsim_lu_accelerations
         self._states = lib.mechsim_lu_states

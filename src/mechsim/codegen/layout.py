@@ -80,7 +80,8 @@ class Dims:
 # The partitioned evaluation: the partition and the last accepted step.
 PARTITION = Layout("mechsim_lu", [
     *(Field(name, "int64") for name in ("n", "m", "f", "max_newton", "rheonomic")),
-    *(Field(name, "double") for name in ("newton_tol", "chord_contraction", "t_last")),
+    *(Field(name, "double") for name in ("newton_tol", "chord_contraction", "t_last",
+                                          "stall_ratio", "stall_span")),
     Field("p", "const double*"), Field("q_ref", "const double*"),
     Field("P", "const double*"),           # r × (3 + f): the dependent coordinates' prediction
     Field("C", "const double*"),           # r × m: (Φ_q D)⁻¹, the chord factor

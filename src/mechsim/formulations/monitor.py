@@ -59,6 +59,20 @@ class OpenPassage:
     bridged: bool = False
 
 
+@dataclass(frozen=True)
+class Dip:
+    """A dip of σ_min/σ_max under `enter` inside a step: its minimum (t_min, s_min, not
+    normalized) and the joints of that singular vector, its estimated span, and whether it
+    holds the step's start (the open passage going on) or its end (still open there)."""
+    t_min: float
+    s_min: float
+    joints: tuple
+    t_start: float
+    t_end: float
+    at_start: bool
+    at_end: bool
+
+
 class SingularityMonitor:
     """Records singular passages; `last` and `rate` are s/peak and its rate after the latest
     observation, `inside` tells whether a passage is open."""
@@ -77,6 +91,7 @@ class SingularityMonitor:
         self.peak = 0.0
         self._prev = None            # (t, s/peak, ṡ/peak) at the previous observation
         self._skipped = 0            # steps skipped since that observation
+        self._floor = None           # (t, lower bound of σ_min/σ_max) at the latest skip
         self.peak_rate = 0.0         # fastest |ṡ|/peak seen
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
         self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
@@ -167,7 +182,11 @@ class SingularityMonitor:
         Jm, smin, smax = self._measured
         J = self._jacobian(q, t)
         E = sparse.frobenius(sparse.difference(J, Jm))
-        return max(smin - E, 0.0) / (smax + E) > 2.0 * self.enter * self.peak, J
+        floor = max(smin - E, 0.0) / (smax + E)
+        if floor > 2.0 * self.enter * self.peak:
+            self._floor = (t, floor)
+            return True, J
+        return False, J
 
     def observe(self, t, q, v=None, state_at=None, t_old=None) -> float:
         """Take the state at an accepted step that began at `t_old`. `state_at(t) -> (q, v)`
@@ -175,6 +194,7 @@ class SingularityMonitor:
         step. Returns s/peak (the latest measured value when this step was skipped)."""
         if self._prev is None:
             self.t_first = t
+        floor = self._floor if self._skipped else None
         skip, J = self._may_skip(q, t, t_old)
         if skip:
             self._skipped += 1
@@ -186,31 +206,36 @@ class SingularityMonitor:
         s, rate = (raw / self.peak, rate / self.peak) if self.peak > 0 else (0.0, 0.0)
         self.peak_rate = max(self.peak_rate, abs(rate))
         prev, self._prev = self._prev, (t, s, rate)
-        contiguous = self._skipped == 0 and prev is not None and \
-            (t_old is None or prev[0] == t_old)
+        if prev is not None and t_old is not None and prev[0] != t_old:
+            # The step follows skipped ones: it starts where the last skip bounded s from
+            # below (a step longer than the skip foresaw may hide a passage).
+            prev = (t_old, floor[1] / self.peak, 0.0) \
+                if floor is not None and floor[0] == t_old else None
         self._skipped = 0
         self.last, self.rate = s, rate
-        if self.open_passage is not None:
-            here = self.open_passage
+        if prev is not None and state_at is not None:
+            for dip in self._hidden_passages(prev, (t, s, rate), state_at,
+                                             max(speed_before, self._ratio_speed)):
+                here = self.open_passage
+                if here is not None and dip.at_start:          # the open passage goes on
+                    if dip.s_min < here.s_min:
+                        here.t_min, here.s_min, here.joints = dip.t_min, dip.s_min, dip.joints
+                    if not dip.at_end:
+                        self.close(dip.t_end)
+                elif dip.at_end:                                # the step ends inside it
+                    self.open_passage = OpenPassage(dip.t_start, dip.t_min, dip.s_min,
+                                                    dip.joints)
+                else:
+                    self.passages.append(SingularPassage(dip.t_start, dip.t_end, dip.s_min,
+                                                         dip.joints, dip.t_min))
+        here = self.open_passage
+        if here is not None:
             if raw < here.s_min:
                 here.t_min, here.s_min, here.joints = t, raw, self.joints_of(u)
             if s > self.leave:
                 self.close(t)
-            return s
-        hidden = []
-        if contiguous and prev[1] >= self.enter and state_at is not None:
-            hidden = self._hidden_minimum(prev, (t, s, rate), state_at,
-                                          max(speed_before, self._ratio_speed))
-        if s < self.enter:
+        elif s < self.enter:
             self.open_passage = OpenPassage(t, t, raw, self.joints_of(u))
-            if hidden and self._same_dip(hidden[-1][0], t, state_at):
-                # The step ends inside a passage whose minimum it passed: the open one.
-                tm, sm, joints, t_start = hidden.pop()
-                if sm < raw:
-                    self.open_passage = OpenPassage(t_start, tm, sm, joints)
-        for tm, sm, joints, t_start in hidden:
-            self.passages.append(SingularPassage(t_start, min(t, 2.0 * tm - t_start), sm,
-                                                 joints, tm))
         return s
 
     def crossed(self, t0, t1, tm, qm):
@@ -239,24 +264,30 @@ class SingularityMonitor:
         dJ = sparse.difference(self._jacobian(q + eps * v, t + eps), J, 1.0 / eps)
         return 2.0 * sparse.frobenius(dJ) / smax
 
-    def _hidden_minimum(self, a, b, state_at, ratio_speed=0.0):
-        """The passages hidden inside the step from a = (t0, s0/peak, rate) to b, as
-        (t_min, σ ratio there, joints, t_start), in time order:
-        every interval of the step's dense output where s could fall below `enter`, given
-        that |ṡ| is at most R (twice the larger of the ends' bounds from `_speed`, or of the
-        rates seen), is bisected
-        until s is shown to stay above it (s ≥ (s_a + s_b − R (t_b − t_a))/2 between two
-        values) or found under it; each dip found is refined to its minimum. A step that
-        crosses several passages (a partitioned method striding through a uniformly
-        turning parallelogram) reports every one. Steps clear of
-        any passage cost nothing: their ends already exclude it."""
+    def _hidden_passages(self, a, b, state_at, ratio_speed=0.0) -> list[Dip]:
+        """The dips of s inside the step from a = (t0, s0/peak, rate) to b, in time order
+        (s0 may be a lower bound of s at t0, with rate 0); a dip that holds t0 continues
+        the open passage.
+
+        |ṡ| is at most R (twice the larger of the ends' bounds from `_speed`, or of the
+        rates seen), so s ≥ (s_a + s_b − R (t_b − t_a))/2 between two values. Every
+        interval of the step's dense output this does not keep above `enter` is bisected,
+        also beside a value found under it: two passages are apart by a stretch where s
+        exceeds `leave`, which takes at least (leave − enter)/R to climb to and as long to
+        leave, so no other passage comes within twice that of a value under `enter`, and
+        an interval that near one needs no search. The values under `enter` then fall into
+        dips (runs not parted by a value above `leave`), each refined to its minimum.
+        A step that crosses several passages (a partitioned method striding through a
+        uniformly turning parallelogram) reports every one, wherever its midpoints fall.
+        Steps clear of any passage cost nothing: their ends already exclude it."""
         t0, s0, d0 = a
         t1, s1, d1 = b
         h = t1 - t0
-        peak, enter = self.peak, self.enter * self.peak
+        peak, enter, leave = self.peak, self.enter * self.peak, self.leave * self.peak
         rate_bound = 2.0 * max(peak * self.peak_rate, peak * abs(d0), peak * abs(d1),
                                ratio_speed)
-        if not h > 0.0 or (s0 + s1) * peak - rate_bound * h >= 2.0 * enter:
+        if not h > 0.0 or not rate_bound > 0.0 or \
+                (s0 + s1) * peak - rate_bound * h >= 2.0 * enter:
             return []
 
         def s_at(tk):
@@ -267,40 +298,39 @@ class SingularityMonitor:
         budget = int(min(4000, 16 + 4 * rate_bound * h / max((s0 + s1) * peak, enter)))
         if self.problem.m > SEARCH_MAX_ROWS:
             budget = min(budget, 64)
-        lows, stack = [], collections.deque([(t0, s0 * peak, t1, s1 * peak)])
+        apart = 2.0 * (leave - enter) / rate_bound
+        seen = {t0: s0 * peak, t1: s1 * peak}
+        lows = [tk for tk, sk in seen.items() if sk < enter]
+        stack = collections.deque([(t0, s0 * peak, t1, s1 * peak)])
         while stack and budget > 0:
             ta, sa, tb, sb = stack.popleft()
-            if (sa + sb) - rate_bound * (tb - ta) >= 2.0 * enter or tb - ta < 1e-9 * h:
+            if (sa + sb) - rate_bound * (tb - ta) >= 2.0 * enter or tb - ta < 1e-9 * h or \
+                    _covered(ta, tb, lows, apart):
                 continue
             tm = 0.5 * (ta + tb)
-            sm = s_at(tm)
+            sm = seen[tm] = s_at(tm)
             budget -= 1
             if sm < enter:
-                lows.append((ta, tb))
-            else:
-                stack += [(ta, sa, tm, sm), (tm, sm, tb, sb)]
-        found = []
-        for ta, tb in sorted(lows):
-            tm, sm = self._refine(s_at, ta, tb)
-            if not (sm < enter and t0 + 1e-6 * h < tm < t1 - 1e-6 * h):
-                continue                          # no minimum inside: s only falls to an end
-            if found and (tm - found[-1][0] < 1e-9 * h or
-                          self._same_dip(found[-1][0], tm, state_at)):
-                if sm < found[-1][1]:
-                    found[-1] = (tm, sm)          # the same dip, seen from two intervals
-                continue
-            found.append((tm, sm))
-        width = enter / max(rate_bound / 2.0, 1e-300)
-        out = []
-        for tm, sm in found:
+                lows.append(tm)
+            stack += [(ta, sa, tm, sm), (tm, sm, tb, sb)]
+        times = sorted(seen)
+        values = [seen[tk] for tk in times]
+        last = len(times) - 1
+        width = enter / (rate_bound / 2.0)
+        dips = []
+        for run, closed in _dips(values, enter, leave, self.open_passage is not None):
+            k = min(run, key=values.__getitem__)
+            tm, sm = times[k], values[k]
+            if 0 < k < last:
+                tr, sr = self._refine(s_at, times[k - 1], times[k + 1])
+                if sr < sm:
+                    tm, sm = tr, sr
             _, _, um = self.measure(state_at(tm)[0], tm)
-            out.append((tm, sm, self.joints_of(um), max(t0, tm - width)))
-        return out
-
-    def _same_dip(self, ta, tb, state_at) -> bool:
-        """Does s stay under `enter` between ta and tb (one dip, not two)? At the middle."""
-        tm = 0.5 * (ta + tb)
-        return self.measure(state_at(tm)[0], tm)[0] < self.enter * self.peak
+            at_start, at_end = run[0] == 0, not closed
+            dips.append(Dip(tm, sm, self.joints_of(um),
+                            t0 if at_start else max(t0, tm - width),
+                            t1 if at_end else min(t1, tm + width), at_start, at_end))
+        return dips
 
     @staticmethod
     def _refine(s_at, ta, tb):
@@ -327,6 +357,35 @@ class SingularityMonitor:
             self.passages.append(SingularPassage(here.t_start, t, here.s_min, here.joints,
                                                  here.t_min, here.bridged))
             self.open_passage = None
+
+
+def _covered(ta, tb, lows, reach) -> bool:
+    """Does [ta, tb] lie within `reach` of the times `lows` (in their union)?"""
+    near = sorted(tk for tk in lows if ta - reach <= tk <= tb + reach)
+    edge = ta
+    for tk in near:
+        if tk - reach > edge:
+            return False
+        edge = max(edge, tk + reach)
+        if edge >= tb:
+            return True
+    return False
+
+
+def _dips(values, enter, leave, open_at_start=False):
+    """The runs of indices of `values` under `enter`, two runs joined unless a value
+    above `leave` parts them (the monitor's hysteresis), each with whether such a value
+    closed it; with `open_at_start`, the first value opens a run whatever it is."""
+    dips, run = [], [0] if open_at_start and values else []
+    for k, value in enumerate(values):
+        if value < enter and k not in run[:1]:
+            run.append(k)
+        elif value > leave and run:
+            dips.append((run, True))
+            run = []
+    if run:
+        dips.append((run, False))
+    return dips
 
 
 def _compiled(problem):
