@@ -108,21 +108,31 @@ def test_a_driven_slider_crank_has_its_exact_accelerations():
     assert np.max(np.abs(xdd - exact)) < 1e-8 * np.max(np.abs(exact))
 
 
-@pytest.mark.parametrize("method", METHOD_NAMES)
+def driven_change_point_four_bar():
+    mech = ms.examples.four_bar()
+    mech.add(ms.Driver(mech.joint("A"), "-2*t"))
+    return mech
+
+
+def test_baumgarte_stops_at_a_driven_dead_centre_saying_so():
+    """Baumgarte's method solves the full constrained system, singular where the driven
+    parallelogram's bars align (first at t = 5° / 2 rad/s): it stops there, saying so, with
+    the samples before it."""
+    th0 = math.radians(10.0)
+    res = driven_change_point_four_bar().simulate(3.0, method="baumgarte", rtol=1e-8,
+                                                  atol=1e-10, output_step=0.01)
+    assert res.status == "failed" and "nearly singular" in res.message
+    assert th0 / 2.0 - 0.011 < res.t[-1] <= th0 / 2.0      # the last sample before it
+
+
+@pytest.mark.parametrize("method", [m for m in METHOD_NAMES if m != "baumgarte"])
 def test_a_driven_change_point_four_bar_crosses_its_dead_centres(method):
     """The parallelogram of `four_bar()` (a change-point four-bar: all bars align twice a
     turn) with its crank driven at −2 rad/s stays a parallelogram (rocker angle = crank
-    angle) through both aligned positions, which are reported as singular passages.
-    Baumgarte's method solves the full constrained system, singular there: it stops at the
-    first, saying so."""
-    mech = ms.examples.four_bar()
-    mech.add(ms.Driver(mech.joint("A"), "-2*t"))
+    angle) through both aligned positions, which are reported as singular passages."""
+    mech = driven_change_point_four_bar()
     th0 = math.radians(10.0)
     res = mech.simulate(3.0, method=method, rtol=1e-8, atol=1e-10, output_step=0.01)
-    if method == "baumgarte":
-        assert res.status == "failed" and "nearly singular" in res.message
-        assert th0 / 2.0 - 0.011 < res.t[-1] <= th0 / 2.0      # the last sample before it
-        return
     assert res.status == "success", res.message
     assert np.max(np.abs(res.coordinate("rocker.angle") - (th0 - 2.0 * res.t))) < 1e-6
     expected = [(th0 + k * math.pi) / 2.0 for k in range(2)]
@@ -141,3 +151,42 @@ def test_the_switch_says_why_a_partitioned_method_did_not_partition():
     (switch,) = res.switches
     assert (switch.from_method, switch.to_method) == ("lu", "projection")
     assert "0 degrees of freedom" in switch.reason
+
+
+def driven_pendulum(law):
+    mech = ms.Mechanism("pendulum")
+    rod = mech.add(ms.RigidBody.rod("rod", (0, 0), (1, 0), 1.0))
+    mech.add(ms.Driver(mech.add(ms.Revolute(mech.ground, rod, at=(0, 0), name="O")), law,
+                       name="motor"))
+    return mech
+
+
+RUNAWAY_LAWS = {"1/(t-0.1)": lambda t: 1 / (t - 0.1), "tan(20*t)": lambda t: np.tan(20 * t),
+                "exp(1000*t)": lambda t: np.exp(1000 * t)}
+
+
+@pytest.mark.parametrize("law, limit", [("1/(t-0.1)", 0.1), ("tan(20*t)", math.pi / 40),
+                                        ("exp(1000*t)", 0.2)])
+def test_a_motion_that_runs_away_ends_the_run_naming_its_driver(law, limit):
+    """A driver with a pole (1/(t − 0.1), tan 20t) or one growing as exp(1000 t) demands
+    ever faster turns: the steps shrink without end (1/(t − 0.1) once ran for 80 minutes,
+    and reached the stall rule after 270 000 steps). The run stops where the trend of its
+    steps shows t_end out of reach (1250 steps on every BLAS kernel tried; bounded here by
+    three times that), failed, with its samples, naming the driver and the fastest
+    coordinate."""
+    res = driven_pendulum(law).simulate(0.2, rtol=1e-6, atol=1e-8)
+    assert res.status == "failed" and "the motion runs away" in res.message, res.message
+    assert f"driver 'motor' prescribes {law}" in res.message and "fastest: rod." in res.message
+    assert res.stats["steps"] <= 3 * 1250 and res.t[-1] < limit and res.t.size > 100
+    exact = RUNAWAY_LAWS[law](res.t)                  # the samples before it, on the law
+    np.testing.assert_allclose(res.coordinate("rod.angle"), exact, rtol=1e-5, atol=1e-8)
+
+
+@pytest.mark.parametrize("law", ["20*t**3", "3*exp(2*t)"])
+def test_a_motion_that_speeds_up_within_reach_runs_to_the_end(law):
+    """A crank driven ever faster, but with an end in reach (60 t² rad/s up to 540 rad/s;
+    6 e^(2t) up to 2400 rad/s over 3 s): the run goes to t_end on the driver's law."""
+    res = driven_pendulum(law).simulate(3.0, rtol=1e-8, atol=1e-10, output_step=0.01)
+    assert res.status == "success", res.message
+    exact = 20 * res.t ** 3 if law == "20*t**3" else 3 * np.exp(2 * res.t)
+    np.testing.assert_allclose(res.coordinate("rod.angle"), exact, rtol=1e-10, atol=1e-10)

@@ -150,25 +150,39 @@ def test_redundant_triple_crank_simulates_on_its_exact_branch(method):
     assert np.max(np.abs(res.energy_drift)) < 1e-7
 
 
-@pytest.mark.parametrize("mass, inertia", [(1.0, 1e-9), (1.0, 1e-12), (1e20, 1.0)])
-@pytest.mark.parametrize("method", ["hybrid", "lu", "projection"])
+def point_mass(mass, inertia, d=0.5):
+    mech = ms.Mechanism("point mass")
+    body = mech.add(ms.RigidBody("b", mass, inertia, position=(d, 0.0)))
+    mech.add(ms.Revolute(mech.ground, body, at=(0.0, 0.0)))
+    return mech
+
+
+@pytest.mark.parametrize("method, mass, inertia", [
+    (method, mass, inertia) for method in ("hybrid", "lu", "projection")
+    for mass, inertia in ((1.0, 1e-9), (1.0, 1e-12), (1e20, 1.0))
+    if (method, mass) != ("projection", 1e20)])
 def test_very_unequal_masses_follow_the_exact_pendulum(method, mass, inertia):
     """A body pinned 0.5 m from its centre of mass swings as a compound pendulum,
     (I + m d²) θ̈ = −m g d cos θ, however unequal its mass and inertia: a 1 kg point mass
     (inertia 1e-9 kg·m²) made Φ_q M⁻¹ Φ_qᵀ ill-conditioned by 1e8 and LU crawled, and the
     projection method's fixed truncation cut dropped one of the pin's equations (0.6 rad
-    off after 2 s, reported as success). The projection method cannot resolve a ratio
-    σ_min/σ_max below 1e-12 (1e20 kg with unit inertia): it may fail there, but must not
-    succeed with a wrong motion."""
+    off after 2 s, reported as success)."""
     d, g = 0.5, 9.81
-    mech = ms.Mechanism("point mass")
-    body = mech.add(ms.RigidBody("b", mass, inertia, position=(d, 0.0)))
-    mech.add(ms.Revolute(mech.ground, body, at=(0.0, 0.0)))
-    res = mech.simulate(t_end=2.0, method=method, rtol=1e-8, atol=1e-10, output_step=0.1,
-                        max_steps=5000)
+    mech = point_mass(mass, inertia, d)
+    run = dict(t_end=2.0, method=method, rtol=1e-8, atol=1e-10, output_step=0.1,
+               max_steps=5000)
+    res = mech.simulate(**run)
     exact = solve_ivp(lambda t, y: [y[1], -mass * g * d * math.cos(y[0]) / (inertia + mass * d * d)],
                       (0.0, 2.0), [0.0, 0.0], t_eval=res.t, rtol=1e-13, atol=1e-13)
-    if method == "projection" and mass == 1e20 and res.status != "success":
-        return
     assert res.status == "success", res.message
     assert np.max(np.abs(res.coordinate("b.angle") - exact.y[0])) < 1e-6
+
+
+def test_the_projection_method_refuses_masses_it_cannot_resolve():
+    """The projection method cannot resolve a ratio σ_min/σ_max of its mass-scaled
+    Jacobian of 2e-10 (1e20 kg with unit inertia on a pin 0.5 m off: it took 200 000 steps
+    and 142 s to reach 0.04 s): it says so before the run, naming the coordinates of the
+    largest and smallest mass and the methods that can."""
+    with pytest.raises(ValueError, match=r"masses are too unequal \(b.x carries 1e\+20, "
+                                         r"b.angle 1\).*'hybrid' or 'lu'"):
+        point_mass(1e20, 1.0).simulate(t_end=2.0, method="projection", rtol=1e-8, atol=1e-10)

@@ -36,12 +36,20 @@ from .integrators.adapters import (bound_read_at_start, correct_in_place, propos
 from .results import SimulationResult
 from .results.result import WorkRecord
 from .results.work import WorkIntegral
-from .samples import FAILURES, Recorder, check_finite, troubled_drivers
+from .samples import FAILURES, Recorder, check_finite, fastest_motion, troubled_drivers
 
 # A run stops as stuck when this many steps together advance less than this fraction of
 # its span (LU alone at the flexible four-bar's passage: 2000 steps of 2e-12–7e-12 s).
 STALL_STEPS = 2000
 STALL_SPAN = 1e-7
+# A run whose motion speeds up without bound stops once the trend of its steps shows it
+# cannot reach t_end (`Runaway`): checked every RUNAWAY_EVERY accepted steps from the
+# RUNAWAY_FROM-th, where the speeds grew RUNAWAY_SPEEDUP times over the last half of the
+# steps and t_end lies beyond the steps' limit or RUNAWAY_STEPS steps away, twice running.
+RUNAWAY_FROM = 1000
+RUNAWAY_EVERY = 250
+RUNAWAY_SPEEDUP = 1.5
+RUNAWAY_STEPS = 1e8
 # A step that left the assembly branch (`Formulation.keeps_branch`) is taken again at a
 # quarter of its length, up to this many times in a row, by the methods that resolve
 # passages; then it stands, and the run says so.
@@ -79,6 +87,75 @@ class StepBound:
             self._started_with = want
             return (min(h_next, want) or None), want
         return None
+
+
+class Runaway:
+    """Tells a motion that outruns its integrator (a driver law with a pole, 1/(t − 0.1);
+    one that grows as exp(1000 t); a load that does so) from one that merely speeds up.
+
+    The accepted steps' lengths h_j, j the step's index, are kept thinned to at most
+    `keep` evenly spaced in j. Over the last half of the run they are fitted by a power,
+    h_j ≈ h_k (j/k)^(−p) (log–log least squares), and the steps still needed to reach
+    t_end follow from the sum of that power: for p > 1 the steps add up to no more than
+    k h_k/(p − 1), so the motion blows up near t* = t + k h_k/(p − 1) if that comes
+    first; otherwise the count N with Σ_{j=k..N} h_j = t_end − t. A crank driven at
+    100 t rad/s has h ∝ j^(−1/2) and N a few times k; 1/(t − 0.1) has p ≈ 2 and t*
+    near 0.1; exp(1000 t) has p ≈ 1 and N ≈ k e^((t_end − t)/(k h_k)). Only where the
+    largest speed also grew `RUNAWAY_SPEEDUP` times over that half, the steps shrank no
+    more than its cube (a run whose steps collapse at a singular configuration, speeds
+    bounded, is the stall rule's), and the verdict holds at two checks running."""
+
+    keep = 512
+
+    def __init__(self):
+        self.j, self.h, self.speed = [], [], []
+        self.stride = 1
+        self.strikes = 0
+
+    def note(self, j, h, v) -> None:
+        """The j-th accepted step, of length h, ending at velocities v."""
+        if j % self.stride:
+            return
+        self.j.append(j)
+        self.h.append(h)
+        self.speed.append(float(np.max(np.abs(v), initial=0.0)))
+        if len(self.j) > self.keep:
+            self.stride *= 2
+            for rows in (self.j, self.h, self.speed):
+                rows[:] = rows[::2]
+
+    def verdict(self, k, t, t_end) -> str:
+        """"" while the run may go on; else why it cannot reach t_end."""
+        if k < RUNAWAY_FROM or k % RUNAWAY_EVERY or len(self.j) < 16:
+            return ""
+        j, h, speed = (np.array(x) for x in (self.j, self.h, self.speed))
+        half = j >= j[-1] / 2
+        j, h, speed = j[half], h[half], speed[half]
+        why = ""
+        growth = speed[-1] / speed[0] if speed[0] > 0.0 else 0.0
+        fit = np.polyfit(np.log(j), np.log(h), 1) if np.all(h > 0.0) else None
+        p = -fit[0] if fit is not None else 0.0
+        # The steps shrink because the motion speeds up (h ∝ 1/speed resolves its turns;
+        # a pole gives h ∝ speed^-1.5): not many times faster, as where they collapse at
+        # a singular configuration the formulation cannot pass (the stall rule's).
+        if growth >= RUNAWAY_SPEEDUP and p * np.log(j[-1] / j[0]) <= 3.0 * np.log(growth):
+            hk = float(np.exp(np.polyval(fit, np.log(k))))
+            a = (t_end - t) / (k * hk)
+            if p > 1.0 and a * (p - 1.0) >= 1.0:
+                why = (f"the motion runs away: over the last {k - int(j[0])} steps its "
+                       f"speeds grew from {speed[0]:.3g} to {speed[-1]:.3g} while its steps "
+                       f"shrank as j^-{p:.2f}, which add up to no more than "
+                       f"t ≈ {t + k * hk / (p - 1.0):.9g}: t_end is out of reach")
+            else:
+                log_n = np.log(k) + (a if abs(p - 1.0) < 1e-9 else
+                                     np.log1p(a * (1.0 - p)) / (1.0 - p))
+                if log_n > np.log(RUNAWAY_STEPS):
+                    why = (f"the motion runs away: over the last {k - int(j[0])} steps its "
+                           f"speeds grew from {speed[0]:.3g} to {speed[-1]:.3g} while its "
+                           f"steps shrank as j^-{p:.2f}; at that rate t_end is about "
+                           f"1e{log_n / np.log(10):.0f} steps away")
+        self.strikes = self.strikes + 1 if why else 0
+        return why if self.strikes >= 2 else ""
 
 
 @dataclass
@@ -176,6 +253,7 @@ class Run:
         # Stuck (at a singular configuration the formulation cannot pass): stop there with
         # the partial result instead of grinding on.
         self.recent = collections.deque([settings.t_start], maxlen=STALL_STEPS + 1)
+        self.runaway = Runaway()
         self.status, self.message, self.exception = "success", "reached t_end", None
         self.t_reached = settings.t_start
         self.solver = None
@@ -241,6 +319,10 @@ class Run:
                               f"only {solver.t - self.recent[0]:.2g} s up to "
                               f"t = {solver.t:.9g}")
         y_here = self._accept(t_old, solver.t, solver.y)
+        why = self.runaway.verdict(self.stats.steps, solver.t, self.s.t_end)
+        if why:
+            return self._stop(why + fastest_motion(self.problem, solver.t,
+                                                    self.form.state(solver.t, y_here)[1]))
         if self.bridge is not None and self.solver.status == "running":
             self._bridge(self.solver.t, y_here)
         self.out.flush()
@@ -268,6 +350,7 @@ class Run:
                        recorded, [t_new] if due else [])
         q_new, v_new = form.state(t_new, y_new)
         check_finite(self.problem, t_new, q_new, v_new)
+        self.runaway.note(self.stats.steps, t_new - t_old, v_new)
         self.monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
                              t_old=t_old)
         form.last_step = t_new - t_old

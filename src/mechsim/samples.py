@@ -56,6 +56,21 @@ def troubled_drivers(problem, times) -> str:
     return "".join(f"; {o}" for o in out)
 
 
+def fastest_motion(problem, t, v) -> str:
+    """"; fastest: …" naming the coordinate moving fastest in v at t and each driver's rate
+    there: where a run's motion ran away (`mechsim.run.Runaway`)."""
+    k = int(np.argmax(np.abs(v)))
+    out = [f"fastest: {problem.coordinate_names[k]} at {v[k]:.3g}/s"]
+    for driver, law in problem.driver_laws:
+        dt = 1e-9 * max(1.0, abs(t))
+        try:
+            rate = (law.value(t=t + dt) - law.value(t=t)) / dt
+        except (ArithmeticError, ValueError):
+            continue
+        out.append(f"driver '{driver}' prescribes {law.text}, moving at {rate:.3g}/s there")
+    return "".join(f"; {o}" for o in out)
+
+
 class Rows:
     """Rows of `width` numbers in one preallocated array, grown in place (by a quarter) as
     rows come and trimmed in place when handed over: a run's memory is its samples' plus a

@@ -200,6 +200,9 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         form.switches.append(Switch(t_start, cls.name, form.name, "0 degrees of freedom: the "
                                     "drivers' motion, followed by the projection method"))
     else:
+        why = cls.cannot_resolve(problem, q0, t_start, rtol, redundant)
+        if why:
+            raise ValueError(why)
         form = cls(problem, rtol, atol, **options)
     form.monitor = SingularityMonitor(problem, *singular_thresholds, redundant=redundant)
     settings = Settings(t_start, t_end, rtol, atol, max_step, first_step, h, max_steps,

@@ -5,11 +5,17 @@ A small mechanism's fused model (one generated module with common subexpressions
 all its joints, and the compiled evaluations of `mechsim.codegen.engine`) evaluates several
 times faster than its assembly from type kernels, but costs a sympy run and a C compile
 (about a second). `start` hands the mechanism's bodies and constraint items to a new
-Python process (`python -m mechsim.codegen.background`, through a pipe, never a file) that
-builds both into the model cache and exits; builds of the same structure after it has
-finished load the fused model. The process outlives a short script that started it. It is
-not started where `MECHSIM_BACKGROUND` is set false, or where the cache is not the
-configured directory (another process could not find it).
+Python process (through a pipe, never a file) that builds both into the model cache and
+exits; builds of the same structure after it has finished load the fused model. The
+process outlives a short script that started it. It is not started where
+`MECHSIM_BACKGROUND` is set false, or where the cache is not the configured directory
+(another process could not find it).
+
+The process runs in Python's isolated mode (no PYTHON* variables, no user site, nothing
+prepended to its import path) in the cache directory, with the parent's import path minus
+the working directory handed over: a `json.py` or `numpy.py` beside the user's scene is
+never imported. It has `CPU_SECONDS` of processor time (a law of hundreds of factors can
+keep sympy busy for minutes), after which the assembled model goes on serving.
 """
 
 from __future__ import annotations
@@ -22,6 +28,11 @@ import sys
 from .cache import cache_dir, env_flag, store, structure_key
 
 _started: set[str] = set()
+# The processor time a background build may take.
+CPU_SECONDS = 300
+# What the child runs: the import path from its arguments, then `main`.
+_CHILD = ("import sys; sys.path[:0] = sys.argv[1:]; "
+          "from mechsim.codegen.background import main; main()")
 
 
 def enabled() -> bool:
@@ -39,15 +50,38 @@ def start(bodies, items, structure) -> bool:
         return False
     try:
         payload = pickle.dumps((bodies, items, structure))
-        child = subprocess.Popen([sys.executable, "-m", "mechsim.codegen.background"],
+        child = subprocess.Popen([sys.executable, "-I", "-c", _CHILD, *import_path()],
                                  stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
-                                 stderr=subprocess.DEVNULL, start_new_session=True)
+                                 stderr=subprocess.DEVNULL, start_new_session=True,
+                                 cwd=store())
         child.stdin.write(payload)
         child.stdin.close()
     except (OSError, pickle.PicklingError, TypeError, AttributeError):
         return False                  # the assembled model serves; nothing is lost
     _started.add(key)
     return True
+
+
+def import_path() -> list[str]:
+    """The parent's import path for the child: without the working directory (nor '',
+    which means it), and with mechsim's own root first."""
+    here = os.path.realpath(os.getcwd())
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    path = [root]
+    for entry in sys.path:
+        if entry and os.path.realpath(entry) != here and entry not in path:
+            path.append(entry)
+    return path
+
+
+def main() -> None:
+    """The child: limit its processor time, read the build's payload from stdin, build."""
+    try:
+        import resource
+        resource.setrlimit(resource.RLIMIT_CPU, (CPU_SECONDS, CPU_SECONDS))
+    except (ImportError, ValueError, OSError):
+        pass                            # no such limit here: the build runs unbounded
+    build(*pickle.load(sys.stdin.buffer))
 
 
 def fused_source(bodies, items, structure) -> str:
@@ -68,6 +102,3 @@ def build(bodies, items, structure):
         engine.library(module)             # the compiled evaluations take rigid models only
     return module
 
-
-if __name__ == "__main__":
-    build(*pickle.load(sys.stdin.buffer))

@@ -19,6 +19,20 @@ class _Printer(PythonCodePrinter):
         super().__init__({"fully_qualified_modules": True, "standard": "python3"})
 
 
+def c_printer():
+    """sympy's C99 printer with every integer beyond 2⁵³ written as a double: C reads a
+    longer integer literal as an integer that overflows (and so a different number than
+    Python's exact integer), a double literal as the nearest double, as Python does."""
+    from sympy.printing.c import C99CodePrinter
+
+    class Printer(C99CodePrinter):
+        def _print_Integer(self, expr, **kwargs):
+            p = int(expr.p)
+            return str(p) if abs(p) <= 2 ** 53 else repr(float(p))
+
+    return Printer()
+
+
 def shared_terms(outputs):
     """The non-zero entries of the matrices `outputs` with their common subexpressions
     shared (sympy.cse): (layout, one (rows, cols, non-zero (i, j) list) per output;
@@ -98,12 +112,11 @@ class _ModuleWriter:
     def _c_function(self, name, has_v, layout, repl, reduced):
         """The C twin of one function, `mechsim_<name>` (`gamma` is taken by math.h): the same
         common subexpressions, outputs written into zeroed row-major arrays."""
-        from sympy.printing.c import C99CodePrinter
         s = self.sys
         names = {x: sp.Symbol(f"q[{i}]") for i, x in enumerate(s.q)}
         names.update({x: sp.Symbol(f"v[{i}]") for i, x in enumerate(s.v)})
         names.update({x: sp.Symbol(f"p[{i}]") for i, x in enumerate(s.p)})
-        pr = C99CodePrinter()
+        pr = c_printer()
         outs = ", ".join(f"double *o{k}" for k in range(len(layout)))
         head = "const double *q, const double *v" if has_v else "const double *q"
         lines = [f"void mechsim_{name}({head}, double t, const double *p, {outs}) {{"]

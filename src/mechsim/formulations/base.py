@@ -91,6 +91,13 @@ class Formulation:
     bridging = False
     project_now = None
 
+    @classmethod
+    def cannot_resolve(cls, problem: NumericProblem, q: np.ndarray, t: float, rtol: float,
+                       redundant: int = 0) -> str:
+        """Why this method cannot integrate the mechanism at (q, t) to rtol, said before
+        any work ("" where it can): `simulate` raises it as a ValueError."""
+        return ""
+
     def derivative(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """y' in the present layout at a consistent full state (q, v): what `rhs` gives at
         the y of that state, without solving for the state first. The manager uses it to

@@ -11,7 +11,8 @@ Limits keep a hostile or careless text from hanging the parser or sympy: at most
 `MAX_LENGTH` characters and `MAX_NODES` nodes nested at most `MAX_DEPTH` deep, integer
 exponents of at most `MAX_EXPONENT` in magnitude, and every sub-expression made of numbers
 alone must have a finite value of magnitude at most `MAX_CONSTANT` (so `9**9**9*t` is an
-error, not an exact integer with 370 million digits).
+error, not an exact integer with 370 million digits). Such a sub-expression is replaced by
+its double at parsing, so that every evaluation uses the same number.
 """
 
 from __future__ import annotations
@@ -138,8 +139,12 @@ class _Builder:
         if depth > MAX_DEPTH:
             self.fail(f"nesting deeper than {MAX_DEPTH}")
         tree = self._node(node, depth + 1)
-        if _is_constant(tree) and tree[0] != "num":
-            self._check_constant(tree)
+        if _is_constant(tree) and tree[0] not in ("num", "const"):
+            # Folded to its double here, once: every evaluation (this module's floats,
+            # sympy and the C it prints, the assembled kernels) then uses the same number.
+            # Left to sympy, 5**30 stayed an exact integer that C read as an overflowing
+            # integer literal (cos(5**30): -0.49820 compiled against 0.27471).
+            return ("num", self._check_constant(tree))
         return tree
 
     def _node(self, node, depth):
@@ -196,6 +201,7 @@ class _Builder:
             self.fail(f"{_canonical(tree)} cannot be evaluated ({exc})")
         if isinstance(value, complex) or not math.isfinite(value) or abs(value) > MAX_CONSTANT:
             self.fail(f"{_canonical(tree)} is out of range (magnitude up to {MAX_CONSTANT:g})")
+        return float(value)
 
 
 class Jet:
