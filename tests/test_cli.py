@@ -120,17 +120,22 @@ def test_progress_without_tqdm_warns_and_runs(monkeypatch):
 
 
 def test_an_interrupt_while_writing_leaves_no_partial_file(scene, capsys, monkeypatch):
-    """Ctrl-C during an export: the files it had begun are removed, the run says so and
-    what it had written before, and exits with 130."""
+    """Ctrl-C during an export, after it wrote part of its series: the export is staged
+    (`mechsim.files`), so none of its files lands in the output directory; the run says so
+    and what it had written before (the saved result comes first), and exits with 130."""
+    import meshio
     scene.write_text(SCENE.replace("save = true", 'save = true\nexport = "motion.vtu"'))
+    real, calls = meshio.write, []
 
-    def export(self, path, every=1):
-        path.with_name("motion_0.vtu").write_text("half")       # a partial series
-        raise KeyboardInterrupt
-    monkeypatch.setattr(ms.SimulationResult, "export", export)
+    def write(path, mesh, *args, **kwargs):
+        calls.append(path)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(path, mesh, *args, **kwargs)
+    monkeypatch.setattr(meshio, "write", write)
     code, out, err = run(capsys, scene)
-    assert code == 130
-    assert "interrupted while writing" in err and "1 partial file(s) removed" in err
+    assert code == 130 and len(calls) == 3
+    assert "interrupted during writing" in err and "nothing of it was written" in err
     assert "pendulum.npz" in err                              # the save came first
     assert sorted(p.name for p in (scene.parent / "out" / "pendulum").iterdir()) == \
         ["pendulum.npz"]

@@ -77,3 +77,223 @@ def test_the_c_printer_writes_long_integers_as_doubles():
     t = sp.Symbol("t")
     assert c_printer().doprint(sp.Integer(5) ** 30 * t) == f"{float(5 ** 30)!r}*t"
     assert c_printer().doprint(sp.Integer(2) ** 53 + t) == f"t + {2 ** 53}"
+
+
+# --- streams -----------------------------------------------------------------------------------
+def falling_four_bar_run(stream, t_end=0.5, **kw):
+    return ms.examples.four_bar().simulate(t_end, output_step=1e-4, stream=stream, **kw)
+
+
+def test_a_stream_is_never_written_through_a_link(tmp_path):
+    """A `meta.json` (or `samples.bin`) planted in a stream directory as a link to another
+    file: the stream replaces the link with its own file and the other file is untouched
+    (before, it was overwritten). A stream directory that is itself a link is refused."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    run = tmp_path / "run"
+    run.mkdir()
+    for name in ("meta.json", "samples.bin", "work.bin"):
+        (run / name).symlink_to(victim)
+    res = falling_four_bar_run(run, t_end=0.05)
+    assert res.status == "success" and victim.read_text() == "precious"
+    assert not any((run / name).is_symlink() for name in ("meta.json", "samples.bin"))
+    assert ms.load_result(run).t.size == res.t.size
+    (tmp_path / "link").symlink_to(run)
+    with pytest.raises(ValueError, match="symbolic link"):
+        falling_four_bar_run(tmp_path / "link", t_end=0.05)
+
+
+def test_a_new_stream_leaves_an_earlier_results_memory_map_alive(tmp_path):
+    """A second run streamed into the directory of a first whose result (memory-mapped) is
+    still alive: before, the new run truncated samples.bin under the live map and the next
+    read died with SIGBUS. The new stream writes new files; the old map keeps its data."""
+    first = falling_four_bar_run(tmp_path / "run", t_end=0.5)
+    last = np.array(first.q[-1])
+    loaded = ms.load_result(tmp_path / "run")
+    second = falling_four_bar_run(tmp_path / "run", t_end=0.05)
+    np.testing.assert_array_equal(first.q[-1], last)
+    np.testing.assert_array_equal(loaded.q[-1], last)
+    again = ms.load_result(tmp_path / "run")
+    assert again.t.size == second.t.size < first.t.size
+
+
+_LONG_STREAM = """
+import sys, mechsim as ms
+ms.examples.four_bar().simulate(100.0, output_step=1e-4, stream=sys.argv[1])
+"""
+
+
+def test_a_killed_stream_loads_as_partial(tmp_path):
+    """A streamed run killed (SIGKILL) on the way: its directory loads with status
+    "partial", the samples whole on disk, and a message saying the run did not finish
+    (before: FileNotFoundError on meta.json, or the earlier stream's meta.json with the new
+    samples)."""
+    run = tmp_path / "run"
+    falling_four_bar_run(run, t_end=0.05)                 # an earlier, finished stream
+    child = subprocess.Popen([sys.executable, "-c", _LONG_STREAM, str(run)],
+                             env={**os.environ, "MECHSIM_BACKGROUND": "0"})
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            samples = run / "samples.bin"
+            if samples.exists() and samples.stat().st_size > 3 * 4096 * 8 * 19:
+                break
+            time.sleep(0.2)
+    finally:
+        child.kill()
+        child.wait()
+    res = ms.load_result(run)
+    assert res.status == "partial" and "did not finish" in res.message
+    assert res.t.size >= 3 * 4096 and np.all(np.diff(res.t) > 0)
+    np.testing.assert_allclose(np.diff(res.t), 1e-4, rtol=1e-9)
+    assert np.abs(res.q).max() < 10.0                  # real states, not garbage
+
+
+def test_load_result_checks_a_stream_against_its_files(tmp_path):
+    import json
+    run = tmp_path / "run"
+    res = falling_four_bar_run(run, t_end=0.05)
+    meta = json.loads((run / "meta.json").read_text())
+    (run / "meta.json").write_text(json.dumps({**meta, "samples": meta["samples"] + 7}))
+    with pytest.raises(ValueError, match=f"says {res.t.size + 7} samples, samples.bin holds "
+                                         f"{res.t.size}"):
+        ms.load_result(run)
+    (run / "meta.json").write_text(json.dumps({**meta, "width": 5}))
+    with pytest.raises(ValueError, match="rows of 5 numbers for 9 coordinates"):
+        ms.load_result(run)
+    (run / "meta.json").unlink()
+    with pytest.raises(ValueError, match="no meta.json"):
+        ms.load_result(run)
+
+
+def test_a_full_disk_while_streaming_ends_the_run_keeping_its_samples(tmp_path, monkeypatch):
+    """A write of the stream fails (ENOSPC, simulated after 200 kB): before, OSError
+    escaped `simulate()` and the run was lost. The run ends failed, saying so, with every
+    sample it computed: those on disk and those after in memory."""
+    import errno
+    import mechsim.files as files
+    real = files.OutputDirectory.new_file
+
+    class Full:
+        def __init__(self, f):
+            self.f, self.written = f, 0
+
+        def write(self, data):
+            if self.written + len(data) > 200_000:
+                raise OSError(errno.ENOSPC, "No space left on device")
+            self.written += len(data)
+            return self.f.write(data)
+
+        def __getattr__(self, name):
+            return getattr(self.f, name)
+
+    monkeypatch.setattr(files.OutputDirectory, "new_file",
+                        lambda self, name: Full(real(self, name)))
+    res = falling_four_bar_run(tmp_path / "run", t_end=0.5)
+    assert res.status == "failed" and "writing the stream failed" in res.message
+    assert "No space left on device" in res.message
+    assert res.t.size > 200_000 // (8 * 19) and np.all(np.diff(res.t) > 0)
+    reference = ms.examples.four_bar().simulate(res.t[-1], output_step=1e-4)
+    np.testing.assert_allclose(res.q, reference.q[:res.t.size], atol=1e-9)
+
+
+# --- the command line's outputs ----------------------------------------------------------------
+SCENE = """
+name = "pendulum"
+[[body]]
+name = "rod"
+rod = [[0, 0], [1, 0]]
+mass = 1.0
+[[joint]]
+type = "revolute"
+name = "pin"
+bodies = ["ground", "rod"]
+at = [0, 0]
+[simulation]
+t_end = 0.5
+output_step = 0.01
+[output]
+save = true
+plots = ["energy"]
+"""
+
+
+def _cli(capsys, *argv):
+    from mechsim.cli import main
+    code = main(["run", *map(str, argv)])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture
+def pendulum_scene(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    path = tmp_path / "pendulum.toml"
+    path.write_text(SCENE)
+    return path
+
+
+def test_an_output_directory_that_is_a_link_or_a_file_is_refused_before_the_run(
+        pendulum_scene, tmp_path, capsys, monkeypatch):
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (tmp_path / "out").symlink_to(elsewhere)
+    ran = []
+    monkeypatch.setattr(ms.Mechanism, "simulate", lambda *a, **k: ran.append(1))
+    code, _, err = _cli(capsys, pendulum_scene, "--out", tmp_path / "out")
+    assert code == 2 and "is a symbolic link" in err and not ran
+    assert list(elsewhere.iterdir()) == []
+    (tmp_path / "file").write_text("x")
+    code, _, err = _cli(capsys, pendulum_scene, "--out", tmp_path / "file")
+    assert code == 2 and "is not a directory" in err and not ran
+
+
+def test_outputs_are_never_written_through_a_planted_link(pendulum_scene, tmp_path, capsys,
+                                                          monkeypatch):
+    """A link planted in the output directory where the plot goes, during the run (after
+    the up-front check, which refuses a link already there): the link is replaced by the
+    file (renamed into place), its target untouched. The same for the output directory
+    swapped for a link during the run: mechsim holds the directory open and writes into
+    it, not through the new link."""
+    import mechsim.cli as cli
+    out, moved = tmp_path / "out", tmp_path / "out-moved"
+    victim, elsewhere = tmp_path / "victim", tmp_path / "elsewhere"
+    victim.write_text("precious")
+    elsewhere.mkdir()
+    summary = cli._summary
+
+    def plant(scene, res):
+        (out / "pendulum_energy.png").symlink_to(victim)
+        summary(scene, res)
+    monkeypatch.setattr(cli, "_summary", plant)
+    code, _, err = _cli(capsys, pendulum_scene, "--out", out)
+    assert code == 0, err
+    assert victim.read_text() == "precious" and not (out / "pendulum_energy.png").is_symlink()
+    assert sorted(p.name for p in out.iterdir()) == ["pendulum.npz", "pendulum_energy.png"]
+    assert ms.load_result(out / "pendulum.npz").t.size == 51
+
+    from mechsim.files import OutputDirectory
+    directory = OutputDirectory(tmp_path / "held")
+    (tmp_path / "held").rename(moved)
+    (tmp_path / "held").symlink_to(elsewhere)
+    directory.write_text("a.txt", "inside")
+    with directory.staged() as staged:
+        (staged / "b.png").write_bytes(b"png")
+    assert list(elsewhere.iterdir()) == [] and sorted(p.name for p in moved.iterdir()) == \
+        ["a.txt", "b.png"]
+
+
+def test_an_interrupt_after_the_run_keeps_the_saved_result(pendulum_scene, capsys, monkeypatch):
+    """Ctrl-C (or SIGTERM, taken as Ctrl-C) during the summary after a finished run: the
+    result was saved first (before, plots came first and the result was lost)."""
+    import signal
+    import mechsim.cli as cli
+
+    def summary(scene, res):
+        os.kill(os.getpid(), signal.SIGTERM)
+    monkeypatch.setattr(cli, "_summary", summary)
+    code, _, err = _cli(capsys, pendulum_scene)
+    assert code == 130 and "interrupted during the summary" in err and "pendulum.npz" in err
+    res = ms.load_result(pendulum_scene.parent / "out" / "pendulum" / "pendulum.npz")
+    assert res.status == "success" and res.t[-1] == 0.5
+    assert signal.getsignal(signal.SIGTERM) is not None          # restored after the run

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from . import examples
+from .files import save_figure, written
 
 
 @dataclass(frozen=True)
@@ -277,14 +278,15 @@ def format_within(name: str, error: float, best: dict) -> str:
 
 
 def write_csv(rows, path: Path, fields) -> Path:
-    """One CSV row per row of `rows` with the attributes `fields`, under a header of them."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(fields)
-        for r in rows:
-            w.writerow([getattr(r, k) for k in fields])
-    return path
+    """One CSV row per row of `rows` with the attributes `fields`, under a header of them
+    (`mechsim.files.written`)."""
+    def write(p):
+        with open(p, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(fields)
+            for r in rows:
+                w.writerow([getattr(r, k) for k in fields])
+    return written(Path(path), write)
 
 
 def write(rows: list[Row], out_dir) -> list[Path]:
@@ -308,7 +310,7 @@ def write(rows: list[Row], out_dir) -> list[Path]:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
         png = out_dir / f"bench_{name}.png"
-        fig.savefig(png, dpi=120)
+        save_figure(fig, png)
         written.append(png)
     return written
 
@@ -530,7 +532,7 @@ def write_shooting(rows: list[ShootingRow], out_dir) -> list[Path]:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=6)
     png = out_dir / "bench_coulomb.png"
-    fig.savefig(png, dpi=120)
+    save_figure(fig, png)
     return [path, png]
 
 

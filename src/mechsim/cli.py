@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import time
@@ -52,31 +53,73 @@ def _run(args) -> int:
     except (ModelError, ValueError) as exc:
         print(f"mechsim: {exc}", file=sys.stderr)
         return 2
-    if not args.quiet:
-        _summary(scene, res)
-    elif not res.success:
-        print(f"mechsim: {res.status}: {res.message}", file=sys.stderr)
     written = []
-    if targets:
-        out_dir.mkdir(parents=True, exist_ok=True)
     wants_reactions = bool(scene.output.get("reactions") or scene.output.get("efforts"))
-    for kind, path in targets:
-        before = set(path.parent.iterdir()) if path.parent.exists() else set()
-        try:
-            written.append(_write(kind, path, res, scene.output, wants_reactions))
-        except KeyboardInterrupt:
-            # Interrupted while writing: what this output wrote so far goes, and the run
-            # says what it kept and what it did not write.
-            partial = sorted(set(path.parent.iterdir()) - before)
-            for f in partial:
-                f.unlink(missing_ok=True)
-            kept = ", ".join(str(w) for w in written) or "nothing"
-            print(f"mechsim: interrupted while writing {path}: its {len(partial)} partial "
-                  f"file(s) removed; written before: {kept}", file=sys.stderr)
-            return 130
+    # The result first, with Ctrl-C and SIGTERM held: a finished run is never lost to an
+    # interrupt during its summary or plots (each output is staged: `mechsim.files`).
+    saves = [target for target in targets if target[0] == "save"]
+    stage = "saving the result"
+    try:
+        with _signals_held():
+            for kind, path in saves:
+                written.append(_write(kind, path, res, scene.output, wants_reactions))
+        stage = "the summary"
+        if not args.quiet:
+            _summary(scene, res)
+        elif not res.success:
+            print(f"mechsim: {res.status}: {res.message}", file=sys.stderr)
+        for kind, path in targets:
+            if kind != "save":
+                stage = f"writing {path}"
+                written.append(_write(kind, path, res, scene.output, wants_reactions))
+    except KeyboardInterrupt:
+        print(f"mechsim: interrupted during {stage} (nothing of it was written); written "
+              f"before: {', '.join(str(w) for w in written) or 'nothing'}", file=sys.stderr)
+        return 130
+    except OSError as exc:
+        print(f"mechsim: {stage} failed: {exc}; written before: "
+              f"{', '.join(str(w) for w in written) or 'nothing'}", file=sys.stderr)
+        return 1
     for w in written if not args.quiet else ():
         print(f"wrote      {w}")
     return 0 if res.success else 1
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt():
+    """Within the block SIGTERM (a job scheduler's stop, `kill`) is taken as Ctrl-C: a run
+    ends with its partial result, and an output being written is left out whole, instead
+    of the process dying mid-file."""
+    import signal
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        before = signal.signal(signal.SIGTERM, interrupt)
+    except (ValueError, OSError):        # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM held (delivered when the block ends) where the platform can."""
+    import signal
+    held = {signal.SIGINT, signal.SIGTERM}
+    try:
+        signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    except (AttributeError, ValueError, OSError):
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, held)
 
 
 def _write(kind, path, res, output, wants_reactions):
@@ -113,6 +156,11 @@ def _output_paths(args, scene):
         targets.append(("export", out_dir / out["export"]))
     if out.get("animate") or args.animate:
         targets.append(("animate", out_dir / f"{stem}.gif"))
+    if targets and (out_dir.is_symlink() or (out_dir.exists() and not out_dir.is_dir())):
+        raise SceneError(f"{scene.path.name}: the output directory {out_dir} is "
+                         f"{'a symbolic link' if out_dir.is_symlink() else 'not a directory'}; "
+                         "mechsim writes only into real directories (choose another with "
+                         "--out or [output] directory)")
     base = out_dir.resolve()
     for _, path in targets:
         if not path.resolve().is_relative_to(base):
@@ -409,7 +457,8 @@ def main(argv=None) -> int:
     study.set_defaults(func=_sweep)
     args = parser.parse_args(argv)
     try:
-        return args.func(args)
+        with _terminate_as_interrupt():
+            return args.func(args)
     except BrokenPipeError:
         # Output piped into `head` and the like: stop quietly, as Unix tools do.
         import os

@@ -123,6 +123,21 @@ class OutputDirectory:
                      dir_fd=self.fd)
         return os.fdopen(fd, "wb")
 
+    def open_read(self, name: str):
+        """`name` open for reading as a binary file, not through a link."""
+        _check_name(name)
+        return os.fdopen(os.open(name, os.O_RDONLY | _NOFOLLOW, dir_fd=self.fd), "rb")
+
+    def size(self, name: str) -> int:
+        """The size in bytes of the file `name` (FileNotFoundError where there is none)."""
+        return os.stat(name, dir_fd=self.fd, follow_symlinks=False).st_size
+
+    def map(self, name: str, shape):
+        """The float64 file `name` as a read-only memory map of `shape` (row-major)."""
+        import numpy as np
+        with self.open_read(name) as f:
+            return np.memmap(f, dtype=np.float64, mode="r", shape=tuple(shape))
+
     def write_bytes(self, name: str, data: bytes) -> Path:
         """Write `data` to `name` atomically (a temporary name, renamed into place)."""
         _check_name(name)
@@ -143,11 +158,12 @@ class OutputDirectory:
         return self.write_bytes(name, text.encode("utf-8"))
 
     @contextlib.contextmanager
-    def staged(self):
-        """A private directory (a Path reaching it through its descriptor) for writers that
-        need paths; on leaving the block every file in it is renamed into this directory,
-        and the staging directory removed. If the block raises (Ctrl-C included), nothing
-        is renamed and the staging directory goes."""
+    def staged(self, shared: bool = False):
+        """A private directory for writers that need paths (a Path reaching it through its
+        descriptor; `shared`: its plain path, for a writer in another process, which cannot
+        use this one's descriptors); on leaving the block every file in it is renamed into
+        this directory, and the staging directory removed. If the block raises (Ctrl-C
+        included), nothing is renamed and the staging directory goes."""
         name = f"{STAGING}{os.getpid()}-{secrets.token_hex(4)}"
         os.mkdir(name, 0o700, dir_fd=self.fd)
         try:
@@ -156,7 +172,7 @@ class OutputDirectory:
             self._remove_tree(name)
             raise
         try:
-            yield self._via(fd)
+            yield self.path / name if shared else self._via(fd)
             for entry in sorted(os.listdir(fd)):
                 os.replace(entry, entry, src_dir_fd=fd, dst_dir_fd=self.fd)
         finally:
@@ -195,3 +211,18 @@ def output_file(path) -> tuple[OutputDirectory, str]:
     """(the directory of `path`, held open; the file's name) for writing one file."""
     path = Path(path)
     return OutputDirectory(path.parent), path.name
+
+
+def written(path, write, shared: bool = False) -> Path:
+    """Write the output `path` through a staging directory in its folder: `write(p)` gets
+    a path of the same name in it (and may write more files beside it, which go too); they
+    are renamed into place once it returns, and nothing is if it raises. Returns `path`."""
+    path = Path(path)
+    with OutputDirectory(path.parent) as directory, directory.staged(shared) as tmp:
+        write(tmp / path.name)
+    return path
+
+
+def save_figure(fig, path, dpi=120) -> Path:
+    """`fig.savefig(path)` through `written`."""
+    return written(path, lambda p: fig.savefig(p, dpi=dpi))

@@ -34,7 +34,7 @@ from .integrators import AdamsPECE
 from .integrators.adapters import (bound_read_at_start, correct_in_place, proposed_step,
                                    shift_in_place, warm_start)
 from .results import SimulationResult
-from .results.result import WorkRecord
+from .results.result import WorkRecord, begin_stream
 from .results.work import WorkIntegral
 from .samples import FAILURES, Recorder, check_finite, fastest_motion, troubled_drivers
 
@@ -241,6 +241,8 @@ class Run:
             self.work = WorkIntegral(channels, problem.work_rates, settings.rtol,
                                      float(energy), settings.t_end - settings.t_start)
         self.out = Recorder(problem, settings.ts, channels, settings.stream)
+        if settings.stream is not None:
+            begin_stream(settings.stream, problem.coordinate_names, channels)
         self.bound = StepBound(settings.max_step, bound_read_at_start(solver_cls))
         self.stats = Statistics()
         self.bridge = form.bridge
@@ -326,6 +328,9 @@ class Run:
         if self.bridge is not None and self.solver.status == "running":
             self._bridge(self.solver.t, y_here)
         self.out.flush()
+        if self.out.failure is not None:
+            return self._stop(f"writing the stream failed at t = {self.solver.t:.9g} "
+                              f"({self.out.failure}); the samples after it are in memory")
         return True
 
     def _accept(self, t_old, t_new, y_new):
@@ -545,12 +550,17 @@ class Run:
     def _result(self) -> SimulationResult:
         out = self.out
         t, q, v = out.take()
+        work = self._work_record()
+        if out.failure is not None and "writing the stream failed" not in self.message:
+            self.status = "failed"
+            self.message += (f"; writing the stream failed at its end ({out.failure}): every "
+                             "sample is in this result, not all in the stream's files")
         return SimulationResult(t, q, v, self.problem.coordinate_names, problem=self.problem,
                                 status=self.status, message=self.message,
                                 stats=self._statistics(),
                                 singular_passages=self.monitor.passages,
                                 switches=self.form.switches, exception=self.exception,
-                                work=self._work_record())
+                                work=work)
 
     def _work_record(self) -> WorkRecord | None:
         """What the result keeps of the work integral: the channels, W at the first samples,

@@ -3,6 +3,8 @@ finite as they come, and handed to the result without a copy."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 # What a formulation raises when a run cannot go on: the run stops with its partial result.
@@ -119,33 +121,62 @@ class Rows:
 
 
 class DiskRows(Rows):
-    """`Rows` streamed to the raw float64 file `path` (row-major) a chunk at a time: between
-    steps, once more than `chunk` rows are held, all but the last go to the file (the last
-    stays, for whoever reads the latest sample). `take()` writes the rest and returns the
-    file as a read-only memory map of exactly `count` rows: memory for a chunk, not the
-    run."""
+    """`Rows` streamed to the raw float64 file `name` (row-major) of `directory` (a
+    `mechsim.files.OutputDirectory`) a chunk at a time: between steps, once more than
+    `chunk` rows are held, all but the last go to the file (the last stays, for whoever
+    reads the latest sample). `take()` writes the rest and returns the file as a read-only
+    memory map of exactly `count` rows: memory for a chunk, not the run. The file is a new
+    one (an earlier file of that name is unlinked, so a memory map of it keeps its data).
 
-    def __init__(self, width, path, chunk=4096):
+    Where writing fails (a full disk), `failure` holds the error, the file keeps its whole
+    rows, and the rows from then on stay in memory: `take()` returns them all, in memory."""
+
+    def __init__(self, width, directory, name, chunk=4096):
         super().__init__(width, chunk)
-        self.path, self.chunk = path, chunk
-        self.file = open(path, "wb")
+        self.directory, self.name, self.chunk = directory, name, chunk
+        self.file = directory.new_file(name)
+        self.on_disk = 0
+        self.failure: OSError | None = None
+
+    def _write(self, k) -> None:
+        """The first k rows held to the file (none once writing has failed)."""
+        if self.failure is not None or not k:
+            return
+        try:
+            self.file.write(self.data[:k].tobytes())
+            self.file.flush()
+        except OSError as exc:
+            self.failure = exc
+            self._keep_whole_rows()
+            return
+        self.on_disk += k
+        self.data[:self.held - k] = self.data[k:self.held]
+        self.first, self.held = self.first + k, self.held - k
+
+    def _keep_whole_rows(self) -> None:
+        try:
+            os.ftruncate(self.file.fileno(), self.on_disk * self.data.shape[1] * 8)
+        except (OSError, ValueError):
+            pass
 
     def flush(self) -> None:
         if self.held > self.chunk:
-            k = self.held - 1
-            self.file.write(self.data[:k].tobytes())
-            self.data[0] = self.data[k]
-            self.first, self.held = self.first + k, 1
+            self._write(self.held - 1)
 
     def take(self) -> np.ndarray:
-        self.file.write(self.data[:self.held].tobytes())
-        self.first, self.held = self.first + self.held, 0
-        self.file.close()
-        self.data = np.empty((1, self.data.shape[1]))
+        self._write(self.held)
+        try:
+            self.file.close()
+        except OSError as exc:
+            self.failure = self.failure or exc
         width = self.data.shape[1]
         if not self.count or not width:
             return np.zeros((self.count, width))
-        return np.memmap(self.path, dtype=np.float64, mode="r", shape=(self.count, width))
+        on_disk = self.directory.map(self.name, (self.on_disk, width)) if self.on_disk else \
+            np.zeros((0, width))
+        if not self.held:
+            return on_disk
+        return np.concatenate([on_disk, self.data[:self.held]])
 
 
 class Recorder:
@@ -157,9 +188,9 @@ class Recorder:
     def __init__(self, problem, ts, channels=(), stream=None):
         self.problem, self.ts, self.next = problem, ts, 0
         self.n = problem.n
-        if stream is not None:       # a directory: samples.bin, work.bin
-            self.samples = DiskRows(1 + 2 * problem.n, stream / "samples.bin")
-            self.work = DiskRows(len(channels), stream / "work.bin")
+        if stream is not None:       # an OutputDirectory: samples.bin, work.bin
+            self.samples = DiskRows(1 + 2 * problem.n, stream, "samples.bin")
+            self.work = DiskRows(len(channels), stream, "work.bin")
             return
         capacity = len(ts) if ts is not None else 256
         self.samples = Rows(1 + 2 * problem.n, capacity)     # [t, q, v] per sample
@@ -197,6 +228,11 @@ class Recorder:
         """Between steps: samples and work beyond a chunk go to disk (when streamed)."""
         self.samples.flush()
         self.work.flush()
+
+    @property
+    def failure(self) -> OSError | None:
+        """Why writing the stream failed, if it did."""
+        return getattr(self.samples, "failure", None) or getattr(self.work, "failure", None)
 
     def take(self):
         """(t, q, v) of the run, views into its one trimmed array (no copy)."""

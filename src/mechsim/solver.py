@@ -222,21 +222,28 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
 
 
 def stream_directory(stream):
-    """The directory a run streams to (created), or None; a ValueError where it is not a
-    directory or holds files other than an earlier stream's."""
+    """The `mechsim.files.OutputDirectory` a run streams to (created), or None; a
+    ValueError where it is not a directory, is a symbolic link, or holds files other than
+    an earlier stream's. An earlier stream's meta.json goes at once (a run killed before
+    writing its own must not load as the earlier run)."""
     if stream is None:
         return None
     from pathlib import Path
+    from .files import STAGING, OutputDirectory, UnsafePathError
     from .results.result import STREAM_FILES
     try:
         path = Path(stream)
     except TypeError:
         raise ValueError(f"`stream` must be a directory path, got {stream!r:.60}") from None
-    if path.exists() and not path.is_dir():
+    if path.exists() and not path.is_dir() and not path.is_symlink():
         raise ValueError(f"`stream` must be a directory, got the file {str(path)!r}")
-    path.mkdir(parents=True, exist_ok=True)
-    others = [p.name for p in path.iterdir() if p.name not in STREAM_FILES]
+    try:
+        directory = OutputDirectory(path)
+    except (UnsafePathError, OSError) as exc:
+        raise ValueError(f"`stream`: {exc}") from None
+    others = [p for p in directory.names() if p not in STREAM_FILES and not p.startswith(STAGING)]
     if others:
         raise ValueError(f"`stream` directory {str(path)!r} holds other files "
-                         f"({', '.join(sorted(others)[:3])}…); give an empty one")
-    return path
+                         f"({', '.join(others[:3])}…); give an empty one")
+    directory.remove("meta.json")
+    return directory

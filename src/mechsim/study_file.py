@@ -211,14 +211,18 @@ def _count(f, data, key, low=1):
 
 
 def write_table(study, path: Path) -> None:
-    """The study's table as CSV: a header of its columns, one row per sample."""
-    path.parent.mkdir(parents=True, exist_ok=True)
+    """The study's table as CSV: a header of its columns, one row per sample (written
+    through `mechsim.files.written`: never through a link, never half-written)."""
+    from .files import written
     columns = list(study.table)
-    with open(path, "w", newline="", encoding="utf-8") as out:
-        writer = csv.writer(out)
-        writer.writerow(columns)
-        for i in range(len(study)):
-            writer.writerow([_cell(study.table[c][i]) for c in columns])
+
+    def write(p):
+        with open(p, "w", newline="", encoding="utf-8") as out:
+            writer = csv.writer(out)
+            writer.writerow(columns)
+            for i in range(len(study)):
+                writer.writerow([_cell(study.table[c][i]) for c in columns])
+    written(path, write)
 
 
 def _cell(value):

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import save_figure, written
 from ..kinematics import drawn_points, frame_point
 
 # An animation plays at most this many seconds: longer results are decimated.
@@ -177,7 +178,7 @@ def plot_motion(result, path=None, trace=(), snapshots=6, exaggeration=1.0, ax=N
                      f"{result.t[-1]:.3g} s")
     ax.legend(loc="best", fontsize="x-small")
     if path is not None:
-        fig.savefig(path, dpi=120)
+        save_figure(fig, path)
     return fig
 
 
@@ -238,16 +239,17 @@ def animate(result, path, trace=(), fps=30, exaggeration=1.0, max_frames=None) -
         bar.draw_artist(now)
         return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
-    path.parent.mkdir(parents=True, exist_ok=True)
     if suffix == ".gif":
-        _write_gif(path, [frame(i) for i in range(len(frames))], fps)
-    else:
+        images = [frame(i) for i in range(len(frames))]
+        return written(path, lambda p: _write_gif(p, images, fps))
+
+    def mp4(p):
         writer = animation.FFMpegWriter(fps=fps)
-        with writer.saving(fig, path, dpi=fig.dpi):
+        with writer.saving(fig, p, dpi=fig.dpi):
             for i in range(len(frames)):
                 show(i)
                 writer.grab_frame()
-    return path
+    return written(path, mp4, shared=True)           # ffmpeg writes from its own process
 
 
 def _write_gif(path, images, fps):

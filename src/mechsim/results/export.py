@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import written
 from ..kinematics import drawn_points, frame_point_velocity
 
 # The formats written: ones whose meshio writers take line cells and point data per time.
@@ -73,29 +74,33 @@ def export(result, path, drawing, every: int = 1) -> Path:
         data.update({f"eta{k + 1}": etas[k][i] for k in etas})
         return {key: value.astype(np.float32) for key, value in data.items()}
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.with_name(path.stem + "_body_names.txt").write_text(
-        "".join(f"{i} {name}\n" for i, name in enumerate(names)))
-    if path.suffix.lower() == ".xdmf":
-        fmt = _xdmf_format()
-        # meshio's writer puts its heavy-data file in the working directory (its reader looks
-        # beside the .xdmf file): write from the file's own directory.
-        with contextlib.chdir(path.parent.resolve()), \
-                meshio.xdmf.TimeSeriesWriter(path.name, data_format=fmt) as writer:
-            writer.write_points_cells(points0, cell_blocks)
-            for i in range(n):
-                writer.write_data(float(t[i]), point_data=point_data(i), cell_data=cell_data)
-        return path
-    width = len(str(n - 1))
-    files = []
-    for i in range(n):
-        mesh = meshio.Mesh(xyz(pos[i]), cell_blocks, point_data=point_data(i),
-                           cell_data=cell_data)
-        files.append(path.with_name(f"{path.stem}_{i:0{width}d}{path.suffix}"))
-        meshio.write(files[-1], mesh)
-    if path.suffix.lower() == ".vtu":
-        _collection(path.with_suffix(".pvd"), t, files)
-    return path
+    def write(staged):
+        # Every file of the export is written in a staging directory and renamed into
+        # place together once all are done (`mechsim.files.written`).
+        staged.with_name(staged.stem + "_body_names.txt").write_text(
+            "".join(f"{i} {name}\n" for i, name in enumerate(names)))
+        if staged.suffix.lower() == ".xdmf":
+            fmt = _xdmf_format()
+            # meshio's writer puts its heavy-data file in the working directory (its reader
+            # looks beside the .xdmf file): write from the file's own directory.
+            with contextlib.chdir(staged.parent), \
+                    meshio.xdmf.TimeSeriesWriter(staged.name, data_format=fmt) as writer:
+                writer.write_points_cells(points0, cell_blocks)
+                for i in range(n):
+                    writer.write_data(float(t[i]), point_data=point_data(i),
+                                      cell_data=cell_data)
+            return
+        width = len(str(n - 1))
+        files = []
+        for i in range(n):
+            mesh = meshio.Mesh(xyz(pos[i]), cell_blocks, point_data=point_data(i),
+                               cell_data=cell_data)
+            files.append(staged.with_name(f"{staged.stem}_{i:0{width}d}{staged.suffix}"))
+            meshio.write(files[-1], mesh)
+        if staged.suffix.lower() == ".vtu":
+            _collection(staged.with_suffix(".pvd"), t, files)
+
+    return written(path, write)
 
 
 def _fields(q, v, drawing):

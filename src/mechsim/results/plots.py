@@ -3,6 +3,8 @@ built with the object API (no pyplot state, never `show()`)."""
 
 from __future__ import annotations
 
+from ..files import save_figure
+
 
 def new_axes(ax, size=(7.0, 3.6)):
     if ax is not None:
@@ -53,7 +55,7 @@ def _finish(fig, ax, title, ylabel, path, xlabel="time [s]"):
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
     if path is not None:
-        fig.savefig(path, dpi=120)
+        save_figure(fig, path)
     return fig
 
 
@@ -143,5 +145,5 @@ def plot_quantities(result, coordinates=(), points=(), joints=(), reactions=(), 
     axes[-1].set_xlabel("time [s]")
     axes[0].set_title(result.problem.title if result.problem is not None else "result")
     if path is not None:
-        fig.savefig(path, dpi=120)
+        save_figure(fig, path)
     return fig

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..files import save_figure
 from ..study import run_tasks
 from .oscillators import ImpactPair
 from .solve import solve
@@ -100,7 +101,7 @@ class RegimeMap:
         ax.set(xlabel="ω [rad/s]", ylabel="A [in]", title="Impact modes (n, m) per period")
         ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
         if path is not None:
-            fig.savefig(path, dpi=120)
+            save_figure(fig, path)
         return fig
 
 
