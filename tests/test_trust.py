@@ -592,6 +592,31 @@ def test_a_failed_compiler_is_remembered_and_said_once(tmp_path):
     assert third[3]
 
 
+def test_a_compile_that_ran_out_of_disk_is_tried_again_and_leftovers_go(tmp_path):
+    """A compile that failed for want of disk (the compiler says 'No space left on device')
+    is not remembered in *.failed: once space is freed the next process compiles (before,
+    the compiled engine stayed off). The working directory of a compile killed mid-way
+    (its process gone) is removed by the next compile (before, it stayed forever)."""
+    log = tmp_path / "calls"
+    cc = tmp_path / "cc"
+    cc.write_text(f"#!/bin/sh\necho called >> {log}\n"
+                  "echo 'model.so: No space left on device' >&2\nexit 1\n")
+    cc.chmod(0o755)
+    cache = tmp_path / "cache"
+    first = _probe(cache, CC=str(cc))
+    assert first[0] == "success" and not first[3] and "tried again" in first[4]
+    assert not list(cache.glob("*.failed"))
+    stale = cache / "mechsim-build-999999999-abc"
+    stale.mkdir()
+    (stale / "model.c").write_text("half")
+    calls = log.read_text().count("called")
+    _probe(cache, CC=str(cc))
+    assert log.read_text().count("called") > calls
+    assert not stale.exists()
+    if ms.examples.four_bar().compilation().serves:
+        assert _probe(cache)[3]                       # space back: compiled
+
+
 @pytest.mark.parametrize("value, compiled", [("0", True), ("false", True), ("1", False),
                                               ("yes", False)])
 def test_mechsim_no_compile_reads_as_a_switch(tmp_path, value, compiled):

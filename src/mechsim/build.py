@@ -79,7 +79,8 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
     items = mech.joints + mech.drivers
     model, from_cache = constraint_model(mech, items, build_mode(build))
     starts = body_starts(mech)
-    params = [x for item in items for x in item.parameter_values()]
+    params = [x for item in items for x in item.parameter_values()] + \
+        [x for item in items for x in getattr(item, "law_constants", ())]
     names, owners, kinds = [], [], []
     for item in items:
         for label in item.equation_labels:

@@ -160,7 +160,7 @@ def slider_crank(crank_length: float = 0.15, rod_length: float = 0.30,
     mech.add(Revolute(rod, slider, at=c, name="B"))
     mech.add(Prismatic(mech.ground, slider, axis=(1.0, 0.0), at=c, name="slide"))
     if driven:
-        mech.add(Driver(crank_pin, f"{w!r}*t"))
+        mech.add(Driver(crank_pin, f"{float(w)!r}*t"))
     return mech
 
 

@@ -188,11 +188,12 @@ class OutputDirectory:
             if not name.startswith(STAGING):
                 continue
             pid = name[len(STAGING):].split("-", 1)[0]
-            if pid.isdigit() and not _alive(int(pid)):
+            if pid.isdigit() and not alive(int(pid)):
                 self._remove_tree(name)
 
 
-def _alive(pid: int) -> bool:
+def alive(pid: int) -> bool:
+    """Is the process `pid` running (or not ours to ask)?"""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:

@@ -32,7 +32,8 @@ def kernel_source(item, key: str) -> str:
     """The module text of the kernel of `item`'s type (any joint or driver of it serves)."""
     joint = item.joint if isinstance(item, Driver) else item
     bodies = [b for b in (joint.body_a, joint.body_b) if b.coordinate_names]
-    ctx = SymbolicContext(bodies, [joint, item] if item is not joint else [joint])
+    ctx = SymbolicContext(bodies, [joint, item] if item is not joint else [joint],
+                          laws=False)      # a driver's law is evaluated by the model itself
     p = ctx.parameters(item)
     rows = [item.displacement(ctx, p)] if item is not joint else item.equations(ctx, p)
     q, v = sp.Matrix(ctx.q), sp.Matrix(ctx.v)

@@ -32,7 +32,7 @@ from pathlib import Path
 from types import ModuleType
 
 # Bump when the generated code changes meaning, so stale cache entries are not used.
-CODEGEN_VERSION = 9
+CODEGEN_VERSION = 10
 
 
 def cache_dir() -> Path:

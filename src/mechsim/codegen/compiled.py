@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import alive
 from .cache import adopt, env_flag, read_verified, verified_file, warn_once, write_entry
 
 # Mechanisms with at least this many coordinates call C twins of their functions: there a
@@ -110,6 +111,7 @@ def shared_library(source: str, target: Path):
                 error = memo.get("error", "")
         except ValueError:
             pass
+    remembered = error is not None
     if error is None:
         error = build_library(source, target, command)
         if error is None:
@@ -117,23 +119,45 @@ def shared_library(source: str, target: Path):
             failed.unlink(missing_ok=True)
             _declined.pop(str(target), None)
             return ctypes.CDLL(str(target))
-        try:
-            write_entry(failed, json.dumps({"compiler": identity, "error": error}).encode())
-        except OSError:
-            pass
+        if not transient(error):
+            try:
+                write_entry(failed, json.dumps({"compiler": identity, "error": error}).encode())
+                remembered = True
+            except OSError:
+                pass
     message = f"the C compiler {shlex.join(command)!r} failed: {error}"
     _declined[str(target)] = message
+    then = (f"The failure is remembered in {target.parent}/*.failed until the compiler (or "
+            f"CC) changes" if remembered else "It is tried again in the next process")
     warn_once(("compiler", identity), f"mechsim: {message}; models run on the Python path "
-              f"(slower). The failure is remembered in {target.parent}/*.failed until the "
-              f"compiler (or CC) changes")
+              f"(slower). {then}")
     return None
+
+
+# What a compile that failed for want of a resource says: not remembered (the next process
+# tries again), unlike the compiler's own errors.
+TRANSIENT = ("No space left on device", "Disk quota exceeded", "Cannot allocate memory",
+             "out of memory", "killed by signal")
+
+
+def transient(error: str) -> bool:
+    """Did a compile fail for want of disk, memory or time that may come back?"""
+    return any(mark.lower() in error.lower() for mark in TRANSIENT)
+
+
+# The prefix of a compile's working directory in the cache (`clean_builds` removes those
+# of processes that were killed).
+BUILD_PREFIX = "mechsim-build-"
 
 
 def build_library(source: str, library: Path, command: list[str]) -> str | None:
     """Compile `source` into `library` with `command`; None on success, else the error (the
-    compiler's last lines)."""
+    compiler's last lines). The compile works in a directory of its own in the cache,
+    removed after it; one left by a killed process is removed by the next compile."""
+    clean_builds(library.parent)
     try:
-        with tempfile.TemporaryDirectory(dir=library.parent) as tmp:
+        with tempfile.TemporaryDirectory(dir=library.parent,
+                                         prefix=f"{BUILD_PREFIX}{os.getpid()}-") as tmp:
             c_file, out = Path(tmp) / "model.c", Path(tmp) / "model.so"
             c_file.write_text(source)
             done = subprocess.run(command + ["-O2", "-shared", "-fPIC", "-o", str(out),
@@ -141,6 +165,8 @@ def build_library(source: str, library: Path, command: list[str]) -> str | None:
                                   capture_output=True, timeout=600)
             if done.returncode != 0 or not out.is_file():
                 text = (done.stderr or done.stdout).decode(errors="replace").strip()
+                if done.returncode < 0:
+                    text += f" (killed by signal {-done.returncode})"
                 return " ".join(text.splitlines()[-3:])[:400] or f"exit status {done.returncode}"
             out.replace(library)
     except subprocess.TimeoutExpired:
@@ -148,6 +174,21 @@ def build_library(source: str, library: Path, command: list[str]) -> str | None:
     except OSError as exc:
         return exc.strerror or str(exc)
     return None
+
+
+def clean_builds(directory: Path) -> None:
+    """Remove the compile directories in `directory` whose process is gone."""
+    try:
+        entries = list(directory.iterdir())
+    except OSError:
+        return
+    for entry in entries:
+        if not entry.name.startswith(BUILD_PREFIX) or entry.is_symlink():
+            continue
+        pid = entry.name[len(BUILD_PREFIX):].split("-", 1)[0]
+        if pid.isdigit() and not alive(int(pid)):
+            shutil.rmtree(entry, ignore_errors=True)
+
 
 
 def declined(target: Path) -> str | None:

@@ -47,8 +47,16 @@ class Driver:
     def parameter_values(self):
         return (self.joint.initial_coordinate(),)
 
+    @property
+    def law_constants(self) -> list[float]:
+        """The numbers of its law (`Expression.constants`): parameters of the compiled model,
+        so that drivers whose laws differ only in them (a sweep over crank speeds) share one
+        compiled structure."""
+        return self.law.constants()
+
     def equations(self, ctx, p):
-        return [self.displacement(ctx, p) - self.law.to_sympy({"t": ctx.t})]
+        law = self.law.to_sympy({"t": ctx.t}, constants=ctx.law_constants(self))
+        return [self.displacement(ctx, p) - law]
 
     def displacement(self, ctx, p):
         """The joint's coordinate less its initial value: the equation's part that does not
@@ -57,8 +65,9 @@ class Driver:
         return self.joint.coordinate(ctx, ctx.parameters(self.joint)) - p["offset"]
 
     def structure(self, index) -> tuple:
-        """Its kind, the driven joint's position `index(joint)` and its law."""
-        return (self.kind, index(self.joint), self.law.canonical)
+        """Its kind, the driven joint's position `index(joint)` and its law's template (its
+        numbers are parameters: `law_constants`)."""
+        return (self.kind, index(self.joint), self.law.template)
 
     def __repr__(self):
         return f"Driver({self.joint.name!r}, {self.expression!r})"

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import ast
 import math
+import numbers
 
 from .checks import ModelError
 
@@ -80,9 +81,25 @@ class Expression:
             return float(out.f), float(out.d1), float(out.d2)
         return float(out), 0.0, 0.0
 
-    def to_sympy(self, symbols: dict):
+    def to_sympy(self, symbols: dict, constants=None):
+        """The sympy expression; `constants`: sympy objects standing in for its `constants`
+        (in their order), else the numbers themselves."""
         import sympy as sp
-        return _sympy(self.tree, symbols, sp)
+        stand_ins = None if constants is None else iter(constants)
+        return _sympy(self.tree, symbols, sp, stand_ins)
+
+    def constants(self) -> list[float]:
+        """Its numbers, in the order of the tree, but for whole-number exponents (which
+        shape the expression): what a compiled model takes as parameters, so that laws
+        that differ only in them share one compiled structure (`template`)."""
+        out = []
+        _constants(self.tree, out)
+        return out
+
+    @property
+    def template(self) -> str:
+        """`canonical` with each of its `constants` written as #."""
+        return _canonical(self.tree, template=True)
 
     def bind(self, **values) -> "Expression":
         """The same expression with the names in `values` replaced by those numbers (a
@@ -98,7 +115,7 @@ def parse(text, names, owner: str) -> Expression:
     """Parse `text` (a str, or an int/float taken as a constant) allowing the free names in
     `names` besides `CONSTANTS`; raise ExpressionError naming `owner` where it is not a
     plain arithmetic expression of those names."""
-    if isinstance(text, bool) or not isinstance(text, (str, int, float)):
+    if isinstance(text, bool) or not isinstance(text, (str, numbers.Real)):
         raise ExpressionError(f"{owner}: expected a number or an expression string, "
                               f"got {type(text).__name__} {text!r:.80}")
     if not isinstance(text, str):
@@ -363,22 +380,47 @@ def _evaluate(tree, values):
     return FUNCTIONS[tree[1]][1](*args)
 
 
-def _sympy(tree, symbols, sp):
+def _structural(tree, parent) -> bool:
+    """Is the number `tree` a whole-number exponent (part of the expression's shape)?"""
+    return parent is not None and parent[0] == "op" and parent[1] == "**" and \
+        parent[3] is tree and float(tree[1]).is_integer()
+
+
+def _constants(tree, out, parent=None) -> None:
+    kind = tree[0]
+    if kind == "num":
+        if not _structural(tree, parent):
+            out.append(float(tree[1]))
+    elif kind == "neg":
+        _constants(tree[1], out, tree)
+    elif kind == "op":
+        _constants(tree[2], out, tree)
+        _constants(tree[3], out, tree)
+    elif kind == "call":
+        for a in tree[2:]:
+            _constants(a, out, tree)
+
+
+def _sympy(tree, symbols, sp, stand_ins=None, parent=None):
     kind = tree[0]
     if kind == "num":
         v = tree[1]
-        return sp.Integer(v) if isinstance(v, int) else sp.Float(v)
+        if stand_ins is not None and not _structural(tree, parent):
+            return next(stand_ins)
+        return sp.Integer(v) if isinstance(v, int) or float(v).is_integer() and \
+            _structural(tree, parent) else sp.Float(v)
     if kind == "const":
         return {"pi": sp.pi, "e": sp.E}[tree[1]]
     if kind == "name":
         return symbols[tree[1]]
     if kind == "neg":
-        return -_sympy(tree[1], symbols, sp)
+        return -_sympy(tree[1], symbols, sp, stand_ins, tree)
     if kind == "op":
-        a, b = _sympy(tree[2], symbols, sp), _sympy(tree[3], symbols, sp)
+        a = _sympy(tree[2], symbols, sp, stand_ins, tree)
+        b = _sympy(tree[3], symbols, sp, stand_ins, tree)
         return {"+": lambda: a + b, "-": lambda: a - b, "*": lambda: a * b,
                 "/": lambda: a / b, "**": lambda: a ** b}[tree[1]]()
-    args = [_sympy(a, symbols, sp) for a in tree[2:]]
+    args = [_sympy(a, symbols, sp, stand_ins, tree) for a in tree[2:]]
     name = tree[1]
     if name == "hypot":
         return sp.sqrt(args[0] ** 2 + args[1] ** 2)
@@ -402,14 +444,15 @@ def _bind(tree, values):
     return (kind, tree[1], *(_bind(a, values) for a in tree[2:]))
 
 
-def _canonical(tree) -> str:
+def _canonical(tree, template=False, parent=None) -> str:
     kind = tree[0]
     if kind == "num":
-        return repr(tree[1])
+        return "#" if template and not _structural(tree, parent) else repr(tree[1])
     if kind in ("const", "name"):
         return tree[1]
     if kind == "neg":
-        return f"(-{_canonical(tree[1])})"
+        return f"(-{_canonical(tree[1], template, tree)})"
     if kind == "op":
-        return f"({_canonical(tree[2])} {tree[1]} {_canonical(tree[3])})"
-    return f"{tree[1]}({', '.join(_canonical(a) for a in tree[2:])})"
+        return (f"({_canonical(tree[2], template, tree)} {tree[1]} "
+                f"{_canonical(tree[3], template, tree)})")
+    return f"{tree[1]}({', '.join(_canonical(a, template, tree) for a in tree[2:])})"

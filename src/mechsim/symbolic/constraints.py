@@ -21,9 +21,11 @@ class SymbolicContext(JointContext):
 
     Symbols are named by position, never by the user's names (`b<i>_<coordinate>` for the
     i-th body, `c<k>_<parameter>` for the k-th joint or driver): nothing a user wrote
-    reaches generated code, and models that differ only in names share one cache entry."""
+    reaches generated code, and models that differ only in names share one cache entry.
+    With `laws`, the numbers of each driver's law are parameters too (`c<k>_law<j>`, after
+    all the others: `Driver.law_constants`)."""
 
-    def __init__(self, bodies, items):
+    def __init__(self, bodies, items, laws: bool = True):
         self.t = sp.Symbol("t", real=True)
         self.q: list[sp.Symbol] = []
         self.v: list[sp.Symbol] = []
@@ -41,6 +43,14 @@ class SymbolicContext(JointContext):
             syms = {n: sp.Symbol(f"{stem}_{n}", real=True) for n in item.parameter_names}
             self.p += list(syms.values())
             self._params[id(item)] = syms
+        # The numbers of the drivers' laws come after every item's own parameters (the
+        # assembled model, which evaluates laws itself, reads only those before them).
+        self._laws = {}
+        for k, item in enumerate(items):
+            syms = [sp.Symbol(f"c{k}_law{j}", real=True)
+                    for j in range(len(getattr(item, "law_constants", ())) if laws else 0)]
+            self.p += syms
+            self._laws[id(item)] = syms
 
     def frame(self, body):
         """(x, y, angle) of the body's frame; zeros for the ground."""
@@ -54,6 +64,10 @@ class SymbolicContext(JointContext):
 
     def parameters(self, item) -> dict:
         return self._params[id(item)]
+
+    def law_constants(self, item) -> list:
+        """The symbols of a driver's law's numbers (`Driver.law_constants`)."""
+        return self._laws[id(item)]
 
 
 class SymbolicSystem:
