@@ -328,3 +328,35 @@ def test_a_sweep_over_driver_speeds_compiles_one_model(monkeypatch):
     assert list(study.table["status"]) == ["success"] * 25
     np.testing.assert_allclose(study.table["rate"], speeds, rtol=1e-9)
     assert len(keys) == 1 and len(generated) <= 1
+
+
+def test_names_with_math_markup_are_drawn_as_written(tmp_path):
+    """A `$` in a user's name was read as matplotlib math markup: `rod $\\frac$` broke every
+    plot after the run. Every text of mechsim's figures is drawn as written."""
+    mech = ms.Mechanism("cost $x^$")
+    rod = mech.add(ms.RigidBody.rod("rod $\\frac$", (0, 0), (1, 0), 1.0))
+    mech.add(ms.Revolute(mech.ground, rod, at=(0, 0), name="pin $_$"))
+    res = mech.simulate(0.3, output_step=0.01)
+    res.plot_energy(tmp_path / "e.png")
+    res.plot_reactions(tmp_path / "r.png")
+    res.plot(tmp_path / "p.png", coordinates=["rod $\\frac$.angle"])
+    fig = res.plot_motion(tmp_path / "m.png")
+    res.animate(tmp_path / "a.gif", fps=5)
+    assert fig.axes[0].get_title().startswith("cost $x^$")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.gif", "e.png", "m.png", "p.png",
+                                                          "r.png"]
+
+
+def test_an_unreachable_dask_scheduler_is_said_plainly(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("distributed")
+    import distributed
+    from mechsim.cli import main
+
+    def refuse(address, timeout=None):
+        raise OSError(f"Timed out trying to connect to {address} after 10 s")
+    monkeypatch.setattr(distributed, "Client", refuse)
+    study = ROOT / "mechanisms" / "studies" / "slider_crank_tolerances.toml"
+    code = main(["sweep", str(study), "--scheduler", "tcp://127.0.0.1:1", "--quiet",
+                 "--out", str(tmp_path / "t.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and "cannot reach the dask scheduler at 'tcp://127.0.0.1:1'" in err

@@ -185,6 +185,16 @@ MODEL = [
     ("unknown joint", lambda t: pendulum().joint("pviot"), "has no joint 'pviot'"),
     ("cannot assemble", lambda t: broken_four_bar().assemble(), "cannot be assembled.*of '[ABCD]'"),
     ("nothing to simulate", lambda t: ms.Mechanism("empty").simulate(1.0), "no moving bodies"),
+    ("driver undefined at the start", lambda t: driven("log(t)").simulate(0.5),
+     "driver 'd' prescribes log\\(t\\), whose value, rate or acceleration is not defined at "
+     "t = 0.*math domain error.*t_start"),
+    ("driver rate infinite at the start", lambda t: driven("sqrt(t)").simulate(0.5),
+     "driver 'd' prescribes sqrt\\(t\\).*not defined at t = 0"),
+    ("driver with a negative power of t", lambda t: driven("t**-1").simulate(0.5),
+     "driver 'd' prescribes t\\*\\*-1.*not defined at t = 0"),
+    ("beam of 100000 elements", lambda t: ms.FlexibleBeam(
+        "c", length=1.0, youngs_modulus=1e9, density=1e3, area=1e-4, second_moment=1e-8,
+        n_elements=100000), "beam 'c': `n_elements` = 100000.*GiB.*use at most 2000"),
 ]
 
 SIMULATE = [
@@ -256,6 +266,10 @@ SCENES = [
     ("save as text", four_bar_with("save = true", 'save = "no"'), "\\[output\\] save: must be true or false"),
     ("export format", four_bar_with("save = true", 'save = true\nexport = "x.stl"'),
      "\\[output\\] export: cannot export to 'x.stl'"),
+    ("parameter named t", four_bar_with("[parameters]", "[parameters]\nt = 2.0"),
+     "\\[parameters\\] 't' is a reserved name \\(time, in driver laws\\)"),
+    ("parameter named like a function", four_bar_with("[parameters]", "[parameters]\nsin = 2.0"),
+     "\\[parameters\\] 'sin' is a reserved name"),
     ("body as a table", '[body]\nname = "a"\nmass = 1\ninertia = 1\n[simulation]\nt_end = 1\n',
      "`body` must be an array of tables \\[\\[body\\]\\]"),
     ("parameters a number", "parameters = 5\n[simulation]\nt_end = 1\n",
@@ -323,7 +337,8 @@ def no_hang():
 
 
 def test_the_table_holds_at_least_eighty_cases():
-    assert len(MODEL) + len(SIMULATE) + len(DIRECT) + len(FAILED_RUNS) + len(SCENES) + 4 >= 80
+    assert len(MODEL) + len(SIMULATE) + len(DIRECT) + len(FAILED_RUNS) + len(SCENES) + \
+        len(UNCLEAR) + 4 >= 80
 
 
 @pytest.mark.parametrize("case, make, match", MODEL, ids=[c[0] for c in MODEL])
@@ -372,6 +387,54 @@ def test_bad_scenes_are_refused_naming_the_key(case, text, match, tmp_path, no_h
     with pytest.raises(SceneError, match=match):
         run_cli(tmp_path, text)
     assert not (tmp_path / "out").exists()
+
+
+def locked_chain():
+    """Two links held straight between fixed pivots: instantaneously mobile, finitely not."""
+    mech = ms.Mechanism("locked chain")
+    a = mech.add(ms.RigidBody.rod("a", (0, 0), (1, 0), 1.0))
+    b = mech.add(ms.RigidBody.rod("b", (1, 0), (2, 0), 1.0))
+    mech.add(ms.Revolute(mech.ground, a, at=(0, 0), name="O"))
+    mech.add(ms.Revolute(a, b, at=(1, 0), name="M"))
+    mech.add(ms.Revolute(b, mech.ground, at=(2, 0), name="E"))
+    return mech
+
+
+UNCLEAR = [
+    ("locked collinear chain", lambda t: locked_chain().simulate(1.0),
+     "'locked chain' is locked where it starts.*joints O, M, E.*no finite one"),
+    ("assemble tol negative", lambda t: pendulum().assemble(tol=-1.0),
+     "assemble: `tol` must be a positive number, got -1"),
+    ("load a text file", lambda t: ms.load_result((t / "hello.txt", (t / "hello.txt").write_text(
+        "hello"))[0]), "hello.txt is not a result saved by mechsim"),
+    ("steady state period as float32", lambda t: ms.examples.pendulum().steady_state(
+        period=np.float32(-0.0419)), "`period` must be positive, got"),
+    ("linear system step too small", lambda t: ms.LinearSystem(
+        np.eye(2), np.zeros((2, 2)), np.eye(2)).simulate(30.0, h=1e-12),
+     "`h` = 1e-12 over 30 s.*GiB.*choose a larger h"),
+    ("linear system force nan", lambda t: ms.LinearSystem(
+        np.eye(2), np.zeros((2, 2)), np.eye(2), force=lambda t: [math.nan, 0.0]).simulate(
+        1.0, h=0.1), "`force\\(t\\)` must be finite"),
+    ("linear system x0 nan", lambda t: ms.LinearSystem(
+        np.eye(2), np.zeros((2, 2)), np.eye(2)).simulate(1.0, h=0.1, x0=[math.nan, 0.0]),
+     "`x0` must be finite"),
+]
+
+
+@pytest.mark.parametrize("case, make, match", UNCLEAR, ids=[c[0] for c in UNCLEAR])
+def test_bad_arguments_elsewhere_are_refused_naming_them(case, make, match, tmp_path, no_hang):
+    """Each once failed unclearly (a pickle hint, "must be positive" for a positive numpy
+    scalar, a MemoryError of terabytes, NaNs returned silently)."""
+    with pytest.raises(ValueError, match=match):
+        make(tmp_path)
+
+
+def test_numpy_scalars_are_numbers(no_hang):
+    sol = ms.examples.spring_mass(mass=np.float32(2.0), stiffness=np.int64(800),
+                                  stretch=0.0, damping=np.float64(6.0))
+    assert sol.simulate(np.float32(0.1), rtol=np.float64(1e-8)).status == "success"
+    steady = ms.examples.pendulum(angle=-math.pi / 2).steady_state(period=np.float32(0.5))
+    assert steady.iterations >= 0
 
 
 def test_scene_files_that_are_not_scenes(tmp_path, no_hang):

@@ -370,7 +370,13 @@ def _sweep(args) -> int:
             print("mechsim: --scheduler needs dask.distributed (pip install 'mechsim[dask]')",
                   file=sys.stderr)
             return 2
-        client = Client(args.scheduler)
+        try:
+            client = Client(args.scheduler, timeout="10s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            print(f"mechsim: cannot reach the dask scheduler at {args.scheduler!r}: {exc}; "
+                  "check the address (tcp://host:port) and that the scheduler runs",
+                  file=sys.stderr)
+            return 2
     if not args.quiet:
         where = f"dask scheduler {args.scheduler}" if client else \
             f"{args.workers or study_file.workers or os.cpu_count()} local process(es)"

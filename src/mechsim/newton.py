@@ -80,7 +80,11 @@ def newton(x, residual: Callable, correct: Callable, tol: float, max_iter: int, 
     prev = math.inf
     k = 0
     while True:
-        phi, aux = residual(x)
+        try:
+            phi, aux = residual(x)
+        except (ValueError, OverflowError, ZeroDivisionError):
+            # The iterate left the functions' domain (cos of an infinite angle): diverged.
+            return NewtonResult(x, None, k, math.nan, False)
         err = max_abs(phi)
         if err <= tol or (stall and newton_stalled(err, prev, tol, round_off)):
             break

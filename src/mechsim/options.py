@@ -129,3 +129,26 @@ def unknown_names(given, valid, what: str) -> str | None:
         parts.append(f"{name!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
     return (f"{what} does not take {', '.join(parts)}; valid names: "
             f"{', '.join(sorted(valid))}")
+
+
+# The share of the machine's memory one request may ask for before it is refused.
+MEMORY_SHARE = 0.5
+
+
+def machine_memory() -> float:
+    """The machine's physical memory in bytes (16 GiB where it cannot be read)."""
+    import os
+    try:
+        return float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return 16 * 2.0 ** 30
+
+
+def check_memory(size: float, what: str, advice: str) -> None:
+    """ValueError where `size` bytes (asked for by `what`) exceed `MEMORY_SHARE` of the
+    machine's memory, saying how much and what to do (`advice`): refused before any work,
+    not a MemoryError after it."""
+    memory = machine_memory()
+    if size > MEMORY_SHARE * memory:
+        raise ValueError(f"{what} needs {size / 2**30:.3g} GiB, more than {MEMORY_SHARE:.0%} "
+                         f"of this machine's {memory / 2**30:.3g} GiB; {advice}")

@@ -65,7 +65,7 @@ from pathlib import Path, PurePath
 
 from .model import (Driver, FlexibleBeam, Force, Mechanism, ModelError, Prismatic, Revolute,
                     RigidBody, RotationalSpring, Spring, Torque)
-from .model.expressions import ExpressionError, parse
+from .model.expressions import FUNCTIONS, ExpressionError, parse
 from .options import unknown_names
 
 
@@ -252,6 +252,11 @@ class _Reader:
                 for key, value in raw.items()}
 
 
+# Names a parameter may not take: it would silently stand for something else in a law.
+RESERVED = {"t": "time, in driver laws", "pi": "the constant π", "e": "the constant e",
+            **{name: "a function" for name in FUNCTIONS}}
+
+
 def load_scene(path, parameters: dict | None = None) -> Scene:
     """Build the mechanism described by the TOML file at `path`, checking every table and
     key first (see the module docstring); a malformed scene is a SceneError. `parameters`:
@@ -283,6 +288,9 @@ def load_scene(path, parameters: dict | None = None) -> Scene:
         if not key.isidentifier():
             raise SceneError(f"{f}: [parameters] {key!r} is not a valid name (letters, digits "
                              "and underscores, not starting with a digit)")
+        if key in RESERVED:
+            raise SceneError(f"{f}: [parameters] {key!r} is a reserved name ({RESERVED[key]}); "
+                             "choose another")
         r.names[key] = evaluate(given.get(key, value), r.names, f"{f}: [parameters] {key}")
     name = r.value("name", data.get("name", path.stem), "name")
     gravity = r.value("vector", data.get("gravity", [0.0, -9.81]), "gravity")

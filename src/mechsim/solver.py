@@ -8,14 +8,14 @@ Formulations supply the ODE and the corrections; integrators supply steps and de
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 
+from . import sparse
 from .formulations import METHODS, formulation_class
 from .formulations.monitor import SingularityMonitor
 from .integrators import integrator_class
-from .options import Option, check_all, unknown_names
+from .options import Option, check_all, check_memory, unknown_names
 from .problem import NumericProblem
 from .results import SimulationResult, Switch
 from .run import Run, Settings
@@ -49,9 +49,6 @@ SETTINGS = {
     "work": Option.flag(True),
     "progress": Option.flag(False),
 }
-# An output grid is refused where its arrays would take more than this share of the
-# machine's memory.
-OUTPUT_MEMORY_SHARE = 0.5
 
 
 def check_settings(n, t_end, method, integrator, settings: dict, options: dict):
@@ -96,16 +93,9 @@ def check_simulate_arguments(n, t_end, method=None, options=None):
 def _check_output_size(n, span, step):
     """Refuse an output grid whose samples of n coordinates would not fit in memory."""
     samples = math.floor(span / step) + 2
-    size = samples * (1 + 2 * n) * 8.0
-    try:
-        memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):
-        memory = 16 * 2.0 ** 30
-    if size > OUTPUT_MEMORY_SHARE * memory:
-        raise ValueError(f"`output_step` = {step:g} over {span:g} s asks for {samples:.3g} "
-                         f"samples of {n} coordinates and velocities, "
-                         f"{size / 2**30:.3g} GiB, more than {OUTPUT_MEMORY_SHARE:.0%} of this "
-                         f"machine's {memory / 2**30:.3g} GiB; choose a larger output_step")
+    check_memory(samples * (1 + 2 * n) * 8.0,
+                 f"`output_step` = {step:g} over {span:g} s asks for {samples:.3g} samples of "
+                 f"{n} coordinates and velocities, which", "choose a larger output_step")
 
 
 def check_initial_state(problem, q0, v0, t0):
@@ -191,6 +181,10 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     # Constraint equations redundant at the start (Φ_q's rank n − dof below m) are taken
     # as redundant everywhere: the singularity monitor watches the rank-th singular value.
     redundant = max(problem.m - (problem.n - dof), 0)
+    if redundant:
+        why = locked(problem, q0, t_start)
+        if why:
+            raise ValueError(why)
     if cls.needs_freedom and fully_driven:
         # A fully driven mechanism: no independent coordinate to integrate. Its motion is
         # the drivers' kinematics, which the projection method follows on its branch with
@@ -219,6 +213,31 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         from .results.result import finish_stream
         finish_stream(res, stream)
     return res
+
+
+def locked(problem, q, t) -> str:
+    """Why a mechanism whose Φ_q loses rank at (q, t) cannot move ("" where it can): each
+    instantaneous motion Φ_q allows (its null space) is tried as a finite one, a step of
+    1e-4 of the coordinates' size projected back onto the constraints. A mechanism held
+    straight between fixed pivots (a toggle at its dead point) has instantaneous motions
+    but no finite one: every projection comes back to where it began. (Its runs ground
+    at a second a step to no end.)"""
+    J = sparse.dense(problem.phi_q(q, t))
+    U, _, Vt = np.linalg.svd(J)
+    rank = problem.rank(J)
+    eps = 1e-4 * max(1.0, float(np.max(np.abs(q), initial=0.0)))
+    for direction in Vt[rank:]:
+        for sign in (1.0, -1.0):
+            moved, _, err = problem.project_positions(q + sign * eps * direction, t)
+            if err <= 1e-10 and np.linalg.norm(moved - q) > 0.1 * eps:
+                return ""
+    left = U[:, rank:]
+    joints = list(dict.fromkeys(problem.constraint_owners[i]
+                                for i in np.flatnonzero(np.linalg.norm(left, axis=1) > 1e-8)))
+    return (f"mechanism '{problem.title}' is locked where it starts: its constraints "
+            f"(joints {', '.join(joints)}) allow {len(Vt) - rank} instantaneous motion(s) "
+            "but no finite one, as a chain held straight between fixed pivots; move a joint "
+            "off that configuration")
 
 
 def stream_directory(stream):

@@ -19,6 +19,8 @@ says so in its message.
 
 from __future__ import annotations
 
+import numbers
+
 import time
 
 import numpy as np
@@ -109,7 +111,7 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
             raise KinematicsError("kinematics: give `t_end` and `output_step`, or `over`, "
                                   "not both")
         ts = times_of(mech, *over, t_start=t_start)
-    elif not (isinstance(t_end, (int, float)) and isinstance(output_step, (int, float))
+    elif not (isinstance(t_end, numbers.Real) and isinstance(output_step, numbers.Real)
               and output_step > 0 and t_end > t_start):
         raise KinematicsError(f"kinematics: need t_end > t_start and output_step > 0 (or "
                               f"`over`), got t_end = {t_end!r}, output_step = {output_step!r}")

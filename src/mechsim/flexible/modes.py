@@ -13,6 +13,7 @@ Modes are mass-normalised (Φᵀ M Φ = I) and sorted by frequency.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,7 +68,7 @@ def beam_modes(length, youngs_modulus, density, area, second_moment, n_elements=
     """The lowest `n_modes` elastic modes of a uniform beam (see the module docstring)."""
     for name, value in (("length", length), ("youngs_modulus", youngs_modulus),
                         ("density", density), ("area", area), ("second_moment", second_moment)):
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        if not (isinstance(value, numbers.Real) and math.isfinite(value) and value > 0):
             raise ValueError(f"{owner}: `{name}` must be positive, got {value!r}")
     if boundary not in BOUNDARIES:
         raise ValueError(f"{owner}: unknown boundary {boundary!r}; choose one of "

@@ -243,9 +243,10 @@ class Partitioned(Formulation):
                       contraction=CHORD_CONTRACTION)
         if done.converged:
             return done.aux, fresh[1]
-        phi = prob.phi(done.aux, t)
+        where = "diverged: the coordinates left the range of the constraint functions" \
+            if done.aux is None else f"residual {prob.worst_constraint(prob.phi(done.aux, t))}"
         self.failure = (f"Newton on the dependent coordinates did not converge at t = {t:.9g} "
-                        f"(residual {prob.worst_constraint(phi)})")
+                        f"({where})")
         raise ConstraintSolveError(self.failure)
 
     def full_state(self, t, y):

@@ -16,10 +16,13 @@ Methods (fixed step h), each a small class in `LINEAR_METHODS`:
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from ..options import check_memory
 
 
 def _square(name, a, n=None):
@@ -75,6 +78,8 @@ class LinearSystem:
         out = np.asarray(self.force(t), dtype=float)
         if out.shape != (self.n,):
             raise ValueError(f"`force(t)` must return shape ({self.n},), got {out.shape} at t = {t}")
+        if not np.all(np.isfinite(out)):
+            raise ValueError(f"`force(t)` must be finite, got {out} at t = {t}")
         return out
 
     def F(self, t) -> np.ndarray:
@@ -84,7 +89,7 @@ class LinearSystem:
     def simulate(self, t_end: float, h: float, method: str = "ss-newmark", x0=None, v0=None,
                  t_start: float = 0.0) -> "LinearResult":
         """Integrate with fixed step `h` from (x0, v0) (zero by default) to `t_end`."""
-        if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
+        if not (isinstance(h, numbers.Real) and math.isfinite(h) and h > 0):
             raise ValueError(f"`h` must be a positive step, got {h!r}")
         if not (math.isfinite(t_end) and t_end > t_start):
             raise ValueError(f"`t_end` must be after t_start = {t_start}, got {t_end!r}")
@@ -99,6 +104,11 @@ class LinearSystem:
         for name, a in (("x0", x0), ("v0", v0)):
             if a.shape != (n,):
                 raise ValueError(f"`{name}` must have shape ({n},), got {a.shape}")
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"`{name}` must be finite, got {a}")
+        check_memory(((t_end - t_start) / h + 1) * 2 * n * 8.0,
+                     f"`h` = {h:g} over {t_end - t_start:g} s ({(t_end - t_start) / h:.3g} "
+                     f"steps of {n} coordinates and velocities)", "choose a larger h")
         steps = int(round((t_end - t_start) / h))
         if not math.isclose(steps * h, t_end - t_start, rel_tol=1e-9, abs_tol=1e-12 * h):
             raise ValueError(f"`t_end − t_start` = {t_end - t_start} is not a whole number of "

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -248,7 +250,27 @@ class Mechanism:
     def assemble(self, t: float = 0.0, tol: float = 1e-10, max_iter: int = 50) -> AssemblyReport:
         """Make the initial state consistent: positions by Newton with the smallest change
         (kinetic metric), then velocities by projection in the mass metric. Consistent input is
-        kept exactly. Raises AssemblyError naming the joint with the largest residual."""
+        kept exactly. Raises AssemblyError naming the joint with the largest residual, or a
+        driver whose law (or its rate or acceleration) is undefined at t."""
+        for name, value, rule in (("tol", tol, "a positive number"),
+                                  ("max_iter", max_iter, "a whole number ≥ 1")):
+            ok = (isinstance(value, numbers.Real) and not isinstance(value, bool) and
+                  value > 0 and math.isfinite(value) and
+                  (name == "tol" or float(value).is_integer()))
+            if not ok:
+                raise ValueError(f"assemble: `{name}` must be {rule}, got {value!r:.40}")
+        for driver in self.drivers:
+            try:
+                jet = driver.law.jet("t", float(t))
+            except (ArithmeticError, ValueError) as exc:
+                jet = (exc,)
+            if not all(isinstance(x, float) and math.isfinite(x) for x in jet):
+                why = f" ({jet[0]})" if isinstance(jet[0], Exception) else ""
+                raise AssemblyError(
+                    f"mechanism '{self.name}': driver '{driver.name}' prescribes "
+                    f"{driver.expression}, whose value, rate or acceleration is not defined "
+                    f"at t = {float(t):g}, where the run starts{why}; start the run where it "
+                    "is (t_start) or change the law")
         prob = self.problem()
         q0, v0 = self.initial_coordinates(), self.initial_velocities()
         q, iterations, err = prob.project_positions(q0, t, tol=tol, max_iter=max_iter)

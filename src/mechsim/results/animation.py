@@ -10,12 +10,15 @@ the mechanism a time bar shades the singular passages and marks the present time
 
 from __future__ import annotations
 
+import numbers
+
 from pathlib import Path
 
 import numpy as np
 
 from ..files import save_figure, written
 from ..kinematics import drawn_points, frame_point
+from .plots import literal_text
 
 # An animation plays at most this many seconds: longer results are decimated.
 MAX_SECONDS = 12.0
@@ -177,6 +180,7 @@ def plot_motion(result, path=None, trace=(), snapshots=6, exaggeration=1.0, ax=N
     _axes(ax, scene, f"{scene.problem.title}: {len(k)} states, t = {result.t[0]:.3g} … "
                      f"{result.t[-1]:.3g} s")
     ax.legend(loc="best", fontsize="x-small")
+    literal_text(fig)
     if path is not None:
         save_figure(fig, path)
     return fig
@@ -198,7 +202,7 @@ def animate(result, path, trace=(), fps=30, exaggeration=1.0, max_frames=None) -
     if suffix == ".mp4" and not animation.writers.is_available("ffmpeg"):
         raise ValueError("animate: writing MP4 needs ffmpeg, which is not installed; "
                          "write a .gif instead")
-    if not (isinstance(fps, (int, float)) and 1 <= fps <= 120):
+    if not (isinstance(fps, numbers.Real) and 1 <= fps <= 120):
         raise ValueError(f"animate: `fps` must be between 1 and 120, got {fps!r}")
     frames = frame_indices(result.t, fps, max_frames)
     scene = Scene(result, frames, trace, exaggeration)
@@ -213,6 +217,7 @@ def animate(result, path, trace=(), fps=30, exaggeration=1.0, max_frames=None) -
     moving = [*artists.bodies, *artists.guides, *artists.springs, artists.pins, *paths,
               clock]
     ax.set_title(scene.problem.title)
+    literal_text(fig)
     canvas = fig.canvas
     canvas.draw()                                # the layout, found once
     fig.set_layout_engine("none")

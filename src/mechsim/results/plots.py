@@ -47,6 +47,15 @@ def _shade_passages(ax, result):
                    color="C3", alpha=0.15, lw=0, label="singular passage" if k == 0 else None)
 
 
+def literal_text(fig):
+    """Every text of `fig` drawn as written: names are the user's, and a `$` in one would be
+    read as matplotlib's math markup (an unbalanced one fails the drawing). Returns fig."""
+    from matplotlib.text import Text
+    for text in fig.findobj(Text):
+        text.set_parse_math(False)
+    return fig
+
+
 def _finish(fig, ax, title, ylabel, path, xlabel="time [s]"):
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
@@ -54,6 +63,7 @@ def _finish(fig, ax, title, ylabel, path, xlabel="time [s]"):
         ax.set_title(title)
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
+    literal_text(fig)
     if path is not None:
         save_figure(fig, path)
     return fig
@@ -144,6 +154,7 @@ def plot_quantities(result, coordinates=(), points=(), joints=(), reactions=(), 
         _finish(fig, ax, None, ylabel, None, xlabel="")
     axes[-1].set_xlabel("time [s]")
     axes[0].set_title(result.problem.title if result.problem is not None else "result")
+    literal_text(fig)
     if path is not None:
         save_figure(fig, path)
     return fig

@@ -571,8 +571,21 @@ def load_result(path) -> SimulationResult:
     to (`simulate(stream=...)`)."""
     if Path(path).is_dir():
         return _load_stream(path)
+    import zipfile
+    if Path(path).is_file() and not zipfile.is_zipfile(path):
+        raise ValueError(f"{path} is not a result saved by mechsim (SimulationResult.save "
+                         "writes .npz files) nor the directory of a streamed run")
     with np.load(path, allow_pickle=False) as data:
-        meta = json.loads(str(data["meta"]))
+        try:
+            meta = json.loads(str(data["meta"]))
+            names = meta["coordinate_names"]
+            shapes = {key: data[key].shape for key in ("t", "q", "v")}
+        except (KeyError, ValueError, TypeError) as exc:
+            raise ValueError(f"{path} is not a result saved by mechsim ({exc})") from None
+        rows = shapes["t"][0] if len(shapes["t"]) == 1 else -1
+        if rows < 0 or shapes["q"] != (rows, len(names)) or shapes["v"] != (rows, len(names)):
+            raise ValueError(f"{path}: its arrays do not fit together: t {shapes['t']}, "
+                             f"q {shapes['q']}, v {shapes['v']} for {len(names)} coordinates")
         energy = None
         if "kinetic" in data:
             if "work_by" in data:

@@ -9,6 +9,8 @@ an ordinary constrained simulation (any method of the registry).
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
 from .oscillators import PeriodicProblem, Trajectory
@@ -16,7 +18,7 @@ from .oscillators import PeriodicProblem, Trajectory
 
 class MechanismPeriodicProblem(PeriodicProblem):
     def __init__(self, mechanism, period: float, t0: float = 0.0, **simulate_options):
-        if not (isinstance(period, (int, float)) and period > 0 and np.isfinite(period)):
+        if not (isinstance(period, numbers.Real) and period > 0 and np.isfinite(period)):
             raise ValueError(f"steady_state: `period` must be positive, got {period!r}")
         from ..engineering.reduced import ReducedCoordinates
         self.mech, self.period, self.t0 = mechanism, float(period), float(t0)

@@ -19,6 +19,7 @@ Units as in the paper: mm and s for the single-degree-of-freedom problems (g = 9
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -74,7 +75,7 @@ class PeriodicProblem:
 
 def _positive(owner, **values):
     for k, v in values.items():
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+        if not (isinstance(v, numbers.Real) and math.isfinite(v) and v > 0):
             raise ValueError(f"{owner}: `{k}` must be positive, got {v!r}")
 
 
