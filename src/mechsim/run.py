@@ -108,7 +108,8 @@ class Runaway:
     keep = 512
 
     def __init__(self):
-        self.j, self.h, self.speed = [], [], []
+        self.rows = np.empty((self.keep + 1, 3))       # [j, h, speed] of the steps kept
+        self.count = 0
         self.stride = 1
         self.strikes = 0
 
@@ -116,19 +117,19 @@ class Runaway:
         """The j-th accepted step, of length h, ending at velocities v."""
         if j % self.stride:
             return
-        self.j.append(j)
-        self.h.append(h)
-        self.speed.append(float(np.max(np.abs(v), initial=0.0)))
-        if len(self.j) > self.keep:
+        self.rows[self.count] = j, h, np.max(np.abs(v), initial=0.0)
+        self.count += 1
+        if self.count > self.keep:
             self.stride *= 2
-            for rows in (self.j, self.h, self.speed):
-                rows[:] = rows[::2]
+            kept = self.rows[:self.count:2]
+            self.count = len(kept)
+            self.rows[:self.count] = kept.copy()
 
     def verdict(self, k, t, t_end) -> str:
         """"" while the run may go on; else why it cannot reach t_end."""
-        if k < RUNAWAY_FROM or k % RUNAWAY_EVERY or len(self.j) < 16:
+        if k < RUNAWAY_FROM or k % RUNAWAY_EVERY or self.count < 16:
             return ""
-        j, h, speed = (np.array(x) for x in (self.j, self.h, self.speed))
+        j, h, speed = self.rows[:self.count].T
         half = j >= j[-1] / 2
         j, h, speed = j[half], h[half], speed[half]
         why = ""
