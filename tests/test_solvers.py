@@ -160,7 +160,7 @@ def test_forty_window_four_bar_twenty_seconds():
     tip = res.point("crank1", (0.5, 0.0))
     assert np.max(np.hypot(tip[:, 0] - np.cos(theta), tip[:, 1] - np.sin(theta))) <= 1e-5
     assert len(res.singular_passages) == 20 and res.stats["bridges"] == 20
-    assert res.stats["steps"] < 400
+    assert res.stats["steps"] <= 3 * 224          # measured 224 (docs/benchmarks.md)
 
 
 @pytest.mark.parametrize("method", ["lu", "qr"])
