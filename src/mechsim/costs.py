@@ -37,7 +37,7 @@ def _row_set(case, res, **extra):
 
 
 def noisy_bridge():
-    """The seed's falling four-bar, projection at rtol 1e-9 with its 10 ms step bound: at
+    """The seed's falling four-bar, projection at rtol 1e-9 with its 0.01 s step bound: at
     its third passage the bridge's error estimate is the round-off of q̈, and the best
     declined bridge is taken. On the Python and on the compiled evaluations."""
     from .codegen import engine

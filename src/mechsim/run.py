@@ -34,7 +34,8 @@ from .integrators import AdamsPECE
 from .integrators.adapters import (bound_read_at_start, correct_in_place, proposed_step,
                                    shift_in_place, warm_start)
 from .results import SimulationResult
-from .results.result import WorkRecord, begin_stream
+from .results.result import WorkRecord
+from .results.stream import begin_stream
 from .results.work import WorkIntegral
 from .samples import FAILURES, Recorder, check_finite, fastest_motion, troubled_drivers
 

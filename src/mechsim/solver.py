@@ -181,23 +181,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     # Constraint equations redundant at the start (Φ_q's rank n − dof below m) are taken
     # as redundant everywhere: the singularity monitor watches the rank-th singular value.
     redundant = max(problem.m - (problem.n - dof), 0)
-    if redundant:
-        why = locked(problem, q0, t_start)
-        if why:
-            raise ValueError(why)
-    if cls.needs_freedom and fully_driven:
-        # A fully driven mechanism: no independent coordinate to integrate. Its motion is
-        # the drivers' kinematics, which the projection method follows on its branch with
-        # the integrator's error control (a partitioned run took one step for the whole
-        # run and landed on the mirror branch).
-        form = METHODS["projection"](problem, rtol, atol)
-        form.switches.append(Switch(t_start, cls.name, form.name, "0 degrees of freedom: the "
-                                    "drivers' motion, followed by the projection method"))
-    else:
-        why = cls.cannot_resolve(problem, q0, t_start, rtol, redundant)
-        if why:
-            raise ValueError(why)
-        form = cls(problem, rtol, atol, **options)
+    form = _formulation(cls, problem, q0, t_start, rtol, atol, options, redundant,
+                        fully_driven)
     form.monitor = SingularityMonitor(problem, *singular_thresholds, redundant=redundant)
     settings = Settings(t_start, t_end, rtol, atol, max_step, first_step, h, max_steps,
                         output_times(t_start, t_end, output_step), checked["work"],
@@ -210,9 +195,31 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                         singular_thresholds=singular_thresholds, max_steps=max_steps, h=h,
                         work=checked["work"], **options)
     if stream is not None:
-        from .results.result import finish_stream
+        from .results.stream import finish_stream
         finish_stream(res, stream)
     return res
+
+
+def _formulation(cls, problem, q0, t_start, rtol, atol, options, redundant, fully_driven):
+    """The formulation of the method `cls` for this run, or a ValueError saying why the
+    mechanism cannot be run (locked where it starts, beyond the method's resolution)."""
+    if redundant:
+        why = locked(problem, q0, t_start)
+        if why:
+            raise ValueError(why)
+    if cls.needs_freedom and fully_driven:
+        # A fully driven mechanism: no independent coordinate to integrate. Its motion is
+        # the drivers' kinematics, which the projection method follows on its branch with
+        # the integrator's error control (a partitioned run took one step for the whole
+        # run and landed on the mirror branch).
+        form = METHODS["projection"](problem, rtol, atol)
+        form.switches.append(Switch(t_start, cls.name, form.name, "0 degrees of freedom: the "
+                                    "drivers' motion, followed by the projection method"))
+        return form
+    why = cls.cannot_resolve(problem, q0, t_start, rtol, redundant)
+    if why:
+        raise ValueError(why)
+    return cls(problem, rtol, atol, **options)
 
 
 def locked(problem, q, t) -> str:
@@ -249,7 +256,7 @@ def stream_directory(stream):
         return None
     from pathlib import Path
     from .files import STAGING, OutputDirectory, UnsafePathError
-    from .results.result import STREAM_FILES
+    from .results.stream import STREAM_FILES
     try:
         path = Path(stream)
     except TypeError:
