@@ -150,7 +150,31 @@ def random_work(rtol=1e-8, t_end=2.0):
     return rows
 
 
-CASES = {"noisy-bridge": noisy_bridge, "ten-window": ten_window, "adams-hybrid": adams_hybrid,
+def heavy_rod():
+    """The slider-crank scene with a 1e10 kg rod: the singularity monitor's evaluations of
+    σ_min/σ_max (the search inside each step once took its whole budget of 4000)."""
+    from .formulations.monitor import SingularityMonitor
+    from .scene import load_scene
+    scene_file = Path(__file__).resolve().parents[2] / "mechanisms" / "slider_crank.toml"
+    if not scene_file.is_file():
+        return []
+    calls = []
+    measure = SingularityMonitor.measure
+
+    def counted(self, *args, **kwargs):
+        calls.append(1)
+        return measure(self, *args, **kwargs)
+
+    scene = load_scene(scene_file, parameters={"rod_mass": 1e10})
+    SingularityMonitor.measure = counted
+    try:
+        res = scene.simulate()
+    finally:
+        SingularityMonitor.measure = measure
+    return _row_set("slider-crank scene, 1e10 kg rod", res, **{"σ ratio evaluations": len(calls)})
+
+
+CASES = {"noisy-bridge": noisy_bridge, "heavy-rod": heavy_rod, "ten-window": ten_window, "adams-hybrid": adams_hybrid,
          "stuck-lu": stuck_lu, "scipy-integrators": scipy_integrators, "seed-svd": seed_svd,
          "random-work": random_work}
 

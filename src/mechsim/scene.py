@@ -325,9 +325,10 @@ def load_scene(path, parameters: dict | None = None) -> Scene:
     return Scene(path, mech, simulation, output)
 
 
-def read_toml(path: Path) -> dict:
-    """The TOML file at `path` as a dict; a SceneError names the file where it is missing,
-    too large or not TOML."""
+def read_toml(path) -> dict:
+    """The TOML file at `path` (a str or Path) as a dict; a SceneError names the file where
+    it is missing, too large or not TOML."""
+    path = Path(path)
     f = path.name
     try:
         if path.stat().st_size > MAX_SCENE_BYTES:
