@@ -360,3 +360,20 @@ def test_an_unreachable_dask_scheduler_is_said_plainly(tmp_path, capsys, monkeyp
                  "--out", str(tmp_path / "t.csv")])
     err = capsys.readouterr().err
     assert code == 2 and "cannot reach the dask scheduler at 'tcp://127.0.0.1:1'" in err
+
+
+def test_a_background_build_has_a_time_limit(tmp_path):
+    """The background build's process limits its own processor time (a law of a hundred
+    and fifty factors kept sympy busy for over five minutes with no limit): the child's
+    entry point sets RLIMIT_CPU before it reads its payload."""
+    import pickle
+    resource = pytest.importorskip("resource")
+    from mechsim.codegen import background
+    code = ("import resource, sys; from mechsim.codegen import background; "
+            "background.build = lambda *a: print(resource.getrlimit(resource.RLIMIT_CPU), a); "
+            "background.main()")
+    done = subprocess.run([sys.executable, "-I", "-c", code], input=pickle.dumps((1, 2, 3)),
+                          capture_output=True, cwd=tmp_path, timeout=60)
+    assert done.returncode == 0, done.stderr
+    limit = background.CPU_SECONDS
+    assert done.stdout.decode().strip() == f"({limit}, {limit}) (1, 2, 3)"

@@ -491,6 +491,10 @@ class Run:
                 self.message += (f"; Φ_q is nearly singular there (σ_min/σ_max = {s:.3g}, "
                                  f"joints {', '.join(monitor.joints_of(u))})")
         monitor.close(self.t_reached)
+        if monitor.blind:
+            self.message += (f"; σ_min/σ_max of the mass-scaled constraint Jacobian stayed "
+                             f"at {monitor.peak:.2g} (very unequal masses), below round-off: "
+                             "singular passages were not watched")
         passages = monitor.passages
         if self.status != "success":
             return

@@ -45,6 +45,11 @@ from ..results import SingularPassage
 # a step by the rates of σ_min/σ_max seen, not by ‖dJ̃/dt‖ (whose Frobenius norm grows with
 # the rows and made the 40-window chain's 20 s search every step), and search more briefly.
 SEARCH_MAX_ROWS = 60
+# Where σ_min/σ_max of J̃ never rises above BLIND while Φ_q's own ratio is above PLAIN_OK
+# (a rod 1e100 times heavier than the crank: 1e-53), the measure is round-off and the
+# monitor watches no passage (`blind`); the run's message says so.
+BLIND = 1e-13
+PLAIN_OK = 1e-6
 # The passage search's bound on |d(σ_min/σ_max)/dt| inside a step: Weyl's, but at most this
 # many times the fastest rate seen (`SingularityMonitor._hidden_passages`).
 WEYL_SPAN = 100.0
@@ -99,6 +104,10 @@ class SingularityMonitor:
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
         self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
         self.t_first = -np.inf       # the first observation's time
+        # Whether σ_min/σ_max of J̃ is below round-off for the masses' sake (`BLIND`): then
+        # no passage is watched, and the run says so.
+        self.blind = False
+        self._hidden_by_masses = None
         self.engine = _compiled(problem) if not self.redundant else None
 
     def _jacobian(self, q, t):
@@ -163,6 +172,17 @@ class SingularityMonitor:
         smin, smax = np.sqrt(lam_min), np.sqrt(lam_max)
         return (smin, u_min, J.T @ u_min / smin), (smax, u_max, J.T @ u_max / smax)
 
+    def _masses_hide(self, q, t) -> bool:
+        """Do unequal masses, not the configuration, make σ_min/σ_max of J̃ that small?
+        (Φ_q's own ratio is above `PLAIN_OK`; decided at the first call: the masses do not
+        change.)"""
+        if self._hidden_by_masses is None:
+            sig = np.linalg.svd(sparse.dense(self.problem.phi_q(q, t)), compute_uv=False)
+            k = sig.size - 1 - self.redundant
+            self._hidden_by_masses = bool(k >= 0 and sig[0] > 0.0 and
+                                          sig[k] > PLAIN_OK * sig[0])
+        return self._hidden_by_masses
+
     def joints_of(self, u) -> tuple[str, ...]:
         owners = self.problem.constraint_owners
         big = np.flatnonzero(np.abs(u) > 0.2 * np.max(np.abs(u), initial=0.0))
@@ -206,6 +226,11 @@ class SingularityMonitor:
         self._measured = (J, smin, smax) if smax > 0.0 else None
         speed_before, self._ratio_speed = self._ratio_speed, self._speed(q, v, t, J, smax)
         self.peak = max(self.peak, raw)
+        if self.peak < BLIND and self._masses_hide(q, t):
+            # Below round-off, s/peak is noise: no passage can be told from it.
+            self.blind = True
+            self.last, self.rate, self._prev = 1.0, 0.0, None
+            return 1.0
         s, rate = (raw / self.peak, rate / self.peak) if self.peak > 0 else (0.0, 0.0)
         self.peak_rate = max(self.peak_rate, abs(rate))
         prev, self._prev = self._prev, (t, s, rate)
