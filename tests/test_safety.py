@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import mechsim as ms
+from test_cli import SCENE as CLI_SCENE
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -198,24 +199,9 @@ def test_a_full_disk_while_streaming_ends_the_run_keeping_its_samples(tmp_path, 
 
 
 # --- the command line's outputs ----------------------------------------------------------------
-SCENE = """
-name = "pendulum"
-[[body]]
-name = "rod"
-rod = [[0, 0], [1, 0]]
-mass = 1.0
-[[joint]]
-type = "revolute"
-name = "pin"
-bodies = ["ground", "rod"]
-at = [0, 0]
-[simulation]
-t_end = 0.5
-output_step = 0.01
-[output]
-save = true
-plots = ["energy"]
-"""
+# test_cli's pendulum, half as long, with a plot.
+SCENE = CLI_SCENE.replace("t_end = 1.0", "t_end = 0.5").replace(
+    "save = true", 'save = true\nplots = ["energy"]')
 
 
 def _cli(capsys, *argv):
