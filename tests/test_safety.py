@@ -363,3 +363,16 @@ def test_a_background_build_has_a_time_limit(tmp_path):
     assert done.returncode == 0, done.stderr
     limit = background.CPU_SECONDS
     assert done.stdout.decode().strip() == f"({limit}, {limit}) (1, 2, 3)"
+
+
+def test_a_streamed_run_needs_memory_for_its_times_only(tmp_path, monkeypatch):
+    """On a machine of 1 GiB, 1e7 samples of the four-bar (1.4 GiB in memory) are refused
+    before the run; streamed, only their times stay in memory (76 MiB), and the run
+    starts."""
+    import mechsim.options as options
+    monkeypatch.setattr(options, "machine_memory", lambda: 2.0 ** 30)
+    with pytest.raises(ValueError, match="1e\\+07 samples of 9 coordinates.*GiB"):
+        ms.examples.four_bar().simulate(1e3, output_step=1e-4, max_steps=10)
+    res = ms.examples.four_bar().simulate(1e3, output_step=1e-4, max_steps=10,
+                                          stream=tmp_path / "run")
+    assert res.status == "failed" and "max_steps = 10" in res.message and res.t.size > 100

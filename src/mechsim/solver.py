@@ -51,11 +51,13 @@ SETTINGS = {
 }
 
 
-def check_settings(n, t_end, method, integrator, settings: dict, options: dict):
+def check_settings(n, t_end, method, integrator, settings: dict, options: dict,
+                   streamed: bool = False):
     """The formulation class, the integrator class and every setting of a run of a problem
     with `n` coordinates checked, before any work: a ValueError names the argument and
     says what is wrong (an unknown name gets the closest valid one, or the methods that
-    take it). Returns (formulation class, integrator class, t_end, settings)."""
+    take it). `streamed`: the samples go to disk, only the output grid's times stay in
+    memory. Returns (formulation class, integrator class, t_end, settings)."""
     cls = formulation_class(method)
     valid = {**SETTINGS, **cls.options, "t_end": None, "method": None, "integrator": None,
              "stream": None}
@@ -77,7 +79,7 @@ def check_settings(n, t_end, method, integrator, settings: dict, options: dict):
     if checked["h"] is None and getattr(solver_cls, "fixed_step", False):
         raise ValueError(f"method {cls.name!r} steps at a fixed size: give `h`, e.g. h=1e-3")
     if checked["output_step"] is not None:
-        _check_output_size(n, t_end - t0, checked["output_step"])
+        _check_output_size(0 if streamed else n, t_end - t0, checked["output_step"])
     return cls, solver_cls, t_end, checked
 
 
@@ -85,17 +87,19 @@ def check_simulate_arguments(n, t_end, method=None, options=None):
     """`check_settings` for the keyword arguments as `Mechanism.simulate` takes them."""
     options = dict(options or {})
     integrator = options.pop("integrator", None)
-    options.pop("stream", None)                  # checked where the run starts
+    streamed = options.pop("stream", None) is not None      # checked where the run starts
     settings = {k: options.pop(k) for k in list(options) if k in SETTINGS}
-    return check_settings(n, t_end, method, integrator, settings, options)
+    return check_settings(n, t_end, method, integrator, settings, options, streamed)
 
 
 def _check_output_size(n, span, step):
-    """Refuse an output grid whose samples of n coordinates would not fit in memory."""
+    """Refuse an output grid whose samples of n coordinates (0: streamed, the grid's times
+    alone) would not fit in memory."""
     samples = math.floor(span / step) + 2
+    what = f"of {n} coordinates and velocities" if n else "(their times: the run streams)"
     check_memory(samples * (1 + 2 * n) * 8.0,
-                 f"`output_step` = {step:g} over {span:g} s asks for {samples:.3g} samples of "
-                 f"{n} coordinates and velocities, which", "choose a larger output_step")
+                 f"`output_step` = {step:g} over {span:g} s asks for {samples:.3g} samples "
+                 f"{what}, which", "choose a larger output_step")
 
 
 def check_initial_state(problem, q0, v0, t0):
@@ -168,7 +172,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         problem.n, t_end, method, integrator,
         dict(t_start=t_start, rtol=rtol, atol=atol, max_step=max_step, output_step=output_step,
              first_step=first_step, singular_thresholds=singular_thresholds,
-             max_steps=max_steps, h=h, work=work, progress=progress), options)
+             max_steps=max_steps, h=h, work=work, progress=progress), options,
+        streamed=stream is not None)
     t_start, rtol, atol = checked["t_start"], checked["rtol"], checked["atol"]
     max_step, output_step, h = checked["max_step"], checked["output_step"], checked["h"]
     max_steps, singular_thresholds = checked["max_steps"], checked["singular_thresholds"]
