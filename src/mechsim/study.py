@@ -42,6 +42,7 @@ import time
 import traceback
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -289,12 +290,33 @@ class Study:
         """Indices of the samples whose status is not "success"."""
         return np.flatnonzero(self.table["status"] != "success")
 
+    def to_csv(self, path) -> Path:
+        """The table as CSV at `path`: a header of its columns, one row per sample, numbers
+        written to round-trip exactly and a failed sample's measures empty (written through
+        `mechsim.files.written`: never through a link, never half-written)."""
+        import csv
+        from .files import written
+        columns = list(self.table)
+
+        def cell(value):
+            if isinstance(value, (float, np.floating)):
+                return "" if math.isnan(value) else repr(float(value))
+            return value
+
+        def write(p):
+            with open(p, "w", newline="", encoding="utf-8") as out:
+                writer = csv.writer(out)
+                writer.writerow(columns)
+                for i in range(len(self)):
+                    writer.writerow([cell(self.table[c][i]) for c in columns])
+        return written(path, write)
+
     def to_pandas(self):
         """The table as a pandas DataFrame (pandas must be installed)."""
         try:
             import pandas as pd
         except ImportError:
-            raise ImportError("Study.to_pandas needs pandas (pip install pandas); "
+            raise ImportError("Study.to_pandas needs pandas (pip install 'mechsim[pandas]'); "
                               "`Study.table` holds the same columns as numpy arrays") from None
         return pd.DataFrame(self.table)
 

@@ -24,8 +24,6 @@ may be expressions, parsed as in scenes).
 
 from __future__ import annotations
 
-import csv
-import math
 import os
 from dataclasses import dataclass
 from functools import partial
@@ -211,24 +209,8 @@ def _count(f, data, key, low=1):
 
 
 def write_table(study, path: Path) -> None:
-    """The study's table as CSV: a header of its columns, one row per sample (written
-    through `mechsim.files.written`: never through a link, never half-written)."""
-    from .files import written
-    columns = list(study.table)
-
-    def write(p):
-        with open(p, "w", newline="", encoding="utf-8") as out:
-            writer = csv.writer(out)
-            writer.writerow(columns)
-            for i in range(len(study)):
-                writer.writerow([_cell(study.table[c][i]) for c in columns])
-    written(path, write)
-
-
-def _cell(value):
-    if isinstance(value, (float, np.floating)):
-        return "" if math.isnan(value) else repr(float(value))
-    return value
+    """The study's table as CSV (`Study.to_csv`)."""
+    study.to_csv(path)
 
 
 def summary(study) -> list[str]:

@@ -73,6 +73,20 @@ class ReactionTable:
             return list(self.problem.joints if kind == "joints" else self.problem.driver_joints)
         return list(self.saved.get(kind, []))
 
+    def kind(self, joint) -> str:
+        """"revolute" or "prismatic": the kind of `joint` (which decides its units)."""
+        name = self._joint(joint)
+        if self.problem is not None:
+            return self.problem.joints[name].joint.kind
+        return self.saved.get("kinds", {}).get(name, "revolute")
+
+    def driver_kind(self, driver) -> str:
+        """The kind of the joint `driver` drives."""
+        name = self._driver(driver)
+        if self.problem is not None:
+            return self.kind(self.problem.driver_joints[name])
+        return self.saved.get("driver_kinds", {}).get(name, "revolute")
+
     def _joint(self, joint) -> str:
         return self._named(joint, "joint", "the reactions and joint coordinates")
 

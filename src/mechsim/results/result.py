@@ -389,6 +389,26 @@ class SimulationResult:
         return export(self, path, p.drawing, every)
 
     # --- persistence -------------------------------------------------------------------------
+    def table(self, points=(), joints=None, drivers=None, velocities=True) -> dict:
+        """{column: (n,) array}, each column named with its SI unit: time, coordinates and
+        (with `velocities`) their rates, the global positions of `points` ((body, local)
+        pairs), and for `joints` / `drivers` (names or objects, or True for all) their
+        forces, couples, coordinates and rates / efforts and powers
+        (`mechsim.results.table`)."""
+        from .table import columns
+        return columns(self, points, joints, drivers, velocities)
+
+    def to_csv(self, path, points=(), joints=None, drivers=None, velocities=True) -> Path:
+        """`table` written as CSV to `path` (a header of the columns with their units, a row
+        per sample); returns the path."""
+        from .table import write_csv
+        return write_csv(self.table(points, joints, drivers, velocities), path)
+
+    def to_pandas(self, points=(), joints=None, drivers=None, velocities=True):
+        """`table` as a pandas DataFrame (needs the `pandas` extra)."""
+        from .table import data_frame
+        return data_frame(self.table(points, joints, drivers, velocities))
+
     def save(self, path, reactions: bool | None = None) -> Path:
         """Write the result (with its energy log and constraint violation) to an .npz file.
         `reactions`: also the joint reactions, driver efforts and joint coordinates, so a
@@ -413,7 +433,10 @@ class SimulationResult:
         if table is not None:
             arrays = table.to_arrays()
             meta["reactions"] = {"keys": list(arrays), "joints": table.joint_names,
-                                 "drivers": table.driver_names}
+                                 "drivers": table.driver_names,
+                                 "kinds": {j: table.kind(j) for j in table.joint_names},
+                                 "driver_kinds": {d: table.driver_kind(d)
+                                                  for d in table.driver_names}}
             extra.update({f"reaction_{k}": a for k, a in enumerate(arrays.values())})
         from ..files import written
         final = path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
@@ -502,7 +525,8 @@ def load_result(path) -> SimulationResult:
         if "reactions" in meta:
             r = meta["reactions"]
             saved = {key: data[f"reaction_{k}"] for k, key in enumerate(r["keys"])}
-            saved.update(joints=r["joints"], drivers=r["drivers"])
+            saved.update(joints=r["joints"], drivers=r["drivers"], kinds=r.get("kinds", {}),
+                         driver_kinds=r.get("driver_kinds", {}))
         return SimulationResult(
             data["t"], data["q"], data["v"], meta["coordinate_names"], status=meta["status"],
             message=meta["message"], stats=meta["stats"],

@@ -415,7 +415,6 @@ def equivalent_damping_amplitude(osc: CoulombOscillator) -> float:
     """Steady amplitude by equivalent viscous damping for continuous motion (Den Hartog):
     c_eq ω = 4 μ g / (π X) added to the linear resonance curve, solved for X."""
     wn, w, d = osc.omega_n, osc.omega, osc.delta_st
-    r = w / wn
     F = d * wn**2
     fric = 4 * osc.mu * osc.g / math.pi
     # |(ω_n² − ω²) X| and (2ζω_n ω X + fric) add in quadrature to F.

@@ -1,0 +1,107 @@
+"""A result as a table an engineer can take away: one column per quantity, each named with
+its SI unit ("t [s]", "crank.angle [rad]", "motor effort [N·m]"), as a dict of arrays,
+a CSV file (`mechsim.files`: never through a link, never half-written) or a pandas
+DataFrame (the `pandas` extra).
+
+Columns, in order: time; every coordinate, then its rate (with `velocities`); the global
+position of each point asked for; for each joint asked for, the force it applies to its
+body_b in global axes, the couple of a prismatic joint, its coordinate and rate; for each
+driver asked for, its effort and power. Reactions and efforts are computed only when asked
+for (`SimulationResult.reactions`).
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+# A coordinate's unit by the last part of its name (`<body>.<coordinate>`); modal
+# amplitudes of mass-normalised modes (Φᵀ M Φ = I) are in √kg·m.
+COORDINATE_UNITS = {"x": "m", "y": "m", "angle": "rad"}
+MODAL_UNIT = "√kg·m"
+
+
+def coordinate_unit(name: str) -> str:
+    """The unit of the coordinate `name` ("crank.angle" -> "rad", "coupler.eta1" -> √kg·m)."""
+    last = name.rsplit(".", 1)[-1]
+    if last in COORDINATE_UNITS:
+        return COORDINATE_UNITS[last]
+    return MODAL_UNIT if last.startswith("eta") else "-"
+
+
+def _rate(unit: str) -> str:
+    return f"{unit}/s" if unit != "-" else "1/s"
+
+
+def columns(result, points=(), joints=None, drivers=None, velocities=True) -> dict:
+    """{column name with unit: (n,) array} of `result` (see the module docstring).
+    `points`: (body, local point) pairs; `joints`, `drivers`: names or objects, or True for
+    all of them, None for none."""
+    out = {"t [s]": np.asarray(result.t)}
+    names = result.coordinate_names
+    for k, name in enumerate(names):
+        out[f"{name} [{coordinate_unit(name)}]"] = result.q[:, k]
+    if velocities:
+        for k, name in enumerate(names):
+            out[f"{name} rate [{_rate(coordinate_unit(name))}]"] = result.v[:, k]
+    for body, local in points:
+        label = getattr(body, "name", body)
+        xy = result.point(body, local)
+        where = f"{label}({float(local[0]):g}, {float(local[1]):g})"
+        out[f"{where}.x [m]"], out[f"{where}.y [m]"] = xy[:, 0], xy[:, 1]
+    if joints is not None or drivers is not None:
+        table = result.reactions
+        for joint in _chosen(joints, table.joint_names):
+            name = getattr(joint, "name", joint)
+            linear = table.kind(name) == "prismatic"
+            force = result.joint_force(name)
+            out[f"{name} force x [N]"], out[f"{name} force y [N]"] = force[:, 0], force[:, 1]
+            if linear:
+                out[f"{name} couple [N·m]"] = result.joint_moment(name)
+            unit = "m" if linear else "rad"
+            out[f"{name} coordinate [{unit}]"] = result.joint_coordinate(name)
+            out[f"{name} rate [{unit}/s]"] = result.joint_rate(name)
+        for driver in _chosen(drivers, table.driver_names):
+            name = getattr(driver, "name", driver)
+            unit = "N" if table.driver_kind(name) == "prismatic" else "N·m"
+            out[f"{name} effort [{unit}]"] = result.driver_effort(name)
+            out[f"{name} power [W]"] = result.driver_power(name)
+    return out
+
+
+def _chosen(which, every):
+    if which is None:
+        return []
+    if which is True:
+        return list(every)
+    if isinstance(which, str) or not hasattr(which, "__iter__"):
+        return [which]
+    return list(which)
+
+
+def write_csv(table: dict, path) -> Path:
+    """The columns `table` as a CSV file at `path`: a header of the column names, then one
+    row per sample, numbers written to round-trip exactly."""
+    from ..files import written
+    keys = list(table)
+    data = np.column_stack([np.asarray(table[k], float) for k in keys]) if keys else \
+        np.zeros((0, 0))
+
+    def write(p):
+        with open(p, "w", newline="", encoding="utf-8") as f:
+            w = csv.writer(f)
+            w.writerow(keys)
+            w.writerows([repr(float(x)) for x in row] for row in data)
+    return written(path, write)
+
+
+def data_frame(table: dict):
+    """The columns `table` as a pandas DataFrame (the `pandas` extra)."""
+    try:
+        import pandas
+    except ImportError:
+        raise ImportError("to_pandas needs pandas: pip install 'mechsim[pandas]' (or pip "
+                          "install pandas)") from None
+    return pandas.DataFrame(table)
