@@ -105,3 +105,36 @@ def read_csv_mixed(path):
         except ValueError:
             out[name] = column
     return out
+
+
+def test_what_a_loaded_result_cannot_answer_is_said_plainly(tmp_path):
+    res = ms.examples.slider_crank(driven=True, crank_speed=100.0).simulate(
+        0.01, output_step=1e-3)
+    back = ms.load_result(res.save(tmp_path / "plain"))            # no reactions kept
+    with pytest.raises(RuntimeError, match="computing the reactions and joint coordinates "
+                                           "needs the mechanism's model.*reactions=True"):
+        back.joint_force("O")
+    with pytest.raises(RuntimeError, match="extending the run needs the mechanism's model"):
+        back.extend(1.0)
+
+
+def test_cycle_figures_give_their_units(engine):
+    text = str(engine.cycle_figures())
+    assert "driver 'driver(O)': peak effort" in text and " N·m, RMS " in text
+    assert engine.cycle_figures().drivers["driver(O)"]["unit"] == "N·m"
+
+
+def test_set_speed_after_set_state_starts_from_that_state():
+    """An equilibrium set as the state, then a joint speed: the run starts at the
+    equilibrium turning at that speed (before, set_speed threw the state away and the run
+    started from the angle as built)."""
+    mech = ms.examples.pendulum(length=0.6, angle=-0.3)
+    mech.add(ms.RotationalSpring(mech.ground, mech.body("rod"), stiffness=20.0))
+    eq = mech.equilibrium()
+    assert eq.converged and abs(eq.q[2] + 0.3) > 0.1
+    mech.set_state(eq.q)
+    mech.set_speed(mech.joints[0], 0.5)
+    res = mech.simulate(0.01)
+    np.testing.assert_allclose(res.q[0], eq.q, atol=1e-12)
+    assert res.coordinate("rod.angle")[0] == pytest.approx(eq.q[2], abs=1e-12)
+    assert res.v[0][2] == pytest.approx(0.5, abs=1e-12)

@@ -185,7 +185,9 @@ def _analyses(args, mech, t) -> None:
             print(f"           joint '{joint.name}': force ({F[0]:.4g}, {F[1]:.4g}) N on "
                   f"'{joint.body_b.name}'")
         for driver in mech.drivers:
-            print(f"           driver '{driver.name}' holds {eq.driver_effort(driver):.4g}")
+            unit = "N" if driver.joint.kind == "prismatic" else "N·m"
+            print(f"           driver '{driver.name}' holds {eq.driver_effort(driver):.4g} "
+                  f"{unit}")
     if args.modes and not eq.coordinates:
         print("modes      none: the drivers fix every degree of freedom")
     elif args.modes:
@@ -269,8 +271,8 @@ def _reaction_summary(output, res) -> None:
     for name, mu in figures.transmission.items():
         print(f"reaction   transmission angle at '{name}': {mu['min']:.1f}° … {mu['max']:.1f}°")
     for name, d in (figures.drivers.items() if efforts else ()):
-        print(f"effort     driver '{name}': peak {d['peak_effort']:.4g}, RMS "
-              f"{d['rms_effort']:.4g}; power peak {d['peak_power']:.4g} W, mean "
+        print(f"effort     driver '{name}': peak {d['peak_effort']:.4g} {d['unit']}, RMS "
+              f"{d['rms_effort']:.4g} {d['unit']}; power peak {d['peak_power']:.4g} W, mean "
               f"{d['mean_power']:.4g} W")
     if figures.note:
         print(f"reaction   {figures.note}")

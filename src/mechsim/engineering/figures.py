@@ -17,8 +17,8 @@ from scipy.integrate import trapezoid
 
 @dataclass
 class CycleFigures:
-    """drivers: name -> {"peak_effort", "rms_effort", "peak_power", "mean_power"} (efforts
-    in N·m or N, powers in W; peak = largest magnitude); joints: name -> {"peak_force" [N],
+    """drivers: name -> {"unit", "peak_effort", "rms_effort", "peak_power", "mean_power"}
+    (efforts in `unit`, N·m or N; powers in W; peak = largest magnitude); joints: name -> {"peak_force" [N],
     "at": its time [s]}; transmission: joint name -> {"min", "max"} [degrees]; note: where
     some reactions are not unique (`ReactionTable.note`)."""
     drivers: dict = field(default_factory=dict)
@@ -29,9 +29,10 @@ class CycleFigures:
     def __str__(self):
         lines = []
         for name, d in self.drivers.items():
-            lines.append(f"driver '{name}': peak effort {d['peak_effort']:.4g}, RMS "
-                         f"{d['rms_effort']:.4g}; peak power {d['peak_power']:.4g} W, mean "
-                         f"{d['mean_power']:.4g} W")
+            unit = d.get("unit", "N·m")
+            lines.append(f"driver '{name}': peak effort {d['peak_effort']:.4g} {unit}, RMS "
+                         f"{d['rms_effort']:.4g} {unit}; peak power {d['peak_power']:.4g} W, "
+                         f"mean {d['mean_power']:.4g} W")
         for name, j in self.joints.items():
             lines.append(f"joint '{name}': peak force {j['peak_force']:.4g} N at "
                          f"t = {j['at']:.4g} s")
@@ -59,6 +60,7 @@ def cycle_figures(res) -> CycleFigures:
         effort = table.effort(name)
         power = effort * table.driver_rate(name)
         out.drivers[name] = {
+            "unit": "N" if table.driver_kind(name) == "prismatic" else "N·m",
             "peak_effort": float(effort[np.argmax(np.abs(effort))]),
             "rms_effort": rms(effort, res.t),
             "peak_power": float(power[np.argmax(np.abs(power))]),

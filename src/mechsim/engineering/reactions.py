@@ -88,10 +88,10 @@ class ReactionTable:
         return self.saved.get("driver_kinds", {}).get(name, "revolute")
 
     def _joint(self, joint) -> str:
-        return self._named(joint, "joint", "the reactions and joint coordinates")
+        return self._named(joint, "joint", "computing the reactions and joint coordinates")
 
     def _driver(self, driver) -> str:
-        return self._named(driver, "driver", "the driver efforts")
+        return self._named(driver, "driver", "computing the driver efforts")
 
     def _named(self, item, kind, what) -> str:
         """The name of a joint or driver (`kind`) of this result, given as the object or its
@@ -107,8 +107,9 @@ class ReactionTable:
 
     def _need(self, what):
         if self.problem is None:
-            raise RuntimeError(f"{what} was not saved with this result and its model is not "
-                               "loaded; save results with reactions=True to keep them")
+            raise RuntimeError(f"{what} needs the mechanism's model, and this result was "
+                               "loaded without it; save results with reactions=True to keep "
+                               "the reactions, efforts and joint coordinates")
         return self.problem
 
     # --- multipliers -------------------------------------------------------------------------
@@ -117,7 +118,7 @@ class ReactionTable:
         """λ at every sample with the rows whose share is not unique
         (`mechsim.problem.multipliers.Multipliers`), computed on first use."""
         if self._multipliers is None:
-            p = self._need("the reactions")
+            p = self._need("computing the reactions")
             self._multipliers = p.multipliers(self.t, self.q, self.v, self.passages)
         return self._multipliers
 
@@ -127,7 +128,7 @@ class ReactionTable:
         key = f"indeterminate:{owner}"
         if key in self.saved:
             return self.saved[key]
-        rows = self._need("the reactions").rows_of(owner)
+        rows = self._need("computing the reactions").rows_of(owner)
         return self.multipliers.indeterminate[:, rows].any(axis=1)
 
     @property
@@ -157,7 +158,7 @@ class ReactionTable:
         name = self._joint(joint)
         if f"force:{name}" in self.saved:
             return self.saved[f"force:{name}"], self.saved[f"moment:{name}"]
-        p = self._need("the reactions")
+        p = self._need("computing the reactions")
         return self._memo(("wrench", name), joint_wrench, p.joints[name], self.q,
                           self.multipliers.lam[:, p.rows_of(name)])
 
@@ -177,7 +178,7 @@ class ReactionTable:
         key = f"angle_b:{name}"
         if key in self.saved:
             return self.saved[key]
-        start = self._need("the joint's body").joints[name].start_b
+        start = self._need("finding the joint's body").joints[name].start_b
         return np.zeros(len(self.t)) if start is None else self.q[:, start + 2]
 
     def moment(self, joint) -> np.ndarray:
@@ -188,7 +189,7 @@ class ReactionTable:
         name = self._driver(driver)
         if f"effort:{name}" in self.saved:
             return self.saved[f"effort:{name}"]
-        p = self._need("the driver efforts")
+        p = self._need("computing the driver efforts")
         return -self.multipliers.lam[:, p.rows_of(name)[0]]
 
     def coordinates(self, joint):
@@ -196,7 +197,7 @@ class ReactionTable:
         name = self._joint(joint)
         if f"coordinate:{name}" in self.saved:
             return self.saved[f"coordinate:{name}"], self.saved[f"rate:{name}"]
-        p = self._need("the joint coordinates")
+        p = self._need("computing the joint coordinates")
         return self._memo(("coordinates", name), joint_coordinates, p.joints[name], self.q,
                           self.v)
 
@@ -211,7 +212,7 @@ class ReactionTable:
         name = self._driver(driver)
         if f"driver_rate:{name}" in self.saved:
             return self.saved[f"driver_rate:{name}"]
-        return self.coordinates(self._need("the driver's joint").driver_joints[name])[1]
+        return self.coordinates(self._need("finding the driver's joint").driver_joints[name])[1]
 
     # --- persistence -------------------------------------------------------------------------
     @property

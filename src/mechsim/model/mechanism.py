@@ -78,6 +78,7 @@ class Mechanism:
         self._problem = None
         self._build = None                    # the build asked for by `problem(build=)`
         self._assembled: AssemblyReport | None = None
+        self._state = None               # (q, v) set by `set_state`: where assembly starts
         self._lookup = None                   # see `_names`
 
     # --- building ----------------------------------------------------------------------------
@@ -122,6 +123,7 @@ class Mechanism:
                              "spring, rotational spring, force or torque")
         self._problem = None
         self._assembled = None
+        self._state = None
         return item
 
     def _all_bodies(self):
@@ -272,7 +274,8 @@ class Mechanism:
                     f"at t = {float(t):g}, where the run starts{why}; start the run where it "
                     "is (t_start) or change the law")
         prob = self.problem()
-        q0, v0 = self.initial_coordinates(), self.initial_velocities()
+        q0, v0 = self._state if self._state is not None else \
+            (self.initial_coordinates(), self.initial_velocities())
         q, iterations, err = prob.project_positions(q0, t, tol=tol, max_iter=max_iter)
         if not err <= tol:
             raise AssemblyError(
@@ -345,9 +348,10 @@ class Mechanism:
 
     def set_state(self, q, v=None, t: float = 0.0) -> AssemblyReport:
         """Start later simulations from the consistent state (q, v) (v default zeros),
-        such as an equilibrium's `eq.q`, instead of the assembled initial configuration.
-        Raises ModelError if (q, v) does not satisfy the constraints; adding to the
-        mechanism forgets the state."""
+        such as an equilibrium's `eq.q`, instead of the assembled initial configuration;
+        a `set_speed` after it starts the joint turning from that state. Raises ModelError
+        if (q, v) does not satisfy the constraints; adding to the mechanism forgets the
+        state."""
         from ..solver import check_initial_state
         prob = self.problem()
         v = np.zeros(prob.n) if v is None else v
@@ -355,6 +359,7 @@ class Mechanism:
             q, v = check_initial_state(prob, q, v, t)
         except ValueError as exc:
             raise ModelError(f"mechanism '{self.name}': set_state: {exc}") from None
+        self._state = (q, v)
         self._assembled = AssemblyReport(q, v, 0, 0.0, 0.0,
                                          float(np.max(np.abs(prob.phi(q, t)), initial=0.0)))
         return self._assembled

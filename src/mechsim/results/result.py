@@ -178,7 +178,7 @@ class SimulationResult:
         """q̈ at the output times, shape (n, nq), from the equations of motion at each sample
         (computed when asked, not stored). Near a singular configuration the constraint
         forces are found in the least-squares sense."""
-        p = self._need_problem("the accelerations")
+        p = self._need_problem("computing the accelerations")
         out = np.empty_like(self.v)
         for i, (t, q, v) in enumerate(zip(self.t, self.q, self.v)):
             _, J, _, gamma = p.terms(q, v, t)
@@ -257,13 +257,14 @@ class SimulationResult:
     # --- energy and constraints --------------------------------------------------------------
     def _need_problem(self, what):
         if self.problem is None:
-            raise RuntimeError(f"{what} was not saved with this result and its model is not "
-                               "loaded")
+            raise RuntimeError(f"{what} needs the mechanism's model, and this result was "
+                               "loaded without it (a saved result keeps its samples, energy "
+                               "log and, saved with reactions=True, its reactions)")
         return self.problem
 
     @cached_property
     def energy(self) -> EnergyLog:
-        p = self._need_problem("the energy log")
+        p = self._need_problem("computing the energy log")
         energies = (p.kinetic_energy(self.q, self.v), p.potential_energy(self.q),
                     p.strain_energy(self.q))
         channels = tuple(p.work_channels)
@@ -330,7 +331,7 @@ class SimulationResult:
     @cached_property
     def constraint_violation(self) -> np.ndarray:
         """‖Φ(q(t), t)‖₂ at the output times, shape (n,)."""
-        p = self._need_problem("the constraint violation")
+        p = self._need_problem("computing the constraint violation")
         return np.array([np.linalg.norm(p.phi(q, t)) for q, t in zip(self.q, self.t)])
 
     # --- plots -------------------------------------------------------------------------------
@@ -385,7 +386,7 @@ class SimulationResult:
         deformed polylines with displacement, velocity and modal fields; `every`: every k-th
         sample. See `mechsim.results.export`."""
         from .export import export
-        p = self._need_problem("the body geometry for export")
+        p = self._need_problem("drawing the bodies for an export")
         return export(self, path, p.drawing, every)
 
     # --- persistence -------------------------------------------------------------------------
