@@ -209,3 +209,45 @@ def test_a_very_heavy_rod_runs_as_its_limit():
     np.testing.assert_allclose(runs[1].q, runs[2].q, rtol=0, atol=1e-8)
     assert "singular passages were not watched" in runs[2].message
     assert "not watched" not in runs[1].message
+
+
+def test_mass_properties_from_shapes():
+    """A rectangle by its formula and as a polygon; a right triangle's polygon against
+    m (a² + b² + c²)/36 about its centroid; a disc against a polygon of 2000 sides."""
+    r = ms.RigidBody.rectangle("r", (1.0, 2.0), 0.2, 0.1, 2.0, angle=0.3)
+    assert r.inertia == pytest.approx(2.0 * (0.04 + 0.01) / 12, rel=1e-15)
+    assert r.angle == 0.3 and tuple(r.position) == (1.0, 2.0)
+    square = ms.RigidBody.polygon("p", [(0.9, 1.95), (1.1, 1.95), (1.1, 2.05), (0.9, 2.05)], 2.0)
+    assert square.inertia == pytest.approx(r.inertia, rel=1e-10)
+    np.testing.assert_allclose(square.position, (1.0, 2.0), atol=1e-14)
+    clockwise = ms.RigidBody.polygon("t", [(0, 0), (0, 4), (3, 0)], 6.0)
+    assert clockwise.inertia == pytest.approx(6.0 * (9 + 16 + 25) / 36, rel=1e-13)
+    np.testing.assert_allclose(clockwise.position, (1.0, 4 / 3), atol=1e-14)
+    th = np.linspace(0.0, 2 * np.pi, 2001)[:-1]
+    many = ms.RigidBody.polygon("d", np.c_[0.3 * np.cos(th), 0.3 * np.sin(th)], 5.0)
+    assert many.inertia == pytest.approx(ms.RigidBody.disc("d", (0, 0), 0.3, 5.0).inertia,
+                                         rel=1e-5)      # (2 + cos(2π/n))/3 of it: 1.6e-6 short
+    for make, match in [(lambda: ms.RigidBody.polygon("q", [(0, 0), (1, 1)], 1.0),
+                         "at least 3 `vertices`"),
+                        (lambda: ms.RigidBody.polygon("q", [(0, 0), (1, 1), (2, 2)], 1.0),
+                         "enclose no area"),
+                        (lambda: ms.RigidBody.disc("q", (0, 0), -1.0, 1.0),
+                         "`radius` must be positive")]:
+        with pytest.raises(ms.ModelError, match=match):
+            make()
+
+
+def test_a_plate_pinned_at_a_corner_swings_as_its_compound_pendulum():
+    """A 0.4 × 0.2 m plate pinned at a corner: (I_c + m d²) θ̈ = −m g d cos(θ + φ), d the
+    centre's distance from the pin, against an independent integration."""
+    w, h, m, g = 0.4, 0.2, 3.0, 9.81
+    mech = ms.Mechanism("plate")
+    plate = mech.add(ms.RigidBody.rectangle("plate", (w / 2, -h / 2), w, h, m))
+    mech.add(ms.Revolute(mech.ground, plate, at=(0.0, 0.0), name="corner"))
+    res = mech.simulate(1.5, rtol=1e-10, atol=1e-12, output_step=0.05)
+    d, phi = math.hypot(w / 2, h / 2), math.atan2(-h / 2, w / 2)
+    inertia = m * (w * w + h * h) / 12 + m * d * d
+    exact = solve_ivp(lambda t, y: [y[1], -m * g * d * math.cos(y[0] + phi) / inertia],
+                      (0.0, 1.5), [0.0, 0.0], t_eval=res.t, rtol=1e-13, atol=1e-13)
+    assert res.status == "success", res.message
+    np.testing.assert_allclose(res.coordinate("plate.angle"), exact.y[0], atol=1e-7)

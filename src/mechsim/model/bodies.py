@@ -105,6 +105,59 @@ class RigidBody(Body):
                    angle=math.atan2(b[1] - a[1], b[0] - a[0]), velocity=velocity,
                    angular_velocity=angular_velocity)
 
+    @classmethod
+    def rectangle(cls, name: str, center, width: float, height: float, mass: float,
+                  angle: float = 0.0, velocity=(0.0, 0.0),
+                  angular_velocity: float = 0.0) -> "RigidBody":
+        """A uniform rectangular plate (a slider block, a link of some width) centred at
+        `center`, `width` along its x axis turned by `angle`: inertia m (w² + h²)/12."""
+        owner = f"body '{name}'"
+        w = scalar(width, "width", owner, positive=True)
+        h = scalar(height, "height", owner, positive=True)
+        m = scalar(mass, "mass", owner, positive=True)
+        return cls(name, mass=m, inertia=m * (w * w + h * h) / 12.0,
+                   position=vector2(center, "center", owner), angle=angle,
+                   velocity=velocity, angular_velocity=angular_velocity)
+
+    @classmethod
+    def disc(cls, name: str, center, radius: float, mass: float, velocity=(0.0, 0.0),
+             angular_velocity: float = 0.0) -> "RigidBody":
+        """A uniform disc (a flywheel, a crank disc) centred at `center`: inertia m r²/2."""
+        owner = f"body '{name}'"
+        r = scalar(radius, "radius", owner, positive=True)
+        m = scalar(mass, "mass", owner, positive=True)
+        return cls(name, mass=m, inertia=m * r * r / 2.0,
+                   position=vector2(center, "center", owner), velocity=velocity,
+                   angular_velocity=angular_velocity)
+
+    @classmethod
+    def polygon(cls, name: str, vertices, mass: float, velocity=(0.0, 0.0),
+                angular_velocity: float = 0.0) -> "RigidBody":
+        """A uniform plate bounded by the simple polygon `vertices` (global points in order,
+        either way round; a ternary link through its three joints): its frame at the
+        area's centroid with axes along the global ones, its inertia about the centroid
+        from the polygon's second moment of area (the shoelace sums)."""
+        owner = f"body '{name}'"
+        try:
+            pts = np.array([vector2(p, f"vertices[{k}]", owner)
+                            for k, p in enumerate(vertices)])
+        except TypeError:
+            raise ModelError(f"{owner}: `vertices` must be a list of 2-vectors") from None
+        if len(pts) < 3:
+            raise ModelError(f"{owner}: a polygon needs at least 3 `vertices`, got {len(pts)}")
+        m = scalar(mass, "mass", owner, positive=True)
+        x, y = pts[:, 0], pts[:, 1]
+        xn, yn = np.roll(x, -1), np.roll(y, -1)
+        cross = x * yn - xn * y
+        area = cross.sum() / 2.0
+        if not abs(area) > 1e-12 * max(1.0, float(np.ptp(pts)) ** 2):
+            raise ModelError(f"{owner}: the polygon's `vertices` enclose no area")
+        centroid = np.array([((x + xn) * cross).sum(), ((y + yn) * cross).sum()]) / (6 * area)
+        polar = (cross * (x * x + x * xn + xn * xn + y * y + y * yn + yn * yn)).sum() / 12.0
+        about_centroid = polar / area - centroid @ centroid     # per unit area, > 0
+        return cls(name, mass=m, inertia=m * about_centroid, position=centroid,
+                   velocity=velocity, angular_velocity=angular_velocity)
+
     @property
     def initial_coordinates(self) -> np.ndarray:
         return np.array([self.position[0], self.position[1], self.angle])
