@@ -369,7 +369,7 @@ def _sweep(args) -> int:
         try:
             from distributed import Client
         except ImportError:
-            print("mechsim: --scheduler needs dask.distributed (pip install 'mechsim[dask]')",
+            print("mechsim: --scheduler needs dask.distributed (pip install distributed; from a checkout, pip install '.[dask]')",
                   file=sys.stderr)
             return 2
         try:

@@ -1,4 +1,4 @@
-"""Progress bars (tqdm, an optional extra: `pip install 'mechsim[progress]'`), imported only
+"""Progress bars (tqdm, an optional extra: `pip install tqdm`, or `pip install '.[progress]'` from a checkout), imported only
 when one is asked for."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ def tqdm_bar(**options):
     try:
         from tqdm.auto import tqdm
     except ImportError:
-        warnings.warn("mechsim: progress=True needs tqdm (pip install 'mechsim[progress]'); "
+        warnings.warn("mechsim: progress=True needs tqdm (pip install tqdm; from a checkout, pip install '.[progress]'); "
                       "running without a progress bar", stacklevel=4)
         return None
     return tqdm(**options)

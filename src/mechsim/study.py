@@ -25,7 +25,7 @@ the disk cache, the geometry being parameters. Workers on other machines need th
 cache directory or build their own once.
 
 Where the work runs (`run_tasks`, which the shooting regime map uses too): `client`, a
-`dask.distributed.Client` (dask is an optional extra, `pip install 'mechsim[dask]'`,
+`dask.distributed.Client` (dask is an optional extra, `pip install distributed`,
 imported only here); else `workers` local processes (default: every core), forked so
 that `build`, `analyse` and `measure` may be lambdas or closures (where fork is not
 available they must be importable functions); `workers=1` runs in this process. A
@@ -316,7 +316,7 @@ class Study:
         try:
             import pandas as pd
         except ImportError:
-            raise ImportError("Study.to_pandas needs pandas (pip install 'mechsim[pandas]'); "
+            raise ImportError("Study.to_pandas needs pandas (pip install pandas; from a checkout, pip install '.[pandas]'); "
                               "`Study.table` holds the same columns as numpy arrays") from None
         return pd.DataFrame(self.table)
 

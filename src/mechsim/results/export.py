@@ -143,8 +143,8 @@ def _xdmf_format() -> str:
         return "HDF"
     except ImportError:
         warnings.warn("mechsim: writing XDMF with its data inline as XML text, several times "
-                      "larger and slower than HDF5; install h5py (pip install "
-                      "'mechsim[hdf5]') for compact files", stacklevel=4)
+                      "larger and slower than HDF5; install h5py (pip install h5py; from "
+                      "a checkout, pip install '.[hdf5]') for compact files", stacklevel=4)
         return "XML"
 
 

@@ -102,6 +102,6 @@ def data_frame(table: dict):
     try:
         import pandas
     except ImportError:
-        raise ImportError("to_pandas needs pandas: pip install 'mechsim[pandas]' (or pip "
-                          "install pandas)") from None
+        raise ImportError("to_pandas needs pandas: pip install pandas (from a checkout, pip "
+                          "install '.[pandas]')") from None
     return pandas.DataFrame(table)
