@@ -59,6 +59,34 @@ def frame_point_velocity(q: np.ndarray, v: np.ndarray, start: int | None, s,
     return np.stack([v[..., start] + dx, v[..., start + 1] + dy], axis=-1)
 
 
+def frame_point_acceleration(q: np.ndarray, v: np.ndarray, a: np.ndarray, start: int | None,
+                             s, modal=None) -> np.ndarray:
+    """Acceleration of body-fixed point `s`: R̈ + α × (A u) − ω² A u + 2 ω × (A u̇) + A ü,
+    u the point in the body's frame (modal · η added on a flexible body, u̇ and ü its
+    rates). Shapes as in `frame_point`; `a` the accelerations q̈ like v."""
+    if start is None:
+        return np.zeros(q.shape[:-1] + (2,))
+    u = _local(q, start, s, modal)
+    th, w, alpha = q[..., start + 2], v[..., start + 2], a[..., start + 2]
+    c, sn = np.cos(th), np.sin(th)
+
+    def turned(x, y):                 # A (x, y) and A S (x, y), S a quarter turn
+        return (c * x - sn * y, sn * x + c * y), (-sn * x - c * y, c * x - sn * y)
+
+    (ax_, ay_), (sx, sy) = turned(u[..., 0], u[..., 1])
+    out_x = a[..., start] + alpha * sx - w * w * ax_
+    out_y = a[..., start + 1] + alpha * sy - w * w * ay_
+    if modal is not None:
+        k = modal.shape[1]
+        du = v[..., start + 3:start + 3 + k] @ modal.T
+        ddu = a[..., start + 3:start + 3 + k] @ modal.T
+        _, (dsx, dsy) = turned(du[..., 0], du[..., 1])
+        (ddx, ddy), _ = turned(ddu[..., 0], ddu[..., 1])
+        out_x = out_x + 2.0 * w * dsx + ddx
+        out_y = out_y + 2.0 * w * dsy + ddy
+    return np.stack([out_x, out_y], axis=-1)
+
+
 def drawn_points(q: np.ndarray, start: int | None, local, modal=None,
                  scale: float = 1.0) -> np.ndarray:
     """(K, p, 2) global positions of a body's drawing points `local` (p, 2) at the states

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..kinematics import frame_point, frame_point_velocity
+from ..kinematics import frame_point, frame_point_acceleration, frame_point_velocity
 
 
 @dataclass(frozen=True)
@@ -173,6 +173,19 @@ class SimulationResult:
         """Global velocity of a body-fixed point over time, shape (n, 2)."""
         return frame_point_velocity(self.q, self.v, self._body_start(body), local,
                                     self._point_modes(body, local))
+
+    def point_acceleration(self, body, local=(0.0, 0.0)) -> np.ndarray:
+        """Global acceleration [m/s²] of a body-fixed point over time, shape (n, 2), from the
+        equations of motion at each sample (`accelerations`; needs the model)."""
+        return frame_point_acceleration(self.q, self.v, self.accelerations(),
+                                        self._body_start(body), local,
+                                        self._point_modes(body, local))
+
+    def angular_velocity(self, body) -> np.ndarray:
+        """The angular velocity [rad/s] of a body's frame over time, shape (n,) (0 for the
+        ground)."""
+        start = self._body_start(body)
+        return np.zeros(len(self.t)) if start is None else np.array(self.v[:, start + 2])
 
     def accelerations(self) -> np.ndarray:
         """q̈ at the output times, shape (n, nq), from the equations of motion at each sample
