@@ -22,7 +22,8 @@ _LAZY_MODULES = {"examples", "scene", "solver", "codegen", "formulations", "inte
                  "results", "linear", "bench", "shooting", "engineering", "study",
                  "assembly"}
 _LAZY_NAMES = {"SimulationResult": "results", "load_result": "results",
-               "load_scene": "scene", "LinearSystem": "linear", "sweep": "study",
+               "load_scene": "scene", "load_mechanism": "scene", "LinearSystem": "linear",
+               "sweep": "study",
                "Study": "study"}
 _ALIASES = {"rotor": "linear.rotor", "analysis": "linear.analysis",
             "oscillators": "shooting.oscillators"}
@@ -45,5 +46,5 @@ def __dir__():
 
 __all__ = ["AssemblyError", "Body", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Ground", "Joint",
            "LinearSystem", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody",
-           "RotationalSpring", "SimulationResult", "Spring", "Study", "Torque", "load_result",
-           "load_scene", "sweep"]
+           "RotationalSpring", "SimulationResult", "Spring", "Study", "Torque", "load_mechanism",
+           "load_result", "load_scene", "sweep"]

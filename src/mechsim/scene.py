@@ -31,6 +31,7 @@
     [[rotational_spring]]  bodies = [a, b], stiffness, damping, rest_angle
     [[force]]   body, force = [fx, fy], at
     [[torque]]  body, torque
+    [[speed]]   joint, rate     # the joint's initial rate (Mechanism.set_speed)
 
     [simulation]                 # keyword arguments of Mechanism.simulate
     t_end = 2.0
@@ -141,6 +142,7 @@ SCHEMA = {
     "torque": {"body": "name", "torque": "number", "name": "name"},
     "rotational_spring": {"bodies": "bodies", "stiffness": "number", "damping": "number",
                           "rest_angle": "number", "name": "name"},
+    "speed": {"joint": "name", "rate": "number"},
     "output": {"plots": "plots", "save": "flag", "points": "points", "directory": "path",
                "export": "path", "reactions": "joints", "efforts": "flag", "animate": "flag"},
 }
@@ -150,8 +152,10 @@ REQUIRED = {
     "joint": ("type", "bodies"), "driver": ("joint", "expression"),
     "spring": ("bodies", "at_a", "at_b", "stiffness"), "force": ("body", "force"),
     "torque": ("body", "torque"), "rotational_spring": ("bodies", "stiffness"), "output": (),
+    "speed": ("joint", "rate"),
 }
-_ARRAYS = ("body", "joint", "driver", "spring", "force", "torque", "rotational_spring")
+_ARRAYS = ("body", "joint", "driver", "spring", "force", "torque", "rotational_spring",
+           "speed")
 _TOP = {"name": "name", "gravity": "vector", "parameters": "table", "simulation": "table",
         "output": "table", **{k: "array" for k in _ARRAYS}}
 
@@ -257,11 +261,12 @@ RESERVED = {"t": "time, in driver laws", "pi": "the constant π", "e": "the cons
             **{name: "a function" for name in FUNCTIONS}}
 
 
-def load_scene(path, parameters: dict | None = None) -> Scene:
+def load_scene(path, parameters: dict | None = None, *, run: bool = True) -> Scene:
     """Build the mechanism described by the TOML file at `path`, checking every table and
     key first (see the module docstring); a malformed scene is a SceneError. `parameters`:
     numbers that replace the values of the scene's `[parameters]` of those names (the
-    later parameters computed from them follow), as a parameter study varies them."""
+    later parameters computed from them follow), as a parameter study varies them. With
+    `run` false the scene may have no [simulation] table (a model: `load_mechanism`)."""
     path = Path(path)
     f = path.name
     data = read_toml(path)
@@ -321,13 +326,14 @@ def load_scene(path, parameters: dict | None = None) -> Scene:
                                                 f"{', '.join(names) or '(none)'}")
     if (output.get("efforts") or "efforts" in output.get("plots", ())) and not mech.drivers:
         raise r.error("[output] efforts", "the mechanism has no driver")
-    simulation = _simulation(r, data.get("simulation", {}), mech)
+    simulation = _simulation(r, data.get("simulation", {}), mech) \
+        if run or "simulation" in data else {}
     return Scene(path, mech, simulation, output)
 
 
 def read_toml(path) -> dict:
-    """The TOML file at `path` (a str or Path) as a dict; a SceneError names the file where
-    it is missing, too large or not TOML."""
+    """The TOML file at `path` (a str or Path; a scene in JSON where it ends in .json) as a
+    dict; a SceneError names the file where it is missing, too large or not TOML (JSON)."""
     path = Path(path)
     f = path.name
     try:
@@ -344,6 +350,17 @@ def read_toml(path) -> dict:
     except OSError as exc:
         raise SceneError(f"scene file {str(path)!r} cannot be read: "
                          f"{exc.strerror or exc}") from None
+    if path.suffix.lower() == ".json":
+        import json
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise SceneError(f"{f}: not valid JSON: {exc}") from None
+        except RecursionError:
+            raise SceneError(f"{f}: nested too deeply to read") from None
+        if not isinstance(data, dict):
+            raise SceneError(f"{f}: a scene in JSON is an object, got {_kind(data)}")
+        return data
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -410,6 +427,11 @@ def _build(r, name, gravity, tables) -> Mechanism:
         a, b = (_body(r, mech, n, where) for n in t["bodies"])
         kw = {k: t[k] for k in ("damping", "rest_angle", "name") if k in t}
         make(where, lambda: mech.add(RotationalSpring(a, b, t["stiffness"], **kw)))
+    for where, t in tables["speed"]:
+        if t["joint"] not in joints:
+            raise r.error(where, f"no joint named {t['joint']!r}; joints: "
+                                 f"{', '.join(joints) or '(none)'}")
+        make(where, lambda: mech.set_speed(joints[t["joint"]], t["rate"]))
     return mech
 
 
@@ -488,3 +510,9 @@ def _simulation(r, raw, mech) -> dict:
     except ValueError as exc:
         raise r.error(where, str(exc)) from None
     return out
+
+
+def load_mechanism(path):
+    """The Mechanism of the scene at `path` (TOML, or JSON where it ends in .json): what
+    `Mechanism.save` wrote, or any scene file."""
+    return load_scene(path, run=False).mechanism

@@ -346,6 +346,16 @@ class Mechanism:
         self.speeds[joint.name] = scalar(rate, "rate", f"{owner}({joint.name!r})")
         self._assembled = None
 
+    def save(self, path):
+        """Write the mechanism as a scene (`mechsim.scene`'s schema; JSON where `path` ends
+        in .json, else TOML): bodies, joints, drivers, springs, constant forces and torques,
+        joint speeds, every number exact; `mechsim.load_mechanism(path)` builds it again. A
+        ModelError names what a scene cannot hold (a load given as a function, a beam that
+        starts deformed). A state set by `set_state` is not part of the model. Returns the
+        path."""
+        from ..scene_save import scene_data, write_scene
+        return write_scene(scene_data(self), path)
+
     def set_state(self, q, v=None, t: float = 0.0) -> AssemblyReport:
         """Start later simulations from the consistent state (q, v) (v default zeros),
         such as an equilibrium's `eq.q`, instead of the assembled initial configuration;
