@@ -74,6 +74,7 @@ def test_animation_arguments_are_checked(tmp_path):
     if not animation.writers.is_available("ffmpeg"):
         with pytest.raises(ValueError, match="needs ffmpeg"):
             res.animate(tmp_path / "x.mp4")
+    res.mechanism = None            # a result without its model (as from solver.simulate)
     saved = ms.load_result(res.save(tmp_path / "r.npz"))
     with pytest.raises(RuntimeError, match="geometry"):
         saved.animate(tmp_path / "y.gif")

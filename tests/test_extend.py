@@ -46,6 +46,7 @@ def test_extend_checks_its_arguments(tmp_path):
     res = ms.examples.pendulum().simulate(0.2, output_step=0.05)
     with pytest.raises(ValueError, match="after the last sample"):
         res.extend(0.1)
+    res.mechanism = None            # a result without its model (as from solver.simulate)
     loaded = ms.load_result(res.save(tmp_path / "p.npz"))
     with pytest.raises(RuntimeError, match="extending the run"):
         loaded.extend(1.0)

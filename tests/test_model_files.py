@@ -1,11 +1,14 @@
 """A mechanism built in Python saved as a scene (TOML or JSON) and built again."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import mechsim as ms
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def every_element():
@@ -65,3 +68,57 @@ def test_what_a_scene_cannot_hold_is_refused_naming_it(tmp_path):
                              second_moment=1e-8, eta=[1e-3, 0.0]))
     with pytest.raises(ms.ModelError, match="beam 'b' starts deformed"):
         bent.save(tmp_path / "b.json")
+
+
+_REPLAY = """
+import sys, numpy as np, mechsim as ms
+res = ms.load_result(sys.argv[1])
+joint = res.mechanism.joints[0].name
+ext = res.extend(res.t[-1] + 0.02)
+fig = res.plot_motion()
+lines = [np.asarray(l.get_xydata()) for l in fig.axes[0].get_lines()]
+np.savez(sys.argv[2], force=res.joint_force(joint), ext_q=ext.q, ext_t=ext.t,
+         **{f"line{k}": l for k, l in enumerate(lines)})
+res.animate(sys.argv[3], fps=4)
+"""
+
+
+@pytest.mark.parametrize("scene", sorted(p.name for p in
+                                         (ROOT / "mechanisms").glob("*.toml")))
+def test_a_saved_result_replays_in_a_fresh_process(scene, tmp_path):
+    """Each shipped scene, run briefly and saved: loaded in a new process it has its
+    mechanism, and its joint force, its extension, its motion plot and its animation are
+    those of the result before saving (arrays to 1e-12, the GIF byte for byte)."""
+    import subprocess
+    import sys
+    sc = ms.load_scene(ROOT / "mechanisms" / scene)
+    res = sc.simulate(t_end=0.03, output_step=0.005)
+    assert res.status == "success", res.message
+    saved = res.save(tmp_path / "run.npz")
+    joint = res.mechanism.joints[0].name
+    ext = res.extend(res.t[-1] + 0.02)
+    fig = res.plot_motion()
+    lines = [np.asarray(line.get_xydata()) for line in fig.axes[0].get_lines()]
+    res.animate(tmp_path / "before.gif", fps=4)
+    done = subprocess.run([sys.executable, "-c", _REPLAY, str(saved), str(tmp_path / "after"),
+                           str(tmp_path / "after.gif")], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    after = np.load(tmp_path / "after.npz")
+    np.testing.assert_allclose(after["force"], res.joint_force(joint), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(after["ext_t"], ext.t)
+    np.testing.assert_allclose(after["ext_q"], ext.q, rtol=0, atol=1e-12)
+    for k, line in enumerate(lines):
+        np.testing.assert_allclose(after[f"line{k}"], line, rtol=0, atol=1e-12)
+    assert (tmp_path / "after.gif").read_bytes() == (tmp_path / "before.gif").read_bytes()
+
+
+def test_a_result_whose_mechanism_a_scene_cannot_hold_says_why_when_loaded(tmp_path):
+    mech = ms.examples.pendulum()
+    mech.add(ms.Torque(mech.body("rod"), lambda t: 0.1 * math.sin(t), name="motor"))
+    res = mech.simulate(0.1, output_step=0.01)
+    back = ms.load_result(res.save(tmp_path / "r.npz"))
+    assert back.mechanism is None
+    with pytest.raises(RuntimeError, match="extending the run needs the mechanism's model.*"
+                                           "torque 'motor' is a Python function"):
+        back.extend(0.2)

@@ -247,6 +247,7 @@ def test_saved_results_answer_for_reactions():
                                       res.joint_force(j, frame="body"))
         np.testing.assert_array_equal(back.joint_moment(j), res.joint_moment(j))
         np.testing.assert_array_equal(back.joint_rate(j), res.joint_rate(j))
+    res.mechanism = None            # a result without its model (as from solver.simulate)
     unsaved = ms.load_result(res.save(path.with_name("plain.npz"), reactions=False))
     with pytest.raises(RuntimeError, match="reactions=True"):
         unsaved.joint_force("A")

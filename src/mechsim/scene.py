@@ -268,8 +268,14 @@ def load_scene(path, parameters: dict | None = None, *, run: bool = True) -> Sce
     later parameters computed from them follow), as a parameter study varies them. With
     `run` false the scene may have no [simulation] table (a model: `load_mechanism`)."""
     path = Path(path)
+    return scene_from(read_toml(path), path, parameters, run=run)
+
+
+def scene_from(data: dict, path, parameters: dict | None = None, *, run: bool = True) -> Scene:
+    """`load_scene` of a scene already read into `data` (a dict of the schema); `path`
+    names it in messages."""
+    path = Path(path)
     f = path.name
-    data = read_toml(path)
     r = _Reader(f)
     message = unknown_names(data, _TOP, "a scene")
     if message:

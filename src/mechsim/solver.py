@@ -142,7 +142,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
              integrator: str | None = None, first_step: float | None = None,
              singular_thresholds: tuple[float, float] = (0.07, 0.14),
              max_steps: int | None = None, h: float | None = None, work: bool = True,
-             progress: bool = False, stream=None, **options) -> SimulationResult:
+             progress: bool = False, stream=None, mechanism=None,
+             **options) -> SimulationResult:
     """Integrate the constrained equations of motion from a consistent (q0, v0) at t_start.
 
     Parameters
@@ -166,6 +167,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         files a chunk at a time and the result reads them back as memory maps, so a run of
         any length needs memory for a chunk (and the output grid's times, 8 bytes a
         sample); `mechsim.load_result(stream)` loads it again
+    mechanism : the Mechanism `problem` was built from, kept with the result (and saved
+        with it: a loaded result then has its model)
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
     cls, solver_cls, t_end, checked = check_settings(
@@ -199,6 +202,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                         max_step=max_step, output_step=output_step,
                         singular_thresholds=singular_thresholds, max_steps=max_steps, h=h,
                         work=checked["work"], **options)
+    res.mechanism = mechanism
     if stream is not None:
         from .results.stream import finish_stream
         finish_stream(res, stream)

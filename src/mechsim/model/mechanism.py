@@ -426,7 +426,7 @@ class Mechanism:
         check_simulate_arguments(len(self.coordinate_names), t_end, method, options)
         report = self._assembled or self.assemble(t=options.get("t_start", 0.0))
         return simulate(self.problem(), report.q, report.v, t_end=t_end, method=method,
-                        **options)
+                        mechanism=self, **options)
 
     def steady_state(self, period: float, guess=None, method: str = "newton",
                      tol: float = 1e-8, max_iter: int = 30, t0: float = 0.0,

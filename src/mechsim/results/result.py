@@ -116,6 +116,8 @@ class SimulationResult:
         self.work_record = work      # the work integrated with the motion, if any
         self._saved_reactions = saved_reactions
         self.settings: dict = {}      # simulate's settings (what `extend` goes on with)
+        self.mechanism = None         # the Mechanism simulated, where known (saved with it)
+        self.model_note = ""          # why a loaded result came without its mechanism
         self.stream_path = None       # the directory a streamed run's samples are in
         if energy is not None:
             self.__dict__["energy"] = energy
@@ -270,9 +272,10 @@ class SimulationResult:
     # --- energy and constraints --------------------------------------------------------------
     def _need_problem(self, what):
         if self.problem is None:
+            why = f" ({self.model_note})" if self.model_note else ""
             raise RuntimeError(f"{what} needs the mechanism's model, and this result was "
-                               "loaded without it (a saved result keeps its samples, energy "
-                               "log and, saved with reactions=True, its reactions)")
+                               f"loaded without it{why}; a saved result keeps its mechanism "
+                               "where a scene can hold it")
         return self.problem
 
     @cached_property
@@ -496,11 +499,39 @@ def _cumulative_integral(y, t):
 
 def metadata(result) -> dict:
     """The JSON-able description of a result (names, status, statistics, passages,
-    switches) that `save` and a stream's meta.json keep."""
-    return {"coordinate_names": result.coordinate_names, "status": result.status,
+    switches, the settings `extend` goes on with, and the mechanism as a scene where the
+    result knows it and a scene can hold it) that `save` and a stream's meta.json keep."""
+    meta = {"coordinate_names": result.coordinate_names, "status": result.status,
             "message": result.message, "stats": result.stats,
             "singular_passages": [asdict(s) for s in result.singular_passages],
-            "switches": [asdict(s) for s in result.switches]}
+            "switches": [asdict(s) for s in result.switches],
+            "settings": result.settings}
+    if result.mechanism is not None:
+        from ..model import ModelError
+        from ..scene_save import scene_data
+        try:
+            meta["mechanism"] = scene_data(result.mechanism)
+        except ModelError as exc:
+            meta["mechanism_left_out"] = str(exc)
+    return meta
+
+
+def attach_mechanism(result, meta, where) -> None:
+    """Give a loaded result the mechanism saved with it (built again from its scene), and
+    with it the model: it then plots, animates, extends and computes reactions as the run
+    did. Nothing where none was saved."""
+    data = meta.get("mechanism")
+    if data is None:
+        result.model_note = meta.get("mechanism_left_out", "")
+        return
+    from ..scene import scene_from
+    mech = scene_from(data, where, run=False).mechanism
+    if list(mech.coordinate_names) != list(result.coordinate_names):
+        raise ValueError(f"{where}: the mechanism saved with it has coordinates "
+                         f"{mech.coordinate_names[:4]}…, the samples "
+                         f"{result.coordinate_names[:4]}…")
+    result.mechanism = mech
+    result.problem = mech.problem()
 
 
 def load_result(path) -> SimulationResult:
@@ -541,13 +572,16 @@ def load_result(path) -> SimulationResult:
             saved = {key: data[f"reaction_{k}"] for k, key in enumerate(r["keys"])}
             saved.update(joints=r["joints"], drivers=r["drivers"], kinds=r.get("kinds", {}),
                          driver_kinds=r.get("driver_kinds", {}))
-        return SimulationResult(
+        res = SimulationResult(
             data["t"], data["q"], data["v"], meta["coordinate_names"], status=meta["status"],
             message=meta["message"], stats=meta["stats"],
             singular_passages=[SingularPassage(**{**s, "joints": tuple(s.get("joints", ()))})
                                for s in meta["singular_passages"]],
             switches=[Switch(**s) for s in meta["switches"]], energy=energy,
             constraint_violation=violation, saved_reactions=saved)
+    res.settings = meta.get("settings", {})
+    attach_mechanism(res, meta, Path(path).name)
+    return res
 
 
 SimulationResult.load = staticmethod(load_result)

@@ -11,7 +11,8 @@ import json
 
 import numpy as np
 
-from .result import SimulationResult, SingularPassage, Switch, WorkRecord, metadata
+from .result import (SimulationResult, SingularPassage, Switch, WorkRecord, attach_mechanism,
+                     metadata)
 
 # The files a streamed run writes into its directory (`simulate(stream=...)`).
 STREAM_FILES = ("samples.bin", "work.bin", "meta.json")
@@ -42,7 +43,6 @@ def finish_stream(result: SimulationResult, directory) -> None:
     if work is not None:
         meta["work"] = {"channels": list(work.channels), "rows": len(work.values),
                         "note": work.note}
-    meta["settings"] = result.settings
     try:
         directory.write_text("meta.json", json.dumps(meta, default=float))
     except OSError as exc:
@@ -101,6 +101,7 @@ def load_stream(path) -> SimulationResult:
         switches=[Switch(**s) for s in meta["switches"]], work=work)
     res.settings = meta.get("settings", {})
     res.stream_path = directory.path
+    attach_mechanism(res, meta, directory.path.name)
     return res
 
 
