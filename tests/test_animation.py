@@ -99,22 +99,50 @@ def test_plot_draws_what_it_is_asked_for():
                                np.linalg.norm(res.joint_force("A"), axis=1), rtol=1e-15)
     np.testing.assert_array_equal(data(panels[4], mech.drivers[0].name),
                                   res.driver_effort(mech.drivers[0]))
+    assert [ax.get_ylabel() for ax in panels] == [
+        "coordinate [rad]", "position [m]", "joint coordinate [rad]", "|F| [N]",
+        "torque [N·m]"]
+    both = res.plot(coordinates=["crank.angle", "slider.x"])
+    assert [ax.get_ylabel() for ax in both.axes] == ["coordinate [rad]", "coordinate [m]"]
+    efforts = res.plot_efforts().axes[0]
+    assert efforts.get_ylabel() == "torque [N·m]"
+    assert [t.get_text() for t in efforts.get_legend().get_texts()][0] == "driver(O) [N·m]"
     with pytest.raises(ValueError, match="name something to plot"):
         res.plot()
 
 
 def test_the_energy_plot_names_its_mechanism_and_scale_and_summarizes_many_switches(
         monkeypatch):
+    """The balance panel (below the energies in joules)."""
     from mechsim.results import plots
     res = ms.examples.four_bar().simulate(2.0, output_step=0.01)
     fig = res.plot_energy()
-    ax = fig.axes[0]
-    assert "four-bar" in ax.get_title() and "3 singular passages" in ax.get_title()
+    top, ax = fig.axes
+    assert "four-bar" in top.get_title() and "3 singular passages" in top.get_title()
     assert f"{res.energy_scale:.4g} J" in ax.get_ylabel()
     assert res.switches
     assert len([ln for ln in ax.lines if ln.get_linestyle() == "--"]) == len(res.switches)
     monkeypatch.setattr(plots, "MAX_SWITCH_LINES", 0)
-    ax = res.plot_energy().axes[0]
+    ax = res.plot_energy().axes[1]
     assert not [ln for ln in ax.lines if ln.get_linestyle() == "--"]
     assert f"{len(res.switches)} solver switches" in \
         [t.get_text() for t in ax.get_legend().get_texts()]
+
+
+def test_the_energy_plot_shows_each_energy_in_joules():
+    """Above the balance: kinetic, potential, strain (a flexible mechanism), total and the
+    work of each channel, every line the result's own energy log, the axis in joules."""
+    mech = ms.examples.slider_crank(flexible=True, driven=True, crank_speed=30.0)
+    res = mech.simulate(0.05, integrator="adams", max_step=5e-4, output_step=1e-3)
+    top, bottom = res.plot_energy().axes
+    assert top.get_ylabel() == "energy [J]" and bottom.get_xlabel() == "time [s]"
+    lines = {ln.get_label(): ln.get_ydata() for ln in top.lines}
+    e = res.energy
+    np.testing.assert_array_equal(lines["kinetic T"], e.kinetic)
+    np.testing.assert_array_equal(lines["potential V"], e.potential)
+    np.testing.assert_array_equal(lines["strain U"], e.strain)
+    np.testing.assert_array_equal(lines["total E = T + V + U"], e.total)
+    assert e.channels and all(f"work W of {c}" in lines for c in e.channels)
+    for k, c in enumerate(e.channels):
+        np.testing.assert_array_equal(lines[f"work W of {c}"], e.work_by[:, k])
+    np.testing.assert_array_equal(bottom.lines[0].get_ydata(), res.energy_drift)

@@ -110,7 +110,7 @@ def test_energy_plot_is_written(tmp_path):
     res = ms.examples.pendulum().simulate(t_end=0.5, output_step=0.01)
     fig = res.plot_energy(path=tmp_path / "e.png")
     assert (tmp_path / "e.png").stat().st_size > 5000
-    assert fig.axes[0].get_xlabel() == "time [s]"
+    assert fig.axes[-1].get_xlabel() == "time [s]" and fig.axes[0].get_ylabel() == "energy [J]"
 
 
 def test_scene_and_factory_build_the_same_four_bar():

@@ -19,11 +19,53 @@ MAX_SWITCH_LINES = 12
 
 
 def plot_energy(result, path=None, ax=None):
-    """The energy balance (E − E₀ − W) / scale over time, titled with the mechanism and its
-    scale in joules, singular passages shaded, solver switches marked (as lines, or as ticks
-    with their count where they are many)."""
-    fig, ax = new_axes(ax)
-    ax.plot(result.t, result.energy_drift, lw=1.2, color="C0", label="energy drift")
+    """The energies in joules over the energy balance. Above: kinetic T, potential V,
+    strain U (where there is any), total E = T + V + U, and the work W of each damper,
+    load and driver (dashed), titled with the mechanism, its method and passages. Below:
+    the balance (E − E₀ − W) / scale, the scale in joules on the axis, solver switches
+    marked (as lines, or as ticks with their count where they are many). Singular
+    passages shaded in both. With `ax` given, the balance alone on it."""
+    if ax is not None:
+        fig = ax.figure
+        _balance(ax, result)
+        ax.set_title(_energy_title(result))
+        return _finish(fig, ax, None, _balance_label(result), path)
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(7.0, 6.0), layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
+    e = result.energy
+    top.plot(result.t, e.kinetic, lw=1.2, label="kinetic T")
+    top.plot(result.t, e.potential, lw=1.2, label="potential V")
+    if e.strain.any():
+        top.plot(result.t, e.strain, lw=1.2, label="strain U")
+    top.plot(result.t, e.total, lw=2.0, color="k", label="total E = T + V" +
+             (" + U" if e.strain.any() else ""))
+    if e.channels:
+        for k, channel in enumerate(e.channels):
+            top.plot(result.t, e.work_by[:, k], "--", lw=1.2, label=f"work W of {channel}")
+    elif e.work.any():
+        top.plot(result.t, e.work, "--", lw=1.2, label="work W")
+    _shade_passages(top, result)
+    _finish(fig, top, _energy_title(result), "energy [J]", None, xlabel="")
+    _balance(bottom, result)
+    return _finish(fig, bottom, None, _balance_label(result), path)
+
+
+def _energy_title(result) -> str:
+    name = result.problem.title if result.problem is not None else "result"
+    passages = len(result.singular_passages)
+    plural = "" if passages == 1 else "s"
+    return (f"Energy: {name} ({result.stats.get('method', '?')}"
+            + (f", {passages} singular passage{plural}" if passages else "") + ")")
+
+
+def _balance_label(result) -> str:
+    return f"balance (E − E₀ − W) / {result.energy_scale:.4g} J"
+
+
+def _balance(ax, result) -> None:
+    """The energy balance over time on `ax`, passages shaded and switches marked."""
+    ax.plot(result.t, result.energy_drift, lw=1.2, color="C0", label="energy balance")
     _shade_passages(ax, result)
     switches = result.switches
     if len(switches) <= MAX_SWITCH_LINES:
@@ -33,11 +75,6 @@ def plot_energy(result, path=None, ax=None):
     else:
         ax.plot([sw.t for sw in switches], [0.0] * len(switches), "|", color="C2", ms=10,
                 transform=ax.get_xaxis_transform(), label=f"{len(switches)} solver switches")
-    name = result.problem.title if result.problem is not None else "result"
-    passages = len(result.singular_passages)
-    ax.set_title(f"Energy balance: {name} ({result.stats.get('method', '?')}"
-                 + (f", {passages} singular passages" if passages else "") + ")")
-    return _finish(fig, ax, None, f"(E − E₀ − W) / {result.energy_scale:.4g} J", path)
 
 
 def _shade_passages(ax, result):
@@ -77,7 +114,7 @@ def plot_reactions(result, path=None, joints=None, ax=None):
     names = table.joint_names if joints is None else [getattr(j, "name", j) for j in joints]
     for name in names:
         abs_force = _magnitude(table.force(name))
-        ax.plot(result.t, abs_force, lw=1.2, label=f"'{name}'")
+        ax.plot(result.t, abs_force, lw=1.2, label=name)
         flagged = table.indeterminate(name)
         if flagged.any():
             ax.plot(result.t[flagged], abs_force[flagged], "x", ms=4, color="k",
@@ -97,19 +134,26 @@ def plot_efforts(result, path=None, ax=None):
         ax, power_ax = fig.subplots(2, 1, sharex=True)
     else:
         fig, power_ax = ax.figure, None
+    units = {name: _effort_unit(table, name) for name in table.driver_names}
     for k, name in enumerate(table.driver_names):
         effort = table.effort(name)
-        ax.plot(result.t, effort, lw=1.2, color=f"C{k}", label=f"'{name}'")
+        ax.plot(result.t, effort, lw=1.2, color=f"C{k}", label=f"{name} [{units[name]}]")
         if power_ax is not None:
             power_ax.plot(result.t, effort * table.driver_rate(name), lw=1.2, color=f"C{k}",
-                          label=f"'{name}'")
+                          label=name)
     title = f"Driver efforts ({result.problem.title if result.problem else 'result'})"
     if power_ax is not None:
         _shade_passages(power_ax, result)
         _finish(fig, power_ax, "", "power [W]", None)
     _shade_passages(ax, result)
-    return _finish(fig, ax, title, "torque [N·m] or force [N]", path,
-                   xlabel="time [s]" if power_ax is None else "")
+    kinds = set(units.values())
+    ylabel = {frozenset({"N·m"}): "torque [N·m]", frozenset({"N"}): "force [N]"}.get(
+        frozenset(kinds), "effort [N·m or N, as labelled]")
+    return _finish(fig, ax, title, ylabel, path, xlabel="time [s]" if power_ax is None else "")
+
+
+def _effort_unit(table, driver) -> str:
+    return "N" if table.driver_kind(driver) == "prismatic" else "N·m"
 
 
 def _magnitude(F):
@@ -123,9 +167,13 @@ def plot_quantities(result, coordinates=(), points=(), joints=(), reactions=(), 
     point)] (x and y), joint coordinates, joint forces (magnitude) and driver efforts.
     Returns the Figure."""
     from matplotlib.figure import Figure
+    from .table import coordinate_unit
     panels = []
-    if coordinates:
-        panels.append(("coordinates", [(n, result.coordinate(n)) for n in coordinates]))
+    by_unit = {}
+    for n in coordinates:
+        by_unit.setdefault(coordinate_unit(n), []).append((n, result.coordinate(n)))
+    for unit, lines in by_unit.items():
+        panels.append((f"coordinate [{unit}]", lines))
     if points:
         lines = []
         for body, local in points:
@@ -134,14 +182,22 @@ def plot_quantities(result, coordinates=(), points=(), joints=(), reactions=(), 
             lines += [(f"{label} x", xy[:, 0]), (f"{label} y", xy[:, 1])]
         panels.append(("position [m]", lines))
     if joints:
-        panels.append(("joint coordinate", [(getattr(j, "name", j), result.joint_coordinate(j))
-                                            for j in joints]))
+        table = result.reactions
+        for unit, kind in (("rad", "revolute"), ("m", "prismatic")):
+            lines = [(getattr(j, "name", j), result.joint_coordinate(j)) for j in joints
+                     if table.kind(j) == kind]
+            if lines:
+                panels.append((f"joint coordinate [{unit}]", lines))
     if reactions:
         panels.append(("|F| [N]", [(getattr(j, "name", j),
                                     _magnitude(result.joint_force(j))) for j in reactions]))
     if efforts:
-        panels.append(("effort [N·m or N]", [(getattr(d, "name", d), result.driver_effort(d))
-                                              for d in efforts]))
+        table = result.reactions
+        for unit, kind in (("N·m", "revolute"), ("N", "prismatic")):
+            lines = [(getattr(d, "name", d), result.driver_effort(d)) for d in efforts
+                     if table.driver_kind(d) == kind]
+            if lines:
+                panels.append((f"{'torque' if unit == 'N·m' else 'force'} [{unit}]", lines))
     if not panels:
         raise ValueError("plot: name something to plot (coordinates=, points=, joints=, "
                          "reactions= or efforts=)")
