@@ -60,7 +60,7 @@ def _energy_title(result) -> str:
 
 
 def _balance_label(result) -> str:
-    return f"balance (E − E₀ − W) / {result.energy_scale:.4g} J"
+    return f"balance (E − E₀ − W) / {result.energy_scale:.4g} J [-]"
 
 
 def _balance(ax, result) -> None:
