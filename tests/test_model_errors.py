@@ -146,3 +146,15 @@ def test_scene_errors_name_file_table_and_key(tmp_path):
     bad.write_text('[parameters]\nL = "__import__(\'os\')"\n')
     with pytest.raises(ms.ModelError, match=r"\[parameters\] L: unknown function '__import__'"):
         ms.load_scene(bad)
+
+
+def test_bodies_own_their_frames_and_help_reads_as_theirs():
+    """The base class held one position array for every body that did not set its own (the
+    ground's): shared, mutable, and help(RigidBody) printed numpy's ndarray docstring
+    through it."""
+    import pydoc
+    a, b = ms.Ground(), ms.Ground()
+    a.position[0] = 5.0
+    assert b.position[0] == 0.0
+    text = pydoc.render_doc(ms.RigidBody, renderer=pydoc.plaintext)
+    assert "ndarray(shape" not in text and "A uniform rectangular plate" in text

@@ -22,11 +22,10 @@ class Body:
         if not isinstance(name, str) or not name.strip():
             raise ModelError(f"a body needs a non-empty name, got {name!r}")
         self.name = name
-
-    # Every body exposes its initial frame (position of the frame origin and its angle) so that
-    # joints can turn global attachment points into body-fixed ones.
-    position = np.zeros(2)
-    angle = 0.0
+        # Every body exposes its initial frame (position of the frame origin and its angle)
+        # so that joints can turn global attachment points into body-fixed ones.
+        self.position = np.zeros(2)
+        self.angle = 0.0
 
     def local_point(self, global_point) -> np.ndarray:
         """Body-fixed coordinates of a point given globally in the initial configuration."""
