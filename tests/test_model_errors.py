@@ -158,3 +158,25 @@ def test_bodies_own_their_frames_and_help_reads_as_theirs():
     assert b.position[0] == 0.0
     text = pydoc.render_doc(ms.RigidBody, renderer=pydoc.plaintext)
     assert "ndarray(shape" not in text and "A uniform rectangular plate" in text
+
+
+def test_a_pin_typed_far_off_and_a_body_joined_to_nothing_are_warned_of():
+    """A four-bar whose rocker pin was typed 10 m off (for 1.0), and a loose body: both run,
+    but the build warns, naming them (before: silently accepted)."""
+    mech = ms.Mechanism("typo")
+    crank = mech.add(ms.RigidBody.rod("crank", (0, 0), (0, 1), 1.0))
+    coupler = mech.add(ms.RigidBody.rod("coupler", (0, 1), (1, 1), 1.0))
+    rocker = mech.add(ms.RigidBody.rod("rocker", (1, 0), (1, 1), 1.0))
+    mech.add(ms.RigidBody("loose", 1.0, 0.1, position=(3.0, 0.0)))
+    mech.add(ms.Revolute(mech.ground, crank, at=(0, 0), name="A"))
+    mech.add(ms.Revolute(crank, coupler, at=(0, 1), name="B"))
+    mech.add(ms.Revolute(coupler, rocker, at=(1, 1), name="C"))
+    mech.add(ms.Revolute(mech.ground, rocker, at=(10.0, 0.0), name="D"))
+    with pytest.warns(UserWarning) as caught:
+        mech.problem()
+    texts = [str(w.message) for w in caught]
+    assert any("body 'loose' is joined to nothing" in t for t in texts), texts
+    assert any("joint 'D' is at (10, 0), 9.01 m from body 'rocker'" in t for t in texts), texts
+    assert not any("joint 'A'" in t or "joint 'B'" in t for t in texts)
+    good = ms.examples.four_bar()
+    assert good.placement_warnings() == []

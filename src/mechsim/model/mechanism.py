@@ -217,6 +217,9 @@ class Mechanism:
                 raise ModelError(f"mechanism '{self.name}' has no moving bodies")
             self._build = mode or build_mode()
             self._problem, self.from_cache = build_problem(self, self._build)
+            import warnings
+            for text in self.placement_warnings():
+                warnings.warn(f"mechsim: mechanism '{self.name}': {text}", stacklevel=2)
         return self._problem
 
     # --- analysis ----------------------------------------------------------------------------
@@ -327,6 +330,45 @@ class Mechanism:
                 "Give the speeds of joints instead (Mechanism.set_speed(joint, rate)).",
                 stacklevel=3)
         return v
+
+    def placement_warnings(self) -> list[str]:
+        """What is likely a mistake in how the mechanism is put together, though it can be
+        simulated: a body joined to nothing (it moves freely: a joint left out?), and a
+        pin whose point (global `at`) lies farther from each of its moving bodies than
+        the mechanism's own size (the largest distance between two bodies' frames, or the
+        largest body: √(12 I/m), a rod's length; a beam's length) — a point typed wrong.
+        Checked where there are two moving bodies or more. `Mechanism.problem` warns of
+        each once."""
+        out = []
+        joined = {id(b) for item in self.joints + self.loads
+                  for b in (getattr(item, "body_a", None), getattr(item, "body_b", None),
+                            getattr(item, "body", None)) if b is not None}
+        for body in self.bodies:
+            if id(body) not in joined:
+                out.append(f"body '{body.name}' is joined to nothing: it moves freely (a "
+                           "joint left out?)")
+        if len(self.bodies) < 2:
+            return out
+        frames = np.array([b.position for b in self.bodies])
+        apart = float(np.max(np.hypot(*(frames[:, None, :] - frames[None, :, :]).transpose(
+            2, 0, 1))))
+        sizes = [float(getattr(b, "length", 0.0)) or
+                 math.sqrt(12.0 * b.inertia / b.mass) for b in self.bodies]
+        size = max(apart, *sizes)
+        for joint in self.joints:
+            # A pin's point is on its bodies; a slider's only places its axis, anywhere.
+            at = getattr(joint, "at", None) if joint.kind == "revolute" else None
+            moving = [b for b in (joint.body_a, joint.body_b) if b.coordinate_names]
+            if at is None or not moving:
+                continue
+            far = [float(np.hypot(*(at - b.position))) for b in moving]
+            if min(far) > size:
+                where = " and ".join(f"{d:.3g} m from body '{b.name}'"
+                                     for d, b in zip(far, moving))
+                out.append(f"joint '{joint.name}' is at ({at[0]:.4g}, {at[1]:.4g}), {where}: "
+                           f"farther than the mechanism's own size ({size:.3g} m); check its "
+                           "`at` (a global point in the initial configuration)")
+        return out
 
     def set_speed(self, joint, rate: float) -> None:
         """Start the joint's coordinate (relative angle of a revolute, slide of a prismatic)
