@@ -146,3 +146,32 @@ def test_the_energy_plot_shows_each_energy_in_joules():
     for k, c in enumerate(e.channels):
         np.testing.assert_array_equal(lines[f"work W of {c}"], e.work_by[:, k])
     np.testing.assert_array_equal(bottom.lines[0].get_ydata(), res.energy_drift)
+
+
+def test_figures_say_their_exaggeration_and_pace_and_show_under_pyplot():
+    """A flexible mechanism drawn with its deflection exaggerated says so; an animation
+    says how fast it plays against real time (200 samples 1 ms apart at 30 frames a second:
+    0.03 × real time); with pyplot imported, mechsim's figures are pyplot's (plt.show()
+    shows them)."""
+    from mechsim.results.animation import pace_note
+    res = ms.examples.flexible_four_bar().simulate(0.02, integrator="adams", max_step=5e-4,
+                                                   output_step=1e-3)
+    assert "(elastic deflection × 50)" in res.plot_motion(exaggeration=50.0).axes[0].get_title()
+    assert "deflection" not in res.plot_motion().axes[0].get_title()
+    rigid = ms.examples.four_bar().simulate(0.2, output_step=1e-3)
+    assert "deflection" not in rigid.plot_motion(exaggeration=50.0).axes[0].get_title()
+    t = np.arange(200) * 1e-3
+    assert pace_note(t, np.arange(200), 30) == "   (0.03 × real time)"
+    assert pace_note(t, np.arange(200), 1000) == ""
+    import sys
+    had = "matplotlib.pyplot" in sys.modules
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    try:
+        fig = rigid.plot_energy()
+        assert fig.number in plt.get_fignums()
+    finally:
+        plt.close("all")
+        if not had:                    # the tests after this one draw without pyplot again
+            sys.modules.pop("matplotlib.pyplot", None)

@@ -31,8 +31,9 @@ class Scene:
     def __init__(self, result, frames, trace=(), exaggeration=1.0):
         p = result.problem
         if p is None:
-            raise RuntimeError("drawing the motion needs the mechanism's geometry, which is "
-                               "not saved with a result; simulate it again to draw it")
+            why = f" ({result.model_note})" if getattr(result, "model_note", "") else ""
+            raise RuntimeError("drawing the motion needs the mechanism's geometry, and this "
+                               f"result was loaded without its mechanism{why}")
         self.result, self.problem, self.frames = result, p, np.asarray(frames)
         q = result.q[self.frames]
         self.bodies = [(name, drawn_points(q, start, local, modal, exaggeration))
@@ -104,6 +105,13 @@ def frame_indices(t, fps, max_frames=None) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, len(t) - 1, max(limit, 2))).astype(int))
 
 
+def pace_note(t, frames, fps) -> str:
+    """"   (0.2 × real time)" where the frames shown at `fps` show simulated time slower or
+    faster than it passed ("" where at its pace)."""
+    pace = (t[frames[-1]] - t[frames[0]]) / max(len(frames) - 1, 1) * fps
+    return "" if not pace > 0 or abs(pace - 1.0) < 0.01 else f"   ({pace:.3g} × real time)"
+
+
 def _figure():
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -152,6 +160,13 @@ class Artists:
         self.pins.set_data(pins[:, 0], pins[:, 1])
 
 
+def _exaggerated(scene, exaggeration) -> str:
+    """", elastic deflection × k" where beams are drawn with their deflection exaggerated."""
+    flexible = any(modal is not None for *_, modal in scene.problem.drawing)
+    return f" (elastic deflection × {exaggeration:g})" if flexible and exaggeration != 1.0 \
+        else ""
+
+
 def _axes(ax, scene, title):
     (x0, x1), (y0, y1) = scene.limits()
     ax.set_xlim(x0, x1)
@@ -169,16 +184,15 @@ def plot_motion(result, path=None, trace=(), snapshots=6, exaggeration=1.0, ax=N
     k = np.unique(np.round(np.linspace(0, len(result.t) - 1, max(snapshots, 1))).astype(int))
     scene = Scene(result, k, trace, exaggeration)
     if ax is None:
-        from matplotlib.figure import Figure
-        fig = Figure(figsize=(6.4, 5.4), layout="constrained")
-        ax = fig.add_subplot()
+        from .plots import new_figure
+        ax = new_figure((6.4, 5.4)).add_subplot()
     fig = ax.figure
     for i in range(len(k)):
         Artists(ax, scene, faded=i < len(k) - 1).show(i)
     for j, (label, xy) in enumerate(scene.traces):
         ax.plot(xy[:, 0], xy[:, 1], "--", lw=1, color=f"C{(j + 5) % 10}", label=f"path of {label}")
     _axes(ax, scene, f"{scene.problem.title}: {len(k)} states, t = {result.t[0]:.3g} … "
-                     f"{result.t[-1]:.3g} s")
+                     f"{result.t[-1]:.3g} s" + _exaggerated(scene, exaggeration))
     ax.legend(loc="best", fontsize="x-small")
     literal_text(fig)
     if path is not None:
@@ -206,6 +220,7 @@ def animate(result, path, trace=(), fps=30, exaggeration=1.0, max_frames=None) -
         raise ValueError(f"animate: `fps` must be between 1 and 120, got {fps!r}")
     frames = frame_indices(result.t, fps, max_frames)
     scene = Scene(result, frames, trace, exaggeration)
+    speed = pace_note(result.t, frames, fps)
     fig, ax, bar = _figure()
     artists = Artists(ax, scene)
     paths = [ax.plot([], [], "--", lw=1, color=f"C{(j + 5) % 10}", label=f"path of {label}")[0]
@@ -216,7 +231,7 @@ def animate(result, path, trace=(), fps=30, exaggeration=1.0, max_frames=None) -
     clock = ax.text(0.02, 0.97, "", transform=ax.transAxes, va="top", fontsize="small")
     moving = [*artists.bodies, *artists.guides, *artists.springs, artists.pins, *paths,
               clock]
-    ax.set_title(scene.problem.title)
+    ax.set_title(scene.problem.title + _exaggerated(scene, exaggeration))
     literal_text(fig)
     canvas = fig.canvas
     canvas.draw()                                # the layout, found once
@@ -234,7 +249,7 @@ def animate(result, path, trace=(), fps=30, exaggeration=1.0, max_frames=None) -
         for line, (_, xy) in zip(paths, scene.traces):
             line.set_data(xy[:k + 1, 0], xy[:k + 1, 1])
         now.set_xdata([result.t[k]])
-        clock.set_text(f"t = {result.t[k]:.4f} s")
+        clock.set_text(f"t = {result.t[k]:.4f} s{speed}")
 
     def frame(i):
         show(i)

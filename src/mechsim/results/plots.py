@@ -1,16 +1,28 @@
 """Plots of results. matplotlib is imported here only, when a plot is asked for; figures are
-built with the object API (no pyplot state, never `show()`)."""
+built with the object API and never shown: a plain Figure, or a pyplot one where the program
+uses pyplot (`new_figure`), so that `plt.show()` shows it."""
 
 from __future__ import annotations
 
 from ..files import save_figure
 
 
+def new_figure(size):
+    """A figure of `size` inches: a pyplot one where the program uses pyplot (so that
+    `plt.show()` shows it), else a plain Figure (no pyplot state for a script that only
+    writes files)."""
+    import sys
+    if "matplotlib.pyplot" in sys.modules:
+        import matplotlib.pyplot as plt
+        return plt.figure(figsize=size, layout="constrained")
+    from matplotlib.figure import Figure
+    return Figure(figsize=size, layout="constrained")
+
+
 def new_axes(ax, size=(7.0, 3.6)):
     if ax is not None:
         return ax.figure, ax
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=size, layout="constrained")
+    fig = new_figure(size)
     return fig, fig.add_subplot()
 
 
@@ -30,8 +42,7 @@ def plot_energy(result, path=None, ax=None):
         _balance(ax, result)
         ax.set_title(_energy_title(result))
         return _finish(fig, ax, None, _balance_label(result), path)
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=(7.0, 6.0), layout="constrained")
+    fig = new_figure((7.0, 6.0))
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
     e = result.energy
     top.plot(result.t, e.kinetic, lw=1.2, label="kinetic T")
@@ -129,8 +140,7 @@ def plot_efforts(result, path=None, ax=None):
     the efforts alone on it."""
     table = result.reactions
     if ax is None:
-        from matplotlib.figure import Figure
-        fig = Figure(figsize=(7.0, 5.4), layout="constrained")
+        fig = new_figure((7.0, 5.4))
         ax, power_ax = fig.subplots(2, 1, sharex=True)
     else:
         fig, power_ax = ax.figure, None
@@ -201,7 +211,7 @@ def plot_quantities(result, coordinates=(), points=(), joints=(), reactions=(), 
     if not panels:
         raise ValueError("plot: name something to plot (coordinates=, points=, joints=, "
                          "reactions= or efforts=)")
-    fig = Figure(figsize=(7.0, 2.2 + 1.8 * len(panels)), layout="constrained")
+    fig = new_figure((7.0, 2.2 + 1.8 * len(panels)))
     axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
     for ax, (ylabel, lines) in zip(axes, panels):
         for label, y in lines:
