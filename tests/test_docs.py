@@ -20,4 +20,7 @@ def test_the_api_reference_builds_without_warnings(tmp_path):
     page = (tmp_path / "html" / "api" / "engineering.html").read_text()
     for name in ("ReactionTable", "Equilibrium", "Linearization", "joint_force"):
         assert name in page
+    scenes = (tmp_path / "html" / "api" / "scenes.html").read_text()
+    for name in ("rotational_spring", "load_mechanism", "[[speed]]", "scene_data"):
+        assert name in scenes, name
     shutil.rmtree(tmp_path / "html")

@@ -1,4 +1,5 @@
-"""Scene files: a mechanism, its simulation settings and requested outputs in TOML.
+"""Scene files: a mechanism, its simulation settings and requested outputs in TOML (or the
+same tables in JSON, for files ending in .json)::
 
     name = "four-bar"
     gravity = [0.0, -9.81]
@@ -48,8 +49,8 @@
     points = [["coupler", [0.5, 0.0]]]   # final positions printed in the summary
     directory = "out/four_bar"   # relative, inside the working directory
 
-Numbers may be given as expressions (+ − * / **, pi, sin, cos, tan, sqrt, radians, degrees,
-…) of the parameters; they are parsed by `mechsim.model.expressions`, not by `eval`, so a
+Numbers may be given as expressions (``+ − * / **``, pi, sin, cos, tan, sqrt, radians,
+degrees, …) of the parameters; they are parsed by `mechsim.model.expressions`, not by `eval`, so a
 scene cannot run code. Every table and key is checked against one schema (`SCHEMA`, and
 for `[simulation]` the settings of `mechsim.solver.simulate` and of every method) before
 anything is built or run: an unknown key (with the closest valid one), a value of the wrong
