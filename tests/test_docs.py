@@ -21,6 +21,6 @@ def test_the_api_reference_builds_without_warnings(tmp_path):
     for name in ("ReactionTable", "Equilibrium", "Linearization", "joint_force"):
         assert name in page
     scenes = (tmp_path / "html" / "api" / "scenes.html").read_text()
-    for name in ("rotational_spring", "load_mechanism", "[[speed]]", "scene_data"):
+    for name in ("rotational_spring", "load_mechanism", "set_speed", "scene_data"):
         assert name in scenes, name
     shutil.rmtree(tmp_path / "html")
