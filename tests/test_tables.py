@@ -171,3 +171,14 @@ def test_point_acceleration_on_a_flexible_beam_follows_its_velocity():
     # (measured 6e-6 of the largest; leaving out the modal terms puts it 0.29 off)
     np.testing.assert_allclose(mid[3:-3], by_difference[3:-3], rtol=0,
                                atol=1e-4 * np.abs(mid).max())
+
+
+def test_a_result_shows_itself_in_jupyter_as_a_table():
+    mech = ms.Mechanism("<b>rig</b> & co")
+    rod = mech.add(ms.RigidBody.rod("rod<1>", (0, 0), (1, 0), 1.0))
+    mech.add(ms.Revolute(mech.ground, rod, at=(0, 0)))
+    res = mech.simulate(0.1, output_step=0.01)
+    page = res._repr_html_()
+    assert page.startswith("<table>") and "success: reached t_end" in page
+    assert "&lt;b&gt;rig&lt;/b&gt; &amp; co" in page and "rod&lt;1&gt;.angle" in page
+    assert "11, t = 0 … 0.1 s" in page and "<b>" not in page

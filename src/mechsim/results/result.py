@@ -132,6 +132,32 @@ class SimulationResult:
         return (f"SimulationResult(status={self.status!r}, t=[{self.t[0]:.6g}, {self.t[-1]:.6g}], "
                 f"{len(self.t)} samples, {len(self.coordinate_names)} coordinates)")
 
+    def _repr_html_(self) -> str:
+        """A summary table for Jupyter: status and message, samples, coordinates, method,
+        work done and singular passages (nothing computed for it)."""
+        import html
+        t = self.t
+        names = self.coordinate_names
+        shown = ", ".join(names[:8]) + (f", … ({len(names)} in all)" if len(names) > 8 else "")
+        stats = self.stats
+        passages = self.singular_passages
+        rows = [
+            ("mechanism", self.mechanism.name if self.mechanism is not None else
+             (self.problem.title if self.problem is not None else "—")),
+            ("status", f"{self.status}: {self.message}"),
+            ("samples", f"{len(t)}, t = {t[0]:.6g} … {t[-1]:.6g} s" if len(t) else "none"),
+            ("coordinates", shown),
+            ("method", f"{stats.get('method', '?')} / {stats.get('integrator', '?')}: "
+                       f"{stats.get('steps', '?')} steps, {stats.get('rhs_evaluations', '?')} "
+                       f"right-hand sides, {stats.get('wall_time', float('nan')):.3g} s"),
+            ("singular passages", ", ".join(f"{p.t_min or p.t_start:.4g} s" for p in passages[:6])
+             + (f", … ({len(passages)})" if len(passages) > 6 else "") if passages else "none"),
+        ]
+        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
+                       f"<td style='text-align:left'>{html.escape(str(v))}</td></tr>"
+                       for k, v in rows)
+        return f"<table><caption>SimulationResult</caption>{body}</table>"
+
     # --- coordinates and points --------------------------------------------------------------
     def coordinate(self, name: str) -> np.ndarray:
         """One coordinate over time, by name ("crank.angle")."""
