@@ -1,6 +1,8 @@
 """Animations and motion plots: GIFs that Pillow reads back with the expected frames and
 size, for a rigid, a flexible and a driven mechanism; traced paths equal to `res.point`."""
 
+import math
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -175,3 +177,32 @@ def test_figures_say_their_exaggeration_and_pace_and_show_under_pyplot():
         plt.close("all")
         if not had:                    # the tests after this one draw without pyplot again
             sys.modules.pop("matplotlib.pyplot", None)
+
+
+def test_bodies_are_drawn_as_their_shapes():
+    """A slider block held at one point is a square of its inertia's size (it was a line of
+    no length, invisible); a ternary link is the triangle through its three joints (it was
+    a bent line through its centre of mass); a body from a shape constructor is its outline
+    (here a rectangle's corners and a disc's rim)."""
+    sc = ms.examples.slider_crank(driven=True)
+    drawn = {name: local for name, _, local, _ in sc.problem().drawing}
+    block = drawn["slider"]
+    side = math.sqrt(6 * sc.body("slider").inertia / sc.body("slider").mass)
+    np.testing.assert_allclose(np.ptp(block, axis=0), [side, side])
+    assert np.array_equal(block[0], block[-1])                      # closed
+
+    mech = ms.Mechanism("ternary")
+    tri = mech.add(ms.RigidBody.rod("tri", (0, 0), (1, 0), 1.0))    # a link with 3 pins
+    arm = mech.add(ms.RigidBody.rod("arm", (0.5, 0.8), (1.5, 0.8), 1.0))
+    plate = mech.add(ms.RigidBody.rectangle("plate", (2.0, 0.0), 0.4, 0.2, 1.0))
+    wheel = mech.add(ms.RigidBody.disc("wheel", (1.0, -1.0), 0.3, 2.0))
+    mech.add(ms.Revolute(mech.ground, tri, at=(0, 0)))
+    mech.add(ms.Revolute(tri, arm, at=(0.5, 0.8)))
+    mech.add(ms.Revolute(tri, plate, at=(1.0, 0.0)))
+    mech.add(ms.Revolute(mech.ground, wheel, at=(1.0, -1.0)))
+    drawn = {name: local for name, _, local, _ in mech.problem().drawing}
+    corners = {tuple(np.round(p + tri.position, 12)) for p in drawn["tri"][:-1]}
+    assert corners == {(0.0, 0.0), (0.5, 0.8), (1.0, 0.0)} and len(drawn["tri"]) == 4
+    assert np.allclose(np.abs(drawn["plate"]), [0.2, 0.1])
+    np.testing.assert_allclose(np.hypot(*drawn["wheel"].T), 0.3)
+    mech.simulate(0.05, output_step=0.01).plot_motion()              # and they draw

@@ -156,8 +156,14 @@ def _flexible_data(mech, starts) -> list[FlexibleData]:
 
 
 def drawing(mech, starts) -> list:
-    """Polylines for export: a rigid body through its attachment points and centre of
-    mass (ordered along their main direction), a beam through 4 points per element."""
+    """Polylines for drawings and exports, each in its body's frame: a body's own outline
+    where a shape constructor gave it one (rectangle, disc, polygon); a body with three or
+    more joints not on one line (a ternary link) as the closed polygon round them; one
+    held by a single point (a slider block on its guide) as a square of its inertia's size
+    (side √(6 I/m), at least 4 % of the mechanism); else a line through its attachment
+    points and centre of mass (ordered along their main direction); a beam through 4 points
+    per element."""
+    span = _span(mech)
     attached = {b.name: [np.zeros(2)] for b in mech.bodies}
     for j in mech.joints:
         for body, local in zip((j.body_a, j.body_b), j.attachment_points()):
@@ -175,13 +181,39 @@ def drawing(mech, starts) -> list:
             modal = np.stack([b.point_modes(s) for s in local])
             out.append((b.name, starts[b.name], local, modal))
             continue
-        pts = np.unique(np.round(np.array(attached[b.name]), 12), axis=0)
-        if len(pts) == 1:
-            pts = np.vstack([pts, pts])
-        centred = pts - pts.mean(axis=0)
-        direction = np.linalg.svd(centred)[2][0]
-        out.append((b.name, starts[b.name], pts[np.argsort(centred @ direction)], None))
+        out.append((b.name, starts[b.name], _outline(b, attached[b.name], span), None))
     return out
+
+
+def _span(mech) -> float:
+    """The mechanism's size: the largest distance between two bodies' frames or joint
+    points (1 m where it has no extent)."""
+    pts = [b.position for b in mech.bodies] + [j.at for j in mech.joints
+                                               if getattr(j, "at", None) is not None]
+    pts = np.array(pts, float).reshape(-1, 2)
+    span = float(np.max(np.ptp(pts, axis=0))) if len(pts) > 1 else 0.0
+    return span if span > 0.0 else 1.0
+
+
+def _outline(body, attached, span) -> np.ndarray:
+    """A rigid body's drawing in its frame (see `drawing`)."""
+    if getattr(body, "outline", None) is not None:
+        return np.asarray(body.outline, float)
+    pts = np.unique(np.round(np.array(attached), 12), axis=0)
+    joints = np.unique(np.round(np.array(attached[1:]), 12), axis=0).reshape(-1, 2)
+    if len(joints) >= 3:
+        centred = joints - joints.mean(axis=0)
+        if np.linalg.svd(centred, compute_uv=False)[1] > 1e-6 * span:
+            angles = np.arctan2(centred[:, 1], centred[:, 0])
+            ring = joints[np.argsort(angles)]          # round the joints (a convex link)
+            return np.vstack([ring, ring[:1]])
+    if len(pts) == 1:
+        side = max(math.sqrt(6.0 * body.inertia / body.mass), 0.04 * span)
+        corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [-1, -1]]) * side / 2.0
+        return pts[0] + corners
+    centred = pts - pts.mean(axis=0)
+    direction = np.linalg.svd(centred)[2][0]
+    return pts[np.argsort(centred @ direction)]
 
 
 def _checked(load, given, owner: str, convert, expected: str, joints):

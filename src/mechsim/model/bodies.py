@@ -89,6 +89,9 @@ class RigidBody(Body):
         self.angle = scalar(angle, "angle", owner)
         self.velocity = vector2(velocity, "velocity", owner)
         self.angular_velocity = scalar(angular_velocity, "angular_velocity", owner)
+        # The body's boundary in its frame, closed, where a shape constructor knows it
+        # (rectangle, disc, polygon): what drawings and exports show of it.
+        self.outline: np.ndarray | None = None
 
     @classmethod
     def rod(cls, name: str, start, end, mass: float, velocity=(0.0, 0.0),
@@ -114,9 +117,11 @@ class RigidBody(Body):
         w = scalar(width, "width", owner, positive=True)
         h = scalar(height, "height", owner, positive=True)
         m = scalar(mass, "mass", owner, positive=True)
-        return cls(name, mass=m, inertia=m * (w * w + h * h) / 12.0,
+        body = cls(name, mass=m, inertia=m * (w * w + h * h) / 12.0,
                    position=vector2(center, "center", owner), angle=angle,
                    velocity=velocity, angular_velocity=angular_velocity)
+        body.outline = np.array([[-w, -h], [w, -h], [w, h], [-w, h], [-w, -h]]) / 2.0
+        return body
 
     @classmethod
     def disc(cls, name: str, center, radius: float, mass: float, velocity=(0.0, 0.0),
@@ -125,9 +130,12 @@ class RigidBody(Body):
         owner = f"body '{name}'"
         r = scalar(radius, "radius", owner, positive=True)
         m = scalar(mass, "mass", owner, positive=True)
-        return cls(name, mass=m, inertia=m * r * r / 2.0,
+        body = cls(name, mass=m, inertia=m * r * r / 2.0,
                    position=vector2(center, "center", owner), velocity=velocity,
                    angular_velocity=angular_velocity)
+        around = np.linspace(0.0, 2.0 * np.pi, 33)
+        body.outline = r * np.column_stack([np.cos(around), np.sin(around)])
+        return body
 
     @classmethod
     def polygon(cls, name: str, vertices, mass: float, velocity=(0.0, 0.0),
@@ -154,8 +162,10 @@ class RigidBody(Body):
         centroid = np.array([((x + xn) * cross).sum(), ((y + yn) * cross).sum()]) / (6 * area)
         polar = (cross * (x * x + x * xn + xn * xn + y * y + y * yn + yn * yn)).sum() / 12.0
         about_centroid = polar / area - centroid @ centroid     # per unit area, > 0
-        return cls(name, mass=m, inertia=m * about_centroid, position=centroid,
+        body = cls(name, mass=m, inertia=m * about_centroid, position=centroid,
                    velocity=velocity, angular_velocity=angular_velocity)
+        body.outline = np.vstack([pts, pts[:1]]) - centroid
+        return body
 
     @property
     def initial_coordinates(self) -> np.ndarray:
