@@ -182,3 +182,17 @@ def test_a_result_shows_itself_in_jupyter_as_a_table():
     assert page.startswith("<table>") and "success: reached t_end" in page
     assert "&lt;b&gt;rig&lt;/b&gt; &amp; co" in page and "rod&lt;1&gt;.angle" in page
     assert "11, t = 0 … 0.1 s" in page and "<b>" not in page
+
+
+def test_user_channels_join_the_table(engine):
+    """A user's own quantities, as functions of the result, become columns under the names
+    given (the crank tip's speed, which is ω r = 15 m/s); a channel of the wrong length or
+    not a function is refused naming it."""
+    speed = engine.table(velocities=False, channels={
+        "crank tip speed [m/s]": lambda r: np.hypot(*r.point_velocity("crank", (0.075, 0)).T)})
+    assert list(speed)[-1] == "crank tip speed [m/s]"
+    np.testing.assert_allclose(speed["crank tip speed [m/s]"], 100.0 * 0.15, rtol=1e-9)
+    with pytest.raises(ValueError, match="channel 'bad \\[m\\]' gave shape \\(3,\\)"):
+        engine.table(channels={"bad [m]": lambda r: np.zeros(3)})
+    with pytest.raises(ValueError, match="channel 'x' must be a function"):
+        engine.table(channels={"x": 3.0})

@@ -432,25 +432,28 @@ class SimulationResult:
         return export(self, path, p.drawing, every)
 
     # --- persistence -------------------------------------------------------------------------
-    def table(self, points=(), joints=None, drivers=None, velocities=True) -> dict:
+    def table(self, points=(), joints=None, drivers=None, velocities=True,
+              channels=None) -> dict:
         """{column: (n,) array}, each column named with its SI unit: time, coordinates and
         (with `velocities`) their rates, the global positions of `points` ((body, local)
-        pairs), and for `joints` / `drivers` (names or objects, or True for all) their
-        forces, couples, coordinates and rates / efforts and powers
+        pairs), for `joints` / `drivers` (names or objects, or True for all) their forces,
+        couples, coordinates and rates / efforts and powers, and the user's `channels`
+        ({name with unit: a function of the result giving one number per sample})
         (`mechsim.results.table`)."""
         from .table import columns
-        return columns(self, points, joints, drivers, velocities)
+        return columns(self, points, joints, drivers, velocities, channels)
 
-    def to_csv(self, path, points=(), joints=None, drivers=None, velocities=True) -> Path:
+    def to_csv(self, path, points=(), joints=None, drivers=None, velocities=True,
+               channels=None) -> Path:
         """`table` written as CSV to `path` (a header of the columns with their units, a row
         per sample); returns the path."""
         from .table import write_csv
-        return write_csv(self.table(points, joints, drivers, velocities), path)
+        return write_csv(self.table(points, joints, drivers, velocities, channels), path)
 
-    def to_pandas(self, points=(), joints=None, drivers=None, velocities=True):
+    def to_pandas(self, points=(), joints=None, drivers=None, velocities=True, channels=None):
         """`table` as a pandas DataFrame (needs the `pandas` extra)."""
         from .table import data_frame
-        return data_frame(self.table(points, joints, drivers, velocities))
+        return data_frame(self.table(points, joints, drivers, velocities, channels))
 
     def save(self, path, reactions: bool | None = None) -> Path:
         """Write the result (with its energy log and constraint violation) to an .npz file.

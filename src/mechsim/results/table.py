@@ -35,10 +35,13 @@ def _rate(unit: str) -> str:
     return f"{unit}/s" if unit != "-" else "1/s"
 
 
-def columns(result, points=(), joints=None, drivers=None, velocities=True) -> dict:
+def columns(result, points=(), joints=None, drivers=None, velocities=True,
+            channels=None) -> dict:
     """{column name with unit: (n,) array} of `result` (see the module docstring).
     `points`: (body, local point) pairs; `joints`, `drivers`: names or objects, or True for
-    all of them, None for none."""
+    all of them, None for none; `channels`: {column name (with its unit, as you write it):
+    a function of the result giving one number per sample}, the user's own quantities
+    (`lambda r: r.point_velocity("crank", (0.1, 0))[:, 0]`), last."""
     out = {"t [s]": np.asarray(result.t)}
     names = result.coordinate_names
     for k, name in enumerate(names):
@@ -68,7 +71,24 @@ def columns(result, points=(), joints=None, drivers=None, velocities=True) -> di
             unit = "N" if table.driver_kind(name) == "prismatic" else "N·m"
             out[f"{name} effort [{unit}]"] = result.driver_effort(name)
             out[f"{name} power [W]"] = result.driver_power(name)
+    for name, channel in (channels or {}).items():
+        out[name] = _channel(result, name, channel)
     return out
+
+
+def _channel(result, name, channel) -> np.ndarray:
+    """The user's channel `name` evaluated on `result`, checked: one finite-or-NaN number
+    per sample, else a ValueError naming it."""
+    if not isinstance(name, str) or not name.strip():
+        raise ValueError(f"table: a channel's name must be a non-empty string, got {name!r}")
+    if not callable(channel):
+        raise ValueError(f"table: channel {name!r} must be a function of the result, got "
+                         f"{type(channel).__name__}")
+    values = np.asarray(channel(result), dtype=float)
+    if values.shape != (len(result.t),):
+        raise ValueError(f"table: channel {name!r} gave shape {values.shape}; it must give one "
+                         f"number per sample, shape ({len(result.t)},)")
+    return values
 
 
 def _chosen(which, every):
