@@ -176,7 +176,6 @@ def plot_quantities(result, coordinates=(), points=(), joints=(), reactions=(), 
     """One panel per kind asked for, over time: coordinates by name, points [(body, local
     point)] (x and y), joint coordinates, joint forces (magnitude) and driver efforts.
     Returns the Figure."""
-    from matplotlib.figure import Figure
     from .table import coordinate_unit
     panels = []
     by_unit = {}
