@@ -21,7 +21,7 @@ __version__ = "0.1.0"
 _LAZY_MODULES = {"examples", "scene", "solver", "codegen", "formulations", "integrators",
                  "results", "linear", "bench", "shooting", "engineering", "study",
                  "assembly"}
-_LAZY_NAMES = {"SimulationResult": "results", "load_result": "results",
+_LAZY_NAMES = {"SimulationResult": "results", "load_result": "loading",
                "load_scene": "scene", "load_mechanism": "scene", "LinearSystem": "linear",
                "sweep": "study",
                "Study": "study"}

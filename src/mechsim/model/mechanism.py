@@ -395,7 +395,7 @@ class Mechanism:
         ModelError names what a scene cannot hold (a load given as a function, a beam that
         starts deformed). A state set by `set_state` is not part of the model. Returns the
         path."""
-        from ..scene_save import scene_data, write_scene
+        from .scene_save import scene_data, write_scene
         return write_scene(scene_data(self), path)
 
     def set_state(self, q, v=None, t: float = 0.0) -> AssemblyReport:

@@ -1,6 +1,6 @@
-"""Simulation results: data accessors, energy log, plots, save/load and export."""
+"""Simulation results: data accessors, energy log, plots, save and export
+(`mechsim.load_result` reads them back)."""
 
 from .result import EnergyLog, SimulationResult, SingularPassage, Switch
-from .saved import load_result
 
-__all__ = ["EnergyLog", "SimulationResult", "SingularPassage", "Switch", "load_result"]
+__all__ = ["EnergyLog", "SimulationResult", "SingularPassage", "Switch"]

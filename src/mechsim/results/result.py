@@ -537,27 +537,9 @@ def metadata(result) -> dict:
             "settings": result.settings}
     if result.mechanism is not None:
         from ..model import ModelError
-        from ..scene_save import scene_data
+        from ..model.scene_save import scene_data
         try:
             meta["mechanism"] = scene_data(result.mechanism)
         except ModelError as exc:
             meta["mechanism_left_out"] = str(exc)
     return meta
-
-
-def attach_mechanism(result, meta, where) -> None:
-    """Give a loaded result the mechanism saved with it (built again from its scene), and
-    with it the model: it then plots, animates, extends and computes reactions as the run
-    did. Nothing where none was saved."""
-    data = meta.get("mechanism")
-    if data is None:
-        result.model_note = meta.get("mechanism_left_out", "")
-        return
-    from ..scene import scene_from
-    mech = scene_from(data, where, run=False).mechanism
-    if list(mech.coordinate_names) != list(result.coordinate_names):
-        raise ValueError(f"{where}: the mechanism saved with it has coordinates "
-                         f"{mech.coordinate_names[:4]}…, the samples "
-                         f"{result.coordinate_names[:4]}…")
-    result.mechanism = mech
-    result.problem = mech.problem()

@@ -1,5 +1,4 @@
-"""Loading a result again: a file `SimulationResult.save` wrote, or the directory a run
-streamed to, with the mechanism saved beside the samples."""
+"""Reading a file `SimulationResult.save` wrote."""
 
 from __future__ import annotations
 
@@ -9,15 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .result import EnergyLog, SimulationResult, SingularPassage, Switch, attach_mechanism
-from .stream import load_stream
+from .result import EnergyLog, SimulationResult, SingularPassage, Switch
 
 
-def load_result(path) -> SimulationResult:
-    """Read a result written by `SimulationResult.save`, or the directory a run streamed
-    to (`simulate(stream=...)`)."""
-    if Path(path).is_dir():
-        return load_stream(path)
+def read_saved(path) -> tuple[SimulationResult, dict]:
+    """The result in a file `SimulationResult.save` wrote, and its metadata; a file that is
+    not one is a ValueError saying so."""
     if Path(path).is_file() and not zipfile.is_zipfile(path):
         raise ValueError(f"{path} is not a result saved by mechsim (SimulationResult.save "
                          "writes .npz files) nor the directory of a streamed run")
@@ -57,9 +53,4 @@ def load_result(path) -> SimulationResult:
             switches=[Switch(**s) for s in meta["switches"]], energy=energy,
             constraint_violation=violation, saved_reactions=saved)
     res.settings = meta.get("settings", {})
-    attach_mechanism(res, meta, Path(path).name)
-    return res
-
-
-
-SimulationResult.load = staticmethod(load_result)
+    return res, meta

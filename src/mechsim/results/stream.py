@@ -11,8 +11,7 @@ import json
 
 import numpy as np
 
-from .result import (SimulationResult, SingularPassage, Switch, WorkRecord, attach_mechanism,
-                     metadata)
+from .result import SimulationResult, SingularPassage, Switch, WorkRecord, metadata
 
 # The files a streamed run writes into its directory (`simulate(stream=...)`).
 STREAM_FILES = ("samples.bin", "work.bin", "meta.json")
@@ -51,10 +50,11 @@ def finish_stream(result: SimulationResult, directory) -> None:
     result.stream_path = directory.path
 
 
-def load_stream(path) -> SimulationResult:
+def read_stream(path) -> tuple[SimulationResult, dict]:
     """A streamed run read back (its samples as read-only memory maps), checked against
-    its files: a stream whose run did not finish loads with status "partial" and the
-    samples whole on disk; anything inconsistent is a ValueError saying what."""
+    its files, and its meta.json: a stream whose run did not finish loads with status
+    "partial" and the samples whole on disk; anything inconsistent is a ValueError saying
+    what."""
     from ..files import OutputDirectory
     directory = OutputDirectory(path, create=False)
     where = f"stream {directory.path}"
@@ -101,8 +101,7 @@ def load_stream(path) -> SimulationResult:
         switches=[Switch(**s) for s in meta["switches"]], work=work)
     res.settings = meta.get("settings", {})
     res.stream_path = directory.path
-    attach_mechanism(res, meta, directory.path.name)
-    return res
+    return res, meta
 
 
 def _whole_rows(directory, name, width, where) -> int:

@@ -12,8 +12,12 @@ import json
 import math
 from pathlib import Path
 
-from .model import (FlexibleBeam, Force, ModelError, Prismatic, Revolute, RigidBody,
-                    RotationalSpring, Spring, Torque)
+from ..files import written
+from .bodies import RigidBody
+from .checks import ModelError
+from .flexible_beam import FlexibleBeam
+from .forces import Force, RotationalSpring, Spring, Torque
+from .joints import Prismatic, Revolute
 
 
 def _vector(v) -> list[float]:
@@ -108,7 +112,6 @@ def _load(load, owner) -> tuple[str, dict]:
 def write_scene(data: dict, path) -> Path:
     """The scene `data` at `path`: JSON where it ends in .json, else TOML (written through
     `mechsim.files.written`)."""
-    from .files import written
     path = Path(path)
     text = json.dumps(data, indent=2, ensure_ascii=False) + "\n" \
         if path.suffix.lower() == ".json" else toml_text(data)
