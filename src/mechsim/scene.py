@@ -33,6 +33,10 @@ same tables in JSON, for files ending in .json)::
     [[force]]   body, force = [fx, fy], at
     [[torque]]  body, torque
     [[speed]]   joint, rate     # the joint's initial rate (Mechanism.set_speed)
+    [[channel]] name, expression, unit   # a recorded quantity (mechsim.Channel): an
+                # expression of t, coordinates ("crank.angle"), their rates and
+                # accelerations ("crank.angle.rate", "crank.angle.acceleration"), joint
+                # coordinates and rates ("A.coordinate", "A.rate") and the parameters
 
     [simulation]                 # keyword arguments of Mechanism.simulate
     t_end = 2.0
@@ -65,8 +69,9 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 
-from .model import (Driver, FlexibleBeam, Force, Mechanism, ModelError, Prismatic, Revolute,
+from .model import (Channel, Driver, FlexibleBeam, Force, Mechanism, ModelError, Prismatic, Revolute,
                     RigidBody, RotationalSpring, Spring, Torque)
+from .model.channels import channel_names
 from .model.expressions import FUNCTIONS, ExpressionError, parse
 from .options import unknown_names
 
@@ -144,6 +149,7 @@ SCHEMA = {
     "rotational_spring": {"bodies": "bodies", "stiffness": "number", "damping": "number",
                           "rest_angle": "number", "name": "name"},
     "speed": {"joint": "name", "rate": "number"},
+    "channel": {"name": "name", "expression": "name", "unit": "name"},
     "output": {"plots": "plots", "save": "flag", "points": "points", "directory": "path",
                "export": "path", "reactions": "joints", "efforts": "flag", "animate": "flag"},
 }
@@ -153,10 +159,10 @@ REQUIRED = {
     "joint": ("type", "bodies"), "driver": ("joint", "expression"),
     "spring": ("bodies", "at_a", "at_b", "stiffness"), "force": ("body", "force"),
     "torque": ("body", "torque"), "rotational_spring": ("bodies", "stiffness"), "output": (),
-    "speed": ("joint", "rate"),
+    "speed": ("joint", "rate"), "channel": ("name", "expression"),
 }
 _ARRAYS = ("body", "joint", "driver", "spring", "force", "torque", "rotational_spring",
-           "speed")
+           "speed", "channel")
 _TOP = {"name": "name", "gravity": "vector", "parameters": "table", "simulation": "table",
         "output": "table", **{k: "array" for k in _ARRAYS}}
 
@@ -439,7 +445,18 @@ def _build(r, name, gravity, tables) -> Mechanism:
             raise r.error(where, f"no joint named {t['joint']!r}; joints: "
                                  f"{', '.join(joints) or '(none)'}")
         make(where, lambda: mech.set_speed(joints[t["joint"]], t["rate"]))
+    for where, t in tables["channel"]:
+        make(where, lambda: mech.add(_channel(r, mech, t, where)))
     return mech
+
+
+def _channel(r, mech, t, where) -> Channel:
+    """A [[channel]]: its expression in the mechanism's names (`Channel`) and the scene's
+    parameters, the parameters bound to their values."""
+    law = parse(t["expression"], channel_names(mech) | set(r.names),
+                f"{r.file}: {where} expression")
+    text = law.bind(**{k: r.names[k] for k in law.names if k in r.names}).text
+    return Channel(t["name"], text, t.get("unit", "-"))
 
 
 def _body_from(r, t, where):

@@ -139,11 +139,13 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
                     f"{passages[0].t_min:.6g}) where the drivers do not decide the branch: it "
                     "went on along the one it moved on, and reactions and efforts there are "
                     "not unique")
-    return SimulationResult(
+    result = SimulationResult(
         ts[:n], np.array(Q), np.array(V), problem.coordinate_names, problem=problem,
         status=status, message=message, singular_passages=passages,
         stats={"method": "kinematics", "samples": n,
                "wall_time": time.perf_counter() - started})
+    result.mechanism = mech
+    return result
 
 
 def times_of(mech, driver, values, t_start=0.0, horizon=1e6) -> np.ndarray:

@@ -1,10 +1,11 @@
 """Arithmetic expressions that users write (driver laws, scene numbers), parsed without `eval`.
 
 A text is parsed by Python's `ast` into a syntax tree and only the nodes listed here are
-accepted: numbers, the names the caller allows, `+ − * / **`, unary signs, parentheses and
-calls of the functions in `FUNCTIONS`. Anything else (attributes, subscripts, keywords,
-lambdas, comparisons, strings, …) is an `ExpressionError` naming the owner and the offending
-token. The accepted tree is kept as plain tuples and evaluated by this module (floats) or
+accepted: numbers, the names the caller allows (dotted ones such as `crank.angle` too),
+`+ − * / **`, unary signs, parentheses and calls of the functions in `FUNCTIONS`. Anything
+else (other attributes, subscripts, keywords, lambdas, comparisons, strings, …) is an
+`ExpressionError` naming the owner and the offending token. The accepted tree is kept as
+plain tuples and evaluated by this module (floats) or
 turned into sympy by `to_sympy`: nothing a user writes is executed.
 
 Limits keep a hostile or careless text from hanging the parser or sympy: at most
@@ -28,6 +29,7 @@ MAX_NODES = 2000
 MAX_DEPTH = 200
 MAX_EXPONENT = 64
 MAX_CONSTANT = 1e300
+KNOWN_SHOWN = 24          # names an unknown-name message lists
 
 # name: (number of arguments, float function, sympy function name)
 FUNCTIONS = {
@@ -138,6 +140,18 @@ def parse(text, names, owner: str) -> Expression:
     return Expression(text.strip(), tree, frozenset(builder.used))
 
 
+def _dotted(node) -> str | None:
+    """The name a Name or a chain of attributes of one spells ("crank.angle.rate"), None
+    for any other attribute (of a call, a number, …)."""
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if not isinstance(node, ast.Name):
+        return None
+    return ".".join([node.id, *reversed(parts)])
+
+
 class _Builder:
     """Turns an `ast` tree into the tuple tree, checking each node against the whitelist."""
 
@@ -173,14 +187,20 @@ class _Builder:
                 self.fail(f"number {str(v)[:40]} out of range (magnitude up to "
                           f"{MAX_CONSTANT:g})")
             return ("num", float(v) if isinstance(v, int) and abs(v) > 2 ** 53 else v)
-        if isinstance(node, ast.Name):
-            if node.id in self.names:
-                self.used.add(node.id)
-                return ("name", node.id)
-            if node.id in CONSTANTS:
-                return ("const", node.id)
+        if isinstance(node, (ast.Name, ast.Attribute)):
+            name = _dotted(node)
+            if name is None or ("." in name and name not in self.names and
+                                name.split(".")[0] in self.names | set(CONSTANTS)):
+                segment = ast.get_source_segment(self.text.strip(), node) or "attribute"
+                self.fail(f"unsupported syntax {segment!r:.60}")
+            if name in self.names:
+                self.used.add(name)
+                return ("name", name)
+            if name in CONSTANTS:
+                return ("const", name)
             known = sorted(self.names | set(CONSTANTS))
-            self.fail(f"unknown name {node.id!r} (known: {', '.join(known)})")
+            shown = ", ".join(known[:KNOWN_SHOWN]) + (", …" if len(known) > KNOWN_SHOWN else "")
+            self.fail(f"unknown name {name!r} (known: {shown})")
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
             operand = self.build(node.operand, depth)
             return ("neg", operand) if isinstance(node.op, ast.USub) else operand

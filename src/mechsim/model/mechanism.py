@@ -10,6 +10,7 @@ import numpy as np
 
 from .checks import ModelError, name_or_default, vector2
 from .bodies import Body, Ground
+from .channels import Channel, channel_names
 from .drivers import Driver
 from .forces import Force, RotationalSpring, Spring, Torque, load_points
 from .joints import Joint
@@ -74,6 +75,7 @@ class Mechanism:
         self.joints: list[Joint] = []
         self.drivers: list[Driver] = []
         self.loads: list = []                 # springs, rotational springs, forces, torques
+        self.channels: list[Channel] = []    # the user's recorded quantities
         self.speeds: dict[str, float] = {}   # joint name -> its prescribed initial rate
         self._problem = None
         self._build = None                    # the build asked for by `problem(build=)`
@@ -83,9 +85,16 @@ class Mechanism:
 
     # --- building ----------------------------------------------------------------------------
     def add(self, item):
-        """Add a body, joint, driver, spring, rotational spring, force or torque; returns
-        it."""
+        """Add a body, joint, driver, spring, rotational spring, force, torque or channel;
+        returns it. A channel's expression is checked against the bodies and joints added
+        before it; it changes no equation (nothing is rebuilt for it)."""
         owner = f"mechanism '{self.name}'"
+        if isinstance(item, Channel):
+            if any(c.name == item.name for c in self.channels):
+                raise ModelError(f"{owner}: a channel named '{item.name}' exists already")
+            item.parsed(channel_names(self))
+            self.channels.append(item)
+            return item
         if isinstance(item, Body):
             if isinstance(item, Ground):
                 raise ModelError(f"{owner}: the ground exists already as `mechanism.ground`")
@@ -120,7 +129,7 @@ class Mechanism:
             self.loads.append(item)
         else:
             raise ModelError(f"{owner}: cannot add {item!r}; expected a body, joint, driver, "
-                             "spring, rotational spring, force or torque")
+                             "spring, rotational spring, force, torque or channel")
         self._problem = None
         self._assembled = None
         self._state = None

@@ -30,7 +30,7 @@ def scene_data(mech) -> dict:
     owner = f"mechanism '{mech.name}': save"
     data = {"name": mech.name, "gravity": _vector(mech.gravity), "body": [], "joint": [],
             "driver": [], "spring": [], "force": [], "torque": [], "rotational_spring": [],
-            "speed": []}
+            "speed": [], "channel": []}
     for body in mech.bodies:
         data["body"].append(_body(body, owner))
     for joint in mech.joints:
@@ -43,6 +43,9 @@ def scene_data(mech) -> dict:
         data[kind].append(table)
     for joint, rate in mech.speeds.items():
         data["speed"].append({"joint": joint, "rate": float(rate)})
+    for channel in mech.channels:
+        data["channel"].append({"name": channel.name, "expression": channel.expression,
+                                "unit": channel.unit})
     return {key: value for key, value in data.items() if value != []}
 
 

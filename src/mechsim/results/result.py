@@ -295,6 +295,19 @@ class SimulationResult:
         """The rate of `joint_coordinate` [rad/s or m/s], shape (n,)."""
         return self.reactions.coordinates(joint)[1]
 
+    def channel(self, name: str) -> np.ndarray:
+        """The mechanism's channel `name` (`mechsim.Channel`) at each sample, shape (n,):
+        NaN where its expression is undefined."""
+        channels = getattr(self.mechanism, "channels", None)
+        if channels is None:
+            raise RuntimeError("this result does not carry its mechanism, so it has no "
+                               f"channels{': ' + self.model_note if self.model_note else ''}")
+        for c in channels:
+            if c.name == name:
+                return c.values(self)
+        raise KeyError(f"mechanism '{self.mechanism.name}' has no channel {name!r}; channels: "
+                       f"{', '.join(c.name for c in channels) or '(none)'}")
+
     # --- energy and constraints --------------------------------------------------------------
     def _need_problem(self, what):
         if self.problem is None:
@@ -514,6 +527,7 @@ def join(first: SimulationResult, rest: SimulationResult) -> SimulationResult:
         singular_passages=first.singular_passages + rest.singular_passages,
         switches=first.switches + rest.switches, exception=rest.exception, work=work)
     out.settings = dict(rest.settings)
+    out.mechanism = first.mechanism
     return out
 
 

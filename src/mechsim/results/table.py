@@ -6,8 +6,9 @@ DataFrame (the `pandas` extra).
 Columns, in order: time; every coordinate, then its rate (with `velocities`); the global
 position of each point asked for; for each joint asked for, the force it applies to its
 body_b in global axes, the couple of a prismatic joint, its coordinate and rate; for each
-driver asked for, its effort and power. Reactions and efforts are computed only when asked
-for (`SimulationResult.reactions`).
+driver asked for, its effort and power; the mechanism's channels (`mechsim.Channel`,
+"name [unit]"); the functions passed as `channels`. Reactions and efforts are computed only
+when asked for (`SimulationResult.reactions`).
 """
 
 from __future__ import annotations
@@ -71,6 +72,8 @@ def columns(result, points=(), joints=None, drivers=None, velocities=True,
             unit = "N" if table.driver_kind(name) == "prismatic" else "N·m"
             out[f"{name} effort [{unit}]"] = result.driver_effort(name)
             out[f"{name} power [W]"] = result.driver_power(name)
+    for channel in getattr(result.mechanism, "channels", ()):
+        out[channel.column] = channel.values(result)
     for name, channel in (channels or {}).items():
         out[name] = _channel(result, name, channel)
     return out
