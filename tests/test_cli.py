@@ -139,3 +139,33 @@ def test_an_interrupt_while_writing_leaves_no_partial_file(scene, capsys, monkey
     assert "pendulum.npz" in err                              # the save came first
     assert sorted(p.name for p in (scene.parent / "out" / "pendulum").iterdir()) == \
         ["pendulum.npz"]
+
+def test_a_scene_writes_its_table(tmp_path, capsys, monkeypatch):
+    """[output] table: the CSV holds time, coordinates, the `points`, the pin's force and
+    the scene's channels, equal to the same run's table through the API."""
+    monkeypatch.chdir(tmp_path)
+    text = SCENE.replace("save = true", 'table = "motion.csv"\nreactions = ["pin"]\n'
+                                        'points = [["rod", [0.5, 0.0]]]')
+    text += '[[channel]]\nname = "drop"\nexpression = "-2*rod.y"\nunit = "m"\n'
+    (tmp_path / "pendulum.toml").write_text(text)
+    code, out, _ = run(capsys, "pendulum.toml")
+    assert code == 0 and "motion.csv" in out
+    import csv
+    with open(tmp_path / "out" / "pendulum" / "motion.csv", newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    header, data = rows[0], np.array(rows[1:], float)
+    res = api()
+    expected = res.table(points=[("rod", (0.5, 0.0))], joints=["pin"])
+    assert header == list(expected) and header[-1] == "drop [m]"
+    np.testing.assert_allclose(data, np.column_stack(list(expected.values())), rtol=1e-12,
+                               atol=1e-12)
+    # the rod's tip drops 2 y of its centre; a real swing, not zeros
+    np.testing.assert_allclose(data[:, -1], -2 * res.coordinate("rod.y"), rtol=1e-14)
+    assert data[:, -1].max() > 0.5
+
+
+def test_a_table_not_named_csv_is_refused(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "pendulum.toml").write_text(SCENE.replace("save = true", 'table = "motion.txt"'))
+    code, _, err = run(capsys, "pendulum.toml")
+    assert code == 2 and "[output] table: the table is written as CSV" in err

@@ -1,6 +1,7 @@
 """A mechanism built in Python saved as a scene (TOML or JSON) and built again."""
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +36,7 @@ def every_element():
     mech.add(ms.Force(arm, (1.0, -2.0), at=(1.2, -0.2), name="push"))
     mech.add(ms.Torque(beam, 0.3, name="twist"))
     mech.set_speed(pivot, 2.0)
+    mech.add(ms.Channel("arm swing", "degrees(arm.angle)", unit="deg"))
     return mech
 
 
@@ -50,6 +52,13 @@ def test_a_saved_mechanism_builds_again_exactly(make, suffix, tmp_path):
     assert back.name == mech.name and back.structure() == mech.structure()
     np.testing.assert_array_equal(back.problem().mass_diagonal, mech.problem().mass_diagonal)
     assert back.speeds == mech.speeds
+    for b, m in zip(back.bodies, mech.bodies):
+        outline = getattr(m, "outline", None)
+        assert (outline is None) == (getattr(b, "outline", None) is None), m.name
+        if outline is not None:
+            np.testing.assert_array_equal(b.outline, outline)
+    assert [(c.name, c.expression, c.unit) for c in back.channels] == \
+        [(c.name, c.expression, c.unit) for c in mech.channels]
     a = mech.simulate(0.05, rtol=1e-9, output_step=0.01)
     b = back.simulate(0.05, rtol=1e-9, output_step=0.01)
     assert a.status == b.status == "success", (a.message, b.message)
@@ -122,3 +131,83 @@ def test_a_result_whose_mechanism_a_scene_cannot_hold_says_why_when_loaded(tmp_p
     with pytest.raises(RuntimeError, match="extending the run needs the mechanism's model.*"
                                            "torque 'motor' is a Python function"):
         back.extend(0.2)
+
+
+SHAPED = """
+name = "shapes"
+[parameters]
+w = 0.12
+[[body]]
+name = "block"
+mass = 0.5
+rectangle = ["w", 0.05]
+position = [1.0, -0.3]
+angle = 0.2
+[[body]]
+name = "wheel"
+mass = 3.0
+disc = 0.25
+position = [0.0, 0.0]
+[[body]]
+name = "arm"
+mass = 0.7
+polygon = [[1.0, -0.3], [1.3, -0.3], [1.1, 0.0]]
+[[body]]
+name = "plate"
+mass = 2.0
+inertia = 0.01
+position = [0.5, 0.5]
+outline = [[-0.1, -0.1], [0.1, -0.1], [0.0, 0.2]]
+"""
+
+
+def test_a_scene_builds_bodies_from_their_shapes(tmp_path):
+    """rectangle, disc and polygon in a scene are the shape constructors' bodies exactly
+    (mass properties, frame and outline), an outline is kept (closed) on a general body."""
+    path = tmp_path / "shapes.toml"
+    path.write_text(SHAPED, encoding="utf-8")
+    mech = ms.load_mechanism(path)
+    expected = [ms.RigidBody.rectangle("block", (1.0, -0.3), 0.12, 0.05, 0.5, angle=0.2),
+                ms.RigidBody.disc("wheel", (0.0, 0.0), 0.25, 3.0),
+                ms.RigidBody.polygon("arm", [(1.0, -0.3), (1.3, -0.3), (1.1, 0.0)], 0.7)]
+    for body, want in zip(mech.bodies, expected):
+        assert (body.mass, body.inertia, body.angle) == (want.mass, want.inertia, want.angle)
+        np.testing.assert_array_equal(body.position, want.position)
+        np.testing.assert_array_equal(body.outline, want.outline)
+    # a plate 0.12 × 0.05 of 0.5 kg: m (w² + h²) / 12
+    assert mech.bodies[0].inertia == pytest.approx(0.5 * (0.12**2 + 0.05**2) / 12, rel=1e-15)
+    assert mech.bodies[1].inertia == pytest.approx(3.0 * 0.25**2 / 2, rel=1e-15)
+    plate = mech.bodies[3]
+    np.testing.assert_array_equal(plate.outline, [[-0.1, -0.1], [0.1, -0.1], [0.0, 0.2],
+                                                  [-0.1, -0.1]])
+    back = ms.load_mechanism(mech.save(tmp_path / "again.toml"))
+    for a, b in zip(back.bodies, mech.bodies):
+        np.testing.assert_array_equal(a.outline, b.outline)
+        assert (a.mass, a.inertia) == (b.mass, b.inertia)
+
+
+@pytest.mark.parametrize("change, message", [
+    ('disc = 0.25\n', "give one shape, got `rectangle`, `disc`"),
+    ('inertia = 0.1\n', "a `rectangle` body takes its inertia from its shape; remove `inertia`"),
+    ('outline = [[0, 0], [1, 0], [0, 1]]\n',
+     "a `rectangle` body takes its inertia from its shape; remove `outline`"),
+])
+def test_a_shape_in_a_scene_is_checked(tmp_path, change, message):
+    text = SHAPED.replace('rectangle = ["w", 0.05]\n', 'rectangle = ["w", 0.05]\n' + change)
+    path = tmp_path / "shapes.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ms.ModelError, match=r"body\[0\] \('block'\): " + re.escape(message)):
+        ms.load_mechanism(path)
+
+
+def test_a_shape_without_its_centre_or_with_two_points_is_refused(tmp_path):
+    path = tmp_path / "shapes.toml"
+    path.write_text(SHAPED.replace("position = [0.0, 0.0]\n", ""), encoding="utf-8")
+    with pytest.raises(ms.ModelError, match=r"body\[1\] \('wheel'\): a `disc` body needs "
+                                            r"`position`, its centre"):
+        ms.load_mechanism(path)
+    path.write_text(SHAPED.replace("[1.1, 0.0]]", "]").replace("[1.3, -0.3], ]", "[1.3, -0.3]]"),
+                    encoding="utf-8")
+    with pytest.raises(ms.ModelError, match=r"body\[2\] \('arm'\) polygon: expected an array "
+                                            r"of 3 to 10000 points"):
+        ms.load_mechanism(path)

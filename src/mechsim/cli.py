@@ -135,6 +135,10 @@ def _write(kind, path, res, output, wants_reactions):
         return res.save(path, reactions=wants_reactions or None)
     elif kind == "animate":
         return res.animate(path, trace=output.get("points", []))
+    elif kind == "table":
+        return res.to_csv(path, points=output.get("points", ()),
+                          joints=output.get("reactions") or None,
+                          drivers=True if output.get("efforts") else None)
     else:
         return res.export(path)
     return path
@@ -154,6 +158,8 @@ def _output_paths(args, scene):
         targets.append(("save", out_dir / f"{stem}.npz"))
     if out.get("export"):
         targets.append(("export", out_dir / out["export"]))
+    if out.get("table"):
+        targets.append(("table", out_dir / out["table"]))
     if out.get("animate") or args.animate:
         targets.append(("animate", out_dir / f"{stem}.gif"))
     if targets and (out_dir.is_symlink() or (out_dir.exists() and not out_dir.is_dir())):

@@ -12,7 +12,11 @@ same tables in JSON, for files ending in .json)::
     name = "crank"
     rod = [[0, 0], ["L*cos(tilt)", "L*sin(tilt)"]]
     mass = 1.0
-    [[body]]                     # … or a general rigid body (mass, inertia, position)
+    [[body]]                     # … or a uniform shape: rectangle = [width, height] or
+                                 # disc = radius (centred at `position`), polygon =
+                                 # [[x, y], …] (its corners), with `mass` …
+    [[body]]                     # … or a general rigid body (mass, inertia, position,
+                                 # angle; `outline`: its drawn shape in its own frame)
     [[body]]                     # … or an elastic beam with modal coordinates
     type = "flexible_beam"
     name = "coupler"
@@ -50,6 +54,9 @@ same tables in JSON, for files ending in .json)::
     animate = true               # <scene>.gif of the motion, tracing `points`
     save = true                  # result as <scene>.npz
     export = "motion.xdmf"       # meshio time series of the bodies (ParaView)
+    table = "motion.csv"         # time, coordinates and rates, `points`, the `reactions`
+                                 # joints' forces, the drivers' efforts (with `efforts`)
+                                 # and the channels, one column each with its unit
     points = [["coupler", [0.5, 0.0]]]   # final positions printed in the summary
     directory = "out/four_bar"   # relative, inside the working directory
 
@@ -69,6 +76,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 
+import numpy as np
+
 from .model import (Channel, Driver, FlexibleBeam, Force, Mechanism, ModelError, Prismatic, Revolute,
                     RigidBody, RotationalSpring, Spring, Torque)
 from .model.channels import channel_names
@@ -82,6 +91,7 @@ class SceneError(ModelError):
 
 MAX_SCENE_BYTES = 4 * 2 ** 20
 PLOTS = ("energy", "reactions", "efforts")
+MAX_VERTICES = 10_000           # points of a polygon or an outline
 
 
 def evaluate(text, names: dict, where: str) -> float:
@@ -131,7 +141,9 @@ class Scene:
 SCHEMA = {
     "body": {"name": "name", "type": ("rigid", "flexible_beam"), "mass": "number",
              "inertia": "number", "position": "vector", "angle": "number",
-             "velocity": "vector", "angular_velocity": "number", "rod": "segment"},
+             "velocity": "vector", "angular_velocity": "number", "rod": "segment",
+             "rectangle": "vector", "disc": "number", "polygon": "polygon",
+             "outline": "polygon"},
     "flexible_beam": {"type": ("flexible_beam",), "name": "name", "start": "vector",
                       "end": "vector", "length": "number", "angle": "number",
                       "youngs_modulus": "number", "density": "number", "area": "number",
@@ -151,7 +163,8 @@ SCHEMA = {
     "speed": {"joint": "name", "rate": "number"},
     "channel": {"name": "name", "expression": "name", "unit": "name"},
     "output": {"plots": "plots", "save": "flag", "points": "points", "directory": "path",
-               "export": "path", "reactions": "joints", "efforts": "flag", "animate": "flag"},
+               "export": "path", "reactions": "joints", "efforts": "flag", "animate": "flag",
+               "table": "path"},
 }
 REQUIRED = {
     "body": ("name",), "flexible_beam": ("name", "start", "youngs_modulus", "density", "area",
@@ -219,6 +232,11 @@ class _Reader:
                 raise self.error(where, f"expected an array of {what}, got {_show(value)}")
             item = {"vector": "number", "segment": "vector", "bodies": "name"}[kind]
             return tuple(self.value(item, v, where) for v in value)
+        if kind == "polygon":
+            if not isinstance(value, list) or not 3 <= len(value) <= MAX_VERTICES:
+                raise self.error(where, f"expected an array of 3 to {MAX_VERTICES} points "
+                                        f"[[x, y], …], got {_show(value)}")
+            return [self.value("vector", v, where) for v in value]
         if kind == "plots":
             if not isinstance(value, list):
                 raise self.error(where, f"expected an array of plot names, got {_show(value)}")
@@ -328,6 +346,9 @@ def scene_from(data: dict, path, parameters: dict | None = None, *, run: bool = 
             check_format(output["export"])
         except ValueError as exc:
             raise r.error("[output] export", str(exc)) from None
+    if "table" in output and PurePath(output["table"]).suffix.lower() != ".csv":
+        raise r.error("[output] table", f"the table is written as CSV: its name ends in .csv, "
+                                        f"got {_show(output['table'])}")
     mech = _build(r, name, gravity, tables)
     for body, _ in output.get("points", []):
         _body(r, mech, body, "[output] points")
@@ -460,23 +481,49 @@ def _channel(r, mech, t, where) -> Channel:
 
 
 def _body_from(r, t, where):
-    """A rigid body (from `mass` and `inertia`, or a `rod`) or a flexible beam."""
+    """A rigid body (from `mass` and `inertia`, or a shape: `rod`, `rectangle`, `disc`,
+    `polygon`) or a flexible beam."""
     if t.get("type") == "flexible_beam":
         return _beam(r, t, where)
-    if "rod" in t:
-        for key in ("inertia", "position", "angle"):
+    shapes = [k for k in SHAPES if k in t]
+    if len(shapes) > 1:
+        raise r.error(where, f"give one shape, got {', '.join(f'`{k}`' for k in shapes)}")
+    if "mass" not in t:
+        raise r.error(where, "needs `mass`")
+    kw = {k: t[k] for k in ("velocity", "angular_velocity") if k in t}
+    if shapes:
+        shape = shapes[0]
+        for key in ("inertia", "outline", *SHAPES[shape][0]):
             if key in t:
-                raise r.error(where, "a `rod` body takes its inertia, position and angle from "
-                                     f"its end points; remove `{key}`")
-        if "mass" not in t:
-            raise r.error(where, "needs `mass`")
-        kw = {k: t[k] for k in ("velocity", "angular_velocity") if k in t}
-        return RigidBody.rod(t["name"], *t["rod"], t["mass"], **kw)
-    for key in ("mass", "inertia"):
-        if key not in t:
-            raise r.error(where, f"needs `{key}` (or give a `rod`)")
-    kw = {k: t[k] for k in ("position", "angle", "velocity", "angular_velocity") if k in t}
-    return RigidBody(t["name"], t["mass"], t["inertia"], **kw)
+                raise r.error(where, f"a `{shape}` body takes its inertia{SHAPES[shape][1]} "
+                                     f"from its shape; remove `{key}`")
+        if shape in ("rectangle", "disc") and "position" not in t:
+            raise r.error(where, f"a `{shape}` body needs `position`, its centre")
+        if shape == "rod":
+            return RigidBody.rod(t["name"], *t["rod"], t["mass"], **kw)
+        if shape == "rectangle":
+            return RigidBody.rectangle(t["name"], t["position"], *t["rectangle"], t["mass"],
+                                       angle=t.get("angle", 0.0), **kw)
+        if shape == "disc":
+            return RigidBody.disc(t["name"], t["position"], t["disc"], t["mass"], **kw)
+        return RigidBody.polygon(t["name"], t["polygon"], t["mass"], **kw)
+    if "inertia" not in t:
+        raise r.error(where, "needs `inertia` (or a shape: " +
+                      ", ".join(f"`{k}`" for k in SHAPES) + ")")
+    kw.update({k: t[k] for k in ("position", "angle") if k in t})
+    body = RigidBody(t["name"], t["mass"], t["inertia"], **kw)
+    if "outline" in t:
+        points = np.array(t["outline"], float)
+        closed = np.allclose(points[0], points[-1], rtol=0, atol=1e-12 * np.ptp(points))
+        body.outline = points if closed else np.vstack([points, points[:1]])
+    return body
+
+
+# A body's shape: (the keys it replaces besides `inertia`, what else it gives).
+SHAPES = {"rod": (("position", "angle"), ", position and angle"),
+          "rectangle": ((), ""),
+          "disc": (("angle",), ""),
+          "polygon": (("position", "angle"), ", position and angle")}
 
 
 def _beam(r, t, where) -> FlexibleBeam:

@@ -65,9 +65,13 @@ def _body(body, owner) -> dict:
     if type(body) is not RigidBody:
         raise ModelError(f"{owner}: body '{body.name}' is a {type(body).__name__}, which the "
                          "scene schema does not hold")
-    return {"name": body.name, "mass": float(body.mass), "inertia": float(body.inertia),
-            "position": _vector(body.position), "angle": float(body.angle),
-            "velocity": _vector(body.velocity), "angular_velocity": float(body.angular_velocity)}
+    table = {"name": body.name, "mass": float(body.mass), "inertia": float(body.inertia),
+             "position": _vector(body.position), "angle": float(body.angle),
+             "velocity": _vector(body.velocity),
+             "angular_velocity": float(body.angular_velocity)}
+    if body.outline is not None:
+        table["outline"] = [_vector(p) for p in body.outline]
+    return table
 
 
 def _joint(joint, owner) -> dict:
