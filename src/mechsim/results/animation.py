@@ -207,7 +207,8 @@ def animate(result, path, trace=(), fps=30, exaggeration=1.0, max_frames=None) -
 
     A GIF's still parts (axes, ticks, legend, time bar) are drawn once and each frame
     redraws only the moving lines over them (blitting); its frames share the first one's
-    palette. An MP4 is drawn whole, frame by frame, by matplotlib's ffmpeg writer."""
+    palette, and each stores only the pixels that changed (`gif_bytes`). An MP4 is drawn
+    whole, frame by frame, by matplotlib's ffmpeg writer."""
     from matplotlib import animation
     path = Path(path)
     suffix = path.suffix.lower()
@@ -216,6 +217,59 @@ def animate(result, path, trace=(), fps=30, exaggeration=1.0, max_frames=None) -
     if suffix == ".mp4" and not animation.writers.is_available("ffmpeg"):
         raise ValueError("animate: writing MP4 needs ffmpeg, which is not installed; "
                          "write a .gif instead")
+    if suffix == ".gif":
+        data = animation_gif(result, trace, fps, exaggeration, max_frames).data
+        return written(path, lambda p: Path(p).write_bytes(data))
+    fig, show, _, count = _render(result, trace, fps, exaggeration, max_frames)
+
+    def mp4(p):
+        writer = animation.FFMpegWriter(fps=fps)
+        with writer.saving(fig, p, dpi=fig.dpi):
+            for i in range(count):
+                show(i)
+                writer.grab_frame()
+    return written(path, mp4, shared=True)           # ffmpeg writes from its own process
+
+
+class Animation:
+    """A result's motion as a looping GIF held in memory (`SimulationResult.animation`):
+    shown inline in Jupyter (`_repr_html_`), written with `save(path)`. `data` is the
+    GIF's bytes, `frames` its frame count, `fps` its rate, `pace` the simulated seconds
+    it shows per second of playing (1: real time)."""
+
+    def __init__(self, data: bytes, frames: int, fps: float, pace: float, title: str):
+        self.data, self.frames, self.fps, self.pace, self.title = data, frames, fps, pace, title
+
+    def save(self, path) -> Path:
+        """The GIF at `path` (which must end in .gif); returns the path."""
+        path = Path(path)
+        if path.suffix.lower() != ".gif":
+            raise ValueError(f"Animation.save: the file must end in .gif, got {str(path)!r}")
+        return written(path, lambda p: Path(p).write_bytes(self.data))
+
+    def _repr_html_(self) -> str:
+        import base64
+        import html
+        return (f'<img src="data:image/gif;base64,{base64.b64encode(self.data).decode()}" '
+                f'alt="{html.escape(self.title)}">')
+
+    def __repr__(self):
+        return (f"Animation({self.title!r}: {self.frames} frames at {self.fps:g} fps, "
+                f"{self.pace:.3g} × real time, {len(self.data) / 1e6:.2f} MB)")
+
+
+def animation_gif(result, trace=(), fps=30, exaggeration=1.0, max_frames=None) -> Animation:
+    """The motion as an `Animation` (a GIF in memory), drawn as `animate` draws it."""
+    _, _, frame, count = _render(result, trace, fps, exaggeration, max_frames)
+    images = [frame(i) for i in range(count)]
+    frames = frame_indices(result.t, fps, max_frames)
+    pace = (result.t[frames[-1]] - result.t[frames[0]]) / max(len(frames) - 1, 1) * fps
+    title = getattr(result.problem, "title", None) or getattr(result.mechanism, "name", "motion")
+    return Animation(gif_bytes(images, fps), count, fps, pace, title)
+
+
+def _render(result, trace, fps, exaggeration, max_frames):
+    """(figure, show(i), frame(i) -> RGB array, number of frames) of the motion."""
     if not (isinstance(fps, numbers.Real) and 1 <= fps <= 120):
         raise ValueError(f"animate: `fps` must be between 1 and 120, got {fps!r}")
     frames = frame_indices(result.t, fps, max_frames)
@@ -259,25 +313,22 @@ def animate(result, path, trace=(), fps=30, exaggeration=1.0, max_frames=None) -
         bar.draw_artist(now)
         return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
-    if suffix == ".gif":
-        images = [frame(i) for i in range(len(frames))]
-        return written(path, lambda p: _write_gif(p, images, fps))
-
-    def mp4(p):
-        writer = animation.FFMpegWriter(fps=fps)
-        with writer.saving(fig, p, dpi=fig.dpi):
-            for i in range(len(frames)):
-                show(i)
-                writer.grab_frame()
-    return written(path, mp4, shared=True)           # ffmpeg writes from its own process
+    return fig, show, frame, len(frames)
 
 
-def _write_gif(path, images, fps):
+def gif_bytes(images, fps) -> bytes:
     """A looping GIF of the RGB arrays `images` through Pillow (which matplotlib requires),
-    every frame in the first one's adaptive palette."""
+    every frame mapped onto the first one's adaptive palette (255 colours), saved with
+    Pillow's optimization, which stores of each frame only the pixels that changed (the
+    four-bar scene's 360 frames: 3.1 MB without it, 1.0 MB with it)."""
+    import io
+
     from PIL import Image
-    first = Image.fromarray(images[0]).quantize(colors=255, method=Image.Quantize.MEDIANCUT)
-    rest = [Image.fromarray(im).quantize(palette=first, dither=Image.Dither.NONE)
-            for im in images[1:]]
-    first.save(path, save_all=True, append_images=rest, duration=round(1000 / fps), loop=0,
-               optimize=False)
+    palette = Image.fromarray(images[0]).quantize(colors=255,
+                                                  method=Image.Quantize.MEDIANCUT)
+    frames = [Image.fromarray(image).quantize(palette=palette, dither=Image.Dither.NONE)
+              for image in images]
+    out = io.BytesIO()
+    frames[0].save(out, format="GIF", save_all=True, append_images=frames[1:],
+                   duration=round(1000 / fps), loop=0, optimize=True)
+    return out.getvalue()

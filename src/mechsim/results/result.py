@@ -434,6 +434,13 @@ class SimulationResult:
         from .animation import animate
         return animate(self, path, trace, fps, exaggeration, max_frames)
 
+    def animation(self, trace=(), fps=30, exaggeration=1.0, max_frames=None):
+        """The motion drawn as `animate` draws it, as an `Animation` held in memory: a GIF
+        that Jupyter shows inline (the last value of a cell), `.save(path)` writes, and
+        whose `pace` says how fast it plays against real time."""
+        from .animation import animation_gif
+        return animation_gif(self, trace, fps, exaggeration, max_frames)
+
     def export(self, path, every: int = 1) -> Path:
         """Write the motion as a meshio time series (`.xdmf` opens in ParaView, its data in
         HDF5 beside it where h5py is installed; `.vtu` gives one binary file per output time
