@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from .model import (Driver, FlexibleBeam, Force, LoadError, ModelError, RotationalSpring,
-                    Spring)
+from .model import (Driver, FlexibleBeam, Force, LoadError, ModelError, RigidBody,
+                    RotationalSpring, Spring)
 from .model.forces import load_points
 from .model.checks import call_user
 from .problem import FlexibleData, NumericProblem, PointLoad, RotationalSpringData, SpringData
@@ -77,6 +77,7 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
     """(the NumericProblem of `mech`, whether its model came without a sympy run);
     `build`: "auto", "fused" or "assembled" (`constraint_model`; None: `build_mode()`)."""
     items = mech.joints + mech.drivers
+    mass_diagonal(mech)                   # a point mass that can turn refused before a build
     model, from_cache = constraint_model(mech, items, build_mode(build))
     starts = body_starts(mech)
     params = [x for item in items for x in item.parameter_values()] + \
@@ -89,7 +90,7 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
             kinds.append("driver" if isinstance(item, Driver) else "joint")
     joints = joint_geometry(mech, starts)
     springs, loads, torsion = _load_data(mech, starts, joints)
-    mass = np.concatenate([b.mass_diagonal for b in mech.bodies])
+    mass = mass_diagonal(mech)
     problem = NumericProblem(model, params, mass, mech.gravity, starts, mech.coordinate_names,
                              names, owners, springs, loads, title=mech.name,
                              constraint_kinds=kinds, flexible=_flexible_data(mech, starts),
@@ -98,6 +99,41 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
                              joints=joints, torsion=torsion,
                              driver_joints={d.name: d.joint.name for d in mech.drivers})
     return problem, from_cache
+
+
+def mass_diagonal(mech) -> np.ndarray:
+    """The bodies' mass diagonals in coordinate order. A point mass (a rigid body of inertia
+    0) must be held from turning: joined by a prismatic joint to the ground or to a body so
+    held (a cross slide), else ModelError naming it. Its angle then stays constant in every
+    motion (θ̇ = θ̈ = 0), so its entry of M multiplies zero: it takes a stand-in, its mass
+    times the median squared radius of gyration of the other rigid bodies (1 m² where
+    there are none), which keeps M invertible and changes no motion, reaction or energy."""
+    points = {id(b): b for b in mech.bodies if isinstance(b, RigidBody) and b.inertia == 0.0}
+    if not points:
+        return np.concatenate([b.mass_diagonal for b in mech.bodies])
+    held = {id(mech.ground)}
+    grew = True
+    while grew:
+        grew = False
+        for j in mech.joints:
+            if j.kind == "prismatic" and (id(j.body_a) in held) != (id(j.body_b) in held):
+                held.update((id(j.body_a), id(j.body_b)))
+                grew = True
+    loose = [b.name for key, b in points.items() if key not in held]
+    if loose:
+        raise ModelError(f"mechanism '{mech.name}': body '{loose[0]}' is a point mass (inertia "
+                         "0) that its joints do not keep from turning; a point mass must "
+                         "slide on a prismatic joint to the ground (or to a body so held): "
+                         "give it an inertia (RigidBody.rectangle, .disc, .polygon compute "
+                         "one from its shape)")
+    gyration = [b.inertia / b.mass for b in mech.bodies
+                if isinstance(b, RigidBody) and b.inertia > 0.0]
+    squared = float(np.median(gyration)) if gyration else 1.0
+    out = []
+    for b in mech.bodies:
+        d = b.mass_diagonal
+        out.append(np.array([d[0], d[1], b.mass * squared]) if id(b) in points else d)
+    return np.concatenate(out)
 
 
 def joint_geometry(mech, starts) -> dict:

@@ -16,7 +16,8 @@ same tables in JSON, for files ending in .json)::
                                  # disc = radius (centred at `position`), polygon =
                                  # [[x, y], …] (its corners), with `mass` …
     [[body]]                     # … or a general rigid body (mass, inertia, position,
-                                 # angle; `outline`: its drawn shape in its own frame)
+                                 # angle; `outline`: its drawn shape in its own frame;
+                                 # inertia = 0: a point mass on a prismatic guide)
     [[body]]                     # … or an elastic beam with modal coordinates
     type = "flexible_beam"
     name = "coupler"

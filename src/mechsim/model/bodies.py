@@ -72,7 +72,8 @@ class RigidBody(Body):
     ----------
     name : str
     mass : float, kg, > 0
-    inertia : float, kg·m², > 0, about the centre of mass
+    inertia : float, kg·m², about the centre of mass; > 0, or 0 for a point mass that cannot
+        turn (held by prismatic joints to the ground: a slider block; `point_mass`)
     position, velocity : 2-vectors, initial state of the centre of mass
     angle, angular_velocity : float, rad and rad/s
     """
@@ -84,7 +85,7 @@ class RigidBody(Body):
         super().__init__(name)
         owner = f"body '{name}'"
         self.mass = scalar(mass, "mass", owner, positive=True)
-        self.inertia = scalar(inertia, "inertia", owner, positive=True)
+        self.inertia = scalar(inertia, "inertia", owner, nonnegative=True)
         self.position = vector2(position, "position", owner)
         self.angle = scalar(angle, "angle", owner)
         self.velocity = vector2(velocity, "velocity", owner)
@@ -106,6 +107,14 @@ class RigidBody(Body):
         return cls(name, mass=m, inertia=m * length * length / 12.0, position=(a + b) / 2.0,
                    angle=math.atan2(b[1] - a[1], b[0] - a[0]), velocity=velocity,
                    angular_velocity=angular_velocity)
+
+    @classmethod
+    def point_mass(cls, name: str, position, mass: float, velocity=(0.0, 0.0)) -> "RigidBody":
+        """A mass without rotational inertia at `position` (a slider, a piston, a block whose
+        size does not matter). Its rotation must be held by the joints: it slides on a
+        prismatic joint to the ground, or to a body so held (the mechanism's build refuses
+        it otherwise, naming it); since it then never turns, the motion is exact."""
+        return cls(name, mass=mass, inertia=0.0, position=position, velocity=velocity)
 
     @classmethod
     def rectangle(cls, name: str, center, width: float, height: float, mass: float,
