@@ -19,6 +19,7 @@ from .options import Option, check_all, check_memory, unknown_names
 from .problem import NumericProblem
 from .results import SimulationResult, Switch
 from .run import Run, Settings
+from .threads import run_threads
 
 
 def output_times(t0: float, t_end: float, output_step: float | None) -> np.ndarray | None:
@@ -195,8 +196,9 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     settings = Settings(t_start, t_end, rtol, atol, max_step, first_step, h, max_steps,
                         output_times(t_start, t_end, output_step), checked["work"],
                         checked["progress"], stream)
-    res = Run(problem, form, solver_cls, settings, q0, v0, method=cls.name,
-              fully_driven=fully_driven).execute()
+    with run_threads():
+        res = Run(problem, form, solver_cls, settings, q0, v0, method=cls.name,
+                  fully_driven=fully_driven).execute()
     # What `SimulationResult.extend` goes on with.
     res.settings = dict(method=cls.name, integrator=integrator, rtol=rtol, atol=atol,
                         max_step=max_step, output_step=output_step,

@@ -27,6 +27,7 @@ import numpy as np
 
 from .. import dense
 from ..newton import newton
+from ..threads import in_run_threads
 
 # A Newton correction beyond this share of the predicted motion sends the step to halves.
 JUMP = 0.1
@@ -88,6 +89,7 @@ class _Kinematics:
         return None if middle is None else self.advance(t0 + 0.5 * h, middle, t1, depth + 1)
 
 
+@in_run_threads
 def kinematic_analysis(mech, t_end: float | None = None, output_step: float | None = None,
                        t_start: float = 0.0, over=None, tol: float = 1e-12):
     """Positions, velocities and accelerations of the fully driven `mech` at t_start,

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .reduced import ReducedCoordinates
+from ..threads import in_run_threads
 
 # Equilibrium: ‖g‖∞ below this share of the generalized forces' size (‖R_j‖ ‖Q‖).
 RESIDUAL = 1e-9
@@ -106,6 +107,7 @@ class Equilibrium:
         return float(self.result.driver_effort(driver)[0])
 
 
+@in_run_threads
 def equilibrium(mech, t: float = 0.0, tol: float = RESIDUAL, max_iter: int = 200) -> Equilibrium:
     """The static equilibrium of `mech` nearest its assembled state (module docstring)."""
     from scipy.optimize import root

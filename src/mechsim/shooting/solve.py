@@ -8,6 +8,8 @@ from typing import Callable
 
 import numpy as np
 
+from ..threads import in_run_threads
+
 
 @dataclass
 class ShootingResult:
@@ -217,6 +219,7 @@ def _newton(problem, guess, tol, max_iter, max_halvings=30, xtol=None, **_):
 SHOOTING_METHODS = {"warner": _warner, "newton": _newton}
 
 
+@in_run_threads
 def solve(problem, guess, method: str = "warner", tol: float = 1e-6, max_iter: int = 50,
           scale: float = 1.01, guesses=None, floquet: bool = True,
           max_halvings: int = 30, xtol: float | None = None) -> ShootingResult:

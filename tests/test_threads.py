@@ -1,0 +1,50 @@
+"""A run holds the BLAS libraries to one thread while it works, unless the user chose."""
+
+from threadpoolctl import threadpool_info
+
+import mechsim as ms
+from mechsim.threads import USER_VARIABLES
+
+
+def blas_threads():
+    return [pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"]
+
+
+def probed_pendulum(seen):
+    """A pendulum with a force that records the BLAS thread counts when first called."""
+    mech = ms.examples.pendulum()
+
+    def push(t):
+        if not seen:
+            seen.append(blas_threads())
+        return (0.0, 0.0)
+    mech.add(ms.Force(mech.body("rod"), push, at=(0.5, 0.0)))
+    return mech
+
+
+def test_a_run_uses_one_blas_thread_and_gives_them_back(monkeypatch):
+    for name in USER_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    before = blas_threads()
+    assert before, "numpy's BLAS is not visible to threadpoolctl"
+    seen = []
+    res = probed_pendulum(seen).simulate(0.05)
+    assert res.success and seen and all(n == 1 for n in seen[0])
+    after = blas_threads()          # scipy's BLAS may have been loaded during the run
+    assert after[:len(before)] == before and max(after) == max(before)
+
+
+def test_a_users_thread_count_is_left_alone(monkeypatch):
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    before = blas_threads()
+    seen = []
+    probed_pendulum(seen).simulate(0.05)
+    assert seen and seen[0][:len(before)] == before
+
+
+def test_equilibrium_uses_one_blas_thread(monkeypatch):
+    for name in USER_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    seen = []
+    probed_pendulum(seen).equilibrium()
+    assert seen and all(n == 1 for n in seen[0])
