@@ -3,7 +3,6 @@ same tables in JSON, for files ending in .json)::
 
     name = "four-bar"
     gravity = [0.0, -9.81]
-
     [parameters]                 # numbers or expressions of earlier parameters
     L = 1.0
     tilt = "radians(10)"
@@ -12,12 +11,10 @@ same tables in JSON, for files ending in .json)::
     name = "crank"
     rod = [[0, 0], ["L*cos(tilt)", "L*sin(tilt)"]]
     mass = 1.0
-    [[body]]                     # … or a uniform shape: rectangle = [width, height] or
-                                 # disc = radius (centred at `position`), polygon =
-                                 # [[x, y], …] (its corners), with `mass` …
-    [[body]]                     # … or a general rigid body (mass, inertia, position,
-                                 # angle; `outline`: its drawn shape in its own frame;
-                                 # inertia = 0: a point mass on a prismatic guide)
+    [[body]]                     # … or a uniform plate: rectangle = [width, height] or
+                                 # disc = radius at `position`, or polygon = its corners
+    [[body]]                     # … or mass, inertia (0: a point mass on a prismatic
+                                 # guide), position, angle, outline (drawn, body frame)
     [[body]]                     # … or an elastic beam with modal coordinates
     type = "flexible_beam"
     name = "coupler"
@@ -31,43 +28,36 @@ same tables in JSON, for files ending in .json)::
     name = "A"
     bodies = ["ground", "crank"]
     at = [0, 0]
-
     [[driver]]  joint = "A", expression = "150*t"   # in t and the parameters
     [[spring]]  bodies = [a, b], at_a, at_b, stiffness, rest_length, damping
     [[rotational_spring]]  bodies = [a, b], stiffness, damping, rest_angle
     [[force]]   body, force = [fx, fy], at
     [[torque]]  body, torque
     [[speed]]   joint, rate     # the joint's initial rate (Mechanism.set_speed)
-    [[channel]] name, expression, unit   # a recorded quantity (mechsim.Channel): an
-                # expression of t, coordinates ("crank.angle"), their rates and
-                # accelerations ("crank.angle.rate", "crank.angle.acceleration"), joint
-                # coordinates and rates ("A.coordinate", "A.rate") and the parameters
-
+    [[channel]] name, expression, unit   # a recorded quantity (mechsim.Channel), in t,
+                # "crank.angle", "crank.angle.rate", "….acceleration", "A.coordinate",
+                # "A.rate" and the parameters
     [simulation]                 # keyword arguments of Mechanism.simulate
     t_end = 2.0
     method = "baumgarte"
-
     [output]
-    plots = ["energy"]           # written to the output directory (also "reactions",
-                                 # "efforts")
+    plots = ["energy"]           # also "reactions", "efforts"
     reactions = ["A", "B"]       # joints whose peak forces the summary prints (true: all)
     efforts = true               # the drivers' peak and RMS effort and power
     animate = true               # <scene>.gif of the motion, tracing `points`
     save = true                  # result as <scene>.npz
     export = "motion.xdmf"       # meshio time series of the bodies (ParaView)
-    table = "motion.csv"         # time, coordinates and rates, `points`, the `reactions`
-                                 # joints' forces, the drivers' efforts (with `efforts`)
-                                 # and the channels, one column each with its unit
+    table = "motion.csv"         # coordinates, rates, `points`, `reactions`, efforts, channels
     points = [["coupler", [0.5, 0.0]]]   # final positions printed in the summary
     directory = "out/four_bar"   # relative, inside the working directory
 
-Numbers may be given as expressions (``+ − * / **``, pi, sin, cos, tan, sqrt, radians,
-degrees, …) of the parameters; they are parsed by `mechsim.model.expressions`, not by `eval`, so a
-scene cannot run code. Every table and key is checked against one schema (`SCHEMA`, and
-for `[simulation]` the settings of `mechsim.solver.simulate` and of every method) before
-anything is built or run: an unknown key (with the closest valid one), a value of the wrong
-type, a missing key, an output path leaving the output directory or an unknown plot is a
-`SceneError` naming the file, the table and the key.
+Numbers may be expressions (``+ − * / **``, pi, sin, …, radians, degrees) of the
+parameters, parsed by `mechsim.model.expressions`, never by `eval`: a scene cannot run
+code. Every table and key is checked against one schema (`SCHEMA`; `[simulation]` against
+the settings of `mechsim.solver.simulate` and every method) before anything is built or
+run: an unknown key (with the closest valid one), a wrong type, a missing key, an output
+path leaving the output directory or an unknown plot is a `SceneError` naming the file,
+the table and the key.
 """
 
 from __future__ import annotations

@@ -27,7 +27,7 @@ def chosen_by_user() -> bool:
 def run_threads():
     """Within the block, BLAS runs on one thread (threadpoolctl), unless the user chose a
     count (`chosen_by_user`); the previous limits come back when it ends, also on an
-    exception. Nested blocks cost ~0.1 ms each."""
+    exception."""
     if chosen_by_user():
         yield
         return
