@@ -359,7 +359,8 @@ class Run:
         check_finite(self.problem, t_new, q_new, v_new)
         self.runaway.note(self.stats.steps, t_new - t_old, v_new)
         self.monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
-                             t_old=t_old)
+                             t_old=t_old, positions_at=lambda ts: form.positions(
+                                 ts, np.atleast_2d(dense(ts).T)))
         form.last_step = t_new - t_old
         form.layout_changed = False
         corrected = form.after_step(t_new, y_new)

@@ -146,6 +146,9 @@ def library(model):
         fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double] + \
             [ctypes.c_void_p] * 2
         fn.restype = ctypes.c_int
+        fn = lib.mechsim_ratios
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 3
+        fn.restype = ctypes.c_int
         fn = lib.mechsim_multipliers
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 4 + \
             [ctypes.c_double] * 2 + [ctypes.c_void_p] * 2
@@ -269,6 +272,7 @@ class ProjectionEngine:
         self._fn = lib.mechsim_projection_accelerations
         self._project = lib.mechsim_project_state
         self._measure = lib.mechsim_measure
+        self._ratios = lib.mechsim_ratios
         self._lu_condition = lib.mechsim_lu_condition
         self._multipliers = lib.mechsim_multipliers
         self.counters = problem.counters
@@ -322,6 +326,16 @@ class ProjectionEngine:
             return None
         smin, smax, dmin, dmax = out[:4].tolist()
         return smin, smax, dmin, dmax, out[4:].copy(), self.Jt.copy()
+
+    def ratios(self, T, Q):
+        """σ_min/σ_max of J̃ = Φ_q M^{-1/2} at each state (T[i], Q[i]), shape (k,) (0 where
+        σ_max is 0); None where an SVD fails. Needs m ≤ n."""
+        T = np.ascontiguousarray(T, dtype=float)
+        Q = np.ascontiguousarray(Q, dtype=float)
+        out = np.empty(len(T))
+        if self._ratios(self._ptr, len(T), T.ctypes.data, Q.ctypes.data, out.ctypes.data):
+            return None
+        return out
 
     def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam):
         """λ at the states (T[i], Q[i], V[i]) under the applied forces F[i] into the rows

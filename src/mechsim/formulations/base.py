@@ -144,6 +144,12 @@ class Formulation:
         pairs = [self.state(t, y) for t, y in zip(ts, Y)]
         return np.array([q for q, _ in pairs]), np.array([v for _, v in pairs])
 
+    def positions(self, ts: np.ndarray, Y: np.ndarray) -> np.ndarray:
+        """Q with rows q of `state(t, y)` for each time of `ts` and row of Y (what the
+        singularity monitor measures inside a step); a formulation whose positions take a
+        solve overrides it to solve for all at once."""
+        return np.array([self.state(t, y)[0] for t, y in zip(ts, Y)])
+
     def after_step(self, t: float, y: np.ndarray) -> np.ndarray | None:
         return None
 

@@ -46,6 +46,9 @@ class FullCoordinates(Formulation):
             settle_samples(self.problem, ts, Q, V, 0.01 * self.projection_tol)
         return Q, V
 
+    def positions(self, ts, Y):
+        return np.array(Y[:, :self.n])
+
     def accelerations(self, t, q, v) -> np.ndarray:
         raise NotImplementedError
 

@@ -91,6 +91,9 @@ class Hybrid(Formulation):
     def states(self, ts, Y):
         return self.active.states(ts, Y)
 
+    def positions(self, ts, Y):
+        return self.active.positions(ts, Y)
+
     def derivative(self, t, q, v):
         return self.active.derivative(t, q, v)
 

@@ -32,7 +32,6 @@ while large steps, which move J̃ a lot, are measured every time.
 
 from __future__ import annotations
 
-import collections
 from dataclasses import dataclass
 
 import numpy as np
@@ -211,10 +210,12 @@ class SingularityMonitor:
             return True, J
         return False, J
 
-    def observe(self, t, q, v=None, state_at=None, t_old=None) -> float:
+    def observe(self, t, q, v=None, state_at=None, t_old=None, positions_at=None) -> float:
         """Take the state at an accepted step that began at `t_old`. `state_at(t) -> (q, v)`
         evaluates the step's dense output, used to confirm a minimum hidden inside the
-        step. Returns s/peak (the latest measured value when this step was skipped)."""
+        step; `positions_at(times) -> Q` (k, n), where given, the configurations at many
+        times at once, which the search measures together. Returns s/peak (the latest
+        measured value when this step was skipped)."""
         if self._prev is None:
             self.t_first = t
         floor = self._floor if self._skipped else None
@@ -243,7 +244,8 @@ class SingularityMonitor:
         self.last, self.rate = s, rate
         if prev is not None and state_at is not None:
             for dip in self._hidden_passages(prev, (t, s, rate), state_at,
-                                             max(speed_before, self._ratio_speed)):
+                                             max(speed_before, self._ratio_speed),
+                                             positions_at):
                 here = self.open_passage
                 if here is not None and dip.at_start:          # the open passage goes on
                     if dip.s_min < here.s_min:
@@ -292,7 +294,27 @@ class SingularityMonitor:
         dJ = sparse.difference(self._jacobian(q + eps * v, t + eps), J, 1.0 / eps)
         return 2.0 * sparse.frobenius(dJ) / smax
 
-    def _hidden_passages(self, a, b, state_at, ratio_speed=0.0) -> list[Dip]:
+    def ratios(self, times, Q) -> np.ndarray:
+        """σ_min/σ_max of J̃ (not normalized) at each configuration Q[i] at times[i], shape
+        (k,): in one call of the compiled engine, or by one stacked SVD of the dense J̃ of a
+        small mechanism, else one `measure` each."""
+        if self.engine is not None:
+            got = self.engine.ratios(times, Q)
+            if got is not None:
+                return got
+        if self.problem.m > SEARCH_MAX_ROWS or self.problem.schur is not None or \
+                not self.problem.m:
+            return np.array([self.measure(q, tk)[0] for tk, q in zip(times, Q)])
+        J = np.array([sparse.dense(self._jacobian(q, tk)) for tk, q in zip(times, Q)])
+        sig = np.linalg.svd(J, compute_uv=False)
+        k = self.problem.m - 1 - self.redundant
+        if k < 0 or k >= sig.shape[1]:
+            return np.zeros(len(times))
+        top = sig[:, 0]
+        return np.where(top > 0.0, sig[:, k] / np.where(top > 0.0, top, 1.0), 0.0)
+
+    def _hidden_passages(self, a, b, state_at, ratio_speed=0.0,
+                         positions_at=None) -> list[Dip]:
         """The dips of s inside the step from a = (t0, s0/peak, rate) to b, in time order
         (s0 may be a lower bound of s at t0, with rate 0); a dip that holds t0 continues
         the open passage.
@@ -326,6 +348,11 @@ class SingularityMonitor:
         def s_at(tk):
             return self.measure(state_at(tk)[0], tk)[0]
 
+        def s_many(times):
+            if positions_at is None or len(times) < 2:
+                return [s_at(tk) for tk in times]
+            return self.ratios(times, positions_at(np.array(times))).tolist()
+
         # Enough evaluations to cover the step with intervals the bound can clear (a
         # large mechanism's SVD costs milliseconds: there the rates seen bound the search).
         budget = int(min(4000, 16 + 4 * rate_bound * h / max((s0 + s1) * peak, enter)))
@@ -334,18 +361,22 @@ class SingularityMonitor:
         apart = 2.0 * (leave - enter) / rate_bound
         seen = {t0: s0 * peak, t1: s1 * peak}
         lows = [tk for tk, sk in seen.items() if sk < enter]
-        stack = collections.deque([(t0, s0 * peak, t1, s1 * peak)])
-        while stack and budget > 0:
-            ta, sa, tb, sb = stack.popleft()
-            if (sa + sb) - rate_bound * (tb - ta) >= 2.0 * enter or tb - ta < 1e-9 * h or \
-                    _covered(ta, tb, lows, apart):
-                continue
-            tm = 0.5 * (ta + tb)
-            sm = seen[tm] = s_at(tm)
-            budget -= 1
-            if sm < enter:
-                lows.append(tm)
-            stack += [(ta, sa, tm, sm), (tm, sm, tb, sb)]
+        # Breadth first, a level of halvings at a time: the midpoints of every interval
+        # of a level not yet cleared are measured together.
+        level = [(t0, s0 * peak, t1, s1 * peak)]
+        while level and budget > 0:
+            open_ = [(ta, sa, tb, sb) for ta, sa, tb, sb in level
+                     if not ((sa + sb) - rate_bound * (tb - ta) >= 2.0 * enter or
+                             tb - ta < 1e-9 * h or _covered(ta, tb, lows, apart))][:budget]
+            mids = [0.5 * (ta + tb) for ta, _, tb, _ in open_]
+            values = s_many(mids)
+            budget -= len(mids)
+            level = []
+            for (ta, sa, tb, sb), tm, sm in zip(open_, mids, values):
+                seen[tm] = sm
+                if sm < enter:
+                    lows.append(tm)
+                level += [(ta, sa, tm, sm), (tm, sm, tb, sb)]
         times = sorted(seen)
         values = [seen[tk] for tk in times]
         last = len(times) - 1

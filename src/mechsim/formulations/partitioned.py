@@ -315,17 +315,28 @@ class Partitioned(Formulation):
             r -= prob.phi_t(q, t)
         return q, bs.assemble(zd, bs.block(J).solve(r))
 
-    def _solve_samples(self, ts, Y):
+    def positions(self, ts, Y):
+        """The configurations at the times `ts` inside a step, solved together
+        (`_solve_samples`), or one by one where those are not solved together."""
+        if len(ts) < 2 or not self._square or self.basis.sparse:
+            return super().positions(ts, Y)
+        return self._solve_samples(ts, Y, alone=self._alone)[0]
+
+    def _alone(self, ts, Y):
+        return super().positions(ts, Y), None
+
+    def _solve_samples(self, ts, Y, alone=None):
         """The output samples of a step, solved for together: the chord Newton on all
         samples at once (one product with the chord factor and one convergence test per
         iteration for all of them), then the velocity solves stacked in one LAPACK call.
         The model's functions still run once per sample: on a step's dozen samples numpy
         ufuncs over all of them cost twice as much as the scalar kernels one by one. A
         chord that stalls on any sample, a non-square Φ_q D (redundant constraints), a
-        singular or a sparse one (long chains) leaves the samples to `state`, one by one."""
+        singular or a sparse one (long chains) leaves the samples to `alone(ts, Y)` (by
+        default `state`, one by one)."""
         prob, bs = self.problem, self.basis
         if len(ts) < 2 or not self._square or bs.sparse:
-            return super().states(ts, Y)
+            return (alone or super().states)(ts, Y)
         if self.engine is not None and self.engine.ready:
             done = self.engine.states(ts, Y)
             if done is not None:
@@ -347,7 +358,7 @@ class Partitioned(Formulation):
                       stall=self.stall, round_off=ROUND_OFF,
                       contraction=CHORD_CONTRACTION)
         if not done.converged:
-            return super().states(ts, Y)
+            return (alone or super().states)(ts, Y)
         Q = done.aux
         J = np.array([prob.phi_q(q, t) for q, t in zip(Q, ts)])       # (k, m, n)
         r = -(bs.JB(J) @ Zd[:, :, None])[:, :, 0]
@@ -356,7 +367,7 @@ class Partitioned(Formulation):
         try:
             Wd = np.linalg.solve(bs.JD(J), r[:, :, None])[:, :, 0]
         except np.linalg.LinAlgError:
-            return super().states(ts, Y)
+            return (alone or super().states)(ts, Y)
         return Q, bs.assemble(Zd.T, Wd.T).T
 
     def rhs(self, t, y):
