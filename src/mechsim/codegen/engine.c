@@ -397,6 +397,25 @@ int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, doub
   return 0;
 }
 
+/* The k states (T[i], Q[i, :], V[i, :]) projected in place, each as mechsim_project_state
+   with skip_tol = tol = tols[i] (no condition test, no extra iterations): status[i] is 0
+   (projected), 2 (within tols[i] already, left) or 1 (declined: left, for the Python
+   path). Output samples of a step settled in one call. */
+void mechsim_project_states(mechsim_projection *c, int64_t k, const double *T, double *Q,
+                            double *V, const double *tols, int64_t max_iter,
+                            int64_t *status) {
+  const int64_t n = c->n;
+  for (int64_t i = 0; i < k; i++) {
+    memcpy(c->q, Q + i * n, n * sizeof(double));
+    memcpy(c->v, V + i * n, n * sizeof(double));
+    status[i] = mechsim_project_state(c, T[i], tols[i], tols[i], -1.0, 0, max_iter);
+    if (status[i] == 0) {
+      memcpy(Q + i * n, c->q, n * sizeof(double));
+      memcpy(V + i * n, c->v, n * sizeof(double));
+    }
+  }
+}
+
 /* ---- the singularity monitor and the hybrid's LU test ---- */
 
 /* J~ = Phi_q W^(1/2) at (q, t) into Jt (row-major m x n). */

@@ -146,6 +146,10 @@ def library(model):
         fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double] + \
             [ctypes.c_void_p] * 2
         fn.restype = ctypes.c_int
+        fn = lib.mechsim_project_states
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 4 + \
+            [ctypes.c_int64, ctypes.c_void_p]
+        fn.restype = None
         fn = lib.mechsim_ratios
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 3
         fn.restype = ctypes.c_int
@@ -273,6 +277,7 @@ class ProjectionEngine:
         self._project = lib.mechsim_project_state
         self._measure = lib.mechsim_measure
         self._ratios = lib.mechsim_ratios
+        self._project_many = lib.mechsim_project_states
         self._lu_condition = lib.mechsim_lu_condition
         self._multipliers = lib.mechsim_multipliers
         self.counters = problem.counters
@@ -326,6 +331,18 @@ class ProjectionEngine:
             return None
         smin, smax, dmin, dmax = out[:4].tolist()
         return smin, smax, dmin, dmax, out[4:].copy(), self.Jt.copy()
+
+    def project_states(self, T, Q, V, tols, max_iter=8):
+        """`project_state` of each state (T[i], Q[i], V[i]) to tols[i] in one call, Q and V
+        (C-contiguous float arrays) changed in place: (k,) status, 0 projected, 2 within
+        its tolerance already, 1 declined (left for the Python path)."""
+        T = np.ascontiguousarray(T, dtype=float)
+        tols = np.ascontiguousarray(tols, dtype=float)
+        status = np.empty(len(T), dtype=np.int64)
+        self._project_many(self._ptr, len(T), T.ctypes.data, Q.ctypes.data, V.ctypes.data,
+                           tols.ctypes.data, max_iter, status.ctypes.data)
+        self.counters.projections += int(np.count_nonzero(status == 0))
+        return status
 
     def ratios(self, T, Q):
         """σ_min/σ_max of J̃ = Φ_q M^{-1/2} at each state (T[i], Q[i]), shape (k,) (0 where

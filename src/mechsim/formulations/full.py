@@ -17,6 +17,8 @@ from .basis import ConstraintSolveError
 # An output sample is projected onto the constraints where it leaves them by more than this
 # (relative to its largest coordinate, at least 1).
 ROUND_OFF = 1e-13
+# Stacked Newton steps that settle a step's output samples onto the constraints at most.
+SETTLE_STEPS = 4
 
 
 class FullCoordinates(Formulation):
@@ -43,7 +45,8 @@ class FullCoordinates(Formulation):
         where the steps held 3e-13)."""
         Q, V = np.array(Y[:, :self.n]), np.array(Y[:, self.n:])
         if self.projection:
-            settle_samples(self.problem, ts, Q, V, 0.01 * self.projection_tol)
+            settle_samples(self.problem, ts, Q, V, 0.01 * self.projection_tol,
+                           getattr(self, "engine", None))
         return Q, V
 
     def positions(self, ts, Y):
@@ -88,19 +91,31 @@ class FullCoordinates(Formulation):
         return self.problem.project_velocities(q, v, t)
 
 
-def settle_samples(problem, ts, Q, V, accept) -> None:
+def settle_samples(problem, ts, Q, V, accept, engine=None) -> None:
     """Project each output sample (rows of Q, V at times ts, in place) onto the constraints,
     positions then velocities in the mass metric, where it leaves them by more than
-    round-off (`ROUND_OFF` of its largest coordinate). Rigid mechanisms take one Newton
-    step for all such samples at once (stacked Schur complements; a sample off by an
-    integrator's error lands within round-off) and each velocity its projection at the new
-    positions; a sample that does not land, every sample of a long chain (whose banded
+    round-off (`ROUND_OFF` of its largest coordinate). Rigid mechanisms take Newton steps
+    for all such samples at once (stacked Schur complements, `_settle_together`) and each
+    velocity its projection at the new positions; a sample that does not land, every sample of a long chain (whose banded
     complement costs O(n) where a stacked dense one costs O(n³)) and every sample of a
     flexible mechanism, is
     projected on its own (`NumericProblem.project_state`, the full projections where its
     chord fails). A sample at a singular configuration, where the projection ends above
-    `accept`, is kept as it was."""
+    `accept`, is kept as it was. With the compiled `engine` every sample is first
+    projected in C, in one call (`ProjectionEngine.project_states`)."""
     if not problem.m or not len(ts):
+        return
+    if engine is not None:
+        floors = ROUND_OFF * np.maximum(1.0, np.max(np.abs(Q), axis=1))
+        Qc, Vc = np.ascontiguousarray(Q), np.ascontiguousarray(V)
+        status = engine.project_states(ts, Qc, Vc, floors)
+        Q[:], V[:] = Qc, Vc
+        left = np.flatnonzero(status == 1)
+        if not left.size:
+            return
+        sub_Q, sub_V = Q[left], V[left]
+        settle_samples(problem, np.asarray(ts)[left], sub_Q, sub_V, accept)
+        Q[left], V[left] = sub_Q, sub_V
         return
     floors = ROUND_OFF * np.maximum(1.0, np.max(np.abs(Q), axis=1))
     phis = np.array([problem.phi(q, t) for q, t in zip(Q, ts)])
@@ -121,18 +136,26 @@ def settle_samples(problem, ts, Q, V, accept) -> None:
 
 
 def _settle_together(problem, ts, Q, V, phis, floors, off):
-    """One stacked Newton step (constant diagonal mass) for the samples `off`; returns the
-    ones it did not bring within their floor."""
+    """Newton steps (constant diagonal mass), stacked for the samples `off` that have not
+    landed within their floor, at most `SETTLE_STEPS` (a sample off by a long step's error,
+    1e-4, lands in two or three), then each landed sample's velocity projection, stacked;
+    returns the ones it did not bring within their floor."""
     w = problem.inverse_mass_diagonal
     tk = ts[off]
-    J = np.array([problem.phi_q(Q[k], t) for k, t in zip(off, tk)])        # (s, m, n)
-    try:
-        lam = np.linalg.solve((J * w) @ J.transpose(0, 2, 1), phis[off][..., None])
-    except np.linalg.LinAlgError:
-        return off
-    q_new = Q[off] - w * np.einsum("smn,sm->sn", J, lam[..., 0])
-    landed = np.array([np.max(np.abs(problem.phi(q, t))) <= f
-                       for q, t, f in zip(q_new, tk, floors[off])])
+    q_new, phi = Q[off].copy(), phis[off]
+    landed = np.zeros(len(off), dtype=bool)
+    for _ in range(SETTLE_STEPS):
+        todo = np.flatnonzero(~landed)
+        J = np.array([problem.phi_q(q_new[i], tk[i]) for i in todo])       # (s, m, n)
+        try:
+            lam = np.linalg.solve((J * w) @ J.transpose(0, 2, 1), phi[todo][..., None])
+        except np.linalg.LinAlgError:
+            break
+        q_new[todo] -= w * np.einsum("smn,sm->sn", J, lam[..., 0])
+        phi[todo] = [problem.phi(q_new[i], tk[i]) for i in todo]
+        landed[todo] = np.max(np.abs(phi[todo]), axis=1) <= floors[off][todo]
+        if landed.all():
+            break
     if not np.any(landed):
         return off
     idx, q_new, tk = off[landed], q_new[landed], tk[landed]

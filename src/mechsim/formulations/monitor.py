@@ -294,6 +294,13 @@ class SingularityMonitor:
         dJ = sparse.difference(self._jacobian(q + eps * v, t + eps), J, 1.0 / eps)
         return 2.0 * sparse.frobenius(dJ) / smax
 
+    @property
+    def _batched(self) -> bool:
+        """Are many states measured together (`ratios`): by the compiled engine, or by a
+        stacked SVD of a small dense J̃ (not a long chain's banded one)?"""
+        p = self.problem
+        return self.engine is not None or (0 < p.m <= SEARCH_MAX_ROWS and p.schur is None)
+
     def ratios(self, times, Q) -> np.ndarray:
         """σ_min/σ_max of J̃ (not normalized) at each configuration Q[i] at times[i], shape
         (k,): in one call of the compiled engine, or by one stacked SVD of the dense J̃ of a
@@ -302,8 +309,7 @@ class SingularityMonitor:
             got = self.engine.ratios(times, Q)
             if got is not None:
                 return got
-        if self.problem.m > SEARCH_MAX_ROWS or self.problem.schur is not None or \
-                not self.problem.m:
+        if not self._batched:
             return np.array([self.measure(q, tk)[0] for tk, q in zip(times, Q)])
         J = np.array([sparse.dense(self._jacobian(q, tk)) for tk, q in zip(times, Q)])
         sig = np.linalg.svd(J, compute_uv=False)
@@ -349,7 +355,7 @@ class SingularityMonitor:
             return self.measure(state_at(tk)[0], tk)[0]
 
         def s_many(times):
-            if positions_at is None or len(times) < 2:
+            if positions_at is None or len(times) < 2 or not self._batched:
                 return [s_at(tk) for tk in times]
             return self.ratios(times, positions_at(np.array(times))).tolist()
 
