@@ -398,9 +398,11 @@ int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, doub
 }
 
 /* The k states (T[i], Q[i, :], V[i, :]) projected in place, each as mechsim_project_state
-   with skip_tol = tol = tols[i] (no condition test, no extra iterations): status[i] is 0
-   (projected), 2 (within tols[i] already, left) or 1 (declined: left, for the Python
-   path). Output samples of a step settled in one call. */
+   with skip_tol = tol = tols[i] (no condition test, no extra iterations), the velocity
+   of a moved state projected once more on the factor at its new q (the chord's factor
+   at the old q leaves J v off by |dJ| |dv|): status[i] is 0 (projected), 2 (within
+   tols[i] already, left) or 1 (declined: left, for the Python path). Output samples of a
+   step settled in one call. */
 void mechsim_project_states(mechsim_projection *c, int64_t k, const double *T, double *Q,
                             double *V, const double *tols, int64_t max_iter,
                             int64_t *status) {
@@ -409,6 +411,25 @@ void mechsim_project_states(mechsim_projection *c, int64_t k, const double *T, d
     memcpy(c->q, Q + i * n, n * sizeof(double));
     memcpy(c->v, V + i * n, n * sizeof(double));
     status[i] = mechsim_project_state(c, T[i], tols[i], tols[i], -1.0, 0, max_iter);
+    if (status[i] == 0 && c->count > 0) {
+      /* c->J is Phi_q at the new q: its own factor makes J v + Phi_t vanish */
+      const double diag = complement(n, c->m, c->J, c->winv, c->S);
+      if (cholesky(c, c->S, diag, -1.0)) {
+        status[i] = 1;
+        continue;
+      }
+      memset(c->r, 0, c->m * sizeof(double));
+      mechsim_phi_t(c->q, T[i], c->p, c->r);
+      for (int64_t a = 0; a < c->m; a++) {
+        double s = 0.0;
+        for (int64_t j = 0; j < n; j++) s += c->J[a * n + j] * c->v[j];
+        c->r[a] += s;
+      }
+      if (correct(c, c->J, c->S, c->r, c->v)) {
+        status[i] = 1;
+        continue;
+      }
+    }
     if (status[i] == 0) {
       memcpy(Q + i * n, c->q, n * sizeof(double));
       memcpy(V + i * n, c->v, n * sizeof(double));
