@@ -151,7 +151,7 @@ MODEL = [
     ("driver huge power", lambda t: driven("9**9**9*t"), "driver 'd'.*exponent"),
     ("driver caret", lambda t: driven("t^2"), "driver 'd'.*write `\\*\\*`"),
     ("driver empty", lambda t: driven(""), "driver 'd'.*empty"),
-    ("driver None", lambda t: driven(None), "driver 'd'.*expected a number or an expression"),
+    ("driver None", lambda t: driven(None), "driver 'd': give an `expression` or a `table`"),
     ("driver attribute", lambda t: driven("t.real"), "driver 'd'.*unsupported syntax"),
     ("driver lambda", lambda t: driven("lambda t: t"), "driver 'd'.*unsupported syntax"),
     ("driver arity", lambda t: driven("sin(t, t)"), "driver 'd'.*sin takes 1 argument"),

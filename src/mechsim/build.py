@@ -78,7 +78,10 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
     `build`: "auto", "fused" or "assembled" (`constraint_model`; None: `build_mode()`)."""
     items = mech.joints + mech.drivers
     mass_diagonal(mech)                   # a point mass that can turn refused before a build
-    model, from_cache = constraint_model(mech, items, build_mode(build))
+    mode = build_mode(build)
+    if any(getattr(d, "tabulated", False) for d in mech.drivers):
+        mode = "assembled"                # a table's spline is evaluated, never generated
+    model, from_cache = constraint_model(mech, items, mode)
     starts = body_starts(mech)
     params = [x for item in items for x in item.parameter_values()] + \
         [x for item in items for x in getattr(item, "law_constants", ())]

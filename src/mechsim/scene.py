@@ -28,11 +28,11 @@ same tables in JSON, for files ending in .json)::
     name = "A"
     bodies = ["ground", "crank"]
     at = [0, 0]
-    [[driver]]  joint = "A", expression = "150*t"   # in t and the parameters
+    [[driver]]  joint = "A", expression = "150*t"   # in t and the parameters, or
+                table = [[t, value], …]              # measured: a C² spline through them
     [[spring]]  bodies = [a, b], at_a, at_b, stiffness, rest_length, damping
     [[rotational_spring]]  bodies = [a, b], stiffness, damping, rest_angle
-    [[force]]   body, force = [fx, fy], at
-    [[torque]]  body, torque
+    [[force]]   body, force = [fx, fy], at      [[torque]]  body, torque
     [[speed]]   joint, rate     # the joint's initial rate (Mechanism.set_speed)
     [[channel]] name, expression, unit   # a recorded quantity (mechsim.Channel), in t,
                 # "crank.angle", "crank.angle.rate", "….acceleration", "A.coordinate",
@@ -83,6 +83,7 @@ class SceneError(ModelError):
 MAX_SCENE_BYTES = 4 * 2 ** 20
 PLOTS = ("energy", "reactions", "efforts")
 MAX_VERTICES = 10_000           # points of a polygon or an outline
+MAX_ROWS = 100_000              # rows of a driver's table
 
 
 def evaluate(text, names: dict, where: str) -> float:
@@ -144,7 +145,7 @@ SCHEMA = {
                       "angular_velocity": "number"},
     "joint": {"type": ("revolute", "prismatic"), "name": "name", "bodies": "bodies",
               "at": "vector", "local_a": "vector", "local_b": "vector", "axis": "vector"},
-    "driver": {"joint": "name", "expression": "driver", "name": "name"},
+    "driver": {"joint": "name", "expression": "driver", "name": "name", "table": "rows"},
     "spring": {"bodies": "bodies", "at_a": "vector", "at_b": "vector", "stiffness": "number",
                "rest_length": "number", "damping": "number", "name": "name"},
     "force": {"body": "name", "force": "vector", "at": "vector", "name": "name"},
@@ -160,7 +161,7 @@ SCHEMA = {
 REQUIRED = {
     "body": ("name",), "flexible_beam": ("name", "start", "youngs_modulus", "density", "area",
                                          "second_moment"),
-    "joint": ("type", "bodies"), "driver": ("joint", "expression"),
+    "joint": ("type", "bodies"), "driver": ("joint",),
     "spring": ("bodies", "at_a", "at_b", "stiffness"), "force": ("body", "force"),
     "torque": ("body", "torque"), "rotational_spring": ("bodies", "stiffness"), "output": (),
     "speed": ("joint", "rate"), "channel": ("name", "expression"),
@@ -223,6 +224,11 @@ class _Reader:
                 raise self.error(where, f"expected an array of {what}, got {_show(value)}")
             item = {"vector": "number", "segment": "vector", "bodies": "name"}[kind]
             return tuple(self.value(item, v, where) for v in value)
+        if kind == "rows":
+            if not isinstance(value, list) or not 1 <= len(value) <= MAX_ROWS:
+                raise self.error(where, f"expected an array of up to {MAX_ROWS} rows "
+                                        f"[t, value], got {_show(value)}")
+            return [self.value("vector", v, where) for v in value]
         if kind == "polygon":
             if not isinstance(value, list) or not 3 <= len(value) <= MAX_VERTICES:
                 raise self.error(where, f"expected an array of 3 to {MAX_VERTICES} points "
@@ -435,8 +441,10 @@ def _build(r, name, gravity, tables) -> Mechanism:
         if t["joint"] not in joints:
             raise r.error(where, f"no joint named {t['joint']!r}; joints: "
                                  f"{', '.join(joints) or '(none)'}")
-        make(where, lambda: mech.add(Driver(joints[t["joint"]], t["expression"],
-                                            name=t.get("name"))))
+        if ("expression" in t) == ("table" in t):
+            raise r.error(where, "needs an `expression` or a `table`, one of them")
+        make(where, lambda: mech.add(Driver(joints[t["joint"]], t.get("expression"),
+                                            name=t.get("name"), table=t.get("table"))))
     for where, t in tables["spring"]:
         a, b = (_body(r, mech, n, where) for n in t["bodies"])
         kw = {k: t[k] for k in ("rest_length", "damping", "name") if k in t}

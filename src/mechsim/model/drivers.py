@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+
+import numpy as np
+
 from .checks import ModelError, name_or_default
 from .expressions import parse
 from .joints import Joint
@@ -9,7 +12,8 @@ from .joints import Joint
 
 class Driver:
     """Prescribe the coordinate of `joint` (relative angle of a revolute, translation of a
-    prismatic) as `expression` in t, measured from its value in the initial configuration:
+    prismatic) as `expression` in t (or a `table` of measured values, see `TableLaw`),
+    measured from its value in the initial configuration:
 
         coordinate(q) − coordinate(q₀) = f(t)
 
@@ -25,7 +29,8 @@ class Driver:
     parameter_names = ("offset",)
     equation_labels = ("coordinate",)
 
-    def __init__(self, joint: Joint, expression, name: str | None = None):
+    def __init__(self, joint: Joint, expression=None, name: str | None = None, *,
+                 table=None):
         if not isinstance(joint, Joint):
             raise ModelError(f"driver: `joint` must be a joint, got {joint!r}")
         if type(joint).coordinate is Joint.coordinate:
@@ -33,8 +38,19 @@ class Driver:
                              "coordinate to prescribe")
         self.joint = joint
         self.name = name_or_default(name, f"driver({joint.name})", "driver")
-        self.law = parse(expression, {"t"}, f"driver '{self.name}' `expression`")
+        if (expression is None) == (table is None):
+            raise ModelError(f"driver '{self.name}': give an `expression` or a `table`, "
+                             "one of them")
+        if table is not None:
+            self.law = TableLaw(table, f"driver '{self.name}' `table`")
+        else:
+            self.law = parse(expression, {"t"}, f"driver '{self.name}' `expression`")
         self.expression = self.law.text
+
+    @property
+    def tabulated(self) -> bool:
+        """Is its law a table (`TableLaw`)? Such a driver runs on the assembled build."""
+        return isinstance(self.law, TableLaw)
 
     def value(self, t: float) -> float:
         """f(t), the prescribed change of the joint's coordinate (float arithmetic)."""
@@ -71,3 +87,83 @@ class Driver:
 
     def __repr__(self):
         return f"Driver({self.joint.name!r}, {self.expression!r})"
+
+
+# How far past its first and last time a table's spline is evaluated, in its span.
+REACH = 1e-6
+
+
+class TableLaw:
+    """A drive's law given as data: `table` = (times, values), or rows (t, value), with
+    times strictly increasing, at least 4 points, finite. Between them the not-a-knot cubic
+    spline through every point (scipy's CubicSpline): twice continuously differentiable,
+    so the prescribed rate and acceleration are continuous and the reactions and efforts
+    smooth. Defined on [times[0], times[-1]] only: a run must stay inside it
+    (`Mechanism.simulate` refuses one that does not, naming the driver), and a value
+    asked for outside is a ValueError. It offers what a driver asks of a law: `text`,
+    `value(t=)`, `jet`, `constants()` (none: the table is data, not structure)."""
+
+    MIN_POINTS = 4
+    names = frozenset({"t"})
+    template = "table"
+
+    def __init__(self, table, owner: str):
+        try:
+            data = np.array(table, dtype=float)
+        except (TypeError, ValueError):
+            raise ModelError(f"{owner}: expected (times, values) or rows (t, value) of "
+                             f"numbers, got {table!r:.80}") from None
+        if data.ndim == 2 and data.shape[1] == 2 and data.shape[0] != 2:
+            data = data.T                                  # rows (t, value)
+        if data.ndim != 2 or data.shape[0] != 2:
+            raise ModelError(f"{owner}: expected (times, values) of equal length or rows "
+                             f"(t, value), got an array of shape {data.shape}")
+        times, values = data
+        if times.size < self.MIN_POINTS:
+            raise ModelError(f"{owner}: needs at least {self.MIN_POINTS} points for its "
+                             f"spline, got {times.size}")
+        if not np.all(np.isfinite(data)):
+            k = int(np.flatnonzero(~np.all(np.isfinite(data), axis=0))[0])
+            raise ModelError(f"{owner}: point {k} (t = {times[k]!r}, value = {values[k]!r}) "
+                             "is not finite")
+        steps = np.diff(times)
+        if not np.all(steps > 0.0):
+            k = int(np.flatnonzero(~(steps > 0.0))[0])
+            raise ModelError(f"{owner}: the times must increase strictly; t = "
+                             f"{times[k + 1]:g} (point {k + 1}) follows t = {times[k]:g}")
+        self.times, self.values = times, values
+        self.text = (f"a table of {times.size} points over [{times[0]:g}, {times[-1]:g}] s")
+        self.canonical = self.text
+        self._spline = None
+
+    @property
+    def domain(self) -> tuple[float, float]:
+        """(first time, last time) of the table [s]."""
+        return float(self.times[0]), float(self.times[-1])
+
+    def _at(self, t: float):
+        t0, t1 = self.domain
+        # The solvers look a hair past a run's end (a difference quotient's 1e-7 s): the
+        # end pieces of the spline go on that far, smoothly.
+        slack = REACH * (t1 - t0)
+        if not t0 - slack <= t <= t1 + slack:
+            raise ValueError(f"t = {t:.9g} is outside the table's times [{t0:g}, {t1:g}]")
+        if self._spline is None:
+            from scipy.interpolate import CubicSpline
+            self._spline = CubicSpline(self.times, self.values, bc_type="not-a-knot")
+        return t
+
+    def value(self, t: float) -> float:
+        """The spline's value at t (ValueError outside the table's times)."""
+        return float(self._spline(self._at(float(t))))
+
+    def jet(self, name: str, value: float, **_) -> tuple[float, float, float]:
+        """(f, f', f'') at t = `value`, the spline's and its derivatives'."""
+        t = self._at(float(value))
+        return tuple(float(self._spline(t, k)) for k in range(3))
+
+    def constants(self) -> list[float]:
+        return []
+
+    def __repr__(self):
+        return f"TableLaw({self.text})"

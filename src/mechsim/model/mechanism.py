@@ -467,7 +467,23 @@ class Mechanism:
         the inverse dynamics: the efforts the drivers need and the loads on the joints. See
         `mechsim.engineering.driven`."""
         from ..engineering.driven import kinematic_analysis
+        if over is None and isinstance(t_end, numbers.Real):
+            self.check_tables(t_start, t_end)
         return kinematic_analysis(self, t_end, output_step, t_start, over=over)
+
+    def check_tables(self, t_start, t_end) -> None:
+        """ModelError naming the first driver given by a table (`TableLaw`) whose times do
+        not cover [t_start, t_end]: its law is data, not defined beyond them."""
+        for d in self.drivers:
+            domain = getattr(d.law, "domain", None)
+            if domain is None or t_end is None:
+                continue
+            lo, hi = domain
+            slack = 1e-12 * max(1.0, abs(lo), abs(hi))
+            if float(t_start) < lo - slack or float(t_end) > hi + slack:
+                raise ModelError(f"driver '{d.name}' is given by {d.expression}; the run "
+                                 f"asks for [{float(t_start):g}, {float(t_end):g}] s: give "
+                                 "a table that covers it, or a shorter run")
 
     # --- simulation --------------------------------------------------------------------------
     def simulate(self, t_end: float, method: str | None = None, **options):
@@ -475,6 +491,7 @@ class Mechanism:
         for the options. Returns a SimulationResult (partial, with a status, on failure)."""
         from ..solver import check_simulate_arguments, simulate
         check_simulate_arguments(len(self.coordinate_names), t_end, method, options)
+        self.check_tables(options.get("t_start", 0.0), t_end)
         report = self._assembled or self.assemble(t=options.get("t_start", 0.0))
         return simulate(self.problem(), report.q, report.v, t_end=t_end, method=method,
                         mechanism=self, **options)

@@ -36,8 +36,13 @@ def scene_data(mech) -> dict:
     for joint in mech.joints:
         data["joint"].append(_joint(joint, owner))
     for driver in mech.drivers:
-        data["driver"].append({"name": driver.name, "joint": driver.joint.name,
-                               "expression": driver.expression})
+        table = {"name": driver.name, "joint": driver.joint.name}
+        if getattr(driver, "tabulated", False):
+            table["table"] = [[float(t), float(s)]
+                              for t, s in zip(driver.law.times, driver.law.values)]
+        else:
+            table["expression"] = driver.expression
+        data["driver"].append(table)
     for load in mech.loads:
         kind, table = _load(load, owner)
         data[kind].append(table)
