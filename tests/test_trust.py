@@ -142,7 +142,7 @@ MODEL = [
      "`body_a` must be a body"),
     ("force of three", lambda t: ms.Force(body(), (1, 2, 3)), "force.*`force` must have length 2"),
     ("force nan", lambda t: ms.Force(body(), (math.nan, 0)), "`force` must be finite"),
-    ("torque text", lambda t: ms.Torque(body(), "abc"), "torque.*`torque` must be a number"),
+    ("torque text", lambda t: ms.Torque(body(), "abc"), "torque.*`torque`: unknown name 'abc'"),
     ("torque nan", lambda t: ms.Torque(body(), math.nan), "`torque` must be finite"),
     ("driver on a body", lambda t: ms.Driver(body(), "t"), "`joint` must be a joint"),
     ("driver unknown name", lambda t: driven("10*tt"), "driver 'd'.*unknown name 'tt'"),

@@ -32,7 +32,7 @@ same tables in JSON, for files ending in .json)::
                 table = [[t, value], …]              # measured: a C² spline through them
     [[spring]]  bodies = [a, b], at_a, at_b, stiffness, rest_length, damping
     [[rotational_spring]]  bodies = [a, b], stiffness, damping, rest_angle
-    [[force]]   body, force = [fx, fy], at      [[torque]]  body, torque
+    [[force]]   body, force = [fx, fy], at      [[torque]]  body, torque   # in t, too
     [[speed]]   joint, rate     # the joint's initial rate (Mechanism.set_speed)
     [[channel]] name, expression, unit   # a recorded quantity (mechsim.Channel), in t,
                 # "crank.angle", "crank.angle.rate", "….acceleration", "A.coordinate",
@@ -72,6 +72,7 @@ import numpy as np
 from .model import (Channel, Driver, FlexibleBeam, Force, Mechanism, ModelError, Prismatic, Revolute,
                     RigidBody, RotationalSpring, Spring, Torque)
 from .model.channels import channel_names
+from .model.forces import TimeLaw
 from .model.expressions import FUNCTIONS, ExpressionError, parse
 from .options import unknown_names
 
@@ -148,8 +149,8 @@ SCHEMA = {
     "driver": {"joint": "name", "expression": "driver", "name": "name", "table": "rows"},
     "spring": {"bodies": "bodies", "at_a": "vector", "at_b": "vector", "stiffness": "number",
                "rest_length": "number", "damping": "number", "name": "name"},
-    "force": {"body": "name", "force": "vector", "at": "vector", "name": "name"},
-    "torque": {"body": "name", "torque": "number", "name": "name"},
+    "force": {"body": "name", "force": "load_vector", "at": "vector", "name": "name"},
+    "torque": {"body": "name", "torque": "load", "name": "name"},
     "rotational_spring": {"bodies": "bodies", "stiffness": "number", "damping": "number",
                           "rest_angle": "number", "name": "name"},
     "speed": {"joint": "name", "rate": "number"},
@@ -198,6 +199,24 @@ class _Reader:
                     raise SceneError(str(exc)) from None
                 return law.bind(**{k: self.names[k] for k in law.names if k != "t"}).text
             return value
+        if kind in ("load", "load_vector"):
+            # Numbers, or expressions of the parameters and the time t: a load in time.
+            many = kind == "load_vector"
+            if many and (not isinstance(value, list) or len(value) != 2):
+                raise self.error(where, f"expected an array of two numbers or expressions "
+                                        f"in t, got {_show(value)}")
+            items = value if many else [value]
+            laws = []
+            for item in items:
+                try:
+                    law = parse(item, {"t", *self.names}, f"{self.file}: {where}")
+                except ExpressionError as exc:
+                    raise SceneError(str(exc)) from None
+                laws.append(law.bind(**{k: self.names[k] for k in law.names if k != "t"}))
+            if all("t" not in law.names for law in laws):
+                values = tuple(self.value("number", law.text, where) for law in laws)
+                return values if many else values[0]
+            return TimeLaw([law.text for law in laws], where)
         if kind in ("name", "text", "path"):
             if not isinstance(value, str) or (kind != "text" and not value.strip()):
                 raise self.error(where, f"expected a non-empty string, got {_kind(value)} "

@@ -24,6 +24,26 @@ from .bodies import Body
 from .joints import Joint
 
 
+class TimeLaw:
+    """A load given as expressions of the time t, as a scene writes it (`torque =
+    "2*sin(3*t)"`): one expression (a torque) or two (a force's x and y), each parsed by
+    `mechsim.model.expressions` (never executed). Called with t it gives the torque, or the
+    force as a 2-vector; `texts` are the expressions (what a saved scene holds)."""
+
+    def __init__(self, texts, owner: str):
+        from .expressions import parse
+        self.laws = [parse(text, {"t"}, f"{owner} `{'torque' if len(texts) == 1 else 'force'}`")
+                     for text in texts]
+        self.texts = [law.text for law in self.laws]
+
+    def __call__(self, t):
+        values = [law.value(t=t) for law in self.laws]
+        return values[0] if len(values) == 1 else np.array(values)
+
+    def __repr__(self):
+        return f"TimeLaw({', '.join(self.texts)})"
+
+
 def _check_body(body, role: str, owner: str) -> Body:
     if not isinstance(body, Body):
         raise ModelError(f"{owner}: `{role}` must be a body, got {body!r}")
@@ -88,7 +108,8 @@ def _inputs(function, joint, state, owner) -> tuple[str, Joint | None]:
 class Force:
     """A force of fixed global direction on `body` at the global point `at` (default: the
     body's frame origin, its centre of mass). `force` is a 2-vector or a function giving one:
-    of t, of (t, s, ṡ) of a `joint`, or of (t, q, v) with `state=True` (module docstring).
+    of t, of (t, s, ṡ) of a `joint`, or of (t, q, v) with `state=True` (module docstring);
+    or two expressions in t (`["0", "50*sin(10*t)"]`, a `TimeLaw`: saved with the model).
     """
 
     def __init__(self, body: Body, force, at=None, name: str | None = None, *,
@@ -96,6 +117,9 @@ class Force:
         self.name = name_or_default(name, f"force({getattr(body, 'name', '?')})", "force")
         owner = f"force '{self.name}'"
         self.body = _check_body(body, "body", owner)
+        if isinstance(force, (list, tuple)) and len(force) == 2 and \
+                any(isinstance(x, str) for x in force):
+            force = TimeLaw([x if isinstance(x, str) else float(x) for x in force], owner)
         self.force = force if callable(force) else vector2(force, "force", owner)
         self.at = body.position.copy() if at is None else vector2(at, "at", owner)
         self.inputs, self.joint = _inputs(force, joint, state, owner)
@@ -107,13 +131,16 @@ class Force:
 
 class Torque:
     """A torque on `body` (N·m, counter-clockwise positive): a constant or a function of t,
-    of (t, s, ṡ) of a `joint`, or of (t, q, v) with `state=True` (module docstring)."""
+    of (t, s, ṡ) of a `joint`, or of (t, q, v) with `state=True` (module docstring); or an
+    expression in t (`"2*sin(3*t)"`, a `TimeLaw`: saved with the model)."""
 
     def __init__(self, body: Body, torque, name: str | None = None, *,
                  joint: Joint | None = None, state: bool = False):
         self.name = name_or_default(name, f"torque({getattr(body, 'name', '?')})", "torque")
         owner = f"torque '{self.name}'"
         self.body = _check_body(body, "body", owner)
+        if isinstance(torque, str):
+            torque = TimeLaw([torque], owner)
         self.torque = scalar_or_function(torque, "torque", owner)
         self.inputs, self.joint = _inputs(torque, joint, state, owner)
 

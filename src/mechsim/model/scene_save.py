@@ -2,7 +2,8 @@
 declarative data that `mechsim.load_mechanism` (or `load_scene`) builds again, never pickle.
 
 Every number is written to round-trip exactly. What the schema cannot hold is refused,
-naming it, rather than dropped: a load given as a Python function (give it as a number),
+naming it, rather than dropped: a load given as a Python function (give it as a number
+or an expression in t),
 a load that reads a joint's state, a beam's initial modal amplitudes.
 """
 
@@ -16,7 +17,7 @@ from ..files import written
 from .bodies import RigidBody
 from .checks import ModelError
 from .flexible_beam import FlexibleBeam
-from .forces import Force, RotationalSpring, Spring, Torque
+from .forces import Force, RotationalSpring, Spring, TimeLaw, Torque
 from .joints import Prismatic, Revolute
 
 
@@ -110,6 +111,12 @@ def _load(load, owner) -> tuple[str, dict]:
                                      "rest_angle": float(load.rest_angle)}
     if isinstance(load, (Force, Torque)):
         value = load.force if isinstance(load, Force) else load.torque
+        if isinstance(value, TimeLaw) and load.joint is None and load.inputs == "t":
+            if isinstance(load, Force):
+                return "force", {"name": load.name, "body": load.body.name,
+                                 "force": list(value.texts), "at": _vector(load.at)}
+            return "torque", {"name": load.name, "body": load.body.name,
+                              "torque": value.texts[0]}
         if callable(value) or load.joint is not None:
             raise ModelError(f"{owner}: {type(load).__name__.lower()} '{load.name}' is a Python "
                              "function: a scene holds constant forces and torques (save the "
