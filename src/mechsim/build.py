@@ -76,7 +76,7 @@ def constraint_model(mech, items, build: str = "auto"):
 def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]:
     """(the NumericProblem of `mech`, whether its model came without a sympy run);
     `build`: "auto", "fused" or "assembled" (`constraint_model`; None: `build_mode()`)."""
-    items = mech.joints + mech.drivers
+    items = mech.constraint_items
     mass_diagonal(mech)                   # a point mass that can turn refused before a build
     mode = build_mode(build)
     if any(getattr(d, "tabulated", False) for d in mech.drivers):
@@ -90,7 +90,8 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
         for label in item.equation_labels:
             names.append(f"{item.name}.{label}")
             owners.append(item.name)
-            kinds.append("driver" if isinstance(item, Driver) else "joint")
+            kinds.append("driver" if isinstance(item, Driver) else
+                         "gear" if item.kind == "gear" else "joint")
     joints = joint_geometry(mech, starts)
     springs, loads, torsion = _load_data(mech, starts, joints)
     mass = mass_diagonal(mech)
@@ -100,7 +101,9 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
                              drawing=drawing(mech, starts),
                              driver_laws=[(d.name, d.law) for d in mech.drivers],
                              joints=joints, torsion=torsion,
-                             driver_joints={d.name: d.joint.name for d in mech.drivers})
+                             driver_joints={d.name: d.joint.name for d in mech.drivers},
+                             gear_signs={g.name: 1.0 if getattr(g, "internal", False) else -1.0
+                                         for g in mech.gears})
     return problem, from_cache
 
 

@@ -33,10 +33,10 @@ same tables in JSON, for files ending in .json)::
     [[spring]]  bodies = [a, b], at_a, at_b, stiffness, rest_length, damping
     [[rotational_spring]]  bodies = [a, b], stiffness, damping, rest_angle
     [[force]]   body, force = [fx, fy], at      [[torque]]  body, torque   # in t, too
+    [[gear]]    type = "spur", joints = [a, b], radii, internal  # "rack": radius; "ratio"
     [[speed]]   joint, rate     # the joint's initial rate (Mechanism.set_speed)
-    [[channel]] name, expression, unit   # a recorded quantity (mechsim.Channel), in t,
-                # "crank.angle", "crank.angle.rate", "….acceleration", "A.coordinate",
-                # "A.rate" and the parameters
+    [[channel]] name, expression, unit   # recorded (mechsim.Channel): of t, "crank.angle",
+                # "….rate", "….acceleration", "A.coordinate", "A.rate", the parameters
     [simulation]                 # keyword arguments of Mechanism.simulate
     t_end = 2.0
     method = "baumgarte"
@@ -62,23 +62,16 @@ the table and the key.
 
 from __future__ import annotations
 
-import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 
-import numpy as np
 
-from .model import (Channel, Driver, FlexibleBeam, Force, Mechanism, ModelError, Prismatic, Revolute,
-                    RigidBody, RotationalSpring, Spring, Torque)
-from .model.channels import channel_names
-from .model.forces import TimeLaw
+from .model import Mechanism
 from .model.expressions import FUNCTIONS, ExpressionError, parse
+from .model.forces import TimeLaw
+from .scene_build import SceneError, body_named, build
 from .options import unknown_names
-
-
-class SceneError(ModelError):
-    """A scene file is malformed; the message names the file, the table and the key."""
 
 
 MAX_SCENE_BYTES = 4 * 2 ** 20
@@ -154,6 +147,8 @@ SCHEMA = {
     "rotational_spring": {"bodies": "bodies", "stiffness": "number", "damping": "number",
                           "rest_angle": "number", "name": "name"},
     "speed": {"joint": "name", "rate": "number"},
+    "gear": {"type": ("spur", "rack", "ratio"), "joints": "bodies", "name": "name",
+             "radii": "vector", "radius": "number", "ratio": "number", "internal": "flag"},
     "channel": {"name": "name", "expression": "name", "unit": "name"},
     "output": {"plots": "plots", "save": "flag", "points": "points", "directory": "path",
                "export": "path", "reactions": "joints", "efforts": "flag", "animate": "flag",
@@ -166,9 +161,10 @@ REQUIRED = {
     "spring": ("bodies", "at_a", "at_b", "stiffness"), "force": ("body", "force"),
     "torque": ("body", "torque"), "rotational_spring": ("bodies", "stiffness"), "output": (),
     "speed": ("joint", "rate"), "channel": ("name", "expression"),
+    "gear": ("type", "joints"),
 }
-_ARRAYS = ("body", "joint", "driver", "spring", "force", "torque", "rotational_spring",
-           "speed", "channel")
+_ARRAYS = ("body", "joint", "driver", "gear", "spring", "force", "torque",
+           "rotational_spring", "speed", "channel")
 _TOP = {"name": "name", "gravity": "vector", "parameters": "table", "simulation": "table",
         "output": "table", **{k: "array" for k in _ARRAYS}}
 
@@ -192,31 +188,10 @@ class _Reader:
         if kind == "driver":
             # A law in t and the scene's parameters: the parameters bound to their values,
             # the rest left to `Driver`, which parses it again and names itself.
-            if isinstance(value, str) and self.names:
-                try:
-                    law = parse(value, {"t", *self.names}, f"{self.file}: {where}")
-                except ExpressionError as exc:
-                    raise SceneError(str(exc)) from None
-                return law.bind(**{k: self.names[k] for k in law.names if k != "t"}).text
-            return value
+            return self._bound(value, where).text if isinstance(value, str) and self.names \
+                else value
         if kind in ("load", "load_vector"):
-            # Numbers, or expressions of the parameters and the time t: a load in time.
-            many = kind == "load_vector"
-            if many and (not isinstance(value, list) or len(value) != 2):
-                raise self.error(where, f"expected an array of two numbers or expressions "
-                                        f"in t, got {_show(value)}")
-            items = value if many else [value]
-            laws = []
-            for item in items:
-                try:
-                    law = parse(item, {"t", *self.names}, f"{self.file}: {where}")
-                except ExpressionError as exc:
-                    raise SceneError(str(exc)) from None
-                laws.append(law.bind(**{k: self.names[k] for k in law.names if k != "t"}))
-            if all("t" not in law.names for law in laws):
-                values = tuple(self.value("number", law.text, where) for law in laws)
-                return values if many else values[0]
-            return TimeLaw([law.text for law in laws], where)
+            return self._load(kind == "load_vector", value, where)
         if kind in ("name", "text", "path"):
             if not isinstance(value, str) or (kind != "text" and not value.strip()):
                 raise self.error(where, f"expected a non-empty string, got {_kind(value)} "
@@ -243,15 +218,12 @@ class _Reader:
                 raise self.error(where, f"expected an array of {what}, got {_show(value)}")
             item = {"vector": "number", "segment": "vector", "bodies": "name"}[kind]
             return tuple(self.value(item, v, where) for v in value)
-        if kind == "rows":
-            if not isinstance(value, list) or not 1 <= len(value) <= MAX_ROWS:
-                raise self.error(where, f"expected an array of up to {MAX_ROWS} rows "
-                                        f"[t, value], got {_show(value)}")
-            return [self.value("vector", v, where) for v in value]
-        if kind == "polygon":
-            if not isinstance(value, list) or not 3 <= len(value) <= MAX_VERTICES:
-                raise self.error(where, f"expected an array of 3 to {MAX_VERTICES} points "
-                                        f"[[x, y], …], got {_show(value)}")
+        if kind in ("rows", "polygon"):
+            low, high, what = (1, MAX_ROWS, "rows [t, value]") if kind == "rows" else \
+                (3, MAX_VERTICES, "points [x, y]")
+            if not isinstance(value, list) or not low <= len(value) <= high:
+                raise self.error(where, f"expected an array of {low} to {high} {what}, got "
+                                        f"{_show(value)}")
             return [self.value("vector", v, where) for v in value]
         if kind == "plots":
             if not isinstance(value, list):
@@ -272,6 +244,26 @@ class _Reader:
             return [(self.value("name", b, where), self.value("vector", p, where))
                     for b, p in value]
         raise AssertionError(kind)
+
+    def _bound(self, text, where):
+        """`text` parsed as an expression of t and the parameters, the parameters bound."""
+        try:
+            law = parse(text, {"t", *self.names}, f"{self.file}: {where}")
+        except ExpressionError as exc:
+            raise SceneError(str(exc)) from None
+        return law.bind(**{k: self.names[k] for k in law.names if k != "t"})
+
+    def _load(self, many, value, where):
+        """A torque (or with `many` a force's two components): numbers, or expressions of
+        the parameters and the time t, then a load in time (`TimeLaw`)."""
+        if many and (not isinstance(value, list) or len(value) != 2):
+            raise self.error(where, f"expected an array of two numbers or expressions in t, "
+                                    f"got {_show(value)}")
+        laws = [self._bound(item, where) for item in (value if many else [value])]
+        if all("t" not in law.names for law in laws):
+            values = tuple(self.value("number", law.text, where) for law in laws)
+            return values if many else values[0]
+        return TimeLaw([law.text for law in laws], where)
 
     def _path(self, value, where):
         """A relative path that stays where it is put: no `..`, not absolute."""
@@ -365,9 +357,9 @@ def scene_from(data: dict, path, parameters: dict | None = None, *, run: bool = 
     if "table" in output and PurePath(output["table"]).suffix.lower() != ".csv":
         raise r.error("[output] table", f"the table is written as CSV: its name ends in .csv, "
                                         f"got {_show(output['table'])}")
-    mech = _build(r, name, gravity, tables)
+    mech = build(r, name, gravity, tables)
     for body, _ in output.get("points", []):
-        _body(r, mech, body, "[output] points")
+        body_named(r, mech, body, "[output] points")
     wanted = output.get("reactions")
     names = [j.name for j in mech.joints]
     for joint in wanted if isinstance(wanted, list) else ():
@@ -417,152 +409,6 @@ def read_toml(path) -> dict:
         raise SceneError(f"{f}: not valid TOML: {exc}") from None
     except RecursionError:
         raise SceneError(f"{f}: nested too deeply to read") from None
-
-
-def _body(r, mech, name, where):
-    try:
-        return mech.body(name)
-    except KeyError:
-        raise r.error(where, f"no body named {name!r}; bodies: "
-                             f"{', '.join(b.name for b in [mech.ground] + mech.bodies)}") from None
-
-
-def _build(r, name, gravity, tables) -> Mechanism:
-    """The Mechanism from the checked tables; a ModelError is re-raised naming the table."""
-    def make(where, build):
-        try:
-            return build()
-        except SceneError:
-            raise
-        except ModelError as exc:
-            raise r.error(where, str(exc)) from None
-
-    mech = make("name", lambda: Mechanism(name, gravity=gravity))
-    for where, t in tables["body"]:
-        body = make(where, lambda: _body_from(r, t, where))
-        make(where, lambda: mech.add(body))
-    joints = {}
-    for where, t in tables["joint"]:
-        a, b = (_body(r, mech, n, where) for n in t["bodies"])
-        if t["type"] == "revolute":
-            if "axis" in t:
-                raise r.error(where, "a revolute joint has no `axis`")
-            kw = {k: t[k] for k in ("at", "local_a", "local_b") if k in t}
-            joint = make(where, lambda: Revolute(a, b, name=t.get("name"), **kw))
-        else:
-            if "axis" not in t or "at" not in t:
-                raise r.error(where, "a prismatic joint needs `axis` and `at`")
-            joint = make(where, lambda: Prismatic(a, b, axis=t["axis"], at=t["at"],
-                                                  name=t.get("name")))
-        make(where, lambda: mech.add(joint))
-        joints[joint.name] = joint
-    for where, t in tables["driver"]:
-        if t["joint"] not in joints:
-            raise r.error(where, f"no joint named {t['joint']!r}; joints: "
-                                 f"{', '.join(joints) or '(none)'}")
-        if ("expression" in t) == ("table" in t):
-            raise r.error(where, "needs an `expression` or a `table`, one of them")
-        make(where, lambda: mech.add(Driver(joints[t["joint"]], t.get("expression"),
-                                            name=t.get("name"), table=t.get("table"))))
-    for where, t in tables["spring"]:
-        a, b = (_body(r, mech, n, where) for n in t["bodies"])
-        kw = {k: t[k] for k in ("rest_length", "damping", "name") if k in t}
-        make(where, lambda: mech.add(Spring(a, b, t["at_a"], t["at_b"], t["stiffness"], **kw)))
-    for where, t in tables["force"]:
-        body = _body(r, mech, t["body"], where)
-        kw = {k: t[k] for k in ("at", "name") if k in t}
-        make(where, lambda: mech.add(Force(body, t["force"], **kw)))
-    for where, t in tables["torque"]:
-        body = _body(r, mech, t["body"], where)
-        make(where, lambda: mech.add(Torque(body, t["torque"], name=t.get("name"))))
-    for where, t in tables["rotational_spring"]:
-        a, b = (_body(r, mech, n, where) for n in t["bodies"])
-        kw = {k: t[k] for k in ("damping", "rest_angle", "name") if k in t}
-        make(where, lambda: mech.add(RotationalSpring(a, b, t["stiffness"], **kw)))
-    for where, t in tables["speed"]:
-        if t["joint"] not in joints:
-            raise r.error(where, f"no joint named {t['joint']!r}; joints: "
-                                 f"{', '.join(joints) or '(none)'}")
-        make(where, lambda: mech.set_speed(joints[t["joint"]], t["rate"]))
-    for where, t in tables["channel"]:
-        make(where, lambda: mech.add(_channel(r, mech, t, where)))
-    return mech
-
-
-def _channel(r, mech, t, where) -> Channel:
-    """A [[channel]]: its expression in the mechanism's names (`Channel`) and the scene's
-    parameters, the parameters bound to their values."""
-    law = parse(t["expression"], channel_names(mech) | set(r.names),
-                f"{r.file}: {where} expression")
-    text = law.bind(**{k: r.names[k] for k in law.names if k in r.names}).text
-    return Channel(t["name"], text, t.get("unit", "-"))
-
-
-def _body_from(r, t, where):
-    """A rigid body (from `mass` and `inertia`, or a shape: `rod`, `rectangle`, `disc`,
-    `polygon`) or a flexible beam."""
-    if t.get("type") == "flexible_beam":
-        return _beam(r, t, where)
-    shapes = [k for k in SHAPES if k in t]
-    if len(shapes) > 1:
-        raise r.error(where, f"give one shape, got {', '.join(f'`{k}`' for k in shapes)}")
-    if "mass" not in t:
-        raise r.error(where, "needs `mass`")
-    kw = {k: t[k] for k in ("velocity", "angular_velocity") if k in t}
-    if shapes:
-        shape = shapes[0]
-        for key in ("inertia", "outline", *SHAPES[shape][0]):
-            if key in t:
-                raise r.error(where, f"a `{shape}` body takes its inertia{SHAPES[shape][1]} "
-                                     f"from its shape; remove `{key}`")
-        if shape in ("rectangle", "disc") and "position" not in t:
-            raise r.error(where, f"a `{shape}` body needs `position`, its centre")
-        if shape == "rod":
-            return RigidBody.rod(t["name"], *t["rod"], t["mass"], **kw)
-        if shape == "rectangle":
-            return RigidBody.rectangle(t["name"], t["position"], *t["rectangle"], t["mass"],
-                                       angle=t.get("angle", 0.0), **kw)
-        if shape == "disc":
-            return RigidBody.disc(t["name"], t["position"], t["disc"], t["mass"], **kw)
-        return RigidBody.polygon(t["name"], t["polygon"], t["mass"], **kw)
-    if "inertia" not in t:
-        raise r.error(where, "needs `inertia` (or a shape: " +
-                      ", ".join(f"`{k}`" for k in SHAPES) + ")")
-    kw.update({k: t[k] for k in ("position", "angle") if k in t})
-    body = RigidBody(t["name"], t["mass"], t["inertia"], **kw)
-    if "outline" in t:
-        points = np.array(t["outline"], float)
-        closed = np.allclose(points[0], points[-1], rtol=0, atol=1e-12 * np.ptp(points))
-        body.outline = points if closed else np.vstack([points, points[:1]])
-    return body
-
-
-# A body's shape: (the keys it replaces besides `inertia`, what else it gives).
-SHAPES = {"rod": (("position", "angle"), ", position and angle"),
-          "rectangle": ((), ""),
-          "disc": (("angle",), ""),
-          "polygon": (("position", "angle"), ", position and angle")}
-
-
-def _beam(r, t, where) -> FlexibleBeam:
-    """A FlexibleBeam from its checked table: `start` plus `end`, or `length` and `angle`."""
-    kw = {k: t[k] for k in ("youngs_modulus", "density", "area", "second_moment", "n_elements",
-                            "n_modes", "boundary", "damping_ratio", "velocity",
-                            "angular_velocity") if k in t}
-    start = t["start"]
-    if "end" in t:
-        if "length" in t or "angle" in t:
-            raise r.error(where, "give `end`, or `length` and `angle`, not both")
-        end = t["end"]
-        kw["length"] = math.hypot(end[0] - start[0], end[1] - start[1])
-        kw["angle"] = math.atan2(end[1] - start[1], end[0] - start[0])
-    elif "length" in t:
-        kw["length"] = t["length"]
-        if "angle" in t:
-            kw["angle"] = t["angle"]
-    else:
-        raise r.error(where, "a flexible beam needs `end` or `length`")
-    return FlexibleBeam(t["name"], start=start, **kw)
 
 
 def _simulation(r, raw, mech) -> dict:

@@ -29,13 +29,14 @@ from ..symbolic import SymbolicContext
 
 
 def kernel_source(item, key: str) -> str:
-    """The module text of the kernel of `item`'s type (any joint or driver of it serves)."""
-    joint = item.joint if isinstance(item, Driver) else item
-    bodies = [b for b in (joint.body_a, joint.body_b) if b.coordinate_names]
-    ctx = SymbolicContext(bodies, [joint, item] if item is not joint else [joint],
+    """The module text of the kernel of `item`'s type (any joint, driver or gear of it
+    serves)."""
+    from .model import kernel_items
+    bodies, holders = kernel_items(item)
+    ctx = SymbolicContext(bodies, holders,
                           laws=False)      # a driver's law is evaluated by the model itself
     p = ctx.parameters(item)
-    rows = [item.displacement(ctx, p)] if item is not joint else item.equations(ctx, p)
+    rows = [item.displacement(ctx, p)] if isinstance(item, Driver) else item.equations(ctx, p)
     q, v = sp.Matrix(ctx.q), sp.Matrix(ctx.v)
     phi = sp.Matrix(rows)
     J = phi.jacobian(q)

@@ -31,11 +31,34 @@ def _side(body):
 
 
 def type_key(item) -> list:
-    """What a joint's or driver's kernel depends on: its kind, the kinds of its bodies
-    (the ground, or a body class with its coordinates) and its parameter names."""
+    """What a joint's, driver's or gear's kernel depends on: its kind, the kinds of its
+    bodies (the ground, or a body class with its coordinates) and its parameter names; a
+    gear's, its joints' keys and which of their bodies are one and the same."""
     if isinstance(item, Driver):
         return ["driver", type_key(item.joint)]
+    if item.kind == "gear":
+        slots = [b for j in item.joints for b in (j.body_a, j.body_b)]
+        same = [next(k for k, o in enumerate(slots) if o is b) for b in slots]
+        return ["gear", item.form, type_key(item.joint_a), type_key(item.joint_b), same]
     return [item.kind, _side(item.body_a), _side(item.body_b), list(item.parameter_names)]
+
+
+def kernel_items(item) -> tuple[list, list]:
+    """(the moving bodies whose coordinates `item`'s kernel takes, in order; the items
+    whose parameters it takes, in order: the joints a driver or gear reads, then itself)."""
+    if isinstance(item, Driver):
+        joints = [item.joint]
+    elif item.kind == "gear":
+        joints = list(item.joints)
+    else:
+        joints = []
+    holders = joints + [item]
+    bodies = []
+    for j in joints or [item]:
+        for b in (j.body_a, j.body_b):
+            if b.coordinate_names and all(b is not o for o in bodies):
+                bodies.append(b)
+    return bodies, holders
 
 
 def load_kernel(item):
@@ -95,16 +118,15 @@ class AssembledModel:
                 groups[key] = _Group(kernel)
                 self.from_cache &= cached
             g = groups[key]
-            joint = item.joint if isinstance(item, Driver) else item
+            bodies, holders = kernel_items(item)
             g.rows += range(row, row + g.kernel.ROWS)
-            g.cols += [c for b in (joint.body_a, joint.body_b) for c in starts.get(id(b), ())]
-            own = range(first_param[id(item)], first_param[id(item)] + len(item.parameter_names))
-            if item is not joint:
-                g.params += range(first_param[id(joint)],
-                                  first_param[id(joint)] + len(joint.parameter_names))
+            g.cols += [c for b in bodies for c in starts[id(b)]]
+            for holder in holders:
+                g.params += range(first_param[id(holder)],
+                                  first_param[id(holder)] + len(holder.parameter_names))
+            if isinstance(item, Driver):
                 law_rows.append(row)
                 self.laws.append(item.law)
-            g.params += own
             row += g.kernel.ROWS
         self.M = row
         self.groups = list(groups.values())

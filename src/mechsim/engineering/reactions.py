@@ -192,6 +192,18 @@ class ReactionTable:
         p = self._need("computing the driver efforts")
         return -self.multipliers.lam[:, p.rows_of(name)[0]]
 
+    def gear_force(self, gear) -> np.ndarray:
+        """(N,): the mesh's force of gear pair `gear` (`mechsim.Gear`): for a spur pair the
+        tooth force along the pitch line, positive where it turns gear b counter-clockwise
+        on its carrier [N]; for a rack, its force on the rack along the slide's axis [N];
+        for a plain ratio coupling, its torque or force on joint b's body_b."""
+        name = getattr(gear, "name", gear)
+        p = self._need("computing the gear forces")
+        if name not in p.gear_signs:
+            raise KeyError(f"no gear {name!r} in this result; gears: "
+                           f"{', '.join(p.gear_signs) or '(none)'}")
+        return p.gear_signs[name] * self.multipliers.lam[:, p.rows_of(name)[0]]
+
     def coordinates(self, joint):
         """(s, ṡ), each (N,): the joint's coordinate and rate."""
         name = self._joint(joint)

@@ -364,25 +364,8 @@ class SingularityMonitor:
         budget = int(min(4000, 16 + 4 * rate_bound * h / max((s0 + s1) * peak, enter)))
         if self.problem.m > SEARCH_MAX_ROWS:
             budget = min(budget, 64)
-        apart = 2.0 * (leave - enter) / rate_bound
-        seen = {t0: s0 * peak, t1: s1 * peak}
-        lows = [tk for tk, sk in seen.items() if sk < enter]
-        # Breadth first, a level of halvings at a time: the midpoints of every interval
-        # of a level not yet cleared are measured together.
-        level = [(t0, s0 * peak, t1, s1 * peak)]
-        while level and budget > 0:
-            open_ = [(ta, sa, tb, sb) for ta, sa, tb, sb in level
-                     if not ((sa + sb) - rate_bound * (tb - ta) >= 2.0 * enter or
-                             tb - ta < 1e-9 * h or _covered(ta, tb, lows, apart))][:budget]
-            mids = [0.5 * (ta + tb) for ta, _, tb, _ in open_]
-            values = s_many(mids)
-            budget -= len(mids)
-            level = []
-            for (ta, sa, tb, sb), tm, sm in zip(open_, mids, values):
-                seen[tm] = sm
-                if sm < enter:
-                    lows.append(tm)
-                level += [(ta, sa, tm, sm), (tm, sm, tb, sb)]
+        seen = self._bisect((t0, s0 * peak, t1, s1 * peak), s_many, rate_bound, budget,
+                            2.0 * (leave - enter) / rate_bound)
         times = sorted(seen)
         values = [seen[tk] for tk in times]
         last = len(times) - 1
@@ -401,6 +384,30 @@ class SingularityMonitor:
                             t0 if at_start else max(t0, tm - width),
                             t1 if at_end else min(t1, tm + width), at_start, at_end))
         return dips
+
+    def _bisect(self, ends, s_many, rate_bound, budget, apart) -> dict:
+        """{t: s} over the step `ends` = (t0, s0, t1, s1) (not normalized), halving every
+        interval the bound `rate_bound` does not keep above `enter` and that lies farther
+        than `apart` from a value under it, breadth first: a level's midpoints measured
+        together by `s_many`, at most `budget` of them in all."""
+        t0, s0, t1, s1 = ends
+        enter, h = self.enter * self.peak, t1 - t0
+        seen = {t0: s0, t1: s1}
+        lows = [tk for tk, sk in seen.items() if sk < enter]
+        level = [ends]
+        while level and budget > 0:
+            todo = [(ta, sa, tb, sb) for ta, sa, tb, sb in level
+                    if not ((sa + sb) - rate_bound * (tb - ta) >= 2.0 * enter or
+                            tb - ta < 1e-9 * h or _covered(ta, tb, lows, apart))][:budget]
+            mids = [0.5 * (ta + tb) for ta, _, tb, _ in todo]
+            budget -= len(mids)
+            level = []
+            for (ta, sa, tb, sb), tm, sm in zip(todo, mids, s_many(mids)):
+                seen[tm] = sm
+                if sm < enter:
+                    lows.append(tm)
+                level += [(ta, sa, tm, sm), (tm, sm, tb, sb)]
+        return seen
 
     @staticmethod
     def _refine(s_at, ta, tb):

@@ -6,9 +6,10 @@ from .channels import Channel
 from .drivers import Driver
 from .flexible_beam import FlexibleBeam
 from .forces import Force, RotationalSpring, Spring, Torque
+from .gears import Gear
 from .joints import Joint, Prismatic, Revolute
 from .mechanism import AssemblyError, AssemblyReport, DofReport, Mechanism
 
-__all__ = ["AssemblyError", "LoadError", "AssemblyReport", "Body", "Channel", "DofReport", "Driver", "FlexibleBeam", "Force", "Ground",
+__all__ = ["AssemblyError", "LoadError", "AssemblyReport", "Body", "Channel", "DofReport", "Driver", "FlexibleBeam", "Force", "Gear", "Ground",
            "Joint", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody", "RotationalSpring", "Spring",
            "Torque"]

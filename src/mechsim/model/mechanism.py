@@ -13,6 +13,7 @@ from .bodies import Body, Ground
 from .channels import Channel, channel_names
 from .drivers import Driver
 from .forces import Force, RotationalSpring, Spring, Torque, load_points
+from .gears import Gear
 from .joints import Joint
 
 
@@ -74,6 +75,7 @@ class Mechanism:
         self.bodies: list[Body] = []          # moving bodies, in coordinate order
         self.joints: list[Joint] = []
         self.drivers: list[Driver] = []
+        self.gears: list[Gear] = []          # gear pairs between joints' coordinates
         self.loads: list = []                 # springs, rotational springs, forces, torques
         self.channels: list[Channel] = []    # the user's recorded quantities
         self.speeds: dict[str, float] = {}   # joint name -> its prescribed initial rate
@@ -85,7 +87,7 @@ class Mechanism:
 
     # --- building ----------------------------------------------------------------------------
     def add(self, item):
-        """Add a body, joint, driver, spring, rotational spring, force, torque or channel;
+        """Add a body, joint, driver, gear, spring, rotational spring, force, torque or channel;
         returns it. A channel's expression is checked against the bodies and joints added
         before it; it changes no equation (nothing is rebuilt for it)."""
         owner = f"mechanism '{self.name}'"
@@ -117,6 +119,14 @@ class Mechanism:
             self._check_names(item)
             self.drivers.append(item)
             self._noted(item)
+        elif isinstance(item, Gear):
+            for joint in item.joints:
+                if not any(j is joint for j in self.joints):
+                    raise ModelError(f"gear '{item.name}': joint '{joint.name}' is not in "
+                                     f"{owner}; add the joint first")
+            self._check_names(item)
+            self.gears.append(item)
+            self._noted(item)
         elif isinstance(item, (Spring, Force, Torque, RotationalSpring)):
             for body in item.bodies:
                 self._check_member(body, f"'{item.name}'")
@@ -129,7 +139,7 @@ class Mechanism:
             self.loads.append(item)
         else:
             raise ModelError(f"{owner}: cannot add {item!r}; expected a body, joint, driver, "
-                             "spring, rotational spring, force, torque or channel")
+                             "gear, spring, rotational spring, force, torque or channel")
         self._problem = None
         self._assembled = None
         self._state = None
@@ -142,7 +152,7 @@ class Mechanism:
         """What tells whether the lists changed since `_names` looked: their lengths and
         last items."""
         return tuple((len(x), id(x[-1]) if x else None)
-                     for x in (self.bodies, self.joints, self.drivers))
+                     for x in (self.bodies, self.joints, self.drivers, self.gears))
 
     def _names(self):
         """(body names, ids of the bodies, joint and driver names), kept current by `add`
@@ -152,7 +162,7 @@ class Mechanism:
         if self._lookup is None or self._lookup[0] != key:
             bodies = self._all_bodies()
             self._lookup = (key, {b.name for b in bodies}, {id(b) for b in bodies},
-                            {x.name for x in self.joints + self.drivers})
+                            {x.name for x in self.constraint_items})
         return self._lookup[1:]
 
     def _noted(self, item):
@@ -172,7 +182,7 @@ class Mechanism:
 
     def _check_names(self, item):
         if item.name in self._names()[2]:
-            raise ModelError(f"a joint or driver named '{item.name}' exists already; "
+            raise ModelError(f"a joint, driver or gear named '{item.name}' exists already; "
                              "give it a `name=`")
 
     def body(self, name: str) -> Body:
@@ -210,7 +220,12 @@ class Mechanism:
                  **{id(j): k for k, j in enumerate(self.joints)}}
         return {"bodies": [(type(b).__name__, list(b.coordinate_names)) for b in self.bodies],
                 "constraints": [list(item.structure(lambda x: index[id(x)]))
-                                for item in self.joints + self.drivers]}
+                                for item in self.constraint_items]}
+
+    @property
+    def constraint_items(self) -> list:
+        """Everything that writes rows of Φ, in row order: joints, drivers, gears."""
+        return self.joints + self.drivers + self.gears
 
     def problem(self, build: str | None = None):
         """The NumericProblem of this mechanism, built once (`mechsim.build`). `build`:

@@ -30,7 +30,7 @@ def scene_data(mech) -> dict:
     cannot hold)."""
     owner = f"mechanism '{mech.name}': save"
     data = {"name": mech.name, "gravity": _vector(mech.gravity), "body": [], "joint": [],
-            "driver": [], "spring": [], "force": [], "torque": [], "rotational_spring": [],
+            "driver": [], "gear": [], "spring": [], "force": [], "torque": [], "rotational_spring": [],
             "speed": [], "channel": []}
     for body in mech.bodies:
         data["body"].append(_body(body, owner))
@@ -44,6 +44,17 @@ def scene_data(mech) -> dict:
         else:
             table["expression"] = driver.expression
         data["driver"].append(table)
+    for gear in mech.gears:
+        table = {"type": gear.form, "name": gear.name,
+                 "joints": [gear.joint_a.name, gear.joint_b.name]}
+        if gear.form == "spur":
+            table["radii"] = [float(gear.radius_a), float(gear.radius_b)]
+            table["internal"] = bool(gear.internal)
+        elif gear.form == "rack":
+            table["radius"] = float(gear.radius_a)
+        else:
+            table["ratio"] = float(gear.ratio)
+        data["gear"].append(table)
     for load in mech.loads:
         kind, table = _load(load, owner)
         data[kind].append(table)

@@ -45,7 +45,7 @@ class NumericProblem:
     body_starts : dict name -> index of the body's x in q
     coordinate_names, constraint_names : list of str (one per coordinate / per row of Φ)
     constraint_owners : list of str, the joint or driver that owns each row of Φ
-    constraint_kinds : list of str, "joint" or "driver" for each row of Φ
+    constraint_kinds : list of str, "joint", "driver" or "gear" for each row of Φ
     springs, loads, torsion : tuples of SpringData / PointLoad / RotationalSpringData
     flexible : tuple of FlexibleData; their blocks of M depend on q (`mass_diagonal` holds
         only nominal values there, and the rigid-body terms skip them)
@@ -62,7 +62,7 @@ class NumericProblem:
                  coordinate_names, constraint_names, constraint_owners,
                  springs=(), loads=(), title="mechanism", constraint_kinds=None,
                  flexible=(), drawing=(), driver_laws=(), joints=None, driver_joints=None,
-                 torsion=()):
+                 torsion=(), gear_signs=None):
         self.model = model
         self.p = tuple(float(x) for x in parameters)
         self.mass_model = MassModel(mass_diagonal, flexible)
@@ -80,6 +80,7 @@ class NumericProblem:
         self.driver_laws = list(driver_laws)
         self.joints = dict(joints or {})
         self.driver_joints = dict(driver_joints or {})
+        self.gear_signs = dict(gear_signs or {})    # gear name -> its force per unit of −λ
         self.counters = Counters()
         self.flexible = tuple(flexible)
         self.constant_mass = self.mass_model.constant

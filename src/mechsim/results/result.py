@@ -275,6 +275,13 @@ class SimulationResult:
         body_b of its joint, shape (n,): what the motor or actuator must deliver."""
         return self.reactions.effort(driver)
 
+    def gear_force(self, gear) -> np.ndarray:
+        """The mesh force of a gear pair at each sample, shape (n,): a spur pair's tooth
+        force along the pitch line [N] (positive turning gear b counter-clockwise on its
+        carrier), a rack's force along its slide [N], a ratio coupling's effort on joint b
+        (`ReactionTable.gear_force`)."""
+        return self.reactions.gear_force(gear)
+
     def driver_power(self, driver) -> np.ndarray:
         """The power [W] the driver delivers, effort × the rate of its joint, shape (n,)."""
         return self.reactions.effort(driver) * self.reactions.driver_rate(driver)

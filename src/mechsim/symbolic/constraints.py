@@ -60,7 +60,7 @@ class SymbolicContext(JointContext):
         """The modal amplitudes η of a flexible body (empty for rigid bodies)."""
         return self._frames.get(id(body), ())[3:]
 
-    cos, sin = staticmethod(sp.cos), staticmethod(sp.sin)
+    cos, sin, atan2 = staticmethod(sp.cos), staticmethod(sp.sin), staticmethod(sp.atan2)
 
     def parameters(self, item) -> dict:
         return self._params[id(item)]
