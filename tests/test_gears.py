@@ -123,3 +123,37 @@ def test_bad_gears_are_refused_naming_them():
         mech.add(ms.Gear(pa, other, 2.0, name="g"))
     with pytest.raises(ms.ModelError, match=r"gear: couples joint 'pa' to itself"):
         ms.Gear(pa, pa, 2.0)
+
+
+@pytest.mark.parametrize("build", ["assembled", "fused"])
+def test_a_planetary_stage_obeys_willis(build, tmp_path):
+    """Sun and arm driven (ω_s = 10, ω_arm = 2 rad/s): the planet turns at ω_arm −
+    (r_s/r_p)(ω_s − ω_arm) and the ring, meshing with the planet inside it, at ω_arm +
+    (r_p/R)(ω_p − ω_arm), R = r_s + 2 r_p (Willis); the pairs' line of centres turns
+    with the arm, their `carrier`."""
+    rs, rp = 0.1, 0.05
+    big = rs + 2 * rp
+    mech = ms.Mechanism("planetary", gravity=(0.0, 0.0))
+    sun = mech.add(ms.RigidBody.disc("sun", (0, 0), rs, 1.0))
+    arm = mech.add(ms.RigidBody.rod("arm", (0, 0), (rs + rp, 0), 0.5))
+    planet = mech.add(ms.RigidBody.disc("planet", (rs + rp, 0), rp, 0.3))
+    ring = mech.add(ms.RigidBody.disc("ring", (0, 0), big, 2.0))
+    p_sun = mech.add(ms.Revolute(mech.ground, sun, at=(0, 0), name="sun pin"))
+    p_arm = mech.add(ms.Revolute(mech.ground, arm, at=(0, 0), name="arm pin"))
+    p_planet = mech.add(ms.Revolute(arm, planet, at=(rs + rp, 0), name="planet pin"))
+    p_ring = mech.add(ms.Revolute(mech.ground, ring, at=(0, 0), name="ring pin"))
+    mech.add(ms.Gear.spur(p_sun, p_planet, rs, rp, carrier=arm, name="sun-planet"))
+    mech.add(ms.Gear.spur(p_planet, p_ring, rp, big, internal=True, carrier=arm,
+                          name="planet-ring"))
+    mech.add(ms.Driver(p_sun, "10*t"))
+    mech.add(ms.Driver(p_arm, "2*t"))
+    mech.problem(build=build)
+    res = mech.kinematics(0.5, 0.05)
+    assert res.success, res.message
+    w_planet = 2.0 - rs / rp * (10.0 - 2.0)
+    w_ring = 2.0 + rp / big * (w_planet - 2.0)
+    np.testing.assert_allclose(res.coordinate("planet.angle"), w_planet * res.t, atol=1e-10)
+    np.testing.assert_allclose(res.coordinate("ring.angle"), w_ring * res.t, atol=1e-10)
+    back = ms.load_mechanism(mech.save(tmp_path / "planetary.toml"))
+    assert back.structure() == mech.structure()
+    np.testing.assert_allclose(back.kinematics(0.5, 0.05).q, res.q, rtol=0, atol=1e-12)

@@ -64,7 +64,7 @@ def build(r, name, gravity, tables) -> Mechanism:
         make(where, lambda: mech.add(Driver(joints[t["joint"]], t.get("expression"),
                                             name=t.get("name"), table=t.get("table"))))
     for where, t in tables["gear"]:
-        make(where, lambda: mech.add(_gear(r, joints, t, where)))
+        make(where, lambda: mech.add(_gear(r, mech, joints, t, where)))
     for where, t in tables["spring"]:
         a, b = (body_named(r, mech, n, where) for n in t["bodies"])
         kw = {k: t[k] for k in ("rest_length", "damping", "name") if k in t}
@@ -90,23 +90,25 @@ def build(r, name, gravity, tables) -> Mechanism:
     return mech
 
 
-def _gear(r, joints, t, where) -> Gear:
-    """A [[gear]]: type "spur" (radii = [r_a, r_b], internal), "rack" (radius) or "ratio"
-    (ratio) between its two `joints`."""
+def _gear(r, mech, joints, t, where) -> Gear:
+    """A [[gear]]: type "spur" (radii = [r_a, r_b], internal, carrier), "rack" (radius)
+    or "ratio" (ratio) between its two `joints`."""
     missing = [n for n in t["joints"] if n not in joints]
     if missing:
         raise r.error(where, f"no joint named {missing[0]!r}; joints: "
                              f"{', '.join(joints) or '(none)'}")
     a, b = (joints[n] for n in t["joints"])
     need = {"spur": "radii", "rack": "radius", "ratio": "ratio"}[t["type"]]
-    extra = [k for k in ("radii", "radius", "ratio", "internal")
-             if k in t and k != need and not (k == "internal" and t["type"] == "spur")]
+    extra = [k for k in ("radii", "radius", "ratio", "internal", "carrier")
+             if k in t and k != need and not (k in ("internal", "carrier") and
+                                              t["type"] == "spur")]
     if need not in t or extra:
         raise r.error(where, f"a {t['type']} gear takes `{need}`" +
                       (f", not `{extra[0]}`" if extra else ""))
     if t["type"] == "spur":
+        carrier = body_named(r, mech, t["carrier"], where) if "carrier" in t else None
         return Gear.spur(a, b, *t["radii"], internal=t.get("internal", False),
-                         name=t.get("name"))
+                         name=t.get("name"), carrier=carrier)
     if t["type"] == "rack":
         return Gear.rack(a, b, t["radius"], name=t.get("name"))
     return Gear(a, b, t["ratio"], name=t.get("name"))

@@ -37,9 +37,10 @@ def type_key(item) -> list:
     if isinstance(item, Driver):
         return ["driver", type_key(item.joint)]
     if item.kind == "gear":
-        slots = [b for j in item.joints for b in (j.body_a, j.body_b)]
+        slots = [b for j in item.joints for b in (j.body_a, j.body_b)] + item.extra_bodies
         same = [next(k for k, o in enumerate(slots) if o is b) for b in slots]
-        return ["gear", item.form, type_key(item.joint_a), type_key(item.joint_b), same]
+        return ["gear", item.form, type_key(item.joint_a), type_key(item.joint_b),
+                [_side(b) for b in item.extra_bodies], same]
     return [item.kind, _side(item.body_a), _side(item.body_b), list(item.parameter_names)]
 
 
@@ -54,10 +55,10 @@ def kernel_items(item) -> tuple[list, list]:
         joints = []
     holders = joints + [item]
     bodies = []
-    for j in joints or [item]:
-        for b in (j.body_a, j.body_b):
-            if b.coordinate_names and all(b is not o for o in bodies):
-                bodies.append(b)
+    for b in [b for j in joints or [item] for b in (j.body_a, j.body_b)] + \
+            list(getattr(item, "extra_bodies", ())):
+        if b.coordinate_names and all(b is not o for o in bodies):
+            bodies.append(b)
     return bodies, holders
 
 

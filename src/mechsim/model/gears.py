@@ -56,9 +56,9 @@ class Gear:
 
     @staticmethod
     def spur(pin_a: Joint, pin_b: Joint, radius_a: float, radius_b: float,
-             internal: bool = False, name: str | None = None) -> "SpurGear":
+             internal: bool = False, name: str | None = None, carrier=None) -> "SpurGear":
         """A spur pair (`SpurGear`)."""
-        return SpurGear(pin_a, pin_b, radius_a, radius_b, internal, name)
+        return SpurGear(pin_a, pin_b, radius_a, radius_b, internal, name, carrier)
 
     @staticmethod
     def rack(pin: Joint, slide: Joint, radius: float, name: str | None = None) -> "RackGear":
@@ -68,6 +68,11 @@ class Gear:
     @property
     def joints(self) -> tuple[Joint, Joint]:
         return (self.joint_a, self.joint_b)
+
+    @property
+    def extra_bodies(self) -> list:
+        """Bodies its equation reads besides its joints' (a planetary pair's arm)."""
+        return []
 
     @property
     def n_equations(self) -> int:
@@ -88,9 +93,10 @@ class Gear:
         return [s_b - p["ratio"] * s_a - p["offset"]]
 
     def structure(self, index) -> tuple:
-        """Its form and its joints' positions `index(joint)` (radii and ratio are
-        parameters)."""
-        return (self.kind, self.form, index(self.joint_a), index(self.joint_b))
+        """Its form, its joints' positions `index(joint)` and those of its extra bodies
+        (radii and ratio are parameters)."""
+        return (self.kind, self.form, index(self.joint_a), index(self.joint_b),
+                [index(b) for b in self.extra_bodies])
 
     def __repr__(self):
         return f"{type(self).__name__}({self.joint_a.name!r}, {self.joint_b.name!r}, " \
@@ -98,22 +104,37 @@ class Gear:
 
 
 class _Meshed(Gear):
-    """A pair on one carrier: the body both joints share; for each joint the side ("a" or
-    "b") of its carrier and of its gear body."""
+    """A pair on a carrier: by default the body both joints share (else `carrier`, the arm
+    of a planetary stage that holds the line of centres); for each joint the side ("a" or
+    "b") of the body that is not the gear and of its gear body (body_b, unless that is
+    the carrier)."""
 
-    def __init__(self, joint_a, joint_b, ratio, name):
+    def __init__(self, joint_a, joint_b, ratio, name, carrier=None):
         super().__init__(joint_a, joint_b, ratio, name)
         shared = [b for b in (joint_a.body_a, joint_a.body_b)
                   if b is joint_b.body_a or b is joint_b.body_b]
-        if not shared:
+        if carrier is None and not shared:
             raise ModelError(f"{self.owner}: joints '{joint_a.name}' and '{joint_b.name}' "
                              "share no body: both must sit on the carrier (the ground, a "
-                             "frame or an arm)")
-        self.carrier = shared[0]
+                             "frame or an arm), or give the `carrier` (a planetary arm)")
+        self.carrier = shared[0] if carrier is None else carrier
+        self.carrier_given = carrier is not None      # (a saved scene names it then)
         self.side = {}
         for key, joint in (("a", joint_a), ("b", joint_b)):
-            c = "a" if joint.body_a is self.carrier else "b"
+            c = "a" if joint.body_a is self.carrier or joint.body_b is not self.carrier \
+                else "b"
             self.side[key] = (c, "b" if c == "a" else "a")
+
+    @property
+    def extra_bodies(self) -> list:
+        held = [b for j in self.joints for b in (j.body_a, j.body_b)]
+        return [] if any(b is self.carrier for b in held) else [self.carrier]
+
+    def carrier_angle(self, ctx, pa):
+        ca = self.side["a"][0]
+        if self.body("a", ca) is self.carrier:
+            return ctx.angle(self.carrier, pa, ca)
+        return ctx.angle(self.carrier)
 
     def body(self, key, role):
         joint = self.joint_a if key == "a" else self.joint_b
@@ -128,30 +149,32 @@ class _Meshed(Gear):
 
     def pinion(self, ctx, pa):
         """(carrier's angle, gear a's centre, gear a's angle) in `ctx`."""
-        ca, ga = self.side["a"]
+        ga = self.side["a"][1]
         gear = self.body("a", ga)
-        return (ctx.angle(self.carrier, pa, ca),
+        return (self.carrier_angle(ctx, pa),
                 ctx.point(gear, pa[f"{ga}x"], pa[f"{ga}y"], pa, ga), ctx.angle(gear, pa, ga))
 
 
 class SpurGear(_Meshed):
     """A spur pair: the gear turning on revolute `pin_a` (pitch radius `radius_a`) meshes
     with the one on `pin_b`; both pins on one body, the carrier (the ground, a frame, an
-    arm). External: the gears turn opposite ways, ω_b = −(r_a/r_b) ω_a relative to the
-    carrier; `internal`: gear b is a ring around gear a, ω_b = (r_a/r_b) ω_a. Written on
-    the line of centres (measured from the carrier, so the pair may turn with it):
-    r_a (θ_a − φ) ± r_b (θ_b − φ) = const, whose multiplier is the tooth force along the
-    pitch line, carried by both pins."""
+    arm), or the gears on body_b of their pins and `carrier` the arm that holds their
+    line of centres (a sun on the ground and a planet on the arm). External: the gears
+    turn opposite ways, ω_b = −(r_a/r_b) ω_a relative to the carrier; `internal`: gear b
+    is a ring around gear a, ω_b = (r_a/r_b) ω_a. Written on the line of centres φ
+    (measured from the carrier, so the pair may turn with it): r_a (θ_a − φ) ± r_b (θ_b −
+    φ) = const, whose multiplier is the tooth force along the pitch line, carried by both
+    pins."""
 
     form = "spur"
     parameter_names = ("ra", "rb", "phi0", "offset")
 
     def __init__(self, pin_a: Joint, pin_b: Joint, radius_a: float, radius_b: float,
-                 internal: bool = False, name: str | None = None):
+                 internal: bool = False, name: str | None = None, carrier=None):
         owner = f"gear '{name or 'spur'}'"
         ra = scalar(radius_a, "radius_a", owner, positive=True)
         rb = scalar(radius_b, "radius_b", owner, positive=True)
-        super().__init__(pin_a, pin_b, (ra if internal else -ra) / rb, name)
+        super().__init__(pin_a, pin_b, (ra if internal else -ra) / rb, name, carrier)
         for pin in (pin_a, pin_b):
             if pin.kind != "revolute":
                 raise ModelError(f"{self.owner}: a spur pair turns on pins; joint "
@@ -214,7 +237,7 @@ class RackGear(_Meshed):
     def equations(self, ctx, p):
         pa, pb = ctx.parameters(self.joint_a), ctx.parameters(self.joint_b)
         carrier, centre, angle = self.pinion(ctx, pa)
-        ca = self.side["a"][0]
+        ca = self.side["a"][0]           # the rack's carrier is shared: a body of the pin
         slide = self.joint_b
         u = ctx.direction(slide.body_a, pb["ux"], pb["uy"], pb, "a")
         held = ctx.point(self.carrier, pa[f"{ca}x"], pa[f"{ca}y"], pa, ca)

@@ -50,6 +50,8 @@ def scene_data(mech) -> dict:
         if gear.form == "spur":
             table["radii"] = [float(gear.radius_a), float(gear.radius_b)]
             table["internal"] = bool(gear.internal)
+            if gear.carrier_given:
+                table["carrier"] = gear.carrier.name
         elif gear.form == "rack":
             table["radius"] = float(gear.radius_a)
         else:
