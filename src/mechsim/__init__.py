@@ -14,7 +14,7 @@ from importlib import import_module as _import_module
 
 from .model import (AssemblyError, Body, Channel, LoadError, DofReport, Driver, FlexibleBeam, Force, Gear, Ground, Joint,
                     Mechanism, ModelError, Prismatic, Revolute, RigidBody, RotationalSpring, Spring,
-                    Torque)
+                    Stop, Torque)
 
 __version__ = "0.1.0"
 
@@ -46,5 +46,5 @@ def __dir__():
 
 __all__ = ["AssemblyError", "Body", "Channel", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Gear", "Ground", "Joint",
            "LinearSystem", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody",
-           "RotationalSpring", "SimulationResult", "Spring", "Study", "Torque", "load_mechanism",
+           "RotationalSpring", "SimulationResult", "Spring", "Stop", "Study", "Torque", "load_mechanism",
            "load_result", "load_scene", "sweep"]

@@ -37,20 +37,17 @@ from .results import SimulationResult
 from .results.result import WorkRecord
 from .results.stream import begin_stream
 from .results.work import WorkIntegral
+from .runaway import Runaway
 from .samples import FAILURES, Recorder, check_finite, fastest_motion, troubled_drivers
 
 # A run stops as stuck when this many steps together advance less than this fraction of
 # its span (LU alone at the flexible four-bar's passage: 2000 steps of 2e-12–7e-12 s).
 STALL_STEPS = 2000
+# An event value counts as crossed below −EVENT_SLACK (a stop left at its limit reads ±1e-16);
+# its time, where it passes 0, is found to EVENT_XTOL (relative to t, at least 1 s).
+EVENT_SLACK = 1e-12
+EVENT_XTOL = 1e-13
 STALL_SPAN = 1e-7
-# A run whose motion speeds up without bound stops once the trend of its steps shows it
-# cannot reach t_end (`Runaway`): checked every RUNAWAY_EVERY accepted steps from the
-# RUNAWAY_FROM-th, where the speeds grew RUNAWAY_SPEEDUP times over the last half of the
-# steps and t_end lies beyond the steps' limit or RUNAWAY_STEPS steps away, twice running.
-RUNAWAY_FROM = 1000
-RUNAWAY_EVERY = 250
-RUNAWAY_SPEEDUP = 1.5
-RUNAWAY_STEPS = 1e8
 # A step that left the assembly branch (`Formulation.keeps_branch`) is taken again at a
 # quarter of its length, up to this many times in a row, by the methods that resolve
 # passages; then it stands, and the run says so.
@@ -90,76 +87,6 @@ class StepBound:
         return None
 
 
-class Runaway:
-    """Tells a motion that outruns its integrator (a driver law with a pole, 1/(t − 0.1);
-    one that grows as exp(1000 t); a load that does so) from one that merely speeds up.
-
-    The accepted steps' lengths h_j, j the step's index, are kept thinned to at most
-    `keep` evenly spaced in j. Over the last half of the run they are fitted by a power,
-    h_j ≈ h_k (j/k)^(−p) (log–log least squares), and the steps still needed to reach
-    t_end follow from the sum of that power: for p > 1 the steps add up to no more than
-    k h_k/(p − 1), so the motion blows up near t* = t + k h_k/(p − 1) if that comes
-    first; otherwise the count N with Σ_{j=k..N} h_j = t_end − t. A crank driven at
-    100 t rad/s has h ∝ j^(−1/2) and N a few times k; 1/(t − 0.1) has p ≈ 2 and t*
-    near 0.1; exp(1000 t) has p ≈ 1 and N ≈ k e^((t_end − t)/(k h_k)). Only where the
-    largest speed also grew `RUNAWAY_SPEEDUP` times over that half, the steps shrank no
-    more than its cube (a run whose steps collapse at a singular configuration, speeds
-    bounded, is the stall rule's), and the verdict holds at two checks running."""
-
-    keep = 512
-
-    def __init__(self):
-        self.rows = np.empty((self.keep + 1, 3))       # [j, h, speed] of the steps kept
-        self.count = 0
-        self.stride = 1
-        self.strikes = 0
-
-    def note(self, j, h, v) -> None:
-        """The j-th accepted step, of length h, ending at velocities v."""
-        if j % self.stride:
-            return
-        self.rows[self.count] = j, h, np.max(np.abs(v), initial=0.0)
-        self.count += 1
-        if self.count > self.keep:
-            self.stride *= 2
-            kept = self.rows[:self.count:2]
-            self.count = len(kept)
-            self.rows[:self.count] = kept.copy()
-
-    def verdict(self, k, t, t_end) -> str:
-        """"" while the run may go on; else why it cannot reach t_end."""
-        if k < RUNAWAY_FROM or k % RUNAWAY_EVERY or self.count < 16:
-            return ""
-        j, h, speed = self.rows[:self.count].T
-        half = j >= j[-1] / 2
-        j, h, speed = j[half], h[half], speed[half]
-        why = ""
-        growth = speed[-1] / speed[0] if speed[0] > 0.0 else 0.0
-        fit = np.polyfit(np.log(j), np.log(h), 1) if np.all(h > 0.0) else None
-        p = -fit[0] if fit is not None else 0.0
-        # The steps shrink because the motion speeds up (h ∝ 1/speed resolves its turns;
-        # a pole gives h ∝ speed^-1.5): not many times faster, as where they collapse at
-        # a singular configuration the formulation cannot pass (the stall rule's).
-        if growth >= RUNAWAY_SPEEDUP and p * np.log(j[-1] / j[0]) <= 3.0 * np.log(growth):
-            hk = float(np.exp(np.polyval(fit, np.log(k))))
-            a = (t_end - t) / (k * hk)
-            if p > 1.0 and a * (p - 1.0) >= 1.0:
-                why = (f"the motion runs away: over the last {k - int(j[0])} steps its "
-                       f"speeds grew from {speed[0]:.3g} to {speed[-1]:.3g} while its steps "
-                       f"shrank as j^-{p:.2f}, which add up to no more than "
-                       f"t ≈ {t + k * hk / (p - 1.0):.9g}: t_end is out of reach")
-            else:
-                log_n = np.log(k) + (a if abs(p - 1.0) < 1e-9 else
-                                     np.log1p(a * (1.0 - p)) / (1.0 - p))
-                if log_n > np.log(RUNAWAY_STEPS):
-                    why = (f"the motion runs away: over the last {k - int(j[0])} steps its "
-                           f"speeds grew from {speed[0]:.3g} to {speed[-1]:.3g} while its "
-                           f"steps shrank as j^-{p:.2f}; at that rate t_end is about "
-                           f"1e{log_n / np.log(10):.0f} steps away")
-        self.strikes = self.strikes + 1 if why else 0
-        return why if self.strikes >= 2 else ""
-
-
 @dataclass
 class Statistics:
     """What a run spent, beyond the live integrator's own counts."""
@@ -196,6 +123,7 @@ class Settings:
     work: bool
     progress: bool = False          # a progress bar (tqdm) over [t_start, t_end]
     stream: object = None           # a directory the samples are streamed to, or None
+    events: object = None           # where the run ends early (`Events`), or None
 
 
 class Progress:
@@ -258,6 +186,9 @@ class Run:
         # the partial result instead of grinding on.
         self.recent = collections.deque([settings.t_start], maxlen=STALL_STEPS + 1)
         self.runaway = Runaway()
+        self.event = None                # (t, index, q, v) where an event ended the run
+        self._g_last = None if settings.events is None else \
+            np.asarray(settings.events.values(settings.t_start, q0, v0), float)
         self.status, self.message, self.exception = "success", "reached t_end", None
         self.t_reached = settings.t_start
         self.solver = None
@@ -322,6 +253,8 @@ class Run:
             return self._stop(f"the steps collapsed: {self.recent.maxlen - 1} steps advanced "
                               f"only {solver.t - self.recent[0]:.2g} s up to "
                               f"t = {solver.t:.9g}")
+        if self.s.events is not None and self._event(t_old, solver.t, solver.y):
+            return False
         y_here = self._accept(t_old, solver.t, solver.y)
         why = self.runaway.verdict(self.stats.steps, solver.t, self.s.t_end)
         if why:
@@ -333,6 +266,44 @@ class Run:
         if self.out.failure is not None:
             return self._stop(f"writing the stream failed at t = {self.solver.t:.9g} "
                               f"({self.out.failure}); the samples after it are in memory")
+        return True
+
+    def _event(self, t_old, t_new, y_new) -> bool:
+        """Whether one of `Settings.events`' values turned negative within the step just
+        taken: then the step is accepted only up to the first such time, found on the
+        step's dense output to `EVENT_XTOL`, a sample recorded there, and the run ends
+        with `event` = (t, index, q, v)."""
+        events, form = self.s.events, self.form
+        q_new, v_new = form.state(t_new, y_new)
+        g_new = np.asarray(events.values(t_new, q_new, v_new), float)
+        g_old = self._g_last
+        self._g_last = g_new
+        crossed = np.flatnonzero(g_new < -EVENT_SLACK)
+        if not crossed.size:
+            return False
+        interpolant = self.solver.dense_output()
+
+        def value(t, i):
+            q, v = form.state(t, interpolant(t))
+            return float(events.values(t, q, v)[i])
+        first, t_event = None, t_new
+        for i in crossed:
+            if g_old is None:
+                continue
+            t_i = crossing(lambda t, i=i: value(t, i), t_old, t_new, g_old[i])
+            if first is None or t_i < t_event:
+                first, t_event = int(i), t_i
+        if first is None:
+            return False
+        ts = self.out.ts
+        if ts is not None and not np.any(ts == t_event):
+            self.out.ts = np.insert(ts, int(np.searchsorted(ts, t_event)), t_event)
+        y_event = interpolant(t_event)
+        y_here = self._accept(t_old, t_event, y_event)
+        q, v = form.state(t_event, y_here)
+        self.event = (t_event, first, np.array(q), np.array(v))
+        self.t_reached = t_event
+        self.message = f"stopped at t = {t_event:.9g}: {events.describe(first)}"
         return True
 
     def _accept(self, t_old, t_new, y_new):
@@ -562,12 +533,14 @@ class Run:
             self.status = "failed"
             self.message += (f"; writing the stream failed at its end ({out.failure}): every "
                              "sample is in this result, not all in the stream's files")
-        return SimulationResult(t, q, v, self.problem.coordinate_names, problem=self.problem,
-                                status=self.status, message=self.message,
-                                stats=self._statistics(),
-                                singular_passages=self.monitor.passages,
-                                switches=self.form.switches, exception=self.exception,
-                                work=work)
+        res = SimulationResult(t, q, v, self.problem.coordinate_names, problem=self.problem,
+                               status=self.status, message=self.message,
+                               stats=self._statistics(),
+                               singular_passages=self.monitor.passages,
+                               switches=self.form.switches, exception=self.exception,
+                               work=work)
+        res.event = self.event
+        return res
 
     def _work_record(self) -> WorkRecord | None:
         """What the result keeps of the work integral: the channels, W at the first samples,
@@ -588,3 +561,21 @@ def _split(Y, n):
     """(Q, V) from rows [q, v]."""
     Y = np.atleast_2d(Y)
     return Y[:, :n], Y[:, n:]
+
+
+def crossing(g, t_old, t_new, g_old) -> float:
+    """The first time in [t_old, t_new] where g falls through 0, g(t_new) being below it:
+    from t_old where g was above 0, else (a run begun at the stop it left) from where g
+    peaks in the step, by Brent's method to `EVENT_XTOL`; t_old where g never rose above 0
+    (the joint went straight into the stop)."""
+    from scipy.optimize import brentq, minimize_scalar
+    xtol = EVENT_XTOL * max(1.0, abs(t_new))
+    start = t_old
+    if not g_old > 0.0:
+        peak = minimize_scalar(lambda t: -g(t), bounds=(t_old, t_new), method="bounded",
+                               options={"xatol": xtol})
+        if not -peak.fun > 0.0:
+            return t_old
+        start = float(peak.x)
+    return float(brentq(g, start, t_new, xtol=xtol))
+

@@ -143,8 +143,8 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
              integrator: str | None = None, first_step: float | None = None,
              singular_thresholds: tuple[float, float] = (0.07, 0.14),
              max_steps: int | None = None, h: float | None = None, work: bool = True,
-             progress: bool = False, stream=None, mechanism=None,
-             **options) -> SimulationResult:
+             progress: bool = False, stream=None, mechanism=None, events=None,
+             output_grid=None, **options) -> SimulationResult:
     """Integrate the constrained equations of motion from a consistent (q0, v0) at t_start.
 
     Parameters
@@ -170,6 +170,10 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         sample); `mechsim.load_result(stream)` loads it again
     mechanism : the Mechanism `problem` was built from, kept with the result (and saved
         with it: a loaded result then has its model)
+    events : where the run ends early (`mechsim.engineering.impacts` passes the stops): an object with
+        `values(t, q, v)` (an array, each ≥ 0 while the run may go on) and `describe(i)`;
+        the result's `event` is then (t, i, q, v) of the first crossing, else None
+    output_grid : the output times (from t_start to t_end), instead of `output_step`'s
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
     cls, solver_cls, t_end, checked = check_settings(
@@ -193,9 +197,10 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     form = _formulation(cls, problem, q0, t_start, rtol, atol, options, redundant,
                         fully_driven)
     form.monitor = SingularityMonitor(problem, *singular_thresholds, redundant=redundant)
+    grid = output_times(t_start, t_end, output_step) if output_grid is None else \
+        np.asarray(output_grid, float)
     settings = Settings(t_start, t_end, rtol, atol, max_step, first_step, h, max_steps,
-                        output_times(t_start, t_end, output_step), checked["work"],
-                        checked["progress"], stream)
+                        grid, checked["work"], checked["progress"], stream, events)
     with run_threads():
         res = Run(problem, form, solver_cls, settings, q0, v0, method=cls.name,
                   fully_driven=fully_driven).execute()

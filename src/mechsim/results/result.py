@@ -119,6 +119,8 @@ class SimulationResult:
         self.mechanism = None         # the Mechanism simulated, where known (saved with it)
         self.model_note = ""          # why a loaded result came without its mechanism
         self.stream_path = None       # the directory a streamed run's samples are in
+        self.event = None             # (t, index, q, v) where an event ended the run
+        self.impacts = []             # the stops' impacts (`mechsim.engineering.impacts.Impact`)
         if energy is not None:
             self.__dict__["energy"] = energy
         if constraint_violation is not None:
