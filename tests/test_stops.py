@@ -107,3 +107,14 @@ def test_bad_stops_are_refused_naming_them():
     driven.add(ms.Driver(driven.joint("pin"), "t"))
     with pytest.raises(ms.ModelError, match=r"joint 'pin' is driven"):
         driven.add(ms.Stop(driven.joint("pin"), lower=-1.0, name="s"))
+
+
+def test_stops_round_trip_through_a_scene(tmp_path):
+    mech = pendulum(0.5)
+    back = ms.load_mechanism(mech.save(tmp_path / "stop.toml"))
+    (stop,) = back.stops
+    assert (stop.name, stop.joint.name, stop.lower, stop.upper, stop.restitution) == \
+        ("stop", "pin", LIMIT, None, 0.5)
+    a = mech.simulate(1.0, rtol=1e-9, output_step=0.05)
+    b = back.simulate(1.0, rtol=1e-9, output_step=0.05)
+    assert [i.t for i in a.impacts] == pytest.approx([i.t for i in b.impacts], abs=1e-12)

@@ -28,12 +28,12 @@ same tables in JSON, for files ending in .json)::
     name = "A"
     bodies = ["ground", "crank"]
     at = [0, 0]
-    [[driver]]  joint = "A", expression = "150*t"   # in t and the parameters, or
-                table = [[t, value], …]              # measured: a C² spline through them
+    [[driver]]  joint = "A", expression = "150*t"   # or table = [[t, value], …] (a spline)
     [[spring]]  bodies = [a, b], at_a, at_b, stiffness, rest_length, damping
     [[rotational_spring]]  bodies = [a, b], stiffness, damping, rest_angle
     [[force]]   body, force = [fx, fy], at      [[torque]]  body, torque   # in t, too
     [[gear]]    type = "spur", joints = [a, b], radii, internal  # "rack": radius; "ratio"
+    [[stop]]    joint, lower, upper, restitution, rest_speed     # an end stop (mechsim.Stop)
     [[speed]]   joint, rate     # the joint's initial rate (Mechanism.set_speed)
     [[channel]] name, expression, unit   # recorded (mechsim.Channel): of t, "crank.angle",
                 # "….rate", "….acceleration", "A.coordinate", "A.rate", the parameters
@@ -147,6 +147,8 @@ SCHEMA = {
     "rotational_spring": {"bodies": "bodies", "stiffness": "number", "damping": "number",
                           "rest_angle": "number", "name": "name"},
     "speed": {"joint": "name", "rate": "number"},
+    "stop": {"joint": "name", "lower": "number", "upper": "number", "restitution": "number",
+             "rest_speed": "number", "name": "name"},
     "gear": {"type": ("spur", "rack", "ratio"), "joints": "bodies", "name": "name",
              "radii": "vector", "radius": "number", "ratio": "number", "internal": "flag",
              "carrier": "name"},
@@ -162,9 +164,9 @@ REQUIRED = {
     "spring": ("bodies", "at_a", "at_b", "stiffness"), "force": ("body", "force"),
     "torque": ("body", "torque"), "rotational_spring": ("bodies", "stiffness"), "output": (),
     "speed": ("joint", "rate"), "channel": ("name", "expression"),
-    "gear": ("type", "joints"),
+    "gear": ("type", "joints"), "stop": ("joint",),
 }
-_ARRAYS = ("body", "joint", "driver", "gear", "spring", "force", "torque",
+_ARRAYS = ("body", "joint", "driver", "gear", "stop", "spring", "force", "torque",
            "rotational_spring", "speed", "channel")
 _TOP = {"name": "name", "gravity": "vector", "parameters": "table", "simulation": "table",
         "output": "table", **{k: "array" for k in _ARRAYS}}

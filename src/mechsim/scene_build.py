@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from .model import (Channel, Driver, FlexibleBeam, Force, Gear, Mechanism, ModelError,
-                    Prismatic, Revolute, RigidBody, RotationalSpring, Spring, Torque)
+                    Prismatic, Revolute, RigidBody, RotationalSpring, Spring, Stop, Torque)
 from .model.channels import channel_names
 from .model.expressions import parse
 
@@ -63,6 +63,13 @@ def build(r, name, gravity, tables) -> Mechanism:
             raise r.error(where, "needs an `expression` or a `table`, one of them")
         make(where, lambda: mech.add(Driver(joints[t["joint"]], t.get("expression"),
                                             name=t.get("name"), table=t.get("table"))))
+    for where, t in tables["stop"]:
+        if t["joint"] not in joints:
+            raise r.error(where, f"no joint named {t['joint']!r}; joints: "
+                                 f"{', '.join(joints) or '(none)'}")
+        kw = {k: t[k] for k in ("lower", "upper", "restitution", "rest_speed", "name")
+              if k in t}
+        make(where, lambda: mech.add(Stop(joints[t["joint"]], **kw)))
     for where, t in tables["gear"]:
         make(where, lambda: mech.add(_gear(r, mech, joints, t, where)))
     for where, t in tables["spring"]:

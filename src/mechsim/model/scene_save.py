@@ -30,7 +30,7 @@ def scene_data(mech) -> dict:
     cannot hold)."""
     owner = f"mechanism '{mech.name}': save"
     data = {"name": mech.name, "gravity": _vector(mech.gravity), "body": [], "joint": [],
-            "driver": [], "gear": [], "spring": [], "force": [], "torque": [], "rotational_spring": [],
+            "driver": [], "gear": [], "stop": [], "spring": [], "force": [], "torque": [], "rotational_spring": [],
             "speed": [], "channel": []}
     for body in mech.bodies:
         data["body"].append(_body(body, owner))
@@ -44,6 +44,12 @@ def scene_data(mech) -> dict:
         else:
             table["expression"] = driver.expression
         data["driver"].append(table)
+    for stop in mech.stops:
+        table = {"name": stop.name, "joint": stop.joint.name,
+                 "restitution": float(stop.restitution), "rest_speed": float(stop.rest_speed)}
+        table.update({k: float(getattr(stop, k)) for k in ("lower", "upper")
+                      if getattr(stop, k) is not None})
+        data["stop"].append(table)
     for gear in mech.gears:
         table = {"type": gear.form, "name": gear.name,
                  "joints": [gear.joint_a.name, gear.joint_b.name]}
