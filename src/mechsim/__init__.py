@@ -13,7 +13,7 @@ simulation starts, matplotlib when a plot is drawn, meshio when a result is expo
 from importlib import import_module as _import_module
 
 from .model import (AssemblyError, Body, Channel, LoadError, DofReport, Driver, FlexibleBeam, Force, Gear, Ground, Joint,
-                    Mechanism, ModelError, Prismatic, Revolute, RigidBody, RotationalSpring, Spring,
+                    Mechanism, ModelError, PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring, Spring,
                     Stop, Torque)
 
 __version__ = "0.1.0"
@@ -45,6 +45,6 @@ def __dir__():
 
 
 __all__ = ["AssemblyError", "Body", "Channel", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Gear", "Ground", "Joint",
-           "LinearSystem", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody",
+           "LinearSystem", "Mechanism", "ModelError", "PointOnCurve", "Prismatic", "Revolute", "RigidBody",
            "RotationalSpring", "SimulationResult", "Spring", "Stop", "Study", "Torque", "load_mechanism",
            "load_result", "load_scene", "sweep"]

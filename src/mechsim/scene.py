@@ -4,12 +4,11 @@ same tables in JSON, for files ending in .json)::
     name = "four-bar"
     gravity = [0.0, -9.81]
     [parameters]                 # numbers or expressions of earlier parameters
-    L = 1.0
-    tilt = "radians(10)"
+    L = 1.0                      # e.g. tilt = "radians(10)"
 
     [[body]]                     # a uniform rod between two points …
     name = "crank"
-    rod = [[0, 0], ["L*cos(tilt)", "L*sin(tilt)"]]
+    rod = [[0, 0], ["L", 0]]
     mass = 1.0
     [[body]]                     # … or a uniform plate: rectangle = [width, height] or
                                  # disc = radius at `position`, or polygon = its corners
@@ -24,7 +23,8 @@ same tables in JSON, for files ending in .json)::
     n_modes = 2                  # boundary ("pinned-pinned", …), damping_ratio
 
     [[joint]]
-    type = "revolute"            # or "prismatic" (with `axis`)
+    type = "revolute"            # "prismatic" (`axis`); "curve" (centre, and line = [ux, uy],
+                                 # circle = radius or polar = "r(phi)": mechsim.PointOnCurve)
     name = "A"
     bodies = ["ground", "crank"]
     at = [0, 0]
@@ -137,8 +137,9 @@ SCHEMA = {
                       "boundary": ("pinned-pinned", "clamped-free", "free-free"),
                       "damping_ratio": "number", "velocity": "vector",
                       "angular_velocity": "number"},
-    "joint": {"type": ("revolute", "prismatic"), "name": "name", "bodies": "bodies",
-              "at": "vector", "local_a": "vector", "local_b": "vector", "axis": "vector"},
+    "joint": {"type": ("revolute", "prismatic", "curve"), "name": "name", "bodies": "bodies",
+              "at": "vector", "local_a": "vector", "local_b": "vector", "axis": "vector",
+              "centre": "vector", "line": "vector", "circle": "number", "polar": "name"},
     "driver": {"joint": "name", "expression": "driver", "name": "name", "table": "rows"},
     "spring": {"bodies": "bodies", "at_a": "vector", "at_b": "vector", "stiffness": "number",
                "rest_length": "number", "damping": "number", "name": "name"},

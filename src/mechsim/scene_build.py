@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from .model import (Channel, Driver, FlexibleBeam, Force, Gear, Mechanism, ModelError,
-                    Prismatic, Revolute, RigidBody, RotationalSpring, Spring, Stop, Torque)
+                    PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring, Spring, Stop, Torque)
 from .model.channels import channel_names
 from .model.expressions import parse
 
@@ -43,16 +43,27 @@ def build(r, name, gravity, tables) -> Mechanism:
     joints = {}
     for where, t in tables["joint"]:
         a, b = (body_named(r, mech, n, where) for n in t["bodies"])
+        stray = [k for k in ("centre", "line", "circle", "polar") if k in t]
+        if stray and t["type"] != "curve":
+            raise r.error(where, f"a {t['type']} joint has no `{stray[0]}` (a curve joint has)")
         if t["type"] == "revolute":
             if "axis" in t:
                 raise r.error(where, "a revolute joint has no `axis`")
             kw = {k: t[k] for k in ("at", "local_a", "local_b") if k in t}
             joint = make(where, lambda: Revolute(a, b, name=t.get("name"), **kw))
-        else:
+        elif t["type"] == "prismatic":
             if "axis" not in t or "at" not in t:
                 raise r.error(where, "a prismatic joint needs `axis` and `at`")
             joint = make(where, lambda: Prismatic(a, b, axis=t["axis"], at=t["at"],
                                                   name=t.get("name")))
+        else:
+            forms = [k for k in ("line", "circle", "polar") if k in t]
+            if len(forms) != 1 or "at" not in t:
+                raise r.error(where, "a curve joint needs `at` and one of `line`, `circle`, "
+                                     "`polar`")
+            joint = make(where, lambda: PointOnCurve(a, b, at=t["at"], centre=t.get("centre"),
+                                                     curve=(forms[0], t[forms[0]]),
+                                                     name=t.get("name")))
         make(where, lambda: mech.add(joint))
         joints[joint.name] = joint
     for where, t in tables["driver"]:

@@ -41,7 +41,8 @@ def type_key(item) -> list:
         same = [next(k for k, o in enumerate(slots) if o is b) for b in slots]
         return ["gear", item.form, type_key(item.joint_a), type_key(item.joint_b),
                 [_side(b) for b in item.extra_bodies], same]
-    return [item.kind, _side(item.body_a), _side(item.body_b), list(item.parameter_names)]
+    return [item.kind, _side(item.body_a), _side(item.body_b), list(item.parameter_names),
+            *([item.kernel_tag] if hasattr(item, "kernel_tag") else [])]
 
 
 def kernel_items(item) -> tuple[list, list]:

@@ -81,6 +81,35 @@ def sin(a):
     return np.sin(a)
 
 
+def sqrt(a):
+    if isinstance(a, Dual):
+        root = np.sqrt(a.x)
+        return Dual(root, a.d / _col(2.0 * root))
+    return np.sqrt(a)
+
+
+def atan2(y, x):
+    if isinstance(y, Dual) or isinstance(x, Dual):
+        yv, xv = value(y), value(x)
+        k = (y.d if isinstance(y, Dual) else x.d).shape[-1]
+        dy = derivative(y, yv.shape + (k,))
+        dx = derivative(x, xv.shape + (k,))
+        r2 = xv * xv + yv * yv
+        return Dual(np.arctan2(yv, xv), (dy * _col(xv) - dx * _col(yv)) / _col(r2))
+    return np.arctan2(y, x)
+
+
+def curve(law, phi):
+    """r(φ) of an `Expression` in phi at φ (a dual or an array): its value and, by the
+    chain rule with its derivative (`Expression.jet`), its dual."""
+    at = np.atleast_1d(value(phi))
+    jets = np.array([law.jet("phi", float(a))[:2] for a in at.reshape(-1)]).reshape(at.shape + (2,))
+    r, dr = jets[..., 0].reshape(np.shape(value(phi))), jets[..., 1].reshape(np.shape(value(phi)))
+    if isinstance(phi, Dual):
+        return Dual(r, phi.d * _col(dr))
+    return r
+
+
 def value(a):
     """The value of a dual or of a plain number, as an array."""
     return a.x if isinstance(a, Dual) else np.asarray(a, float)
@@ -128,6 +157,7 @@ class NumericContext(JointContext):
         return tuple(self.coordinate(start + 3 + c) for c in range(k))
 
     cos, sin = staticmethod(cos), staticmethod(sin)
+    sqrt, atan2, curve = staticmethod(sqrt), staticmethod(atan2), staticmethod(curve)
 
 
 @dataclass(frozen=True)

@@ -8,9 +8,9 @@ from .flexible_beam import FlexibleBeam
 from .forces import Force, RotationalSpring, Spring, Torque
 from .gears import Gear
 from .stops import Stop
-from .joints import Joint, Prismatic, Revolute
+from .joints import Joint, PointOnCurve, Prismatic, Revolute
 from .mechanism import AssemblyError, AssemblyReport, DofReport, Mechanism
 
 __all__ = ["AssemblyError", "LoadError", "AssemblyReport", "Body", "Channel", "DofReport", "Driver", "FlexibleBeam", "Force", "Gear", "Ground",
-           "Joint", "Mechanism", "ModelError", "Prismatic", "Revolute", "RigidBody", "RotationalSpring", "Spring",
+           "Joint", "Mechanism", "ModelError", "PointOnCurve", "Prismatic", "Revolute", "RigidBody", "RotationalSpring", "Spring",
            "Stop", "Torque"]

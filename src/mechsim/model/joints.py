@@ -19,6 +19,8 @@ modes and `ctx.angle(body, p, "a")` turns with the node.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .checks import ModelError, name_or_default, vector2
@@ -180,3 +182,107 @@ class Prismatic(Joint):
 
     def initial_coordinate(self):
         return 0.0
+
+
+class PointOnCurve(Joint):
+    """A point of body_b kept on a curve fixed in body_a: a pin in a slot, a follower's
+    roller centre on a cam's pitch curve. One equation; body_b may turn and slide along
+    the curve. `at` is body_b's point (global, in the initial configuration), `centre`
+    the curve's reference point (global, default `at`), and `curve` one of
+
+    - ``("line", (ux, uy))``: the straight line through `centre` along (ux, uy) (global
+      as built), a straight slot;
+    - ``("circle", radius)``: the circle of `radius` about `centre`, a curved slot;
+    - ``("polar", "expression in phi")``: the closed curve r(φ) about `centre`, φ the
+      polar angle in body_a from the global x axis as built, r 2π-periodic (a cam's pitch
+      curve: `"0.05 + 0.01*cos(phi)"`; parsed, never executed).
+
+    The point must be on the curve as built (within 1e-9 of its size); the multiplier is
+    the force normal to the curve (`SimulationResult.joint_force`)."""
+
+    kind = "curve"
+    equation_labels = ("normal",)
+
+    def __init__(self, body_a: Body, body_b: Body, at, curve, centre=None,
+                 name: str | None = None):
+        super().__init__(body_a, body_b, name)
+        owner = f"point-on-curve joint '{self.name}'"
+        self.at = vector2(at, "at", owner)
+        self.centre = self.at.copy() if centre is None else vector2(centre, "centre", owner)
+        if not (isinstance(curve, tuple) and len(curve) == 2 and
+                curve[0] in ("line", "circle", "polar")):
+            raise ModelError(f"{owner}: `curve` must be ('line', (ux, uy)), ('circle', "
+                             f"radius) or ('polar', 'expression in phi'), got {curve!r:.80}")
+        self.form = curve[0]
+        if self.form == "line":
+            u = vector2(curve[1], "curve direction", owner)
+            norm = float(np.hypot(*u))
+            if not norm > 1e-12:
+                raise ModelError(f"{owner}: the line's direction must not be zero")
+            self.shape = u / norm
+            self.parameter_names = ("ax", "ay", "bx", "by", "nx", "ny") + \
+                self.parameter_names[4:]
+        elif self.form == "circle":
+            from .checks import scalar
+            self.shape = scalar(curve[1], "curve radius", owner, positive=True)
+            self.parameter_names = ("ax", "ay", "bx", "by", "radius") + \
+                self.parameter_names[4:]
+        else:
+            from .expressions import parse
+            self.shape = parse(curve[1], {"phi"}, f"{owner} `curve`")
+            self.parameter_names = ("ax", "ay", "bx", "by", "angle0") + \
+                self.parameter_names[4:]
+        self._attachments(*self.attachment_points())
+        gap = self._gap()
+        size = max(1.0, float(np.hypot(*(self.at - self.centre))))
+        if abs(gap) > 1e-9 * size:
+            raise ModelError(f"{owner}: its point ({self.at[0]:.6g}, {self.at[1]:.6g}) is "
+                             f"{abs(gap):.3g} off its {self.form} as built; place it on it")
+
+    def attachment_points(self):
+        return self.body_a.local_point(self.centre), self.body_b.local_point(self.at)
+
+    def _gap(self) -> float:
+        d = self.at - self.centre
+        if self.form == "line":
+            return float(-self.shape[1] * d[0] + self.shape[0] * d[1])
+        if self.form == "circle":
+            return float(np.hypot(*d) - self.shape)
+        return float(np.hypot(*d) - self.shape.value(phi=math.atan2(d[1], d[0])))
+
+    def parameter_values(self):
+        sa, sb = self.attachment_points()
+        extra = ()
+        if self.form == "line":
+            n = self.body_a.local_direction(np.array([-self.shape[1], self.shape[0]]))
+            extra = (float(n[0]), float(n[1]))
+        elif self.form == "circle":
+            extra = (self.shape,)
+        else:
+            extra = (float(self.body_a.angle),)
+        return (sa[0], sa[1], sb[0], sb[1]) + extra + self._attachments(sa, sb)
+
+    def equations(self, ctx, p):
+        c = ctx.point(self.body_a, p["ax"], p["ay"], p, "a")
+        pb = ctx.point(self.body_b, p["bx"], p["by"], p, "b")
+        d = [pb[0] - c[0], pb[1] - c[1]]
+        if self.form == "line":
+            n = ctx.direction(self.body_a, p["nx"], p["ny"], p, "a")
+            return [n[0] * d[0] + n[1] * d[1]]
+        if self.form == "circle":
+            return [ctx.sqrt(d[0] * d[0] + d[1] * d[1]) - p["radius"]]
+        e1 = ctx.direction(self.body_a, 1.0, 0.0, p, "a")
+        x = e1[0] * d[0] + e1[1] * d[1]              # d in body_a's axes
+        y = -e1[1] * d[0] + e1[0] * d[1]
+        phi = ctx.atan2(y, x) + p["angle0"]          # from the global x axis as built
+        return [ctx.sqrt(x * x + y * y) - ctx.curve(self.shape, phi)]
+
+    def structure(self, index) -> tuple:
+        """Its kind, bodies and parameter names, its curve's form and (a polar curve's)
+        expression: what its generated equation depends on."""
+        tag = self.shape.canonical if self.form == "polar" else self.form
+        return super().structure(index) + (tag,)
+
+    @property
+    def kernel_tag(self) -> str:
+        return self.shape.canonical if self.form == "polar" else self.form

@@ -18,7 +18,7 @@ from .bodies import RigidBody
 from .checks import ModelError
 from .flexible_beam import FlexibleBeam
 from .forces import Force, RotationalSpring, Spring, TimeLaw, Torque
-from .joints import Prismatic, Revolute
+from .joints import PointOnCurve, Prismatic, Revolute
 
 
 def _vector(v) -> list[float]:
@@ -109,6 +109,10 @@ def _joint(joint, owner) -> dict:
             table["local_a"], table["local_b"] = _vector(joint.local_a), _vector(joint.local_b)
     elif isinstance(joint, Prismatic):
         table["axis"], table["at"] = _vector(joint.axis), _vector(joint.at)
+    elif isinstance(joint, PointOnCurve):
+        table["at"], table["centre"] = _vector(joint.at), _vector(joint.centre)
+        table[joint.form] = _vector(joint.shape) if joint.form == "line" else \
+            float(joint.shape) if joint.form == "circle" else joint.shape.text
     else:
         raise ModelError(f"{owner}: joint '{joint.name}' is a {type(joint).__name__}, which "
                          "the scene schema does not hold")

@@ -61,6 +61,12 @@ class SymbolicContext(JointContext):
         return self._frames.get(id(body), ())[3:]
 
     cos, sin, atan2 = staticmethod(sp.cos), staticmethod(sp.sin), staticmethod(sp.atan2)
+    sqrt = staticmethod(sp.sqrt)
+
+    @staticmethod
+    def curve(law, phi):
+        """A curve's r(φ) (an `Expression` in phi) at the angle φ, as sympy."""
+        return law.to_sympy({"phi": phi})
 
     def parameters(self, item) -> dict:
         return self._params[id(item)]
