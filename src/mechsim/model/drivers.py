@@ -7,7 +7,7 @@ import numpy as np
 
 from .checks import ModelError, name_or_default
 from .expressions import parse
-from .joints import Joint
+from .joints import Joint, coordinate_joint
 
 
 class Driver:
@@ -31,12 +31,7 @@ class Driver:
 
     def __init__(self, joint: Joint, expression=None, name: str | None = None, *,
                  table=None):
-        if not isinstance(joint, Joint):
-            raise ModelError(f"driver: `joint` must be a joint, got {joint!r}")
-        if type(joint).coordinate is Joint.coordinate:
-            raise ModelError(f"driver on joint '{joint.name}': a {joint.kind} joint has no "
-                             "coordinate to prescribe")
-        self.joint = joint
+        self.joint = coordinate_joint(joint, "driver", "prescribe")
         self.name = name_or_default(name, f"driver({joint.name})", "driver")
         if (expression is None) == (table is None):
             raise ModelError(f"driver '{self.name}': give an `expression` or a `table`, "

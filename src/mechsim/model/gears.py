@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from .checks import ModelError, name_or_default, rotation, scalar
-from .joints import Joint
+from .joints import Joint, coordinate_joint
 
 
 class Gear:
@@ -38,12 +38,8 @@ class Gear:
     internal = False
 
     def __init__(self, joint_a: Joint, joint_b: Joint, ratio: float, name: str | None = None):
-        for role, joint in (("joint_a", joint_a), ("joint_b", joint_b)):
-            if not isinstance(joint, Joint):
-                raise ModelError(f"gear: `{role}` must be a joint, got {joint!r:.60}")
-            if type(joint).coordinate is Joint.coordinate:
-                raise ModelError(f"gear: `{role}` '{joint.name}' is a {joint.kind} joint, "
-                                 "which has no coordinate to gear")
+        for joint in (joint_a, joint_b):
+            coordinate_joint(joint, "gear", "gear")
         if joint_a is joint_b:
             raise ModelError(f"gear: couples joint '{joint_a.name}' to itself")
         self.joint_a, self.joint_b = joint_a, joint_b

@@ -79,6 +79,17 @@ class Joint:
         return f"{type(self).__name__}({self.name!r})"
 
 
+def coordinate_joint(joint, role: str, purpose: str) -> Joint:
+    """`joint` if it is a joint with a coordinate (revolute, prismatic); else a ModelError
+    naming `role` (who asks: "driver", "stop on", …) and what it would do (`purpose`)."""
+    if not isinstance(joint, Joint):
+        raise ModelError(f"{role}: `joint` must be a joint, got {joint!r:.60}")
+    if type(joint).coordinate is Joint.coordinate:
+        raise ModelError(f"{role} on joint '{joint.name}': a {joint.kind} joint has no "
+                         f"coordinate to {purpose}")
+    return joint
+
+
 class Revolute(Joint):
     """A pin: the point `at` of body_a coincides with the point `at` of body_b.
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .checks import ModelError, name_or_default, scalar
-from .joints import Joint
+from .joints import Joint, coordinate_joint
 
 
 class Stop:
@@ -21,12 +21,7 @@ class Stop:
 
     def __init__(self, joint: Joint, lower=None, upper=None, restitution: float = 0.0,
                  rest_speed: float = 1e-3, name: str | None = None):
-        if not isinstance(joint, Joint):
-            raise ModelError(f"stop: `joint` must be a joint, got {joint!r:.60}")
-        if type(joint).coordinate is Joint.coordinate:
-            raise ModelError(f"stop on joint '{joint.name}': a {joint.kind} joint has no "
-                             "coordinate to limit")
-        self.joint = joint
+        self.joint = coordinate_joint(joint, "stop", "limit")
         self.name = name_or_default(name, f"stop({joint.name})", "stop")
         owner = f"stop '{self.name}'"
         self.lower = None if lower is None else scalar(lower, "lower", owner)
