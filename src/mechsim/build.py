@@ -79,8 +79,8 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
     items = mech.constraint_items
     mass_diagonal(mech)                   # a point mass that can turn refused before a build
     mode = build_mode(build)
-    if any(getattr(d, "tabulated", False) for d in mech.drivers):
-        mode = "assembled"                # a table's spline is evaluated, never generated
+    if any(getattr(d, "evaluated", False) for d in mech.drivers):
+        mode = "assembled"                # a table or a function is evaluated, never generated
     model, from_cache = constraint_model(mech, items, mode)
     starts = body_starts(mech)
     params = [x for item in items for x in item.parameter_values()] + \

@@ -12,8 +12,9 @@ from .joints import Joint, coordinate_joint
 
 class Driver:
     """Prescribe the coordinate of `joint` (relative angle of a revolute, translation of a
-    prismatic) as `expression` in t (or a `table` of measured values, see `TableLaw`),
-    measured from its value in the initial configuration:
+    prismatic) as `expression` in t (or a `table` of measured values, `TableLaw`, or a
+    Python `function` of t, `FunctionLaw`), measured from its value in the initial
+    configuration:
 
         coordinate(q) − coordinate(q₀) = f(t)
 
@@ -30,22 +31,30 @@ class Driver:
     equation_labels = ("coordinate",)
 
     def __init__(self, joint: Joint, expression=None, name: str | None = None, *,
-                 table=None):
+                 table=None, function=None):
         self.joint = coordinate_joint(joint, "driver", "prescribe")
         self.name = name_or_default(name, f"driver({joint.name})", "driver")
-        if (expression is None) == (table is None):
+        if sum(x is not None for x in (expression, table, function)) != 1:
             raise ModelError(f"driver '{self.name}': give an `expression` or a `table`, "
-                             "one of them")
+                             "or a `function`, one of them")
         if table is not None:
             self.law = TableLaw(table, f"driver '{self.name}' `table`")
+        elif function is not None:
+            self.law = FunctionLaw(function, f"driver '{self.name}'")
         else:
             self.law = parse(expression, {"t"}, f"driver '{self.name}' `expression`")
         self.expression = self.law.text
 
     @property
     def tabulated(self) -> bool:
-        """Is its law a table (`TableLaw`)? Such a driver runs on the assembled build."""
+        """Is its law a table (`TableLaw`)?"""
         return isinstance(self.law, TableLaw)
+
+    @property
+    def evaluated(self) -> bool:
+        """Is its law evaluated in numbers only (a table, a Python function)? Such a driver
+        runs on the assembled build, which evaluates laws itself."""
+        return isinstance(self.law, (TableLaw, FunctionLaw))
 
     def value(self, t: float) -> float:
         """f(t), the prescribed change of the joint's coordinate (float arithmetic)."""
@@ -162,3 +171,61 @@ class TableLaw:
 
     def __repr__(self):
         return f"TableLaw({self.text})"
+
+
+# The step of the central differences that give a function law's rate and acceleration
+# where the function gives its value alone (relative to max(1, |t|)).
+DIFFERENCE_STEP = 1e-4
+
+
+class FunctionLaw:
+    """A drive's law as a Python function of t (the user's own code, called as a load's
+    function is; an exception in it ends the run with a LoadError naming the driver). It
+    returns the change s(t) of the joint's coordinate, or (s, ṡ, s̈): then the rate and
+    acceleration are exact; else they come from central differences of step
+    `DIFFERENCE_STEP` (about 1e-8 relative in the rate, 1e-6 in the acceleration). Such a
+    driver runs on the assembled build, and a scene cannot hold it."""
+
+    names = frozenset({"t"})
+    template = "function"
+
+    def __init__(self, function, owner: str):
+        if not callable(function):
+            raise ModelError(f"{owner}: `function` must be a function of t, got "
+                             f"{type(function).__name__}")
+        self.function, self.owner = function, owner
+        self.text = f"the function {getattr(function, '__name__', 'given')}(t)"
+        self.canonical = self.text
+
+    def _call(self, t):
+        from .checks import call_user
+        out = call_user(self.function, (float(t),), self.owner)
+        try:
+            values = tuple(float(x) for x in out) if isinstance(out, (tuple, list)) \
+                else (float(out),)
+        except (TypeError, ValueError):
+            values = ()
+        if len(values) not in (1, 3):
+            from .checks import LoadError
+            raise LoadError(f"{self.owner}: its function returned {out!r:.60} at t = "
+                            f"{float(t):.9g}; expected s or (s, rate, acceleration)")
+        return values
+
+    def value(self, t: float) -> float:
+        return self._call(t)[0]
+
+    def jet(self, name: str, value: float, **_) -> tuple[float, float, float]:
+        """(s, ṡ, s̈) at t = `value`: the function's own, or by central differences."""
+        t = float(value)
+        got = self._call(t)
+        if len(got) == 3:
+            return got
+        h = DIFFERENCE_STEP * max(1.0, abs(t))
+        ahead, behind = self._call(t + h)[0], self._call(t - h)[0]
+        return got[0], (ahead - behind) / (2.0 * h), (ahead - 2.0 * got[0] + behind) / h**2
+
+    def constants(self) -> list[float]:
+        return []
+
+    def __repr__(self):
+        return f"FunctionLaw({self.text})"

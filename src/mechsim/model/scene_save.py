@@ -38,6 +38,9 @@ def scene_data(mech) -> dict:
         data["joint"].append(_joint(joint, owner))
     for driver in mech.drivers:
         table = {"name": driver.name, "joint": driver.joint.name}
+        if getattr(driver, "evaluated", False) and not driver.tabulated:
+            raise ModelError(f"{owner}: driver '{driver.name}' is a Python function: a scene "
+                             "holds expressions and tables (give its law as one of them)")
         if getattr(driver, "tabulated", False):
             table["table"] = [[float(t), float(s)]
                               for t, s in zip(driver.law.times, driver.law.values)]
