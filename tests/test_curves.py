@@ -109,3 +109,22 @@ def test_curve_joints_round_trip_through_a_scene(tmp_path):
     a_res = mech.simulate(0.3, rtol=1e-9, output_step=0.05)
     b_res = back.simulate(0.3, rtol=1e-9, output_step=0.05)
     np.testing.assert_allclose(b_res.q, a_res.q, rtol=0, atol=1e-12)
+
+
+def test_a_cam_without_a_shape_is_drawn_as_its_pitch_curve():
+    """A cam body given by mass and inertia only is drawn as r(φ) about its centre."""
+    mech = ms.Mechanism("cam")
+    cam = mech.add(ms.RigidBody("cam", 1.0, 1e-3, position=(0.01, 0), angle=0.3))
+    follower = mech.add(ms.RigidBody.point_mass("follower", (0, 0.05), 0.3))
+    mech.add(ms.Revolute(mech.ground, cam, at=(0, 0), name="shaft"))
+    mech.add(ms.Prismatic(mech.ground, follower, axis=(0, 1), at=(0, 0.05), name="guide"))
+    mech.add(ms.PointOnCurve(cam, follower, at=(0, 0.05), centre=(0, 0),
+                             curve=("polar", "0.05 + 0.01*sin(2*phi)")))
+    (name, start, local, _), _ = mech.problem().drawing
+    assert name == "cam"
+    # back in global axes as built: the points lie at r(φ) from the centre at angle φ
+    c, s = np.cos(0.3), np.sin(0.3)
+    world = np.column_stack([c * local[:, 0] - s * local[:, 1] + 0.01,
+                             s * local[:, 0] + c * local[:, 1]])
+    phi = np.arctan2(world[:, 1], world[:, 0])
+    np.testing.assert_allclose(np.hypot(*world.T), 0.05 + 0.01 * np.sin(2 * phi), atol=1e-12)

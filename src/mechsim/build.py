@@ -199,7 +199,8 @@ def _flexible_data(mech, starts) -> list[FlexibleData]:
 
 def drawing(mech, starts) -> list:
     """Polylines for drawings and exports, each in its body's frame: a body's own outline
-    where a shape constructor gave it one (rectangle, disc, polygon); a body with three or
+    where a shape constructor gave it one (rectangle, disc, polygon), else a gear's pitch
+    circle or a cam's pitch curve (`Gear.spur`, `PointOnCurve`); a body with three or
     more joints not on one line (a ternary link) as the closed polygon round them; one
     held by a single point (a slider block on its guide) as a square of its inertia's size
     (side √(6 I/m), at least 4 % of the mechanism); else a line through its attachment
@@ -215,6 +216,11 @@ def drawing(mech, starts) -> list:
         for body, at in load_points(ld):
             if body.name in attached:
                 attached[body.name].append(body.local_point(at))
+    # A gear drawn as its pitch circle, a cam as its pitch curve, where no shape is given.
+    pitch = {}
+    for item in mech.joints + mech.gears:
+        for body, line in getattr(item, "drawn", lambda: [])():
+            pitch.setdefault(id(body), line)
     out = []
     for b in mech.bodies:
         if isinstance(b, FlexibleBeam):
@@ -223,7 +229,9 @@ def drawing(mech, starts) -> list:
             modal = np.stack([b.point_modes(s) for s in local])
             out.append((b.name, starts[b.name], local, modal))
             continue
-        out.append((b.name, starts[b.name], _outline(b, attached[b.name], span), None))
+        shape = pitch.get(id(b)) if getattr(b, "outline", None) is None else None
+        local = shape if shape is not None else _outline(b, attached[b.name], span)
+        out.append((b.name, starts[b.name], local, None))
     return out
 
 

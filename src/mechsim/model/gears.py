@@ -177,6 +177,18 @@ class SpurGear(_Meshed):
                                  f"'{pin.name}' is {pin.kind}")
         self.radius_a, self.radius_b, self.internal = ra, rb, bool(internal)
 
+    def drawn(self, points: int = 49) -> list:
+        """[(gear body, its pitch circle as a closed polyline in its frame)] (`drawing`)."""
+        out = []
+        around = np.linspace(0.0, 2.0 * np.pi, points)
+        for key, radius in (("a", self.radius_a), ("b", self.radius_b)):
+            role = self.side[key][1]
+            joint = self.joint_a if key == "a" else self.joint_b
+            centre = np.asarray(joint.attachment_points()[0 if role == "a" else 1], float)
+            out.append((self.body(key, role),
+                        centre + radius * np.column_stack([np.cos(around), np.sin(around)])))
+        return out
+
     def parameter_values(self):
         ga, gb = self.side["a"][1], self.side["b"][1]
         d = self.centre("b", gb) - self.centre("a", ga)

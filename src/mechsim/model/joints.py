@@ -288,6 +288,18 @@ class PointOnCurve(Joint):
         phi = ctx.atan2(y, x) + p["angle0"]          # from the global x axis as built
         return [ctx.sqrt(x * x + y * y) - ctx.curve(self.shape, phi)]
 
+    def drawn(self, points: int = 97) -> list:
+        """[(body_a, a polar curve as a closed polyline in its frame)]; [] for slots, which
+        their bodies' own drawings carry (`drawing`)."""
+        if self.form != "polar":
+            return []
+        phi = np.linspace(0.0, 2.0 * np.pi, points)
+        r = np.array([self.shape.value(phi=f) for f in phi])
+        turned = phi - self.body_a.angle                  # from the body's axes
+        centre = np.asarray(self.attachment_points()[0], float)
+        return [(self.body_a, centre + r[:, None] * np.column_stack([np.cos(turned),
+                                                                       np.sin(turned)]))]
+
     def structure(self, index) -> tuple:
         """Its kind, bodies and parameter names, its curve's form and (a polar curve's)
         expression: what its generated equation depends on."""
