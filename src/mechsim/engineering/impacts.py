@@ -20,6 +20,11 @@ from ..solver import output_times, simulate
 from .geometry import joint_coordinates
 
 
+# Impacts, holds and releases at one instant, in a row, after which the run gives up
+# there (a contact that cannot be resolved) instead of switching for ever.
+MAX_STILL = 50
+
+
 @dataclass(frozen=True)
 class Impact:
     """An impact on a stop: time [s], the stop's name, the limit hit, the joint's rate
@@ -72,17 +77,27 @@ def simulate_with_stops(mech, report, t_end, method=None, **options):
         s = joint_coordinates(problem.joints[stop.joint.name], q, v)[0][0]
         stop.check_start(s)
     held: list = []                       # (stop, sign, limit) holding their joints
+    released: list = []                   # let go at the present time: not held again
     built: dict = {}
     pieces, impacts = [], []
+    stalled = 0                           # switches in a row without time passing
+    failure = ""
     while True:
         model, drivers = _held_model(mech, held, built)
         p = model.problem()
         free = [(stop, sign, limit) for stop in mech.stops for sign, limit in stop.limits()
                 if not any(h[0] is stop and h[2] == limit for h in held)]
-        touching = _pressing(p, free, t, q, v)
-        if touching is not None:          # at a limit and going (or pushed) into it
-            v, impact = _impact(p, *free[touching], t, q, v)
+        clear = [f for f in free if f not in released]
+        touching = _pressing(p, clear, t, q, v)
+        if touching is not None and stalled >= MAX_STILL:
+            failure = (f"the stops switched {stalled} times at t = {t:.9g} without the "
+                       "motion going on: their contacts cannot be resolved there")
+            break
+        if touching is not None:
+            touching = free.index(clear[touching])
+            v, impact = _impact(p, *free[touching], t, q, v)   # at a limit, going into it
             impacts.append(impact)
+            stalled += 1
             if impact.resting:
                 held.append(free[touching])
             continue
@@ -94,7 +109,17 @@ def simulate_with_stops(mech, report, t_end, method=None, **options):
         pieces.append(res)
         if res.event is None or not res.success:
             break
+        t_was = t
         t, i, q, v = res.event
+        if t > t_was:
+            stalled, released = 0, []
+        else:
+            stalled += 1
+        if stalled >= MAX_STILL:
+            failure = (f"the stops switched {stalled} times at t = {t:.9g} without the "
+                       f"motion going on ({events.describe(i)}): their contacts cannot be "
+                       "resolved there")
+            break
         if i < len(free):
             stop, sign, limit = free[i]
             v, impact = _impact(p, stop, sign, limit, t, q, v)
@@ -102,13 +127,17 @@ def simulate_with_stops(mech, report, t_end, method=None, **options):
             if impact.resting:
                 held.append((stop, sign, limit))
         else:
-            held.pop(i - len(free))
+            released.append(held.pop(i - len(free)))
+    if not pieces:
+        raise ModelError(f"mechanism '{mech.name}': {failure}")
     out = pieces[0]
     for rest in pieces[1:]:
         out = join(out, rest)
     out.mechanism, out.impacts = mech, impacts
     out.settings = {}                 # `extend` would run without the stops
-    if out.success and impacts:
+    if failure:
+        out.status, out.message = "failed", failure
+    elif out.success and impacts:
         out.message += f"; {len(impacts)} impact(s) on the stops"
     _impact_work(out, impacts)
     return out
