@@ -38,18 +38,34 @@ class Problem:
     exact: object = None                  # (result) -> error, where it has its own measure
     quantity: str = "max crank-tip error [m]"
 
+    @property
+    def traced(self) -> tuple[str, tuple[float, float]]:
+        """(body, local point) whose path the error measures: a coupler point against the
+        reference, or the first crank's tip against the exact parallelogram."""
+        if self.reference is not None:
+            return "coupler", (0.5, 0.0)
+        return ("crank1" if self.windows > 1 else "crank"), (0.5, 0.0)
+
     def error(self, res) -> float:
         if self.exact is not None:
             return float(self.exact(res))
+        body, local = self.traced
+        return self.point_error(res.t, res.point(body, local))
+
+    def point_error(self, t, xy) -> float:
+        """The largest distance of the traced point's path `xy` (N, 2) at times `t` from
+        the reference's (interpolated) or the exact one: mechsim's and the peers' alike."""
+        t, xy = np.asarray(t, float), np.asarray(xy, float)
         if self.reference is not None:
             ref = self.reference()                     # computed once (cached)
-            mid = res.point("coupler", (0.5, 0.0))
-            ref_mid = np.column_stack([np.interp(res.t, ref.t, ref.point("coupler", (0.5, 0.0))[:, k])
-                                       for k in range(2)])
-            return float(np.max(np.hypot(*(mid - ref_mid).T)))
-        theta, _ = examples.parallelogram_exact(res.t, self.theta0, self.omega0, n=self.windows)
-        tip = res.point("crank1" if self.windows > 1 else "crank", (0.5, 0.0))
-        return float(np.max(np.hypot(tip[:, 0] - np.cos(theta), tip[:, 1] - np.sin(theta))))
+            body, local = self.traced
+            path = ref.point(body, local)
+            exact = np.column_stack([np.interp(t, ref.t, path[:, k]) for k in range(2)])
+        else:
+            theta, _ = examples.parallelogram_exact(t, self.theta0, self.omega0,
+                                                    n=self.windows)
+            exact = np.column_stack([np.cos(theta), np.sin(theta)])
+        return float(np.max(np.hypot(*(xy - exact).T)))
 
 
 PROBLEMS = {

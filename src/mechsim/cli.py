@@ -297,6 +297,22 @@ def _numbers(text, option, default) -> list[float]:
     return values
 
 
+def _peers(rows, problems, repeat, out) -> list:
+    """`mechsim bench peers`: MuJoCo and Exudyn on `problems` beside mechsim's `rows`."""
+    from . import peers
+    try:
+        import exudyn  # noqa: F401
+        import mujoco  # noqa: F401
+    except ImportError:
+        raise ValueError("bench peers needs mujoco and exudyn: pip install mujoco exudyn "
+                         "(from a checkout, pip install '.[peers]')") from None
+    peer_rows = peers.run(problems, repeat=repeat)
+    print("peers (fixed steps) and mechsim's cheapest run at least as accurate:")
+    for line in peers.compare(rows, peer_rows):
+        print(line)
+    return peers.write(rows, peer_rows, out)
+
+
 def _bench(args) -> int:
     from . import bench
 
@@ -305,7 +321,11 @@ def _bench(args) -> int:
     sweep = "random" in problems
     analysis = "analysis" in problems
     costs = "costs" in problems
-    problems = [p for p in problems if p not in ("coulomb", "random", "analysis", "costs")]
+    peers = "peers" in problems
+    problems = [p for p in problems if p not in ("coulomb", "random", "analysis", "costs",
+                                                 "peers")]
+    if peers and not problems:
+        problems = ["double-four-bar", "crank-rocker"]
     methods = args.methods.split(",") if args.methods else list(bench.DEFAULT_METHODS)
     try:
         rtols = _numbers(args.rtols, "--rtols", bench.DEFAULT_RTOLS)
@@ -324,6 +344,8 @@ def _bench(args) -> int:
             for name, error, best in bench.equal_error(rows):      # at equal accuracy
                 print(bench.format_within(name, error, best))
             written += bench.write(rows, args.out)
+            if peers:
+                written += _peers(rows, problems, repeat, args.out)
         if sweep:
             print(f"random mechanisms: the default method against projection at rtol "
                   f"{rtols[-1]:.0e}")
@@ -440,6 +462,8 @@ def main(argv=None) -> int:
                             "hybrid against projection at the smallest rtol), coulomb "
                             "(shooting against brute force), analysis (reactions, "
                             "equilibrium and linearization), crank-rocker, ten-window, "
+                            "peers (MuJoCo and Exudyn beside mechsim on the problems named, "
+                            "default double-four-bar and crank-rocker: the peers extra), "
                             "costs (steps, right-hand sides and bridge evaluations of the "
                             "cases the tests bound loosely); default: the first three and "
                             "random")

@@ -1,0 +1,37 @@
+"""The peer models of `mechsim bench peers` (MuJoCo and Exudyn) describe the same
+mechanism: the MJCF's tree and loop closures from the pins, and, where the peers are
+installed (the `peers` extra), their initial state and short motion against mechsim's."""
+
+import math
+
+import numpy as np
+import pytest
+
+import mechsim as ms
+from mechsim import peers
+
+
+def test_the_mujoco_model_is_a_tree_of_hinges_closed_by_connects():
+    """The double four-bar's 7 pins: 5 hinges of a spanning tree from the ground (one per
+    body), the 2 that close its loops as connect equalities."""
+    mech = ms.examples.double_four_bar(2)
+    parent, order, closing = peers.spanning_tree(mech)
+    assert len(order) == len(mech.bodies) == 5 and len(closing) == 2
+    xml = peers.mujoco_xml(mech, 1e-3, "RK4", ("crank1", (0.5, 0.0)))
+    assert xml.count("<connect ") == 2 and xml.count('type="hinge"') == 5
+    assert xml.count('<site name="trace"') == 1 and 'solref="0.002 1"' in xml
+
+
+@pytest.mark.parametrize("tool", ["mujoco", "exudyn"])
+def test_a_peer_swings_the_pendulum_as_mechsim_does(tool):
+    """A rod pinned at its end, released horizontal, 0.5 s: each peer's tip within its
+    step's accuracy of mechsim's (a first check that the models mean the same)."""
+    pytest.importorskip(tool)
+    mech = ms.examples.pendulum()
+    res = mech.simulate(0.5, rtol=1e-10, atol=1e-12, output_step=0.05)
+    tip = res.point("rod", (0.5, 0.0))
+    run = peers.mujoco_run if tool == "mujoco" else peers.exudyn_run
+    _, t, xy = run(mech, 0.5, 1e-4, 0.05, ("rod", (0.5, 0.0)))
+    np.testing.assert_allclose(t, res.t, atol=1e-9)
+    assert np.max(np.hypot(*(xy - tip).T)) < 1e-3
+    assert math.isclose(float(xy[0, 0]), 1.0, abs_tol=1e-9)
