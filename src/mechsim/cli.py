@@ -356,11 +356,12 @@ def _bench(args) -> int:
         if analysis:
             print("engineering analysis: reactions against the simulation's own time; "
                   "equilibrium and linearization of the 40-window chain")
-            print(bench.ANALYSIS_HEADER)
-            arows = bench.analysis_run(repeat=3 if args.repeat is None else args.repeat)
+            from . import bench_analysis
+            print(bench_analysis.ANALYSIS_HEADER)
+            arows = bench_analysis.analysis_run(repeat=3 if args.repeat is None else args.repeat)
             for r in arows:
-                print(bench.format_analysis(r))
-            written += bench.write_analysis(arows, args.out)
+                print(bench_analysis.format_analysis(r))
+            written += bench_analysis.write_analysis(arows, args.out)
         if costs:
             from . import costs as cost_cases
             print("the work of the cases whose counts the tests bound loosely")
