@@ -101,12 +101,8 @@ def modes(quick):
 def steady_state(quick):
     """A periodic steady state found by shooting: a damped pendulum under a periodic
     torque, its orbit in the phase plane."""
-    mech = ms.examples.pendulum(length=0.6, mass=1.0, angle=-math.pi / 2)
-    rod = mech.body("rod")
     w = 4.0
-    mech.add(ms.Torque(rod, lambda t: 1.5 * math.cos(w * t), name="shaker"))
-    mech.add(ms.Spring(mech.ground, rod, at_a=(0.3, -0.6), at_b=(0.0, -0.6), stiffness=0.0,
-                       damping=2.0, name="dashpot"))
+    mech = ms.examples.shaken_pendulum(omega=w)
     sol = mech.steady_state(2 * math.pi / w)
     orbit = sol.trajectory.result
     fig = Figure(figsize=(5.0, 4.4), layout="constrained")

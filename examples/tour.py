@@ -56,12 +56,8 @@ def flexible(out: Path):
 
 
 def steady_state(out: Path):
-    mech = ms.examples.pendulum(length=0.6, mass=1.0, angle=-math.pi / 2)
-    rod = mech.body("rod")
     w = 4.0
-    mech.add(ms.Torque(rod, lambda t: 1.5 * math.cos(w * t), name="shaker"))
-    mech.add(ms.Spring(mech.ground, rod, at_a=(0.3, -0.6), at_b=(0.0, -0.6), stiffness=0.0,
-                       damping=2.0, name="dashpot"))
+    mech = ms.examples.shaken_pendulum(omega=w)
     period = 2 * math.pi / w
     sol = mech.steady_state(period)
     orbit = sol.trajectory.result

@@ -12,7 +12,8 @@ import math
 
 import numpy as np
 
-from .model import Driver, FlexibleBeam, Mechanism, Prismatic, Revolute, RigidBody, Spring
+from .model import (Driver, FlexibleBeam, Mechanism, Prismatic, Revolute, RigidBody, Spring,
+                    Torque)
 
 
 def four_bar(tilt: float = math.radians(10.0), length: float = 1.0, mass: float = 1.0,
@@ -177,6 +178,19 @@ def pendulum(length: float = 1.0, mass: float = 1.0, angle: float = 0.0,
     tip = (length * math.cos(angle), length * math.sin(angle))
     rod = mech.add(RigidBody.rod("rod", (0.0, 0.0), tip, mass))
     mech.add(Revolute(mech.ground, rod, at=(0.0, 0.0), name="pivot"))
+    return mech
+
+
+def shaken_pendulum(omega: float = 4.0, amplitude: float = 1.5,
+                    damping: float = 2.0) -> Mechanism:
+    """A 0.6 m, 1 kg rod hanging from a pin, shaken by a torque `amplitude` cos(`omega` t)
+    and damped by a horizontal dashpot at its tip: a mechanism with a periodic steady
+    state (`Mechanism.steady_state` with period 2π/omega)."""
+    mech = pendulum(length=0.6, mass=1.0, angle=-math.pi / 2)
+    rod = mech.body("rod")
+    mech.add(Torque(rod, lambda t: amplitude * math.cos(omega * t), name="shaker"))
+    mech.add(Spring(mech.ground, rod, at_a=(0.3, -0.6), at_b=(0.0, -0.6), stiffness=0.0,
+                    damping=damping, name="dashpot"))
     return mech
 
 
