@@ -134,3 +134,23 @@ def test_a_failing_function_ends_the_run_naming_the_driver(tmp_path):
     assert "ZeroDivisionError: no motor data here" in res.message and res.t[-1] >= 0.03
     with pytest.raises(ms.ModelError, match=r"driver 'motor' is a Python function"):
         mech.save(tmp_path / "m.toml")
+
+
+@pytest.mark.parametrize("build", ["assembled", "fused"])
+def test_a_smooth_step_drives_the_crank_in_both_builds(build):
+    """step(t, 0, 0, 0.5, 2) (MSC Adams' STEP): the crank turns 2 rad along the cubic
+    40 t² (3 − 4 t) / 10, its rate and acceleration the cubic's, then stays."""
+    mech = ms.examples.slider_crank(driven=True, crank_speed=0.0)
+    mech.drivers.clear()
+    mech.add(ms.Driver(mech.joint("O"), "step(t, 0, 0, 0.5, 2)", name="motor"))
+    mech.problem(build=build)
+    res = mech.kinematics(0.8, 0.1)           # a sample every 0.1 s, from rest at t = 0
+    assert res.success, res.message
+    t = res.t
+    u = np.clip(t / 0.5, 0.0, 1.0)
+    np.testing.assert_allclose(res.coordinate("crank.angle"), 2 * u**2 * (3 - 2 * u),
+                               atol=1e-10)
+    rate = np.where(t < 0.5, 2 * 6 * u * (1 - u) / 0.5, 0.0)
+    np.testing.assert_allclose(res.v[:, 2], rate, atol=1e-9)
+    with pytest.raises(ms.ModelError, match=r"unknown function|takes 5 argument"):
+        ms.Driver(mech.joint("O"), "step(t, 0, 1)")

@@ -22,7 +22,8 @@ class Driver:
     f(0) ≠ 0, `Mechanism.assemble` moves the joint there. `expression` is a number or an
     arithmetic expression in `t` (`mechsim.model.expressions`: numbers, t, pi, e,
     ``+ − * / **``, parentheses and sin, cos, tan, asin, acos, atan, atan2, sinh, cosh, tanh,
-    exp, log, sqrt, abs, hypot, radians, degrees). It is parsed here, not evaluated by
+    exp, log, sqrt, abs, hypot, radians, degrees, and step(t, t0, s0, t1, s1), MSC Adams'
+    smooth cubic step from s0 to s1). It is parsed here, not evaluated by
     Python: anything else, an unknown name among them, is a ModelError naming the driver.
     """
 

@@ -31,6 +31,22 @@ MAX_EXPONENT = 64
 MAX_CONSTANT = 1e300
 KNOWN_SHOWN = 24          # names an unknown-name message lists
 
+def _step(x, x0, h0, x1, h1):
+    """The smooth step of MSC Adams' STEP: h0 up to x0, h1 from x1, between them the cubic
+    h0 + (h1 − h0) u² (3 − 2 u), u = (x − x0)/(x1 − x0), continuous in slope (a ramp-up
+    of a motor's speed, a load switched on); at x0 and x1 its derivatives are those after
+    them. Needs x0 < x1."""
+    if not x0 < x1:
+        raise ValueError(f"step needs x0 < x1, got {x0:g} and {x1:g}")
+    at = x.f if isinstance(x, Jet) else x
+    if at < x0:                  # at x0 and at x1 the derivatives after them (a run's way)
+        return h0 + 0.0 * x
+    if at >= x1:
+        return h1 + 0.0 * x
+    u = (x - x0) / (x1 - x0)
+    return h0 + (h1 - h0) * u * u * (3.0 - 2.0 * u)
+
+
 # name: (number of arguments, float function, sympy function name)
 FUNCTIONS = {
     "sin": (1, math.sin, "sin"), "cos": (1, math.cos, "cos"), "tan": (1, math.tan, "tan"),
@@ -40,7 +56,7 @@ FUNCTIONS = {
     "tanh": (1, math.tanh, "tanh"), "exp": (1, math.exp, "exp"), "log": (1, math.log, "log"),
     "sqrt": (1, math.sqrt, "sqrt"), "abs": (1, abs, "Abs"),
     "hypot": (2, math.hypot, None), "radians": (1, math.radians, None),
-    "degrees": (1, math.degrees, None),
+    "degrees": (1, math.degrees, None), "step": (5, _step, None),
 }
 CONSTANTS = {"pi": math.pi, "e": math.e}
 
@@ -351,6 +367,7 @@ _JETS = {
     "hypot": lambda x, y: _sqrt(Jet.of(x) * x + Jet.of(y) * y),
     "radians": lambda u: u * (math.pi / 180.0),
     "degrees": lambda u: u * (180.0 / math.pi),
+    "step": lambda x, x0, h0, x1, h1: _step(x, x0.f, h0.f, x1.f, h1.f),
 }
 
 
@@ -448,6 +465,11 @@ def _sympy(tree, symbols, sp, stand_ins=None, parent=None):
         return args[0] * sp.pi / 180
     if name == "degrees":
         return args[0] * 180 / sp.pi
+    if name == "step":
+        x, x0, h0, x1, h1 = args
+        u = (x - x0) / (x1 - x0)
+        return sp.Piecewise((h0, x < x0), (h0 + (h1 - h0) * u**2 * (3 - 2 * u), x < x1),
+                            (h1, True))
     return getattr(sp, FUNCTIONS[name][2])(*args)
 
 
