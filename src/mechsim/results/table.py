@@ -5,7 +5,8 @@ DataFrame (the `pandas` extra).
 
 Columns, in order: time; every coordinate, then its rate (with `velocities`); the global
 position of each point asked for; for each joint asked for, the force it applies to its
-body_b in global axes, the couple of a prismatic joint, its coordinate and rate; for each
+body_b in global axes, the couple of a prismatic joint, the coordinate and rate of a
+revolute or prismatic one; for each
 driver asked for, its effort and power; the mechanism's channels (`mechsim.Channel`,
 "name [unit]"); the functions passed as `channels`. Reactions and efforts are computed only
 when asked for (`SimulationResult.reactions`).
@@ -59,14 +60,15 @@ def columns(result, points=(), joints=None, drivers=None, velocities=True,
         table = result.reactions
         for joint in _chosen(joints, table.joint_names):
             name = getattr(joint, "name", joint)
-            linear = table.kind(name) == "prismatic"
+            kind = table.kind(name)
             force = result.joint_force(name)
             out[f"{name} force x [N]"], out[f"{name} force y [N]"] = force[:, 0], force[:, 1]
-            if linear:
+            if kind == "prismatic":
                 out[f"{name} couple [N·m]"] = result.joint_moment(name)
-            unit = "m" if linear else "rad"
-            out[f"{name} coordinate [{unit}]"] = result.joint_coordinate(name)
-            out[f"{name} rate [{unit}/s]"] = result.joint_rate(name)
+            if kind in ("revolute", "prismatic"):        # the joints with a coordinate
+                unit = "m" if kind == "prismatic" else "rad"
+                out[f"{name} coordinate [{unit}]"] = result.joint_coordinate(name)
+                out[f"{name} rate [{unit}/s]"] = result.joint_rate(name)
         for driver in _chosen(drivers, table.driver_names):
             name = getattr(driver, "name", driver)
             unit = "N" if table.driver_kind(name) == "prismatic" else "N·m"
