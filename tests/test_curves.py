@@ -90,6 +90,10 @@ def test_a_point_off_its_curve_or_a_bad_curve_is_refused():
         ms.PointOnCurve(mech.ground, a, at=(0, 0), curve=("spline", 1.0), name="s")
     with pytest.raises(ms.ModelError, match=r"joint 's' `curve`: unknown name 'theta'"):
         ms.PointOnCurve(mech.ground, a, at=(0, 0), curve=("polar", "1 + theta"), name="s")
+    with pytest.raises(ms.ModelError, match=r"joint 's': the polar curve must repeat every "
+                                            r"2π"):
+        ms.PointOnCurve(mech.ground, a, at=(0.1, 0), centre=(0, 0),
+                        curve=("polar", "0.1 + 0.01*phi"), name="s")
 
 
 def test_curve_joints_round_trip_through_a_scene(tmp_path):

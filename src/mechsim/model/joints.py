@@ -243,12 +243,27 @@ class PointOnCurve(Joint):
             self.shape = parse(curve[1], {"phi"}, f"{owner} `curve`")
             self.parameter_names = ("ax", "ay", "bx", "by", "angle0") + \
                 self.parameter_names[4:]
+            self._periodic(owner)
         self._attachments(*self.attachment_points())
         gap = self._gap()
         size = max(1.0, float(np.hypot(*(self.at - self.centre))))
         if abs(gap) > 1e-9 * size:
             raise ModelError(f"{owner}: its point ({self.at[0]:.6g}, {self.at[1]:.6g}) is "
                              f"{abs(gap):.3g} off its {self.form} as built; place it on it")
+
+    def _periodic(self, owner):
+        """ModelError where the polar curve is not 2π-periodic (checked at 16 angles): the
+        point's polar angle wraps round as body_a turns, and r must not jump there."""
+        for phi in np.linspace(-math.pi, math.pi, 16, endpoint=False):
+            try:
+                a, b = self.shape.value(phi=phi), self.shape.value(phi=phi + 2.0 * math.pi)
+            except (ArithmeticError, ValueError) as exc:
+                raise ModelError(f"{owner}: the polar curve is not defined at phi = "
+                                 f"{phi:.3g} ({exc})") from None
+            if not abs(a - b) <= 1e-9 * max(1.0, abs(a)):
+                raise ModelError(f"{owner}: the polar curve must repeat every 2π (a closed "
+                                 f"cam); r({phi:.3g}) = {a:.6g} but r({phi:.3g} + 2π) = "
+                                 f"{b:.6g}")
 
     def attachment_points(self):
         return self.body_a.local_point(self.centre), self.body_b.local_point(self.at)
