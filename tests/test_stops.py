@@ -107,6 +107,8 @@ def test_bad_stops_are_refused_naming_them():
     driven.add(ms.Driver(driven.joint("pin"), "t"))
     with pytest.raises(ms.ModelError, match=r"joint 'pin' is driven"):
         driven.add(ms.Stop(driven.joint("pin"), lower=-1.0, name="s"))
+    with pytest.raises(ms.ModelError, match=r"a run with stops .* cannot be streamed"):
+        pendulum(0.5).simulate(0.1, stream="run")
 
 
 def test_stops_round_trip_through_a_scene(tmp_path):

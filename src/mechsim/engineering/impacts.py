@@ -68,6 +68,9 @@ def simulate_with_stops(mech, report, t_end, method=None, **options):
     """`Mechanism.simulate` for a mechanism with stops from its assembled state `report`
     (see the module docstring)."""
     from ..results.result import join
+    if options.get("stream") is not None:
+        raise ModelError(f"mechanism '{mech.name}': a run with stops is a sequence of runs "
+                         "joined in memory; it cannot be streamed (simulate without `stream`)")
     t = float(options.pop("t_start", 0.0))
     output_step = options.pop("output_step", None)
     grid = output_times(t, t_end, output_step)
