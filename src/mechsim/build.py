@@ -77,7 +77,7 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
     """(the NumericProblem of `mech`, whether its model came without a sympy run);
     `build`: "auto", "fused" or "assembled" (`constraint_model`; None: `build_mode()`)."""
     items = mech.constraint_items
-    mass_diagonal(mech)                   # a point mass that can turn refused before a build
+    mass = mass_diagonal(mech)            # a point mass that can turn refused before a build
     mode = build_mode(build)
     if any(getattr(d, "evaluated", False) for d in mech.drivers):
         mode = "assembled"                # a table or a function is evaluated, never generated
@@ -94,7 +94,6 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
                          "gear" if item.kind == "gear" else "joint")
     joints = joint_geometry(mech, starts)
     springs, loads, torsion = _load_data(mech, starts, joints)
-    mass = mass_diagonal(mech)
     problem = NumericProblem(model, params, mass, mech.gravity, starts, mech.coordinate_names,
                              names, owners, springs, loads, title=mech.name,
                              constraint_kinds=kinds, flexible=_flexible_data(mech, starts),
