@@ -12,7 +12,7 @@ simulation starts, matplotlib when a plot is drawn, meshio when a result is expo
 
 from importlib import import_module as _import_module
 
-from .model import (AssemblyError, Body, Channel, LoadError, DofReport, Driver, FlexibleBeam, Force, Gear, Ground, Joint,
+from .model import (AssemblyError, Body, Channel, LoadError, DofReport, Driver, FlexibleBeam, Force, Friction, Gear, Ground, Joint,
                     Mechanism, ModelError, PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring, Spring,
                     Stop, Torque)
 
@@ -44,7 +44,7 @@ def __dir__():
     return sorted(set(__all__) | _LAZY_MODULES | set(_ALIASES) | {"__version__"})
 
 
-__all__ = ["AssemblyError", "Body", "Channel", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Gear", "Ground", "Joint",
+__all__ = ["AssemblyError", "Body", "Channel", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Friction", "Gear", "Ground", "Joint",
            "LinearSystem", "Mechanism", "ModelError", "PointOnCurve", "Prismatic", "Revolute", "RigidBody",
            "RotationalSpring", "SimulationResult", "Spring", "Stop", "Study", "Torque", "load_mechanism",
            "load_result", "load_scene", "sweep"]

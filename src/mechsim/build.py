@@ -102,8 +102,21 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
                              joints=joints, torsion=torsion,
                              driver_joints={d.name: d.joint.name for d in mech.drivers},
                              gear_signs={g.name: 1.0 if getattr(g, "internal", False) else -1.0
-                                         for g in mech.gears})
+                                         for g in mech.gears},
+                             friction=_friction_model(mech, joints, owners))
     return problem, from_cache
+
+
+def _friction_model(mech, joints, owners):
+    """The `FrictionModel` of the mechanism's joints with friction (None without any)."""
+    frictions = getattr(mech, "frictions", ())
+    if not frictions:
+        return None
+    from .problem.friction import FrictionElement, FrictionModel
+    return FrictionModel(tuple(
+        FrictionElement(f, joints[f.joint.name],
+                        tuple(i for i, o in enumerate(owners) if o == f.joint.name))
+        for f in frictions))
 
 
 def mass_diagonal(mech) -> np.ndarray:

@@ -160,6 +160,77 @@ class NumericContext(JointContext):
     sqrt, atan2, curve = staticmethod(sqrt), staticmethod(atan2), staticmethod(curve)
 
 
+class Jet:
+    """x(τ) to second order along a path: the value `x` and its first and second derivatives
+    `d1`, `d2` in τ (arrays of one shape). With q(τ) = q + τ v a joint's coordinate s gives
+    s, ṡ = ∂s/∂q v and vᵀ (∂²s/∂q²) v, the part of s̈ that does not come from q̈. Supports
+    what revolute and prismatic coordinates use: +, −, ×, / and cos, sin."""
+    __slots__ = ("x", "d1", "d2")
+    __array_ufunc__ = None
+
+    def __init__(self, x, d1, d2):
+        self.x, self.d1, self.d2 = x, d1, d2
+
+    def __add__(self, o):
+        if isinstance(o, Jet):
+            return Jet(self.x + o.x, self.d1 + o.d1, self.d2 + o.d2)
+        return Jet(self.x + o, self.d1, self.d2)
+
+    __radd__ = __add__
+
+    def __sub__(self, o):
+        return self + (-o)
+
+    def __rsub__(self, o):
+        return (-self) + o
+
+    def __neg__(self):
+        return Jet(-self.x, -self.d1, -self.d2)
+
+    def __mul__(self, o):
+        if isinstance(o, Jet):
+            return Jet(self.x * o.x, self.d1 * o.x + self.x * o.d1,
+                       self.d2 * o.x + 2.0 * self.d1 * o.d1 + self.x * o.d2)
+        return Jet(self.x * o, self.d1 * o, self.d2 * o)
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, o):
+        if not isinstance(o, Jet):
+            return self * (1.0 / o)
+        x = self.x / o.x
+        d1 = (self.d1 - x * o.d1) / o.x
+        return Jet(x, d1, (self.d2 - 2.0 * d1 * o.d1 - x * o.d2) / o.x)
+
+
+def _jet_cos(a):
+    if isinstance(a, Jet):
+        c, s = np.cos(a.x), np.sin(a.x)
+        return Jet(c, -s * a.d1, -c * a.d1 * a.d1 - s * a.d2)
+    return np.cos(a)
+
+
+def _jet_sin(a):
+    if isinstance(a, Jet):
+        c, s = np.cos(a.x), np.sin(a.x)
+        return Jet(s, c * a.d1, -s * a.d1 * a.d1 + c * a.d2)
+    return np.sin(a)
+
+
+class JetContext(NumericContext):
+    """A `NumericContext` whose coordinates are `Jet`s along q + τ v (states q, v (N, n))."""
+
+    def __init__(self, starts, q, v):
+        super().__init__(starts, q)
+        self.v = np.atleast_2d(np.asarray(v, float))
+
+    def coordinate(self, i):
+        x = self.q[:, i]
+        return Jet(x, self.v[:, i], np.zeros_like(x))
+
+    cos, sin = staticmethod(_jet_cos), staticmethod(_jet_sin)
+
+
 @dataclass(frozen=True)
 class JointGeometry:
     """One joint of a built mechanism, for numeric evaluation: the joint (its `equations`
@@ -247,3 +318,15 @@ def joint_gradient(geometry: JointGeometry, q) -> np.ndarray:
     ctx = NumericContext(geometry.starts, q[None], np.eye(q.size))
     c = geometry.joint.coordinate(ctx, geometry.parameters)
     return np.broadcast_to(derivative(c, (1, q.size)), (1, q.size))[0].copy()
+
+
+def joint_path_rates(geometry: JointGeometry, q, v):
+    """(s, ṡ, vᵀ (∂²s/∂q²) v), each shape (N,), of the joint's coordinate at the states
+    q, v (N, n): then s̈ = (∂s/∂q) q̈ + the third (what holding a joint at ṡ = 0 needs)."""
+    q, v = np.atleast_2d(q), np.atleast_2d(v)
+    n = q.shape[0]
+    c = geometry.joint.coordinate(JetContext(geometry.starts, q, v), geometry.parameters)
+    if not isinstance(c, Jet):
+        zero = np.zeros(n)
+        return np.broadcast_to(value(c), (n,)).copy(), zero, zero.copy()
+    return tuple(np.broadcast_to(x, (n,)).copy() for x in (c.x, c.d1, c.d2))

@@ -1,12 +1,15 @@
-"""Running a mechanism with end stops (`mechsim.model.stops.Stop`): free motion between
-impacts, each impact located in time by the run's events (`mechsim.run`) and resolved by
-Newton's restitution law through the constrained mass matrix, and resting contact held as
-a constraint (a driver holding the joint at its limit) while the stop pushes.
+"""Running a mechanism with end stops (`mechsim.model.stops.Stop`) or joints with friction
+(`mechsim.model.friction.Friction`): smooth motion between events, each located in time by
+the run's events (`mechsim.run`). An impact on a stop is resolved by Newton's restitution
+law through the constrained mass matrix, and resting contact held as a constraint (a
+driver holding the joint at its limit) while the stop pushes; a joint with friction
+sticks or slips as `mechsim.engineering.friction` decides.
 
-A run with stops is a sequence of runs of `mechsim.solver.simulate`, joined into one
-result: the samples of the output grid and one at each impact (its state before the
-impact), the impacts in `SimulationResult.impacts`, and the energy they took as a work
-channel "impacts" of the energy log, so its balance stays at the solver's accuracy.
+Such a run is a sequence of runs of `mechsim.solver.simulate`, joined into one result:
+the samples of the output grid and one at each event (its state before it), the impacts
+in `SimulationResult.impacts` and the energy they took as a work channel "impacts" of the
+energy log, so its balance stays at the solver's accuracy; the friction's switches in
+`SimulationResult.friction_switches`, its work a channel of its own.
 """
 
 from __future__ import annotations
@@ -16,7 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model import Driver, Mechanism, ModelError
+from ..problem.friction import BACKWARD, FORWARD, STUCK
 from ..solver import output_times, simulate
+from .friction import (MODE_NAMES, FrictionEvents, FrictionSwitch, decide, initial_modes,
+                       stop_moving)
 from .geometry import joint_coordinates
 
 
@@ -64,86 +70,172 @@ class StopEvents:
         return f"stop '{stop.name}' let joint '{stop.joint.name}' go"
 
 
+class Joined:
+    """Several event sources as one (`Settings.events`): their values side by side."""
+
+    def __init__(self, parts):
+        self.parts = [p for p in parts if p is not None]
+
+    def values(self, t, q, v):
+        return np.concatenate([np.asarray(p.values(t, q, v), float) for p in self.parts])
+
+    def locate(self, i):
+        """(the source, its own index) of the joined index i."""
+        for part in self.parts:
+            count = len(part.modes) if isinstance(part, FrictionEvents) else \
+                len(part.free) + len(part.held)
+            if i < count:
+                return part, i
+            i -= count
+        raise IndexError(i)
+
+    def describe(self, i) -> str:
+        part, k = self.locate(i)
+        return part.describe(k)
+
+
 def simulate_with_stops(mech, report, t_end, method=None, **options):
-    """`Mechanism.simulate` for a mechanism with stops from its assembled state `report`
-    (see the module docstring)."""
-    from ..results.result import join
+    """`Mechanism.simulate` for a mechanism with stops or joints with friction from its
+    assembled state `report` (see the module docstring)."""
     if options.get("stream") is not None:
-        raise ModelError(f"mechanism '{mech.name}': a run with stops is a sequence of runs "
-                         "joined in memory; it cannot be streamed (simulate without `stream`)")
-    t = float(options.pop("t_start", 0.0))
-    output_step = options.pop("output_step", None)
-    grid = output_times(t, t_end, output_step)
-    q, v = report.q, report.v
-    problem = mech.problem()
-    for stop in mech.stops:
-        s = joint_coordinates(problem.joints[stop.joint.name], q, v)[0][0]
-        stop.check_start(s)
-    held: list = []                       # (stop, sign, limit) holding their joints
-    released: list = []                   # let go at the present time: not held again
-    built: dict = {}
-    pieces, impacts = [], []
-    stalled = 0                           # switches in a row without time passing
-    failure = ""
-    while True:
-        model, drivers = _held_model(mech, held, built)
+        raise ModelError(f"mechanism '{mech.name}': a run with stops or friction is a "
+                         "sequence of runs joined in memory; it cannot be streamed "
+                         "(simulate without `stream`)")
+    return PiecewiseRun(mech, report, t_end, method, options).run()
+
+
+class PiecewiseRun:
+    """The pieces of a run with stops and friction, from one event to the next: the held
+    stops (`held`: (stop, sign, limit)), each friction joint's mode (`modes`), what
+    happened at each event (`impacts`, `switches`) and the pieces' results."""
+
+    def __init__(self, mech, report, t_end, method, options):
+        self.mech, self.t_end, self.method = mech, t_end, method
+        self.t = float(options.pop("t_start", 0.0))
+        self.grid = output_times(self.t, t_end, options.pop("output_step", None))
+        self.options = options
+        self.q, self.v = report.q, report.v
+        problem = mech.problem()
+        for stop in mech.stops:
+            stop.check_start(joint_coordinates(problem.joints[stop.joint.name], self.q,
+                                               self.v)[0][0])
+        self.modes = None if problem.friction is None else \
+            initial_modes(problem, self.t, self.q, self.v)
+        self.held, self.released, self.built = [], [], {}
+        self.pieces, self.impacts, self.switches, self.schedule = [], [], [], []
+        self.stalled, self.failure = 0, ""
+
+    def piece_problem(self):
+        """(the problem of the present piece, its free limits, its held stops' drivers)."""
+        model, drivers = _held_model(self.mech, self.held, self.built)
         p = model.problem()
-        free = [(stop, sign, limit) for stop in mech.stops for sign, limit in stop.limits()
-                if not any(h[0] is stop and h[2] == limit for h in held)]
-        clear = [f for f in free if f not in released]
+        if p.friction is not None:
+            p = p.with_friction(p.friction.with_modes(self.modes))
+        free = [(stop, sign, limit) for stop in self.mech.stops
+                for sign, limit in stop.limits()
+                if not any(h[0] is stop and h[2] == limit for h in self.held)]
+        return p, free, drivers
+
+    def run(self):
+        while self.step():
+            pass
+        if not self.pieces:
+            raise ModelError(f"mechanism '{self.mech.name}': {self.failure}")
+        return self.result()
+
+    def step(self) -> bool:
+        """Resolve what happens at the present instant, or run to the next event; False
+        where the run is over."""
+        p, free, drivers = self.piece_problem()
+        t, q, v = self.t, self.q, self.v
+        clear = [f for f in free if f not in self.released]
         touching = _pressing(p, clear, t, q, v)
-        if touching is not None and stalled >= MAX_STILL:
-            failure = (f"the stops switched {stalled} times at t = {t:.9g} without the "
-                       "motion going on: their contacts cannot be resolved there")
-            break
         if touching is not None:
-            touching = free.index(clear[touching])
-            v, impact = _impact(p, *free[touching], t, q, v)   # at a limit, going into it
-            impacts.append(impact)
-            stalled += 1
-            if impact.resting:
-                held.append(free[touching])
-            continue
-        events = StopEvents(p, free, [(*h, d) for h, d in zip(held, drivers)])
-        here = None if grid is None else np.concatenate([[t], grid[grid > t + 1e-12 *
-                                                                      max(1.0, abs(t))]])
-        res = simulate(p, q, v, t_start=t, t_end=t_end, method=method, output_grid=here,
-                       events=events, mechanism=mech, **options)
-        pieces.append(res)
+            if self.stalled >= MAX_STILL:
+                self.failure = (f"the stops switched {self.stalled} times at t = {t:.9g} "
+                                "without the motion going on: their contacts cannot be "
+                                "resolved there")
+                return False
+            self.stalled += 1
+            self.hit(p, free[free.index(clear[touching])])
+            return True
+        stops = StopEvents(p, free, [(*h, d) for h, d in zip(self.held, drivers)]) \
+            if self.mech.stops else None
+        friction = FrictionEvents(p, self.modes) if self.modes is not None else None
+        events = Joined([stops, friction])
+        here = None if self.grid is None else np.concatenate(
+            [[t], self.grid[self.grid > t + 1e-12 * max(1.0, abs(t))]])
+        res = simulate(p, q, v, t_start=t, t_end=self.t_end, method=self.method,
+                       output_grid=here, events=events, mechanism=self.mech, **self.options)
+        self.pieces.append(res)
+        if self.modes is not None:
+            self.schedule.append((float(res.t[-1]), self.modes.copy()))
         if res.event is None or not res.success:
-            break
-        t_was = t
-        t, i, q, v = res.event
-        if t > t_was:
-            stalled, released = 0, []
+            return False
+        self.t, i, self.q, self.v = res.event
+        if self.t > t:
+            self.stalled, self.released = 0, []
         else:
-            stalled += 1
-        if stalled >= MAX_STILL:
-            failure = (f"the stops switched {stalled} times at t = {t:.9g} without the "
-                       f"motion going on ({events.describe(i)}): their contacts cannot be "
-                       "resolved there")
-            break
-        if i < len(free):
-            stop, sign, limit = free[i]
-            v, impact = _impact(p, stop, sign, limit, t, q, v)
-            impacts.append(impact)
-            if impact.resting:
-                held.append((stop, sign, limit))
+            self.stalled += 1
+        if self.stalled >= MAX_STILL:
+            self.failure = (f"the contacts switched {self.stalled} times at t = "
+                            f"{self.t:.9g} without the motion going on "
+                            f"({events.describe(i)}): they cannot be resolved there")
+            return False
+        part, k = events.locate(i)
+        if part is friction:
+            self.switch(p, k)
+        elif k < len(free):
+            self.hit(p, free[k])
         else:
-            released.append(held.pop(i - len(free)))
-    if not pieces:
-        raise ModelError(f"mechanism '{mech.name}': {failure}")
-    out = pieces[0]
-    for rest in pieces[1:]:
-        out = join(out, rest)
-    out.mechanism, out.impacts = mech, impacts
-    out.settings = {}                 # `extend` would run without the stops
-    if failure:
-        out.status, out.message = "failed", failure
-    elif out.success and impacts:
-        out.message += f"; {len(impacts)} impact(s) on the stops"
-    _impact_work(out, impacts)
-    return out
+            self.released.append(self.held.pop(k - len(free)))
+        return True
+
+    def hit(self, p, limit):
+        """The impact on the stop limit (stop, sign, value) at the present state."""
+        self.v, impact = _impact(p, *limit, self.t, self.q, self.v)
+        self.impacts.append(impact)
+        if impact.resting:
+            self.held.append(limit)
+        if self.modes is not None:                    # the impulse moved every joint
+            self.modes = initial_modes(p, self.t, self.q, self.v)
+
+    def switch(self, p, k):
+        """Friction joint k reached zero rate (sliding) or its limit (stuck)."""
+        before = self.modes[k]
+        if before == STUCK:
+            state = p.friction_state(self.t, self.q, self.v)
+            force = state.forces[k]
+            limit = p.friction.elements[k].friction.mu_static * state.loads[k]
+            after = BACKWARD if force > 0.0 else FORWARD
+        else:
+            after, (force, limit) = decide(p, self.modes, k, self.t, self.q, self.v)
+            if after == STUCK:
+                self.v = stop_moving(p, k, self.t, self.q, self.v)
+        self.modes[k] = after
+        self.switches.append(FrictionSwitch(float(self.t), p.friction.elements[k].name,
+                                            MODE_NAMES[before], MODE_NAMES[after],
+                                            float(force), float(limit)))
+
+    def result(self):
+        from ..results.result import join
+        out = self.pieces[0]
+        for rest in self.pieces[1:]:
+            out = join(out, rest)
+        out.mechanism, out.impacts, out.friction_switches = \
+            self.mech, self.impacts, self.switches
+        out.settings = {}                 # `extend` would run without the stops
+        if self.modes is not None:            # each sample's reactions with its piece's modes
+            base = self.mech.problem()
+            out.problem = base.with_friction(base.friction.with_schedule(self.schedule))
+        if self.failure:
+            out.status, out.message = "failed", self.failure
+        elif out.success and self.impacts:
+            out.message += f"; {len(self.impacts)} impact(s) on the stops"
+        if out.success and self.switches:
+            out.message += f"; {len(self.switches)} stick-slip switch(es)"
+        _impact_work(out, self.impacts)
+        return out
 
 
 def _pressing(problem, free, t, q, v):
@@ -184,7 +276,7 @@ def _held_model(mech, held, built):
         drivers = [Driver(stop.joint, repr(float(limit - stop.joint.initial_coordinate())),
                           name=f"held by {stop.name}") for stop, _, limit in held]
         for item in mech.bodies + mech.joints + mech.drivers + mech.gears + mech.loads + \
-                drivers:
+                mech.frictions + drivers:
             other.add(item)
         built[key] = (other, [d.name for d in drivers])
     return built[key]

@@ -7,10 +7,11 @@ from .drivers import Driver
 from .flexible_beam import FlexibleBeam
 from .forces import Force, RotationalSpring, Spring, Torque
 from .gears import Gear
+from .friction import Friction
 from .stops import Stop
 from .joints import Joint, PointOnCurve, Prismatic, Revolute
 from .mechanism import AssemblyError, AssemblyReport, DofReport, Mechanism
 
-__all__ = ["AssemblyError", "LoadError", "AssemblyReport", "Body", "Channel", "DofReport", "Driver", "FlexibleBeam", "Force", "Gear", "Ground",
+__all__ = ["AssemblyError", "LoadError", "AssemblyReport", "Body", "Channel", "DofReport", "Driver", "FlexibleBeam", "Force", "Friction", "Gear", "Ground",
            "Joint", "Mechanism", "ModelError", "PointOnCurve", "Prismatic", "Revolute", "RigidBody", "RotationalSpring", "Spring",
            "Stop", "Torque"]

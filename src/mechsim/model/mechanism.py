@@ -14,6 +14,7 @@ from .channels import Channel, channel_names
 from .drivers import Driver
 from .forces import Force, RotationalSpring, Spring, Torque, load_points
 from .gears import Gear
+from .friction import Friction
 from .stops import Stop
 from .joints import Joint
 
@@ -78,6 +79,7 @@ class Mechanism:
         self.drivers: list[Driver] = []
         self.gears: list[Gear] = []          # gear pairs between joints' coordinates
         self.stops: list[Stop] = []          # end stops on joints' coordinates
+        self.frictions: list[Friction] = []  # dry friction in joints
         self.loads: list = []                 # springs, rotational springs, forces, torques
         self.channels: list[Channel] = []    # the user's recorded quantities
         self.speeds: dict[str, float] = {}   # joint name -> its prescribed initial rate
@@ -89,9 +91,8 @@ class Mechanism:
 
     # --- building ----------------------------------------------------------------------------
     def add(self, item):
-        """Add a body, joint, driver, gear, stop, spring, rotational spring, force, torque or
-        channel;
-        returns it. A channel's expression is checked against the bodies and joints added
+        """Add a body, joint, driver, gear, stop, friction, spring, rotational spring, force,
+        torque or channel; returns it. A channel's expression is checked against the bodies and joints added
         before it; it changes no equation (nothing is rebuilt for it)."""
         owner = f"mechanism '{self.name}'"
         if isinstance(item, Channel):
@@ -131,6 +132,14 @@ class Mechanism:
                                  "a driven joint goes where its law says")
             self.stops.append(item)
             return item
+        elif isinstance(item, Friction):
+            if not any(j is item.joint for j in self.joints):
+                raise ModelError(f"friction '{item.name}': joint '{item.joint.name}' is not in "
+                                 f"{owner}; add the joint first")
+            if any(f.joint is item.joint for f in self.frictions):
+                raise ModelError(f"friction '{item.name}': joint '{item.joint.name}' has "
+                                 "friction already")
+            self.frictions.append(item)
         elif isinstance(item, Gear):
             for joint in item.joints:
                 if not any(j is joint for j in self.joints):
@@ -151,7 +160,8 @@ class Mechanism:
             self.loads.append(item)
         else:
             raise ModelError(f"{owner}: cannot add {item!r}; expected a body, joint, driver, "
-                             "gear, stop, spring, rotational spring, force, torque or channel")
+                             "gear, stop, friction, spring, rotational spring, force, torque "
+                             "or channel")
         self._problem = None
         self._assembled = None
         self._state = None
@@ -520,7 +530,7 @@ class Mechanism:
         check_simulate_arguments(len(self.coordinate_names), t_end, method, options)
         self.check_tables(options.get("t_start", 0.0), t_end)
         report = self._assembled or self.assemble(t=options.get("t_start", 0.0))
-        if self.stops:
+        if self.stops or self.frictions:
             from ..engineering.impacts import simulate_with_stops
             return simulate_with_stops(self, report, t_end, method, **options)
         return simulate(self.problem(), report.q, report.v, t_end=t_end, method=method,

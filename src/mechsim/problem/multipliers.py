@@ -67,7 +67,7 @@ def multipliers(problem, T, Q, V, passages=None, engine=None) -> Multipliers:
     dropped = np.zeros(N, dtype=int)
     if m == 0 or N == 0:
         return Multipliers(lam, flags, dropped)
-    F = problem.load_model.forces_at(T, Q, V)
+    F = problem.forces_at(T, Q, V)
     inside = np.zeros(N, dtype=bool)
     for t_start, t_end in passages or ():
         inside |= (T >= t_start) & (T <= t_end)

@@ -10,6 +10,7 @@ functions of (q, t) and its parameter values), the mass and the Schur-complement
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,13 +57,15 @@ class NumericProblem:
     joints : dict joint name -> `mechsim.engineering.geometry.JointGeometry`: what joint
         coordinates and reactions are evaluated from (results only; never the solvers)
     driver_joints : dict driver name -> the name of the joint it drives
+    friction : `mechsim.problem.friction.FrictionModel` of the joints with friction, or None:
+        its forces join Q (solved with the reactions that load them)
     """
 
     def __init__(self, model, parameters, mass_diagonal, gravity, body_starts,
                  coordinate_names, constraint_names, constraint_owners,
                  springs=(), loads=(), title="mechanism", constraint_kinds=None,
                  flexible=(), drawing=(), driver_laws=(), joints=None, driver_joints=None,
-                 torsion=(), gear_signs=None):
+                 torsion=(), gear_signs=None, friction=None):
         self.model = model
         self.p = tuple(float(x) for x in parameters)
         self.mass_model = MassModel(mass_diagonal, flexible)
@@ -82,6 +85,7 @@ class NumericProblem:
         self.driver_joints = dict(driver_joints or {})
         self.gear_signs = dict(gear_signs or {})    # gear name -> its force per unit of −λ
         self.counters = Counters()
+        self.friction = friction
         self.flexible = tuple(flexible)
         self.constant_mass = self.mass_model.constant
         flex_starts = {fb.start for fb in self.flexible}
@@ -216,8 +220,30 @@ class NumericProblem:
         return self.mass_model.factor(q)
 
     def forces(self, t, q, v) -> np.ndarray:
-        """Generalized applied forces Q(t, q, v), shape (n,) (`Loads.forces`)."""
-        return self.load_model.forces(t, q, v)
+        """Generalized applied forces Q(t, q, v), shape (n,) (`Loads.forces`), with the
+        joints' friction (`friction_state`) where the mechanism has any."""
+        Q = self.load_model.forces(t, q, v)
+        if self.friction is None:
+            return Q
+        return Q + self.friction.solve(self, t, q, v, Q).generalized()
+
+    def forces_at(self, T, Q, V) -> np.ndarray:
+        """`forces` at many states (rows), shape (N, n)."""
+        if self.friction is None:
+            return self.load_model.forces_at(T, Q, V)
+        return np.array([self.forces(t, q, v) for t, q, v in zip(T, Q, V)]).reshape(
+            len(T), self.n)
+
+    def friction_state(self, t, q, v, modes=None):
+        """The joints' friction forces at (t, q, v) with the reactions that load them: a
+        `mechsim.problem.friction.FrictionState` (`modes` overrides the model's)."""
+        return self.friction.solve(self, t, q, v, self.load_model.forces(t, q, v), modes)
+
+    def with_friction(self, friction) -> "NumericProblem":
+        """This problem with another `FrictionModel` (the same model and caches)."""
+        other = copy.copy(self)
+        other.friction = friction
+        return other
 
     def nonconservative_forces(self, t, q, v) -> np.ndarray:
         """The part of Q with no potential (`Loads.nonconservative_forces`)."""
@@ -242,8 +268,10 @@ class NumericProblem:
     def work_channels(self) -> list[str]:
         """What can do work on the mechanism besides gravity and elastic springs, one name
         per channel of `work_rates`: the loads' channels (`Loads.work_channels`) and each
-        driver ("driver 'motor'")."""
-        return self.load_model.work_channels + [f"driver '{d}'" for d in self._driver_owners()]
+        each joint's friction ("friction 'f'") and each driver ("driver 'motor'")."""
+        friction = self.friction.channels if self.friction is not None else []
+        return self.load_model.work_channels + friction + \
+            [f"driver '{d}'" for d in self._driver_owners()]
 
     def _driver_owners(self) -> list[str]:
         """The drivers owning rows of Φ, in order of their first row."""
@@ -251,14 +279,19 @@ class NumericProblem:
 
     def work_rates(self, t, q, v) -> np.ndarray:
         """The power of each of `work_channels` at the consistent state (q, v), shape (k,):
-        the loads' (`Loads.powers`), and a driver's λᵀ Φ_t over its rows (the constraint
+        the loads' (`Loads.powers`), friction's f ṡ, and a driver's λᵀ Φ_t over its rows (the constraint
         force −Φ_qᵀλ does the work −λᵀ Φ_q v = λᵀ Φ_t; λ from the equations of motion,
         least squares at a singular configuration)."""
         out = self.load_model.powers(t, q, v)
         owners = self._driver_owners()
+        Q = self.load_model.forces(t, q, v) if owners or self.friction is not None else None
+        if self.friction is not None:
+            state = self.friction.solve(self, t, q, v, Q)
+            out += list(state.forces * state.rates)
+            Q = Q + state.generalized()
         if owners:
             _, J, phi_t, gamma = self.terms(q, v, t)
-            _, lam = self.accelerations(J, self.forces(t, q, v), gamma, q)
+            _, lam = self.accelerations(J, Q, gamma, q)
             for owner in owners:
                 out.append(float(sum(lam[i] * phi_t[i] for i in self.rheonomic_rows
                                      if self.constraint_owners[i] == owner)))

@@ -121,6 +121,7 @@ class SimulationResult:
         self.stream_path = None       # the directory a streamed run's samples are in
         self.event = None             # (t, index, q, v) where an event ended the run
         self.impacts = []             # the stops' impacts (`mechsim.engineering.impacts.Impact`)
+        self.friction_switches = []   # stick and slip (`mechsim.engineering.friction.FrictionSwitch`)
         if energy is not None:
             self.__dict__["energy"] = energy
         if constraint_violation is not None:
@@ -283,6 +284,21 @@ class SimulationResult:
         carrier), a rack's force along its slide [N], a ratio coupling's effort on joint b
         (`ReactionTable.gear_force`)."""
         return self.reactions.gear_force(gear)
+
+    def friction_force(self, friction) -> np.ndarray:
+        """The torque [N·m] (revolute) or force [N] (prismatic) that the friction `friction`
+        (the element or its name) applies to its joint's body_b along the joint's
+        coordinate at each sample, shape (n,): −μ × the load while slipping, the holding
+        force while stuck (`SimulationResult.friction_switches` says when)."""
+        p = self._need_problem("computing friction forces")
+        name = getattr(friction, "name", friction)
+        names = [e.name for e in p.friction.elements] if p.friction is not None else []
+        if name not in names:
+            raise KeyError(f"this result has no friction named {name!r}; friction: "
+                           f"{', '.join(names) or '(none)'}")
+        k = names.index(name)
+        return np.array([p.friction_state(t, q, v).forces[k]
+                         for t, q, v in zip(self.t, self.q, self.v)])
 
     def driver_power(self, driver) -> np.ndarray:
         """The power [W] the driver delivers, effort × the rate of its joint, shape (n,)."""

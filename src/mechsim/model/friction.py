@@ -1,0 +1,81 @@
+"""Coulomb–Stribeck friction in a joint, loaded by the joint's own reaction
+(`mechsim.problem.friction` solves it; `mechsim.engineering.contacts` runs its stick–slip)."""
+
+from __future__ import annotations
+
+import math
+
+from .checks import ModelError, name_or_default, scalar
+from .joints import Joint, coordinate_joint
+
+
+class Friction:
+    """Dry friction in a revolute or prismatic `joint`, opposing the joint's relative motion
+    with a magnitude proportional to the load the joint carries:
+
+    - revolute: a torque μ r (|F| + preload), F the pin's reaction force and r = `radius`
+      (the pin's radius, m);
+    - prismatic: a force μ (N + preload), N the guide's normal load: |F| where `length` is
+      None, else max(|F|, 2|M|/length), the sum of the contact forces at the two ends of a
+      block of that length carrying the normal force F and the couple M (contact on
+      opposite faces where the couple wins).
+
+    `preload` [N] presses the surfaces besides the reaction (a press fit, a seal). The
+    coefficient in slip is `mu`, or with `transition_velocity` v_t (rad/s or m/s) the
+    Stribeck curve μ + (μ_s − μ) exp(−(ṡ/v_t)²); at rest it is `mu_static` μ_s (default
+    `mu`). The reaction depends on the friction force and the friction force on the
+    reaction: each evaluation solves the two together (Newton on the friction forces).
+
+    A joint whose rate reaches zero sticks while the force needed to hold it stays within
+    μ_s times its load, held exactly (its rate stays zero); it slips again, in the
+    direction the holding force was resisting, when that force exceeds the limit. Both
+    instants are located as events of the run (`SimulationResult.friction_switches`), and
+    the work the friction takes is a channel of the energy balance."""
+
+    kind = "friction"
+
+    def __init__(self, joint: Joint, mu: float, mu_static: float | None = None,
+                 radius: float | None = None, transition_velocity: float | None = None,
+                 preload: float = 0.0, length: float | None = None, name: str | None = None):
+        self.joint = coordinate_joint(joint, "friction", "rub along")
+        self.name = name_or_default(name, f"friction({joint.name})", "friction")
+        owner = f"friction '{self.name}'"
+        self.mu = scalar(mu, "mu", owner, nonnegative=True)
+        self.mu_static = self.mu if mu_static is None else \
+            scalar(mu_static, "mu_static", owner, nonnegative=True)
+        if self.mu_static < self.mu:
+            raise ModelError(f"{owner}: `mu_static` ({self.mu_static:g}) must not be below "
+                             f"`mu` ({self.mu:g}): a joint at rest holds at least what it "
+                             "takes to keep it sliding")
+        self.preload = scalar(preload, "preload", owner, nonnegative=True)
+        self.transition_velocity = None if transition_velocity is None else \
+            scalar(transition_velocity, "transition_velocity", owner, positive=True)
+        if self.joint.kind == "revolute":
+            if radius is None:
+                raise ModelError(f"{owner}: revolute joint '{joint.name}' needs the pin's "
+                                 "`radius` [m]: the friction torque is μ r |F|")
+            self.radius = scalar(radius, "radius", owner, positive=True)
+            if length is not None:
+                raise ModelError(f"{owner}: `length` is a prismatic guide's; revolute joint "
+                                 f"'{joint.name}' takes `radius`")
+            self.length = None
+        else:
+            if radius is not None:
+                raise ModelError(f"{owner}: `radius` is a pin's; prismatic joint "
+                                 f"'{joint.name}' takes `length` (its block's contact length)")
+            self.radius = None
+            self.length = None if length is None else \
+                scalar(length, "length", owner, positive=True)
+
+    def coefficient(self, speed: float) -> float:
+        """μ at the sliding speed |ṡ| (`speed`): μ_s at rest, the Stribeck curve with a
+        transition velocity, else μ while sliding."""
+        if speed == 0.0:
+            return self.mu_static
+        if self.transition_velocity is None:
+            return self.mu
+        return self.mu + (self.mu_static - self.mu) * math.exp(
+            -(speed / self.transition_velocity) ** 2)
+
+    def __repr__(self):
+        return f"Friction({self.joint.name!r}, mu={self.mu:g}, mu_static={self.mu_static:g})"
