@@ -101,7 +101,7 @@ def simulate_with_stops(mech, report, t_end, method=None, **options):
         raise ModelError(f"mechanism '{mech.name}': a run with stops or friction is a "
                          "sequence of runs joined in memory; it cannot be streamed "
                          "(simulate without `stream`)")
-    return PiecewiseRun(mech, report, t_end, method, options).run()
+    return PiecewiseRun(mech, report.q, report.v, t_end, method, options).run()
 
 
 class PiecewiseRun:
@@ -109,12 +109,12 @@ class PiecewiseRun:
     stops (`held`: (stop, sign, limit)), each friction joint's mode (`modes`), what
     happened at each event (`impacts`, `switches`) and the pieces' results."""
 
-    def __init__(self, mech, report, t_end, method, options):
+    def __init__(self, mech, q, v, t_end, method, options):
         self.mech, self.t_end, self.method = mech, t_end, method
         self.t = float(options.pop("t_start", 0.0))
         self.grid = output_times(self.t, t_end, options.pop("output_step", None))
         self.options = options
-        self.q, self.v = report.q, report.v
+        self.q, self.v = np.asarray(q, float), np.asarray(v, float)
         problem = mech.problem()
         for stop in mech.stops:
             stop.check_start(joint_coordinates(problem.joints[stop.joint.name], self.q,

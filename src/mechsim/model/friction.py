@@ -68,10 +68,8 @@ class Friction:
                 scalar(length, "length", owner, positive=True)
 
     def coefficient(self, speed: float) -> float:
-        """μ at the sliding speed |ṡ| (`speed`): μ_s at rest, the Stribeck curve with a
-        transition velocity, else μ while sliding."""
-        if speed == 0.0:
-            return self.mu_static
+        """μ while sliding at the speed |ṡ| (`speed`): the Stribeck curve with a transition
+        velocity (μ_s at zero speed), else μ (μ_s only holds a joint at rest)."""
         if self.transition_velocity is None:
             return self.mu
         return self.mu + (self.mu_static - self.mu) * math.exp(

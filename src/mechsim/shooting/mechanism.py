@@ -4,7 +4,8 @@ The unknowns are the independent coordinates and velocities (q_v, v_v), chosen b
 pivoting of Φ_q at the start; the dependent ones follow from Φ(q, t₀) = 0 (Newton) and
 Φ_q v + Φ_t = 0 (`mechsim.engineering.reduced`), so every flow starts from a consistent
 state. The flow over one period is
-an ordinary constrained simulation (any method of the registry).
+an ordinary constrained simulation (any method of the registry), or for a mechanism with
+stops or friction the sequence of runs between its events (`mechsim.engineering.impacts`).
 """
 
 from __future__ import annotations
@@ -51,8 +52,14 @@ class MechanismPeriodicProblem(PeriodicProblem):
         # The flow is evaluated many times per Newton iteration: the work of its dampers
         # and drivers is integrated only where the caller asks for it.
         options = {"work": False, **self.options}
-        res = simulate(self.problem, q, v, t_start=self.t0, t_end=self.t0 + self.period,
-                       output_step=self.period / samples, **options)
+        if self.mech.stops or self.mech.frictions:
+            from ..engineering.impacts import PiecewiseRun      # impacts, stick and slip
+            res = PiecewiseRun(self.mech, q, v, self.t0 + self.period, options.pop(
+                "method", None), dict(options, t_start=self.t0,
+                                      output_step=self.period / samples)).run()
+        else:
+            res = simulate(self.problem, q, v, t_start=self.t0, t_end=self.t0 + self.period,
+                           output_step=self.period / samples, **options)
         if res.status != "success":
             raise ValueError(f"steady_state: the flow over one period failed: {res.message}")
         x = np.hstack([res.q[:, self.ind], res.v[:, self.ind]])

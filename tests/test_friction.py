@@ -1,0 +1,202 @@
+"""Joint friction loaded by the joint's own reaction: sliding and sticking on an incline, a
+driven crank's extra motor torque, the friction oscillator of the shooting paper built as a
+mechanism, a slider-crank with friction in every joint, against closed forms, the
+oscillator module and independent integrations."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import mechsim as ms
+from mechsim.shooting.oscillators import CoulombOscillator
+
+G = 9.81
+
+
+def incline(angle, mu, mu_static=None, speed=0.0, method_kw=None, **friction):
+    """A 2 kg block on a guide falling at `angle` below the horizontal (its slide s grows
+    downhill), moving downhill at `speed`."""
+    mech = ms.Mechanism("incline", gravity=(0.0, -G))
+    down = (math.cos(angle), -math.sin(angle))
+    block = mech.add(ms.RigidBody("block", mass=2.0, inertia=0.01, angle=-angle,
+                                  velocity=(speed * down[0], speed * down[1])))
+    guide = mech.add(ms.Prismatic(mech.ground, block, axis=down, at=(0, 0), name="guide"))
+    mech.add(ms.Friction(guide, mu=mu, mu_static=mu_static, length=0.1, name="rub",
+                         **friction))
+    return mech, guide
+
+
+@pytest.mark.parametrize("method", ["hybrid", "lu", "projection"])
+def test_a_block_slides_down_an_incline_steeper_than_its_friction(method):
+    angle, mu = math.radians(30), 0.3                      # tan 30° = 0.577 > μ_s = 0.5
+    mech, guide = incline(angle, mu, 0.5)
+    res = mech.simulate(1.0, method=method, rtol=1e-10, atol=1e-12, output_step=0.05)
+    assert res.success, res.message
+    a = G * (math.sin(angle) - mu * math.cos(angle))
+    assert np.max(np.abs(res.joint_coordinate(guide) - 0.5 * a * res.t**2)) < 1e-8
+    # friction μ N opposes the slide, N = m g cos θ is the guide's normal force
+    normal = np.hypot(*res.joint_force(guide).T)
+    assert np.allclose(normal, 2.0 * G * math.cos(angle), rtol=1e-10)
+    assert np.allclose(res.friction_force("rub"), -mu * normal, rtol=1e-10)
+    assert not res.friction_switches
+    assert np.max(np.abs(res.energy_drift)) < 1e-8          # friction's work in the balance
+
+
+def test_a_block_sticks_on_an_incline_flatter_than_its_static_friction():
+    angle = math.radians(20)                                # tan 20° = 0.364 < μ_s = 0.4
+    mech, guide = incline(angle, 0.3, 0.4)
+    res = mech.simulate(1.0, rtol=1e-10, atol=1e-12, output_step=0.1)
+    assert res.success, res.message
+    assert np.max(np.abs(res.joint_coordinate(guide))) < 1e-12
+    # what holds it is gravity's pull along the guide, within μ_s N
+    assert np.allclose(res.friction_force("rub"), -2.0 * G * math.sin(angle), rtol=1e-9)
+
+
+def test_a_sliding_block_stops_where_its_friction_brings_it_to_rest_and_sticks():
+    angle, mu, speed = math.radians(10), 0.3, 1.0
+    mech, guide = incline(angle, mu, 0.4, speed=speed)
+    res = mech.simulate(1.5, rtol=1e-10, atol=1e-12, output_step=0.05)
+    assert res.success, res.message
+    a = G * (math.sin(angle) - mu * math.cos(angle))        # < 0: it slows down
+    t_stop = -speed / a
+    (switch,) = res.friction_switches
+    assert (switch.before, switch.after) == ("slipping forwards", "stuck")
+    assert switch.t == pytest.approx(t_stop, abs=1e-10)
+    assert switch.force == pytest.approx(-2.0 * G * math.sin(angle), rel=1e-9)
+    assert switch.limit == pytest.approx(0.4 * 2.0 * G * math.cos(angle), rel=1e-9)
+    s = res.joint_coordinate(guide)
+    exact = np.where(res.t < t_stop, speed * res.t + 0.5 * a * res.t**2, -speed**2 / (2 * a))
+    assert np.max(np.abs(s - exact)) < 1e-9
+    assert np.max(np.abs(res.joint_rate(guide)[res.t > t_stop])) < 1e-12
+    # the kinetic energy went into the friction's work
+    work = res.energy.work_by[:, res.energy.channels.index("friction 'rub'")]
+    assert work[-1] == pytest.approx(-(0.5 * 2.0 * speed**2 + 2.0 * G * math.sin(angle) *
+                                       speed**2 / (2 * -a)), rel=1e-9)
+
+
+def test_the_stribeck_curve_slows_a_block_as_an_independent_integration_says():
+    mu, mu_s, vt, speed = 0.2, 0.5, 0.3, 2.0
+    mech, guide = incline(0.0, mu, mu_s, speed=speed, transition_velocity=vt)
+    res = mech.simulate(0.5, rtol=1e-10, atol=1e-12, output_step=0.05)
+    assert res.success, res.message
+
+    def slowing(t, y):
+        return [y[1], -(mu + (mu_s - mu) * math.exp(-(y[1] / vt) ** 2)) * G]
+    ref = solve_ivp(slowing, (0, 0.5), [0.0, speed], method="DOP853", rtol=1e-12,
+                    atol=1e-14, t_eval=res.t)
+    assert np.max(np.abs(res.joint_coordinate(guide) - ref.y[0])) < 1e-8
+
+
+def test_a_pin_with_friction_adds_mu_r_F_to_the_motor_torque():
+    """Friction in a driven crank's pin O: the motor delivers μ r |F_O| more (the pin force
+    itself is unchanged: the crank's motion is prescribed), in kinematics and dynamics."""
+    mu, r, preload = 0.1, 0.01, 50.0
+    plain = ms.examples.slider_crank(driven=True, crank_speed=100.0)
+    rubbing = ms.examples.slider_crank(driven=True, crank_speed=100.0)
+    pin = rubbing.joints[0]
+    rubbing.add(ms.Friction(pin, mu=mu, radius=r, preload=preload, name="bearing"))
+    period = 2 * math.pi / 100
+    for run in ("kinematics", "simulate"):
+        if run == "kinematics":
+            a, b = (m.kinematics(period, period / 100) for m in (plain, rubbing))
+        else:
+            a, b = (m.simulate(period, rtol=1e-10, atol=1e-12, output_step=period / 100)
+                    for m in (plain, rubbing))
+        force = np.hypot(*b.joint_force(pin).T)
+        assert np.allclose(force, np.hypot(*a.joint_force(plain.joints[0]).T), rtol=1e-9)
+        extra = b.driver_effort(rubbing.drivers[0]) - a.driver_effort(plain.drivers[0])
+        assert np.max(np.abs(extra - mu * r * (force + preload))) < 1e-9 * np.max(force)
+        assert np.allclose(b.friction_force("bearing"), -extra, atol=1e-9 * np.max(force))
+
+
+def test_a_slider_crank_with_friction_in_every_joint_balances_its_motor_energy():
+    """Driven at constant speed through a revolution: the motor's work equals the change of
+    kinetic and potential energy plus the work the friction took, to 100 rtol; each joint
+    whose rate reverses (the rod–slider pin at 90° and 270°, the slide at 180°) switches."""
+    mech = ms.examples.slider_crank(driven=True, crank_speed=100.0)
+    for j in mech.joints:
+        size = {"radius": 0.01} if j.kind == "revolute" else {"length": 0.02}
+        mech.add(ms.Friction(j, mu=0.15, **size))
+    period, rtol = 2 * math.pi / 100, 1e-8
+    res = mech.simulate(period, rtol=rtol, atol=1e-10, output_step=period / 200)
+    assert res.success, res.message
+    assert np.max(np.abs(res.energy_drift)) < 100 * rtol
+    switched = sorted((s.friction, round(s.t / period, 6)) for s in res.friction_switches)
+    assert switched == [("friction(B)", 0.25), ("friction(B)", 0.75),
+                        ("friction(slide)", 0.5)]
+    friction_work = sum(res.energy.work_by[-1, i] for i, c in enumerate(res.energy.channels)
+                        if c.startswith("friction"))
+    assert friction_work < -0.01 * res.energy.work_by[-1, -1]     # it took a real share
+
+
+PAPER = dict(zeta=0.05, omega_n=100.0, delta_st=0.1, omega=100.0)
+
+
+def friction_oscillator(x0, v0, mu=0.08):
+    """Eq. 10 of the shooting paper as a mechanism: a 1 kg block on a guide, a spring
+    k = ω_n², a damper 2ζω_n, the force k δ_st cos ωt, friction μ with the guide's normal
+    force m g (g = 9800, the paper's mm/s²)."""
+    mech = ms.Mechanism("friction oscillator", gravity=(0.0, -9800.0))
+    block = mech.add(ms.RigidBody("block", mass=1.0, inertia=1e-4, position=(x0, 0),
+                                  velocity=(v0, 0)))
+    guide = mech.add(ms.Prismatic(mech.ground, block, axis=(1, 0), at=(x0, 0)))
+    mech.add(ms.Spring(mech.ground, block, at_a=(-1.0, 0), at_b=(x0, 0), stiffness=1e4,
+                       damping=10.0, rest_length=1.0))
+    mech.add(ms.Force(block, ["1000*cos(100*t)", "0"], at=(x0, 0)))
+    mech.add(ms.Friction(guide, mu=mu, name="rub"))
+    return mech
+
+
+def test_the_friction_oscillator_built_as_a_mechanism_has_the_oscillator_modules_orbit():
+    osc = CoulombOscillator(**PAPER, mu=0.08)
+    sol = ms.shooting.solve(osc, (-0.014, 2.7), method="newton", tol=1e-12)
+    assert sol.converged
+    period = 2 * math.pi / 100
+    res = friction_oscillator(*sol.x0).simulate(2 * period, rtol=1e-10, atol=1e-12,
+                                                output_step=period / 20)
+    assert res.success, res.message
+    # the stick and slip instants of the closed-form flow, in both periods
+    sticks = [t for t, kind in sol.trajectory.events if kind in ("stick", "slip")]
+    switches = [s.t for s in res.friction_switches]
+    expected = sticks + [t + period for t in sticks]
+    assert np.max(np.abs(np.array(switches) - expected)) < 1e-9
+    # the motion at the grid's samples, against the module's exact flow to that time
+    grid = np.flatnonzero(np.isclose(np.round(res.t / (period / 20)) * period / 20, res.t,
+                                     rtol=0, atol=1e-15))
+    for t, x, v in zip(res.t[grid[1::3]], res.q[grid[1::3], 0], res.v[grid[1::3], 0]):
+        exact = osc.flow_with_monodromy(sol.x0, (0.0, t))[0].x[-1]
+        assert abs(x - exact[0]) < 1e-9 and abs(v - exact[1]) < 1e-7, t
+    # shooting on the mechanism itself finds the same orbit
+    found = friction_oscillator(-0.014, 2.7).steady_state(period, tol=1e-10)
+    assert found.converged
+    assert np.allclose(found.x0, sol.x0, atol=1e-8)
+
+
+@pytest.mark.parametrize("bad, message", [
+    (dict(mu=-0.1), "`mu` must be non-negative"),
+    (dict(mu=0.3, mu_static=0.2), "must not be below `mu`"),
+    (dict(mu=0.3, transition_velocity=0.0), "`transition_velocity` must be positive"),
+    (dict(mu=0.3, preload=-1.0), "`preload` must be non-negative"),
+    (dict(mu=0.3), "needs the pin's `radius`"),
+    (dict(mu=0.3, radius=0.01, length=0.1), "takes `radius`"),
+])
+def test_bad_friction_is_refused_naming_it(bad, message):
+    mech = ms.examples.pendulum()
+    with pytest.raises(ms.ModelError, match=message):
+        ms.Friction(mech.joints[0], **bad)
+
+
+def test_friction_needs_a_joint_of_the_mechanism_with_a_coordinate_once():
+    mech = ms.examples.pendulum()
+    pin = mech.joints[0]
+    mech.add(ms.Friction(pin, mu=0.1, radius=0.01))
+    with pytest.raises(ms.ModelError, match="has friction already"):
+        mech.add(ms.Friction(pin, mu=0.2, radius=0.01))
+    other = ms.examples.pendulum()
+    with pytest.raises(ms.ModelError, match="is not in"):
+        other.add(ms.Friction(pin, mu=0.1, radius=0.01))
+    mech2, guide = incline(0.1, 0.1)
+    with pytest.raises(ms.ModelError, match="takes `length`"):
+        ms.Friction(guide, mu=0.1, radius=0.01)
