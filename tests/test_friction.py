@@ -200,3 +200,99 @@ def test_friction_needs_a_joint_of_the_mechanism_with_a_coordinate_once():
     mech2, guide = incline(0.1, 0.1)
     with pytest.raises(ms.ModelError, match="takes `length`"):
         ms.Friction(guide, mu=0.1, radius=0.01)
+
+
+def test_a_pendulum_with_pin_friction_swings_as_its_implicit_equation_says_then_sticks():
+    """A rod pinned at its end, released level: I θ̈ = −m g L/2 cos θ − sign(θ̇) μ r |F|,
+    F the pin force m a_G − m g, itself depending on θ̈ (solved by scipy's brentq at every
+    evaluation of scipy's own integration). Its swings die out and it sticks where gravity's
+    moment is within μ_s r |F| of the bottom."""
+    from scipy.optimize import brentq
+    length, mass, mu, mu_s, r = 1.0, 1.0, 0.3, 0.4, 0.05
+    inertia = mass * length**2 / 3
+    mech = ms.Mechanism("rubbing pendulum", gravity=(0.0, -G))
+    rod = mech.add(ms.RigidBody.rod("rod", (0, 0), (length, 0), mass))
+    pin = mech.add(ms.Revolute(mech.ground, rod, at=(0, 0), name="pin"))
+    mech.add(ms.Friction(pin, mu=mu, mu_static=mu_s, radius=r, name="bearing"))
+    res = mech.simulate(0.9, rtol=1e-10, atol=1e-12, output_step=0.05)   # first swing
+    assert res.success, res.message
+
+    def acceleration(th, w):
+        radial = np.array([math.cos(th), math.sin(th)])
+        tangent = np.array([-math.sin(th), math.cos(th)])
+
+        def balance(a):
+            pin_force = mass * length / 2 * (a * tangent - w * w * radial) + \
+                mass * np.array([0.0, G])
+            return inertia * a + mass * G * length / 2 * math.cos(th) + \
+                np.sign(w) * mu * r * np.hypot(*pin_force)
+        return brentq(balance, -100.0, 100.0, xtol=1e-15)
+    ref = solve_ivp(lambda t, y: [y[1], acceleration(*y)], (0, 0.9), [0.0, 0.0],
+                    method="DOP853", rtol=1e-12, atol=1e-14, t_eval=res.t)
+    assert np.max(np.abs(res.coordinate("rod.angle") - ref.y[0])) < 1e-8
+    rest = mech.simulate(20.0, rtol=1e-8, atol=1e-10, output_step=0.1)
+    assert rest.success, rest.message
+    last = rest.friction_switches[-1]
+    assert last.after == "stuck" and abs(last.force) <= last.limit
+    th = rest.coordinate("rod.angle")[-1]
+    assert abs(mass * G * length / 2 * math.cos(th)) <= mu_s * r * mass * G * 1.001
+    assert np.max(np.abs(rest.v[rest.t > last.t + 1e-9])) < 1e-9
+    assert np.max(np.abs(rest.energy_drift)) < 100 * 1e-8
+
+
+def test_friction_in_a_scene_and_round_tripping_through_one(tmp_path):
+    scene = tmp_path / "incline.toml"
+    scene.write_text("""
+name = "block on a guide"
+gravity = [0.0, -9.81]
+[[body]]
+name = "block"
+mass = 2.0
+inertia = 0.01
+velocity = [1.0, 0.0]
+[[joint]]
+type = "prismatic"
+name = "guide"
+bodies = ["ground", "block"]
+axis = [1.0, 0.0]
+at = [0.0, 0.0]
+[[friction]]
+joint = "guide"
+name = "rub"
+mu = 0.25
+mu_static = 0.3
+length = 0.05
+""")
+    mech = ms.load_mechanism(scene)
+    (fr,) = mech.frictions
+    assert (fr.name, fr.joint.name, fr.mu, fr.mu_static, fr.length) == \
+        ("rub", "guide", 0.25, 0.3, 0.05)
+    res = mech.simulate(0.6, rtol=1e-10, atol=1e-12, output_step=0.05)
+    (switch,) = res.friction_switches                         # stops at v/(μ g) and sticks
+    assert switch.t == pytest.approx(1.0 / (0.25 * G), abs=1e-10)
+    back = ms.load_mechanism(mech.save(tmp_path / "saved.toml"))
+    (again,) = back.frictions
+    assert vars(again).keys() == vars(fr).keys()
+    assert all(getattr(again, k) == getattr(fr, k) for k in
+               ("name", "mu", "mu_static", "radius", "length", "transition_velocity", "preload"))
+    other = back.simulate(0.6, rtol=1e-10, atol=1e-12, output_step=0.05)
+    assert np.array_equal(other.q, res.q)
+    bad = scene.read_text().replace("mu = 0.25", "mu = -0.25")
+    scene.write_text(bad)
+    with pytest.raises(ms.ModelError, match="`mu` must be non-negative"):
+        ms.load_mechanism(scene)
+
+
+def test_a_saved_result_keeps_its_stick_and_slip(tmp_path):
+    """Reloaded, a result computes the friction and reactions of each sample with the mode
+    it ran in (a stuck block's rate is round-off, whose sign says nothing)."""
+    mech, guide = incline(math.radians(10), 0.3, 0.4, speed=1.0)
+    res = mech.simulate(1.5, rtol=1e-10, atol=1e-12, output_step=0.05)
+    path = res.save(tmp_path / "stuck.npz")
+    back = ms.load_result(path)
+    assert back.friction_switches == res.friction_switches
+    assert np.array_equal(back.friction_force("rub"), res.friction_force("rub"))
+    stuck = res.t > res.friction_switches[0].t
+    assert np.allclose(back.friction_force("rub")[stuck], -2.0 * G * math.sin(math.radians(10)),
+                       rtol=1e-9)
+    assert np.array_equal(back.joint_force(guide), res.joint_force(guide))

@@ -37,3 +37,11 @@ def attach_mechanism(result, meta, where) -> None:
                          f"{result.coordinate_names[:4]}…")
     result.mechanism = mech
     result.problem = mech.problem()
+    schedule = meta.get("friction_schedule")
+    if schedule and result.problem.friction is not None:      # each piece's stick and slip
+        result.problem = result.problem.with_friction(
+            result.problem.friction.with_schedule((t, tuple(m)) for t, m in schedule))
+    from .engineering.friction import FrictionSwitch
+    from .engineering.impacts import Impact
+    result.impacts = [Impact(**i) for i in meta.get("impacts", ())]
+    result.friction_switches = [FrictionSwitch(**s) for s in meta.get("friction_switches", ())]

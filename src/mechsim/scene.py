@@ -34,6 +34,7 @@ same tables in JSON, for files ending in .json)::
     [[force]]   body, force = [fx, fy], at      [[torque]]  body, torque   # in t, too
     [[gear]]    type = "spur", joints = [a, b], radii, internal  # "rack": radius; "ratio"
     [[stop]]    joint, lower, upper, restitution, rest_speed     # an end stop (mechsim.Stop)
+    [[friction]] joint, mu, mu_static, radius | length, transition_velocity, preload
     [[speed]]   joint, rate     # the joint's initial rate (Mechanism.set_speed)
     [[channel]] name, expression, unit   # recorded (mechsim.Channel): of t, "crank.angle",
                 # "….rate", "….acceleration", "A.coordinate", "A.rate", the parameters
@@ -150,6 +151,9 @@ SCHEMA = {
     "speed": {"joint": "name", "rate": "number"},
     "stop": {"joint": "name", "lower": "number", "upper": "number", "restitution": "number",
              "rest_speed": "number", "name": "name"},
+    "friction": {"joint": "name", "mu": "number", "mu_static": "number", "radius": "number",
+                 "length": "number", "transition_velocity": "number", "preload": "number",
+                 "name": "name"},
     "gear": {"type": ("spur", "rack", "ratio"), "joints": "bodies", "name": "name",
              "radii": "vector", "radius": "number", "ratio": "number", "internal": "flag",
              "carrier": "name"},
@@ -165,10 +169,10 @@ REQUIRED = {
     "spring": ("bodies", "at_a", "at_b", "stiffness"), "force": ("body", "force"),
     "torque": ("body", "torque"), "rotational_spring": ("bodies", "stiffness"), "output": (),
     "speed": ("joint", "rate"), "channel": ("name", "expression"),
-    "gear": ("type", "joints"), "stop": ("joint",),
+    "gear": ("type", "joints"), "stop": ("joint",), "friction": ("joint", "mu"),
 }
-_ARRAYS = ("body", "joint", "driver", "gear", "stop", "spring", "force", "torque",
-           "rotational_spring", "speed", "channel")
+_ARRAYS = ("body", "joint", "driver", "gear", "stop", "friction", "spring", "force",
+           "torque", "rotational_spring", "speed", "channel")
 _TOP = {"name": "name", "gravity": "vector", "parameters": "table", "simulation": "table",
         "output": "table", **{k: "array" for k in _ARRAYS}}
 

@@ -8,8 +8,9 @@ import math
 
 import numpy as np
 
-from .model import (Channel, Driver, FlexibleBeam, Force, Gear, Mechanism, ModelError,
-                    PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring, Spring, Stop, Torque)
+from .model import (Channel, Driver, FlexibleBeam, Force, Friction, Gear, Mechanism,
+                    ModelError, PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring,
+                    Spring, Stop, Torque)
 from .model.channels import channel_names
 from .model.expressions import parse
 
@@ -81,6 +82,13 @@ def build(r, name, gravity, tables) -> Mechanism:
         kw = {k: t[k] for k in ("lower", "upper", "restitution", "rest_speed", "name")
               if k in t}
         make(where, lambda: mech.add(Stop(joints[t["joint"]], **kw)))
+    for where, t in tables["friction"]:
+        if t["joint"] not in joints:
+            raise r.error(where, f"no joint named {t['joint']!r}; joints: "
+                                 f"{', '.join(joints) or '(none)'}")
+        kw = {k: t[k] for k in ("mu_static", "radius", "length", "transition_velocity",
+                                "preload", "name") if k in t}
+        make(where, lambda: mech.add(Friction(joints[t["joint"]], t["mu"], **kw)))
     for where, t in tables["gear"]:
         make(where, lambda: mech.add(_gear(r, mech, joints, t, where)))
     for where, t in tables["spring"]:

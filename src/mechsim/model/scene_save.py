@@ -30,7 +30,7 @@ def scene_data(mech) -> dict:
     cannot hold)."""
     owner = f"mechanism '{mech.name}': save"
     data = {"name": mech.name, "gravity": _vector(mech.gravity), "body": [], "joint": [],
-            "driver": [], "gear": [], "stop": [], "spring": [], "force": [], "torque": [], "rotational_spring": [],
+            "driver": [], "gear": [], "stop": [], "friction": [], "spring": [], "force": [], "torque": [], "rotational_spring": [],
             "speed": [], "channel": []}
     for body in mech.bodies:
         data["body"].append(_body(body, owner))
@@ -53,6 +53,13 @@ def scene_data(mech) -> dict:
         table.update({k: float(getattr(stop, k)) for k in ("lower", "upper")
                       if getattr(stop, k) is not None})
         data["stop"].append(table)
+    for fr in mech.frictions:
+        table = {"name": fr.name, "joint": fr.joint.name, "mu": fr.mu,
+                 "mu_static": fr.mu_static, "preload": fr.preload}
+        table.update({k: float(getattr(fr, k)) for k in ("radius", "length",
+                                                          "transition_velocity")
+                      if getattr(fr, k) is not None})
+        data["friction"].append(table)
     for gear in mech.gears:
         table = {"type": gear.form, "name": gear.name,
                  "joints": [gear.joint_a.name, gear.joint_b.name]}

@@ -581,6 +581,13 @@ def metadata(result) -> dict:
             "singular_passages": [asdict(s) for s in result.singular_passages],
             "switches": [asdict(s) for s in result.switches],
             "settings": result.settings}
+    if result.impacts or result.friction_switches:
+        meta["impacts"] = [asdict(i) for i in result.impacts]
+        meta["friction_switches"] = [asdict(s) for s in result.friction_switches]
+    friction = getattr(result.problem, "friction", None)
+    if friction is not None and friction.schedule:
+        meta["friction_schedule"] = [[float(t), [int(m) for m in modes]]
+                                     for t, modes in friction.schedule]
     if result.mechanism is not None:
         from ..model import ModelError
         from ..model.scene_save import scene_data
