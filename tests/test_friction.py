@@ -296,3 +296,22 @@ def test_a_saved_result_keeps_its_stick_and_slip(tmp_path):
     assert np.allclose(back.friction_force("rub")[stuck], -2.0 * G * math.sin(math.radians(10)),
                        rtol=1e-9)
     assert np.array_equal(back.joint_force(guide), res.joint_force(guide))
+
+
+def test_a_rubbing_pendulum_bouncing_on_a_stop_keeps_its_energy_balance():
+    """Pin friction and a stop together: the friction's work and the impacts' losses are
+    both channels of the balance, which holds to the solver's accuracy through 13 impacts,
+    the rest on the stop and the friction's reversals at every rebound."""
+    mech = ms.Mechanism("rubbing pendulum on a stop", gravity=(0.0, -G))
+    rod = mech.add(ms.RigidBody.rod("rod", (0, 0), (1.0, 0), 1.0))
+    pin = mech.add(ms.Revolute(mech.ground, rod, at=(0, 0), name="pin"))
+    mech.add(ms.Stop(pin, lower=-math.pi / 3, restitution=0.5))
+    mech.add(ms.Friction(pin, mu=0.2, radius=0.02, name="bearing"))
+    rtol = 1e-9
+    res = mech.simulate(3.0, rtol=rtol, atol=1e-11, output_step=0.01)
+    assert res.success, res.message
+    assert res.impacts[-1].resting
+    # each rebound but the last (it rests) rises to a top, where its friction reverses
+    assert len(res.friction_switches) == len(res.impacts) - 1
+    assert res.energy.channels == ("friction 'bearing'", "impacts")
+    assert np.max(np.abs(res.energy.balance)) < 10 * rtol * np.ptp(res.energy.total)

@@ -225,9 +225,11 @@ class PiecewiseRun:
         out.mechanism, out.impacts, out.friction_switches = \
             self.mech, self.impacts, self.switches
         out.settings = {}                 # `extend` would run without the stops
+        base = self.mech.problem()
         if self.modes is not None:            # each sample's reactions with its piece's modes
-            base = self.mech.problem()
-            out.problem = base.with_friction(base.friction.with_schedule(self.schedule))
+            base = base.with_friction(base.friction.with_schedule(self.schedule))
+        out.problem = base
+        _keep_channels(out, base.work_channels)
         if self.failure:
             out.status, out.message = "failed", self.failure
         elif out.success and self.impacts:
@@ -236,6 +238,17 @@ class PiecewiseRun:
             out.message += f"; {len(self.switches)} stick-slip switch(es)"
         _impact_work(out, self.impacts)
         return out
+
+
+def _keep_channels(res, channels) -> None:
+    """The joined work record of `res` on the mechanism's own `channels` (a stop's holding
+    driver, a channel of the pieces it held, does no work: its joint stands still)."""
+    from ..results.result import WorkRecord
+    record = res.work_record
+    if record is None or not set(channels) <= set(record.channels):
+        return
+    keep = [record.channels.index(c) for c in channels]
+    res.work_record = WorkRecord(tuple(channels), record.values[:, keep], record.note)
 
 
 def _pressing(problem, free, t, q, v):

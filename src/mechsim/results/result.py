@@ -548,9 +548,14 @@ def join(first: SimulationResult, rest: SimulationResult) -> SimulationResult:
             stats[key] = value + rest.stats[key]
     work = None
     a, b = first.work_record, rest.work_record
-    if a is not None and b is not None and a.channels == b.channels and \
-            len(a.values) == len(first.t) and len(b.values):
-        work = WorkRecord(a.channels, np.vstack([a.values, b.values[1:] + a.values[-1]]),
+    if a is not None and b is not None and len(a.values) == len(first.t) and len(b.values):
+        # Channels by name: one that only one part has (a stop's holding driver) did no
+        # work in the other.
+        channels = tuple(dict.fromkeys(a.channels + b.channels))
+        wa, wb = (np.zeros((len(r.values), len(channels))) for r in (a, b))
+        wa[:, [channels.index(c) for c in a.channels]] = a.values
+        wb[:, [channels.index(c) for c in b.channels]] = b.values
+        work = WorkRecord(channels, np.vstack([wa, wb[1:] + wa[-1]]),
                           "; ".join(n for n in (a.note, b.note) if n))
     out = SimulationResult(
         np.concatenate([first.t, rest.t[1:]]), np.vstack([first.q, rest.q[1:]]),
