@@ -76,7 +76,7 @@ def decide(problem, modes, k, t, q, v):
 
 class FrictionEvents:
     """The events of a piece in which the joints keep `modes`: a sliding joint's σ ṡ
-    (≥ 0 while it slides its way), a stuck joint's μ_s L − |f| (≥ 0 while it holds)."""
+    (≥ 0 while it slides its way), a stuck joint's μ_s L − ‖f‖ (≥ 0 while it holds)."""
 
     def __init__(self, problem, modes):
         self.problem, self.modes = problem, np.asarray(modes, int)

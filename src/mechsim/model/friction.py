@@ -13,10 +13,10 @@ class Friction:
     """Dry friction in a revolute or prismatic `joint`, opposing the joint's relative motion
     with a magnitude proportional to the load the joint carries:
 
-    - revolute: a torque μ r (|F| + preload), F the pin's reaction force and r = `radius`
+    - revolute: a torque μ r (‖F‖ + preload), F the pin's reaction force and r = `radius`
       (the pin's radius, m);
-    - prismatic: a force μ (N + preload), N the guide's normal load: |F| where `length` is
-      None, else max(|F|, 2|M|/length), the sum of the contact forces at the two ends of a
+    - prismatic: a force μ (N + preload), N the guide's normal load: ‖F‖ where `length` is
+      None, else max(‖F‖, 2‖M‖/length), the sum of the contact forces at the two ends of a
       block of that length carrying the normal force F and the couple M (contact on
       opposite faces where the couple wins).
 
@@ -53,7 +53,7 @@ class Friction:
         if self.joint.kind == "revolute":
             if radius is None:
                 raise ModelError(f"{owner}: revolute joint '{joint.name}' needs the pin's "
-                                 "`radius` [m]: the friction torque is μ r |F|")
+                                 "`radius` [m]: the friction torque is μ r ‖F‖")
             self.radius = scalar(radius, "radius", owner, positive=True)
             if length is not None:
                 raise ModelError(f"{owner}: `length` is a prismatic guide's; revolute joint "
@@ -68,7 +68,7 @@ class Friction:
                 scalar(length, "length", owner, positive=True)
 
     def coefficient(self, speed: float) -> float:
-        """μ while sliding at the speed |ṡ| (`speed`): the Stribeck curve with a transition
+        """μ while sliding at the speed the speed ṡ (`speed`): the Stribeck curve with a transition
         velocity (μ_s at zero speed), else μ (μ_s only holds a joint at rest)."""
         if self.transition_velocity is None:
             return self.mu

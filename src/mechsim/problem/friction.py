@@ -9,8 +9,8 @@ f_k ∂s_k/∂q. The equations of motion become
 so q̈ and λ are affine in f: q̈ = a₀ + Σ a_k f_k, λ = λ₀ + Σ Λ_k f_k (one solve of the
 saddle-point system for Q and one for each g_k). Each f_k is given by its joint's state:
 
-- slipping in direction σ = ±1: f_k = −σ μ(|ṡ_k|) L_k(λ), L_k the joint's load (the pin's
-  |F| times its radius, a guide's normal load), each a norm of the wrench its rows of λ
+- slipping in direction σ = ±1: f_k = −σ μ(ṡ_k) L_k(λ), L_k the joint's load (the pin's
+  ‖F‖ times its radius, a guide's normal load), each a norm of the wrench its rows of λ
   apply (`mechsim.engineering.geometry.joint_wrench`, linear in λ);
 - stuck: whatever holds it, s̈_k = g_k q̈ + vᵀ(∂²s_k/∂q²)v = 0 (linear in f).
 
@@ -57,7 +57,7 @@ class FrictionElement:
         fr = self.friction
         size = float(np.hypot(F[0], F[1]))
         unit = F / size if size > 0.0 else np.zeros(2)
-        if fr.radius is not None:                          # a pin: μ r (|F| + preload)
+        if fr.radius is not None:                          # a pin: μ r (‖F‖ + preload)
             return fr.radius * (size + fr.preload), fr.radius * unit, 0.0
         if fr.length is not None and 2.0 * abs(M) / fr.length > size:
             return 2.0 * abs(M) / fr.length + fr.preload, np.zeros(2), \
