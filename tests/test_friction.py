@@ -126,6 +126,9 @@ def test_a_slider_crank_with_friction_in_every_joint_balances_its_motor_energy()
     switched = sorted((s.friction, round(s.t / period, 6)) for s in res.friction_switches)
     assert switched == [("friction(B)", 0.25), ("friction(B)", 0.75),
                         ("friction(slide)", 0.5)]
+    for fr in mech.frictions:          # every joint's friction resists (but at its reversal,
+        power = res.friction_force(fr) * res.joint_rate(fr.joint)   # located to 1e-13 s)
+        assert np.all(power <= 1e-9 * np.max(np.abs(power))), (fr.name, power.max())
     friction_work = sum(res.energy.work_by[-1, i] for i, c in enumerate(res.energy.channels)
                         if c.startswith("friction"))
     assert friction_work < -0.01 * res.energy.work_by[-1, -1]     # it took a real share

@@ -267,10 +267,11 @@ def joint_coordinates(geometry: JointGeometry, q, v):
     return _broadcast(c, n).copy(), np.broadcast_to(derivative(c, (n, 1))[..., 0], (n,)).copy()
 
 
-def joint_wrench(geometry: JointGeometry, q, lam):
+def joint_wrench(geometry: JointGeometry, q, lam, jacobian=None):
     """(F, M): the force (N, 2, global axes) the joint applies to its body_b and the moment
     (N,) about the joint's point on body_b, from the joint's multipliers `lam` (N, rows) at
-    the states q (N, n).
+    the states q (N, n). `jacobian`: the joint's rows of Φ_q there ((N, rows, n), or
+    (rows, n) for all), if the caller has them; else they are evaluated here.
 
     The constraint forces are −Φ_qᵀ λ; on a body's frame coordinates (x, y, θ) they are the
     force and the moment about the frame origin R, so about the attachment point P the
@@ -280,11 +281,15 @@ def joint_wrench(geometry: JointGeometry, q, lam):
     n = q.shape[0]
     on_b = geometry.start_b is not None
     start = geometry.start_b if on_b else geometry.start_a
-    joint, p = geometry.joint, geometry.parameters
-    seeds = np.zeros((q.shape[1], 3))
-    seeds[start:start + 3] = np.eye(3)
-    rows = joint.equations(NumericContext(geometry.starts, q, seeds), p)
-    grad = np.stack([np.broadcast_to(derivative(r, (n, 3)), (n, 3)) for r in rows], axis=1)
+    if jacobian is not None:
+        grad = np.broadcast_to(np.asarray(jacobian)[..., start:start + 3],
+                               (n, len(lam[0]), 3))
+    else:
+        seeds = np.zeros((q.shape[1], 3))
+        seeds[start:start + 3] = np.eye(3)
+        rows = geometry.joint.equations(NumericContext(geometry.starts, q, seeds),
+                                        geometry.parameters)
+        grad = np.stack([np.broadcast_to(derivative(r, (n, 3)), (n, 3)) for r in rows], axis=1)
     generalized = -np.einsum("nr,nrc->nc", lam, grad)      # on (x, y, θ) of the body
     force = generalized[:, :2]
     P = _attachment(geometry, q, "b" if on_b else "a")

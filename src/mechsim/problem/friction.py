@@ -34,6 +34,60 @@ FORWARD, BACKWARD, STUCK = 1, -1, 0
 # Newton on the friction forces stops at this relative change (round-off in a few steps).
 TOLERANCE = 1e-13
 MAX_ITERATIONS = 30
+# Their Jacobian (a held joint's row scaled by its mobility, a sliding joint's 1 + …)
+# counts as singular below this σ_min (a held joint that no force of its own moves: its row
+# is round-off).
+SINGULAR = 1e-9
+
+
+def _responses(problem, J, gamma, q, R):
+    """(q̈, λ) of the saddle-point system for each column of R (n, c): the first with the
+    constraints' γ, the others (unit generalized forces) with zero; shapes (n, c), (m, c).
+    One factor of Φ_q M⁻¹ Φ_qᵀ serves every column where M is a constant diagonal and the
+    complement dense; else column by column."""
+    C = np.zeros((len(gamma), R.shape[1]))
+    C[:, 0] = gamma
+    if problem.constant_mass and problem.schur is None:
+        from .mass import dense
+        w = problem.inverse_mass_diagonal[:, None]
+        wr = w * R
+        lam = dense().solve_psd((J * w.T) @ J.T, J @ wr - C)
+        return wr - w * (J.T @ lam), lam
+    out = [problem.accelerations(J, R[:, i], C[:, i], q) for i in range(R.shape[1])]
+    return np.column_stack([a for a, _ in out]), np.column_stack([lam for _, lam in out])
+
+
+def _newton(elements, active, equations):
+    """The friction forces x (one per active joint) solving each joint's equation
+    (`equations[i]`: (σμ, its wrench's affine map, None) for a sliding joint, x_i + σμ L = 0;
+    (None, constant, row) for a held one, constant + row · x = 0), by Newton's method with
+    the exact Jacobian; None where it is singular or does not converge."""
+    size = len(active)
+    x = np.zeros(size)
+    for _ in range(MAX_ITERATIONS):
+        r = np.empty(size)
+        D = np.zeros((size, size))
+        for i, (k, (slide, affine, row)) in enumerate(zip(active, equations)):
+            if slide is None:
+                r[i], D[i] = affine + row @ x, row
+                continue
+            F0, DF, M0, DM = affine
+            L, dF, dM = elements[k].load(F0 + x @ DF, M0 + x @ DM)
+            r[i] = x[i] + slide * L
+            D[i] = slide * (DF @ dF + DM * dM)
+            D[i, i] += 1.0
+        if size == 1:
+            step = r / D[0] if abs(D[0, 0]) > SINGULAR else None
+        else:
+            singular = np.linalg.svd(D, compute_uv=False)
+            step = np.linalg.solve(D, r) if singular[-1] > SINGULAR * max(1.0, singular[0]) \
+                else None
+        if step is None or not np.all(np.isfinite(step)):
+            return None
+        x = x - step
+        if np.max(np.abs(step)) <= TOLERANCE * max(1.0, np.max(np.abs(x))):
+            return x
+    return None
 
 
 class FrictionError(RuntimeError):
@@ -126,56 +180,35 @@ class FrictionModel:
         if not active:
             return FrictionState(f, loads, rates, G, np.asarray(modes, int))
         J, gamma = problem.dynamics_terms(q, v, t)
-        a0, lam0 = problem.accelerations(J, Q, gamma, q)
-        zero = np.zeros_like(gamma)
-        A, Lam = [], []
-        for k in active:
-            a, lam = problem.accelerations(J, G[k], zero, q)
-            A.append(a)
-            Lam.append(lam)
-        A, Lam = np.array(A).T, np.array(Lam).T                  # (n, a), (m, a)
+        A, Lam = _responses(problem, J, gamma, q, np.column_stack([Q, G[active].T]))
+        a0, lam0, A, Lam = A[:, 0], Lam[:, 0], A[:, 1:], Lam[:, 1:]     # (n, a), (m, a)
         linear = {}
         for k in active:
             e = self.elements[k]
             rows = list(e.rows)
             lam = np.column_stack([lam0[rows], Lam[rows]]).T      # (1 + a, rows)
-            F, M = joint_wrench(e.geometry, np.repeat(q[None], len(lam), axis=0), lam)
+            F, M = joint_wrench(e.geometry, np.repeat(q[None], len(lam), axis=0), lam,
+                                jacobian=J[rows])
             linear[k] = (F[0], F[1:], M[0], M[1:])
-        held = {k: joint_path_rates(self.elements[k].geometry, q, v)[2][0]
-                for k in active if modes[k] == STUCK}
-        x = np.zeros(len(active))
-        for _ in range(MAX_ITERATIONS):
-            r = np.empty(len(active))
-            D = np.zeros((len(active), len(active)))
-            for i, k in enumerate(active):
-                if modes[k] == STUCK:
-                    r[i] = G[k] @ (a0 + A @ x) + held[k]
-                    D[i] = G[k] @ A
-                    continue
-                F0, DF, M0, DM = linear[k]
-                L, dF, dM = self.elements[k].load(F0 + x @ DF, M0 + x @ DM)
+        W = problem.inverse_mass_diagonal
+        equations = []
+        for k in active:
+            if modes[k] == STUCK:
+                # s̈_k = g q̈ + vᵀ(∂²s/∂q²)v = 0, scaled by g M⁻¹ g (the joint's own
+                # mobility) so that a joint its own force cannot move shows as a zero row.
+                scale = 1.0 / float(G[k] @ (W * G[k]))
+                path = joint_path_rates(self.elements[k].geometry, q, v)[2][0]
+                equations.append((None, scale * (G[k] @ a0 + path), scale * (G[k] @ A)))
+            else:
                 mu = self.elements[k].friction.coefficient(abs(rates[k]))
-                r[i] = x[i] + modes[k] * mu * L
-                D[i] = modes[k] * mu * (DF @ dF + DM * dM)
-                D[i, i] += 1.0
-                loads[k] = L
-            try:
-                step = np.linalg.solve(D, r)
-            except np.linalg.LinAlgError:
-                step = None
-            if step is None or not np.all(np.isfinite(step)) or \
-                    np.linalg.cond(D) > 1e12:
-                raise FrictionError(self._why(active, modes, t))
-            x = x - step
-            if np.max(np.abs(step)) <= TOLERANCE * max(1.0, np.max(np.abs(x))):
-                break
-        else:
+                equations.append((modes[k] * mu, linear[k], None))
+        x = _newton(self.elements, active, equations)
+        if x is None:
             raise FrictionError(self._why(active, modes, t))
         for i, k in enumerate(active):
             f[k] = x[i]
-            if modes[k] == STUCK:
-                F0, DF, M0, DM = linear[k]
-                loads[k] = self.elements[k].load(F0 + x @ DF, M0 + x @ DM)[0]
+            F0, DF, M0, DM = linear[k]
+            loads[k] = self.elements[k].load(F0 + x @ DF, M0 + x @ DM)[0]
         return FrictionState(f, loads, rates, G, np.asarray(modes, int))
 
     def _why(self, active, modes, t) -> str:
