@@ -120,3 +120,19 @@ def test_stops_round_trip_through_a_scene(tmp_path):
     a = mech.simulate(1.0, rtol=1e-9, output_step=0.05)
     b = back.simulate(1.0, rtol=1e-9, output_step=0.05)
     assert [i.t for i in a.impacts] == pytest.approx([i.t for i in b.impacts], abs=1e-12)
+
+
+def test_a_pendulum_resting_on_its_stop_is_held_by_the_stop_and_its_pin():
+    """At rest on the stop at −60° the rod's weight hangs on its pin, m g upwards, and the
+    stop carries gravity's moment about the pin, m g (L/2) cos 60°, as statics says; while
+    the rod swings the stop carries nothing."""
+    mech = pendulum(0.0)                                       # e = 0: it rests at once
+    res = mech.simulate(1.5, rtol=1e-10, atol=1e-12, output_step=0.01)
+    assert res.success, res.message
+    (impact,) = res.impacts
+    resting = res.t > impact.t
+    pin, stop = mech.joints[0], mech.stops[0]
+    assert np.allclose(res.joint_force(pin)[resting], [0.0, M * G], atol=1e-9)
+    held = res.stop_force(stop)
+    assert np.allclose(held[resting], M * G * L / 2 * math.cos(LIMIT), rtol=1e-9)
+    assert np.all(held[~resting] == 0.0)

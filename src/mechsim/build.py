@@ -108,15 +108,16 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
 
 
 def _friction_model(mech, joints, owners):
-    """The `FrictionModel` of the mechanism's joints with friction (None without any)."""
-    frictions = getattr(mech, "frictions", ())
-    if not frictions:
+    """The `FrictionModel` of the mechanism's joints with friction, then of its stops (each
+    holds its joint while the joint rests on it); None without either."""
+    items = list(getattr(mech, "frictions", ())) + list(getattr(mech, "stops", ()))
+    if not items:
         return None
     from .problem.friction import FrictionElement, FrictionModel
     return FrictionModel(tuple(
         FrictionElement(f, joints[f.joint.name],
                         tuple(i for i, o in enumerate(owners) if o == f.joint.name))
-        for f in frictions))
+        for f in items))
 
 
 def mass_diagonal(mech) -> np.ndarray:

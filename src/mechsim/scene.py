@@ -55,10 +55,9 @@ same tables in JSON, for files ending in .json)::
 Numbers may be expressions (``+ − * / **``, pi, sin, …, radians, degrees) of the
 parameters, parsed by `mechsim.model.expressions`, never by `eval`: a scene cannot run
 code. Every table and key is checked against one schema (`SCHEMA`; `[simulation]` against
-the settings of `mechsim.solver.simulate` and every method) before anything is built or
-run: an unknown key (with the closest valid one), a wrong type, a missing key, an output
-path leaving the output directory or an unknown plot is a `SceneError` naming the file,
-the table and the key.
+`mechsim.solver.simulate` and every method) before anything is built or run: an unknown
+key (with the closest valid one), a wrong type, a missing key, an output path leaving the
+output directory or an unknown plot is a `SceneError` naming file, table and key.
 """
 
 from __future__ import annotations

@@ -27,6 +27,20 @@ def body_named(r, mech, name, where):
                              f"{', '.join(b.name for b in [mech.ground] + mech.bodies)}") from None
 
 
+# Elements on a joint: their scene table, class and keyword arguments.
+ON_JOINTS = {"stop": (Stop, ("lower", "upper", "restitution", "rest_speed", "name")),
+             "friction": (Friction, ("mu", "mu_static", "radius", "length",
+                                     "transition_velocity", "preload", "name"))}
+
+
+def joint_named(r, joints, name, where):
+    """The joint called `name` among those built (`joints`: name -> joint), else a
+    SceneError naming the table and the joints there are."""
+    if name not in joints:
+        raise r.error(where, f"no joint named {name!r}; joints: {', '.join(joints) or '(none)'}")
+    return joints[name]
+
+
 def build(r, name, gravity, tables) -> Mechanism:
     """The Mechanism from the checked tables; a ModelError is re-raised naming the table."""
     def make(where, build):
@@ -68,27 +82,15 @@ def build(r, name, gravity, tables) -> Mechanism:
         make(where, lambda: mech.add(joint))
         joints[joint.name] = joint
     for where, t in tables["driver"]:
-        if t["joint"] not in joints:
-            raise r.error(where, f"no joint named {t['joint']!r}; joints: "
-                                 f"{', '.join(joints) or '(none)'}")
+        joint = joint_named(r, joints, t["joint"], where)
         if ("expression" in t) == ("table" in t):
             raise r.error(where, "needs an `expression` or a `table`, one of them")
-        make(where, lambda: mech.add(Driver(joints[t["joint"]], t.get("expression"),
-                                            name=t.get("name"), table=t.get("table"))))
-    for where, t in tables["stop"]:
-        if t["joint"] not in joints:
-            raise r.error(where, f"no joint named {t['joint']!r}; joints: "
-                                 f"{', '.join(joints) or '(none)'}")
-        kw = {k: t[k] for k in ("lower", "upper", "restitution", "rest_speed", "name")
-              if k in t}
-        make(where, lambda: mech.add(Stop(joints[t["joint"]], **kw)))
-    for where, t in tables["friction"]:
-        if t["joint"] not in joints:
-            raise r.error(where, f"no joint named {t['joint']!r}; joints: "
-                                 f"{', '.join(joints) or '(none)'}")
-        kw = {k: t[k] for k in ("mu_static", "radius", "length", "transition_velocity",
-                                "preload", "name") if k in t}
-        make(where, lambda: mech.add(Friction(joints[t["joint"]], t["mu"], **kw)))
+        make(where, lambda: mech.add(Driver(joint, t.get("expression"), name=t.get("name"),
+                                            table=t.get("table"))))
+    for key, (kind, keys) in ON_JOINTS.items():
+        for where, t in tables[key]:
+            joint = joint_named(r, joints, t["joint"], where)
+            make(where, lambda: mech.add(kind(joint, **{k: t[k] for k in keys if k in t})))
     for where, t in tables["gear"]:
         make(where, lambda: mech.add(_gear(r, mech, joints, t, where)))
     for where, t in tables["spring"]:
@@ -107,10 +109,8 @@ def build(r, name, gravity, tables) -> Mechanism:
         kw = {k: t[k] for k in ("damping", "rest_angle", "name") if k in t}
         make(where, lambda: mech.add(RotationalSpring(a, b, t["stiffness"], **kw)))
     for where, t in tables["speed"]:
-        if t["joint"] not in joints:
-            raise r.error(where, f"no joint named {t['joint']!r}; joints: "
-                                 f"{', '.join(joints) or '(none)'}")
-        make(where, lambda: mech.set_speed(joints[t["joint"]], t["rate"]))
+        joint = joint_named(r, joints, t["joint"], where)
+        make(where, lambda: mech.set_speed(joint, t["rate"]))
     for where, t in tables["channel"]:
         make(where, lambda: mech.add(_channel(r, mech, t, where)))
     return mech

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..problem.friction import BACKWARD, FORWARD, STUCK, FrictionError
+from ..problem.friction import BACKWARD, FORWARD, FREE, STUCK, FrictionError
 from .geometry import joint_gradient, joint_path_rates
 
 MODE_NAMES = {FORWARD: "slipping forwards", BACKWARD: "slipping backwards", STUCK: "stuck"}
@@ -34,17 +34,32 @@ class FrictionSwitch:
     limit: float
 
 
-def initial_modes(problem, t, q, v) -> np.ndarray:
-    """Each joint's mode at the start: the way it moves, or where it is at rest, whether
-    it sticks (`decide`)."""
+def initial_modes(problem, t, q, v, held=()) -> np.ndarray:
+    """The mode of every element of the problem's `FrictionModel`: the stops' elements
+    `held` (indices) hold their joints (`STUCK`), the other stops none (`FREE`); a joint's
+    friction is `FREE` while its stop holds it, else goes the way its joint moves, or at
+    rest, sticks or slips as `decide` says."""
     model = problem.friction
-    rates = np.array([joint_gradient(e.geometry, q) @ v for e in model.elements])
-    modes = np.where(rates > 0.0, FORWARD, BACKWARD)
-    for k in np.flatnonzero(rates == 0.0):
-        modes[k] = STUCK
-    for k in np.flatnonzero(rates == 0.0):
+    elements = model.elements
+    holding = {elements[k].geometry.joint.name for k in held}
+    modes = np.full(len(elements), FREE)
+    modes[list(held)] = STUCK
+    resting = []
+    for k in model.frictions:
+        if elements[k].geometry.joint.name in holding:
+            continue
+        rate = joint_gradient(elements[k].geometry, q) @ v
+        modes[k] = FORWARD if rate > 0.0 else BACKWARD if rate < 0.0 else STUCK
+        if rate == 0.0:
+            resting.append(k)
+    for k in resting:
         modes[k], _ = decide(problem, modes, k, t, q, v)
     return modes
+
+
+def stop_element(problem, stop) -> int:
+    """The index of `stop`'s element in the problem's `FrictionModel`."""
+    return next(k for k, e in enumerate(problem.friction.elements) if e.friction is stop)
 
 
 def decide(problem, modes, k, t, q, v):
@@ -75,27 +90,40 @@ def decide(problem, modes, k, t, q, v):
 
 
 class FrictionEvents:
-    """The events of a piece in which the joints keep `modes`: a sliding joint's σ ṡ
-    (≥ 0 while it slides its way), a stuck joint's μ_s L − ‖f‖ (≥ 0 while it holds)."""
+    """The events of a piece in which the joints keep `modes`, one per friction element: a
+    sliding joint's σ ṡ (≥ 0 while it slides its way), a stuck joint's μ_s L − ‖f‖ (≥ 0
+    while it holds); 1 for one whose stop holds it."""
 
     def __init__(self, problem, modes):
         self.problem, self.modes = problem, np.asarray(modes, int)
+        self.indices = problem.friction.frictions
+
+    @property
+    def size(self) -> int:
+        return len(self.indices)
 
     def values(self, t, q, v):
-        model = self.problem.friction
-        if np.any(self.modes == STUCK):
+        model, modes = self.problem.friction, self.modes
+        if np.any(modes[self.indices] == STUCK):
             state = self.problem.friction_state(t, q, v)
             rates = state.rates
         else:
             state = None
-            rates = np.array([joint_gradient(e.geometry, q) @ v for e in model.elements])
-        out = self.modes * rates
-        for k in np.flatnonzero(self.modes == STUCK):
-            out[k] = model.elements[k].friction.mu_static * state.loads[k] - \
-                abs(state.forces[k])
-        return out
+            rates = {k: joint_gradient(model.elements[k].geometry, q) @ v
+                     for k in self.indices if modes[k] != FREE}
+        out = []
+        for k in self.indices:
+            if modes[k] == FREE:
+                out.append(1.0)
+            elif modes[k] == STUCK:
+                out.append(model.elements[k].friction.mu_static * state.loads[k] -
+                           abs(state.forces[k]))
+            else:
+                out.append(modes[k] * rates[k])
+        return np.array(out)
 
-    def describe(self, k) -> str:
+    def describe(self, i) -> str:
+        k = self.indices[i]
         name = self.problem.friction.elements[k].name
         if self.modes[k] == STUCK:
             return f"friction '{name}' let its joint slip"

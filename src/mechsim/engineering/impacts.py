@@ -1,9 +1,11 @@
 """Running a mechanism with end stops (`mechsim.model.stops.Stop`) or joints with friction
 (`mechsim.model.friction.Friction`): smooth motion between events, each located in time by
 the run's events (`mechsim.run`). An impact on a stop is resolved by Newton's restitution
-law through the constrained mass matrix, and resting contact held as a constraint (a
-driver holding the joint at its limit) while the stop pushes; a joint with friction
-sticks or slips as `mechsim.engineering.friction` decides.
+law through the constrained mass matrix, and resting contact held by the stop's force,
+which keeps the joint still (`mechsim.problem.friction`: the same model, no other
+mechanism built) while it pushes; a joint with friction sticks or slips as
+`mechsim.engineering.friction` decides. The stop's force is a reaction like any other:
+the joints' forces of a resting mechanism carry what the stop does not.
 
 Such a run is a sequence of runs of `mechsim.solver.simulate`, joined into one result:
 the samples of the output grid and one at each event (its state before it), the impacts
@@ -18,11 +20,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model import Driver, Mechanism, ModelError
+from ..model import ModelError
 from ..problem.friction import BACKWARD, FORWARD, STUCK
 from ..solver import output_times, simulate
 from .friction import (MODE_NAMES, FrictionEvents, FrictionSwitch, decide, initial_modes,
-                       stop_moving)
+                       stop_element, stop_moving)
 from .geometry import joint_coordinates
 
 
@@ -48,18 +50,22 @@ class Impact:
 class StopEvents:
     """The run's events (`Settings.events`): for each limit watched, its distance sign·(s −
     limit) (≥ 0 while the joint is clear of it); for each stop holding its joint, the push
-    sign·effort of its holding driver (≥ 0 while the stop pushes)."""
+    sign·f of its holding force (≥ 0 while the stop pushes)."""
 
     def __init__(self, problem, free, held):
         self.problem, self.free, self.held = problem, free, held
+
+    @property
+    def size(self) -> int:
+        return len(self.free) + len(self.held)
 
     def values(self, t, q, v):
         p = self.problem
         out = [sign * (joint_coordinates(p.joints[stop.joint.name], q, v)[0][0] - limit)
                for stop, sign, limit in self.free]
         if self.held:
-            lam = p.multipliers(np.array([t]), np.asarray(q)[None], np.asarray(v)[None]).lam[0]
-            out += [-sign * lam[p.rows_of(driver)[0]] for _, sign, _, driver in self.held]
+            forces = p.friction_state(t, q, v).forces
+            out += [sign * forces[stop_element(p, stop)] for stop, sign, _ in self.held]
         return np.array(out)
 
     def describe(self, i) -> str:
@@ -82,11 +88,9 @@ class Joined:
     def locate(self, i):
         """(the source, its own index) of the joined index i."""
         for part in self.parts:
-            count = len(part.modes) if isinstance(part, FrictionEvents) else \
-                len(part.free) + len(part.held)
-            if i < count:
+            if i < part.size:
                 return part, i
-            i -= count
+            i -= part.size
         raise IndexError(i)
 
     def describe(self, i) -> str:
@@ -105,9 +109,10 @@ def simulate_with_stops(mech, report, t_end, method=None, **options):
 
 
 class PiecewiseRun:
-    """The pieces of a run with stops and friction, from one event to the next: the held
-    stops (`held`: (stop, sign, limit)), each friction joint's mode (`modes`), what
-    happened at each event (`impacts`, `switches`) and the pieces' results."""
+    """The pieces of a run with stops and friction, from one event to the next: the stops
+    its joints rest on (`held`: (stop, sign, limit)), the mode of every element of the
+    problem's `FrictionModel` (`modes`: each friction's and each stop's), what happened at
+    each event (`impacts`, `switches`) and the pieces' results."""
 
     def __init__(self, mech, q, v, t_end, method, options):
         self.mech, self.t_end, self.method = mech, t_end, method
@@ -115,26 +120,27 @@ class PiecewiseRun:
         self.grid = output_times(self.t, t_end, options.pop("output_step", None))
         self.options = options
         self.q, self.v = np.asarray(q, float), np.asarray(v, float)
-        problem = mech.problem()
+        self.problem = problem = mech.problem()
         for stop in mech.stops:
             stop.check_start(joint_coordinates(problem.joints[stop.joint.name], self.q,
                                                self.v)[0][0])
-        self.modes = None if problem.friction is None else \
-            initial_modes(problem, self.t, self.q, self.v)
-        self.held, self.released, self.built = [], [], {}
+        self.held, self.released = [], []
+        self.modes = initial_modes(problem, self.t, self.q, self.v)
         self.pieces, self.impacts, self.switches, self.schedule = [], [], [], []
         self.stalled, self.failure = 0, ""
 
     def piece_problem(self):
-        """(the problem of the present piece, its free limits, its held stops' drivers)."""
-        model, drivers = _held_model(self.mech, self.held, self.built)
-        p = model.problem()
-        if p.friction is not None:
-            p = p.with_friction(p.friction.with_modes(self.modes))
+        """(the problem of the present piece, its free limits)."""
+        p = self.problem.with_friction(self.problem.friction.with_modes(self.modes))
         free = [(stop, sign, limit) for stop in self.mech.stops
                 for sign, limit in stop.limits()
                 if not any(h[0] is stop and h[2] == limit for h in self.held)]
-        return p, free, drivers
+        return p, free
+
+    def remode(self, p) -> None:
+        """Every element's mode anew at the present state (after an impulse or a release)."""
+        self.modes = initial_modes(p, self.t, self.q, self.v,
+                                   [stop_element(p, h[0]) for h in self.held])
 
     def run(self):
         while self.step():
@@ -146,7 +152,7 @@ class PiecewiseRun:
     def step(self) -> bool:
         """Resolve what happens at the present instant, or run to the next event; False
         where the run is over."""
-        p, free, drivers = self.piece_problem()
+        p, free = self.piece_problem()
         t, q, v = self.t, self.q, self.v
         clear = [f for f in free if f not in self.released]
         touching = _pressing(p, clear, t, q, v)
@@ -159,17 +165,15 @@ class PiecewiseRun:
             self.stalled += 1
             self.hit(p, free[free.index(clear[touching])])
             return True
-        stops = StopEvents(p, free, [(*h, d) for h, d in zip(self.held, drivers)]) \
-            if self.mech.stops else None
-        friction = FrictionEvents(p, self.modes) if self.modes is not None else None
+        stops = StopEvents(p, free, self.held) if self.mech.stops else None
+        friction = FrictionEvents(p, self.modes) if self.mech.frictions else None
         events = Joined([stops, friction])
         here = None if self.grid is None else np.concatenate(
             [[t], self.grid[self.grid > t + 1e-12 * max(1.0, abs(t))]])
         res = simulate(p, q, v, t_start=t, t_end=self.t_end, method=self.method,
                        output_grid=here, events=events, mechanism=self.mech, **self.options)
         self.pieces.append(res)
-        if self.modes is not None:
-            self.schedule.append((float(res.t[-1]), self.modes.copy()))
+        self.schedule.append((float(res.t[-1]), self.modes.copy()))
         if res.event is None or not res.success:
             return False
         self.t, i, self.q, self.v = res.event
@@ -184,11 +188,12 @@ class PiecewiseRun:
             return False
         part, k = events.locate(i)
         if part is friction:
-            self.switch(p, k)
+            self.switch(p, part.indices[k])
         elif k < len(free):
             self.hit(p, free[k])
         else:
             self.released.append(self.held.pop(k - len(free)))
+            self.remode(p)
         return True
 
     def hit(self, p, limit):
@@ -197,11 +202,10 @@ class PiecewiseRun:
         self.impacts.append(impact)
         if impact.resting:
             self.held.append(limit)
-        if self.modes is not None:                    # the impulse moved every joint
-            self.modes = initial_modes(p, self.t, self.q, self.v)
+        self.remode(p)                                # the impulse moved every joint
 
     def switch(self, p, k):
-        """Friction joint k reached zero rate (sliding) or its limit (stuck)."""
+        """Friction element k's joint reached zero rate (sliding) or its limit (stuck)."""
         before = self.modes[k]
         if before == STUCK:
             state = p.friction_state(self.t, self.q, self.v)
@@ -218,18 +222,16 @@ class PiecewiseRun:
                                             float(force), float(limit)))
 
     def result(self):
-        from ..results.result import join
+        from ..results.join import join
         out = self.pieces[0]
         for rest in self.pieces[1:]:
             out = join(out, rest)
         out.mechanism, out.impacts, out.friction_switches = \
             self.mech, self.impacts, self.switches
         out.settings = {}                 # `extend` would run without the stops
-        base = self.mech.problem()
-        if self.modes is not None:            # each sample's reactions with its piece's modes
-            base = base.with_friction(base.friction.with_schedule(self.schedule))
-        out.problem = base
-        _keep_channels(out, base.work_channels)
+        # each sample's forces, reactions and work with the modes its piece ran in
+        out.problem = self.problem.with_friction(
+            self.problem.friction.with_schedule(self.schedule))
         if self.failure:
             out.status, out.message = "failed", self.failure
         elif out.success and self.impacts:
@@ -238,17 +240,6 @@ class PiecewiseRun:
             out.message += f"; {len(self.switches)} stick-slip switch(es)"
         _impact_work(out, self.impacts)
         return out
-
-
-def _keep_channels(res, channels) -> None:
-    """The joined work record of `res` on the mechanism's own `channels` (a stop's holding
-    driver, a channel of the pieces it held, does no work: its joint stands still)."""
-    from ..results.result import WorkRecord
-    record = res.work_record
-    if record is None or not set(channels) <= set(record.channels):
-        return
-    keep = [record.channels.index(c) for c in channels]
-    res.work_record = WorkRecord(tuple(channels), record.values[:, keep], record.note)
 
 
 def _pressing(problem, free, t, q, v):
@@ -275,24 +266,6 @@ def _gradient(geometry, q) -> np.ndarray:
     """∂s/∂q of the joint's coordinate at q, shape (n,): its rate along each unit velocity."""
     n = len(q)
     return joint_coordinates(geometry, np.repeat(np.asarray(q)[None], n, axis=0), np.eye(n))[1]
-
-
-def _held_model(mech, held, built):
-    """(the mechanism with a driver holding each joint of `held` at its limit, those
-    drivers), made once per set of held stops."""
-    if not held:
-        return mech, []
-    key = tuple((id(stop), limit) for stop, _, limit in held)
-    if key not in built:
-        other = Mechanism(mech.name, gravity=mech.gravity)
-        other.ground = mech.ground                    # the joints' ground
-        drivers = [Driver(stop.joint, repr(float(limit - stop.joint.initial_coordinate())),
-                          name=f"held by {stop.name}") for stop, _, limit in held]
-        for item in mech.bodies + mech.joints + mech.drivers + mech.gears + mech.loads + \
-                mech.frictions + drivers:
-            other.add(item)
-        built[key] = (other, [d.name for d in drivers])
-    return built[key]
 
 
 def _impact(problem, stop, sign, limit, t, q, v):

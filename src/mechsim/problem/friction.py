@@ -1,4 +1,5 @@
-"""Dry friction in joints, solved together with the reactions that load it.
+"""Dry friction in joints, solved together with the reactions that load it, and the
+joints that stops and sticking hold still.
 
 A joint k with friction (`mechsim.model.friction.Friction`) receives a force f_k along its
 coordinate s_k (a torque for a revolute, a force for a prismatic), the generalized force
@@ -13,6 +14,9 @@ saddle-point system for Q and one for each g_k). Each f_k is given by its joint'
   ‖F‖ times its radius, a guide's normal load), each a norm of the wrench its rows of λ
   apply (`mechsim.engineering.geometry.joint_wrench`, linear in λ);
 - stuck: whatever holds it, s̈_k = g_k q̈ + vᵀ(∂²s_k/∂q²)v = 0 (linear in f).
+
+A stop on which a joint rests is an element of the same kind (`kind` "stop"): its force
+holds the joint still while the stop pushes (`STUCK`), and it is none otherwise (`FREE`).
 
 Newton's method on f solves all of them at once, with the exact Jacobian (the norms'
 gradients); its residual is the implicit relation itself, not a lagged reaction. A
@@ -29,8 +33,9 @@ import numpy as np
 
 from ..engineering.geometry import joint_gradient, joint_path_rates, joint_wrench
 
-# What an element is doing: sliding forwards or backwards, or held at zero rate.
-FORWARD, BACKWARD, STUCK = 1, -1, 0
+# What an element is doing: sliding forwards or backwards, held at zero rate, or nothing (a
+# stop its joint does not rest on; a joint's friction while its stop holds it).
+FORWARD, BACKWARD, STUCK, FREE = 1, -1, 0, 2
 # Newton on the friction forces stops at this relative change (round-off in a few steps).
 TOLERANCE = 1e-13
 MAX_ITERATIONS = 30
@@ -96,8 +101,8 @@ class FrictionError(RuntimeError):
 
 @dataclass(frozen=True)
 class FrictionElement:
-    """One joint's friction: the model element (`Friction`: coefficients, radius, length,
-    preload), its joint's geometry and the rows of Φ its joint owns."""
+    """One joint's friction or stop: the model element (`Friction`: coefficients, radius,
+    length, preload; or a `Stop`), its joint's geometry and the rows of Φ its joint owns."""
     friction: object
     geometry: object
     rows: tuple
@@ -105,6 +110,11 @@ class FrictionElement:
     @property
     def name(self) -> str:
         return self.friction.name
+
+    @property
+    def kind(self) -> str:
+        """"friction" or "stop"."""
+        return self.friction.kind
 
     def load(self, F, M):
         """(L, ∂L/∂F (2,), ∂L/∂M) of the joint force F (2,) and moment M: what μ multiplies."""
@@ -152,29 +162,39 @@ class FrictionModel:
     def with_schedule(self, schedule) -> "FrictionModel":
         return replace(self, modes=None, schedule=tuple(schedule))
 
-    def modes_at(self, t, rates) -> np.ndarray:
+    def modes_at(self, t) -> np.ndarray | None:
+        """The modes at time t (None: each friction joint follows its rate's sign)."""
         for t_end, modes in self.schedule:
             if t <= t_end:
                 return np.asarray(modes, int)
-        if self.modes is not None:
-            return self.modes
-        return np.sign(rates).astype(int)
+        return self.modes
+
+    @property
+    def frictions(self) -> list[int]:
+        """The indices of the friction elements (the others are stops)."""
+        return [k for k, e in enumerate(self.elements) if e.kind == "friction"]
 
     @property
     def channels(self) -> list[str]:
-        return [f"friction '{e.name}'" for e in self.elements]
+        """A work channel per friction element (a stop's hold does no work)."""
+        return [f"friction '{self.elements[k].name}'" for k in self.frictions]
 
     def solve(self, problem, t, q, v, Q, modes=None) -> FrictionState:
         """The friction forces at the state (t, q, v) under the applied forces Q (n,)
         (`modes` overrides the model's). A joint following its rate's sign (modes None)
-        at zero rate carries none."""
+        at zero rate carries none, nor does a stop."""
         K = len(self.elements)
-        G = np.array([joint_gradient(e.geometry, q) for e in self.elements])
-        rates = G @ v
-        explicit = modes is not None or self.modes is not None or bool(self.schedule)
         if modes is None:
-            modes = self.modes_at(t, rates)
-        active = [k for k in range(K) if explicit or modes[k] != 0]
+            modes = self.modes_at(t)
+        G = np.zeros((K, len(q)))
+        for k, e in enumerate(self.elements):           # a free stop needs no gradient
+            if e.kind == "friction" or (modes is not None and modes[k] != FREE):
+                G[k] = joint_gradient(e.geometry, q)
+        rates = G @ v
+        if modes is None:
+            modes = np.array([int(np.sign(r)) if e.kind == "friction" and r != 0.0 else FREE
+                              for e, r in zip(self.elements, rates)])
+        active = [k for k in range(K) if modes[k] != FREE]
         f = np.zeros(K)
         loads = np.zeros(K)
         if not active:
@@ -185,6 +205,8 @@ class FrictionModel:
         linear = {}
         for k in active:
             e = self.elements[k]
+            if e.kind != "friction":
+                continue
             rows = list(e.rows)
             lam = np.column_stack([lam0[rows], Lam[rows]]).T      # (1 + a, rows)
             F, M = joint_wrench(e.geometry, np.repeat(q[None], len(lam), axis=0), lam,
@@ -207,8 +229,9 @@ class FrictionModel:
             raise FrictionError(self._why(active, modes, t))
         for i, k in enumerate(active):
             f[k] = x[i]
-            F0, DF, M0, DM = linear[k]
-            loads[k] = self.elements[k].load(F0 + x @ DF, M0 + x @ DM)[0]
+            if self.elements[k].kind == "friction":
+                F0, DF, M0, DM = linear[k]
+                loads[k] = self.elements[k].load(F0 + x @ DF, M0 + x @ DM)[0]
         return FrictionState(f, loads, rates, G, np.asarray(modes, int))
 
     def _why(self, active, modes, t) -> str:

@@ -57,8 +57,8 @@ class NumericProblem:
     joints : dict joint name -> `mechsim.engineering.geometry.JointGeometry`: what joint
         coordinates and reactions are evaluated from (results only; never the solvers)
     driver_joints : dict driver name -> the name of the joint it drives
-    friction : `mechsim.problem.friction.FrictionModel` of the joints with friction, or None:
-        its forces join Q (solved with the reactions that load them)
+    friction : `mechsim.problem.friction.FrictionModel` of the joints with friction or stops,
+        or None: its forces join Q (solved with the reactions that load them)
     """
 
     def __init__(self, model, parameters, mass_diagonal, gravity, body_starts,
@@ -287,7 +287,7 @@ class NumericProblem:
         Q = self.load_model.forces(t, q, v) if owners or self.friction is not None else None
         if self.friction is not None:
             state = self.friction.solve(self, t, q, v, Q)
-            out += list(state.forces * state.rates)
+            out += list((state.forces * state.rates)[self.friction.frictions])
             Q = Q + state.generalized()
         if owners:
             _, J, phi_t, gamma = self.terms(q, v, t)

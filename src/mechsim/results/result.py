@@ -290,13 +290,23 @@ class SimulationResult:
         (the element or its name) applies to its joint's body_b along the joint's
         coordinate at each sample, shape (n,): −μ × the load while slipping, the holding
         force while stuck (`SimulationResult.friction_switches` says when)."""
-        p = self._need_problem("computing friction forces")
-        name = getattr(friction, "name", friction)
-        names = [e.name for e in p.friction.elements] if p.friction is not None else []
+        return self._joint_contact(friction, "friction")
+
+    def stop_force(self, stop) -> np.ndarray:
+        """The torque [N·m] or force [N] that `stop` (the element or its name) applies to its
+        joint's body_b along the joint's coordinate at each sample while the joint rests on
+        it (0 elsewhere: its impacts are impulses, `SimulationResult.impacts`), shape (n,)."""
+        return self._joint_contact(stop, "stop")
+
+    def _joint_contact(self, element, kind) -> np.ndarray:
+        p = self._need_problem(f"computing {kind} forces")
+        name = getattr(element, "name", element)
+        names = [e.name for e in p.friction.elements if e.kind == kind] \
+            if p.friction is not None else []
         if name not in names:
-            raise KeyError(f"this result has no friction named {name!r}; friction: "
+            raise KeyError(f"this result has no {kind} named {name!r}; {kind}s: "
                            f"{', '.join(names) or '(none)'}")
-        k = names.index(name)
+        k = next(i for i, e in enumerate(p.friction.elements) if e.name == name)
         return np.array([p.friction_state(t, q, v).forces[k]
                          for t, q, v in zip(self.t, self.q, self.v)])
 
@@ -537,35 +547,6 @@ class SimulationResult:
                 np.savez_compressed(f, t=self.t, q=self.q, v=self.v,
                                     meta=np.array(json.dumps(meta, default=float)), **extra)
         return written(final, write)
-
-
-def join(first: SimulationResult, rest: SimulationResult) -> SimulationResult:
-    """`rest`, which starts at `first`'s last sample, appended to `first`."""
-    stats = dict(rest.stats)
-    for key, value in first.stats.items():
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and \
-                isinstance(rest.stats.get(key), (int, float)):
-            stats[key] = value + rest.stats[key]
-    work = None
-    a, b = first.work_record, rest.work_record
-    if a is not None and b is not None and len(a.values) == len(first.t) and len(b.values):
-        # Channels by name: one that only one part has (a stop's holding driver) did no
-        # work in the other.
-        channels = tuple(dict.fromkeys(a.channels + b.channels))
-        wa, wb = (np.zeros((len(r.values), len(channels))) for r in (a, b))
-        wa[:, [channels.index(c) for c in a.channels]] = a.values
-        wb[:, [channels.index(c) for c in b.channels]] = b.values
-        work = WorkRecord(channels, np.vstack([wa, wb[1:] + wa[-1]]),
-                          "; ".join(n for n in (a.note, b.note) if n))
-    out = SimulationResult(
-        np.concatenate([first.t, rest.t[1:]]), np.vstack([first.q, rest.q[1:]]),
-        np.vstack([first.v, rest.v[1:]]), first.coordinate_names, problem=first.problem,
-        status=rest.status, message=rest.message, stats=stats,
-        singular_passages=first.singular_passages + rest.singular_passages,
-        switches=first.switches + rest.switches, exception=rest.exception, work=work)
-    out.settings = dict(rest.settings)
-    out.mechanism = first.mechanism
-    return out
 
 
 def _cumulative_integral(y, t):
