@@ -62,6 +62,70 @@ def test_a_cam_follower_lifts_by_the_cam_profile(build):
     np.testing.assert_allclose(force[:, 1] + guide[:, 1], 0.3 * (ydd + 9.81), atol=1e-7)
 
 
+def spline_cam(points, build=None):
+    """The cam follower of the test above, its pitch curve through `points` (φ, r)."""
+    from mechsim.model.splines import PeriodicSpline
+    y0 = PeriodicSpline(points, "cam").value(math.pi / 2)
+    mech = ms.Mechanism("spline cam", gravity=(0.0, -9.81))
+    cam = mech.add(ms.RigidBody.disc("cam", (0, 0), 0.06, 1.0))
+    follower = mech.add(ms.RigidBody.point_mass("follower", (0, y0), 0.3))
+    shaft = mech.add(ms.Revolute(mech.ground, cam, at=(0, 0), name="shaft"))
+    mech.add(ms.Prismatic(mech.ground, follower, axis=(0, 1), at=(0, y0), name="guide"))
+    contact = mech.add(ms.PointOnCurve(cam, follower, at=(0, y0), centre=(0, 0),
+                                       curve=("polar", points), name="contact"))
+    mech.add(ms.Driver(shaft, f"{W}*t", name="motor"))
+    if build:
+        mech.problem(build=build)
+    return mech, contact.shape
+
+
+@pytest.mark.parametrize("build", ["assembled", "fused"])
+def test_a_cam_given_by_points_lifts_its_follower_along_their_periodic_spline(build):
+    """36 points of r = 0.05 + 0.01 cos φ + 0.004 sin 3φ: the follower's lift is scipy's
+    periodic cubic spline through them at π/2 − θ (1e-10), within its interpolation error
+    of the profile itself, and the contact force balances weight and inertia (ÿ = W² r'')."""
+    phi = np.linspace(-math.pi, math.pi, 36, endpoint=False)
+    profile = lambda f: 0.05 + 0.01 * np.cos(f) + 0.004 * np.sin(3 * f)    # noqa: E731
+    points = np.column_stack([phi, profile(phi)])
+    mech, shape = spline_cam(points, build)
+    res = mech.kinematics(1.0, 0.005)
+    assert res.success, res.message
+    from scipy.interpolate import CubicSpline
+    spline = CubicSpline(np.append(phi, math.pi), np.append(profile(phi), profile(phi[0])),
+                         bc_type="periodic")
+    at = np.mod(math.pi / 2 - W * res.t + math.pi, 2 * math.pi) - math.pi
+    np.testing.assert_allclose(res.coordinate("follower.y"), spline(at), rtol=0, atol=1e-10)
+    assert np.max(np.abs(spline(at) - profile(at))) < 2e-5
+    ydd = W**2 * spline(at, 2)
+    force = res.joint_force("contact")[:, 1] + res.joint_force("guide")[:, 1]
+    np.testing.assert_allclose(force, 0.3 * (ydd + 9.81), atol=1e-7)
+    if build == "assembled":
+        return                         # its numpy kernels take a second per 1000 steps
+    moving = mech.simulate(0.5, rtol=1e-10, atol=1e-12, output_step=0.05)
+    at = np.mod(math.pi / 2 - W * moving.t + math.pi, 2 * math.pi) - math.pi
+    np.testing.assert_allclose(moving.coordinate("follower.y"), spline(at), atol=1e-9)
+
+
+def test_a_cam_with_other_points_but_as_many_needs_no_new_build(tmp_path):
+    phi = np.linspace(0.0, 2 * math.pi, 8, endpoint=False)
+    a, _ = spline_cam(np.column_stack([phi, 0.05 + 0.01 * np.cos(phi)]))
+    b, _ = spline_cam(np.column_stack([phi, 0.05 + 0.012 * np.sin(phi)]))
+    c, _ = spline_cam(np.column_stack([phi[:-1], 0.05 + 0.01 * np.cos(phi[:-1])]))
+    assert a.structure() == b.structure() != c.structure()
+    back = ms.load_mechanism(b.save(tmp_path / "cam.toml"))
+    np.testing.assert_array_equal(back.joints[2].shape.points, b.joints[2].shape.points)
+    first, again = (m.kinematics(0.5, 0.05) for m in (b, back))
+    np.testing.assert_array_equal(first.q, again.q)
+    for bad, message in [([[0, 0.05], [1, 0.05], [2, 0.05]], "at least 4 rows"),
+                         ([[0, 0.05], [2, 0.05], [1, 0.05], [3, 0.05]], "must increase"),
+                         ([[0, 0.05], [2, 0.05], [4, 0.05], [6.5, 0.05]], "within one turn"),
+                         ([[0, 0.05], [1, -0.05], [2, 0.05], [3, 0.05]], "positive")]:
+        with pytest.raises(ms.ModelError, match=message):
+            ms.PointOnCurve(ms.Mechanism().ground, ms.RigidBody("f", 1.0, 1e-3,
+                                                                 position=(0.05, 0)),
+                            at=(0.05, 0), centre=(0, 0), curve=("polar", bad))
+
+
 def test_a_point_on_a_circular_slot_swings_as_a_simple_pendulum():
     """A small disc whose centre runs in a circular slot of radius R about the origin,
     released from the horizontal: its angle on the slot follows θ̈ = −(g/R) cos θ (the

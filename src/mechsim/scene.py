@@ -24,7 +24,8 @@ same tables in JSON, for files ending in .json)::
 
     [[joint]]
     type = "revolute"            # "prismatic" (`axis`); "curve" (centre, and line = [ux, uy],
-                                 # circle = radius or polar = "r(phi)": mechsim.PointOnCurve)
+                                 # circle = radius, polar = "r(phi)" or polar_points =
+                                 # [[phi, r], …]: mechsim.PointOnCurve)
     name = "A"
     bodies = ["ground", "crank"]
     at = [0, 0]
@@ -139,7 +140,8 @@ SCHEMA = {
                       "angular_velocity": "number"},
     "joint": {"type": ("revolute", "prismatic", "curve"), "name": "name", "bodies": "bodies",
               "at": "vector", "local_a": "vector", "local_b": "vector", "axis": "vector",
-              "centre": "vector", "line": "vector", "circle": "number", "polar": "name"},
+              "centre": "vector", "line": "vector", "circle": "number", "polar": "name",
+              "polar_points": "curve_points"},
     "driver": {"joint": "name", "expression": "driver", "name": "name", "table": "rows"},
     "spring": {"bodies": "bodies", "at_a": "vector", "at_b": "vector", "stiffness": "number",
                "rest_length": "number", "damping": "number", "name": "name"},
@@ -225,9 +227,10 @@ class _Reader:
                 raise self.error(where, f"expected an array of {what}, got {_show(value)}")
             item = {"vector": "number", "segment": "vector", "bodies": "name"}[kind]
             return tuple(self.value(item, v, where) for v in value)
-        if kind in ("rows", "polygon"):
-            low, high, what = (1, MAX_ROWS, "rows [t, value]") if kind == "rows" else \
-                (3, MAX_VERTICES, "points [x, y]")
+        if kind in ("rows", "polygon", "curve_points"):
+            low, high, what = {"rows": (1, MAX_ROWS, "rows [t, value]"),
+                               "polygon": (3, MAX_VERTICES, "points [x, y]"),
+                               "curve_points": (4, MAX_ROWS, "points [phi, r]")}[kind]
             if not isinstance(value, list) or not low <= len(value) <= high:
                 raise self.error(where, f"expected an array of {low} to {high} {what}, got "
                                         f"{_show(value)}")

@@ -58,7 +58,7 @@ def build(r, name, gravity, tables) -> Mechanism:
     joints = {}
     for where, t in tables["joint"]:
         a, b = (body_named(r, mech, n, where) for n in t["bodies"])
-        stray = [k for k in ("centre", "line", "circle", "polar") if k in t]
+        stray = [k for k in ("centre", "line", "circle", "polar", "polar_points") if k in t]
         if stray and t["type"] != "curve":
             raise r.error(where, f"a {t['type']} joint has no `{stray[0]}` (a curve joint has)")
         if t["type"] == "revolute":
@@ -72,12 +72,13 @@ def build(r, name, gravity, tables) -> Mechanism:
             joint = make(where, lambda: Prismatic(a, b, axis=t["axis"], at=t["at"],
                                                   name=t.get("name")))
         else:
-            forms = [k for k in ("line", "circle", "polar") if k in t]
+            forms = [k for k in ("line", "circle", "polar", "polar_points") if k in t]
             if len(forms) != 1 or "at" not in t:
                 raise r.error(where, "a curve joint needs `at` and one of `line`, `circle`, "
-                                     "`polar`")
+                                     "`polar`, `polar_points`")
+            form = forms[0].removesuffix("_points")
             joint = make(where, lambda: PointOnCurve(a, b, at=t["at"], centre=t.get("centre"),
-                                                     curve=(forms[0], t[forms[0]]),
+                                                     curve=(form, t[forms[0]]),
                                                      name=t.get("name")))
         make(where, lambda: mech.add(joint))
         joints[joint.name] = joint

@@ -23,7 +23,7 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 
-from ..codegen.printer import shared_terms
+from ..codegen.printer import SPLINE_IMPORT, shared_terms, spline_call, spline_slots
 from ..model import Driver
 from ..symbolic import SymbolicContext
 
@@ -49,10 +49,17 @@ def kernel_source(item, key: str) -> str:
     writer.function("terms", ("Q", "V", "P"), [phi, J, gamma])
     writer.function("dynamics", ("Q", "V", "P"), [J, gamma])
     pattern = [(i, j) for i in range(J.rows) for j in range(J.cols) if J[i, j] != 0]
-    header = ['"""A mechsim type kernel. Generated: rebuilt when missing."""', "import numpy", "",
+    imports = ["import numpy"] + ([SPLINE_IMPORT] if any("_pspline(" in f for f in
+                                                         writer.functions) else [])
+    header = ['"""A mechsim type kernel. Generated: rebuilt when missing."""', *imports, "",
               f"KEY = {key!r}", f"ROWS = {phi.rows}", f"COLUMNS = {len(ctx.q)}",
               f"PARAMETERS = {len(ctx.p)}", f"PATTERN = {pattern!r}", ""]
     return "\n".join(header + ["\n\n".join(writer.functions), ""])
+
+
+class _KernelPrinter(NumPyPrinter):
+    def _print_SplineSlot(self, expr):
+        return spline_call(self, expr, "_pspline", "P[:, {0}:{1}].T")
 
 
 class _Writer:
@@ -61,12 +68,12 @@ class _Writer:
 
     def __init__(self, ctx):
         self.columns = {"Q": list(ctx.q), "V": list(ctx.v), "P": list(ctx.p)}
-        self.printer = NumPyPrinter({"fully_qualified_modules": True})
+        self.printer = _KernelPrinter({"fully_qualified_modules": True})
         self.functions: list[str] = []
 
     def function(self, name: str, args: tuple[str, ...], outputs: list):
         pr = self.printer
-        layout, repl, reduced, used = shared_terms(outputs)
+        layout, repl, reduced, used = shared_terms(spline_slots(outputs, self.columns["P"]))
         lines = [f"def {name}({', '.join(args)}):", "    n = len(Q)"]
         for arg in args:
             for k, sym in enumerate(self.columns[arg]):

@@ -18,6 +18,46 @@ class _Printer(PythonCodePrinter):
     def __init__(self):
         super().__init__({"fully_qualified_modules": True, "standard": "python3"})
 
+    def _print_SplineSlot(self, expr):
+        return spline_call(self, expr, "_pspline", "_p[{0}:{1}]")
+
+
+class SplineSlot(sp.Function):
+    """A `PeriodicSpline` as printed: SplineSlot(order, φ, k, first), its parameters the
+    5k + 1 entries of the parameter vector from `first` on (`spline_slots`), so that the
+    generated code reads them as one slice instead of unpacking each."""
+
+
+def spline_slots(outputs, symbols):
+    """`outputs` (matrices) with each `PeriodicSpline` written as a `SplineSlot` into the
+    vector of `symbols` (its parameters must lie there in order, as joints declare them)."""
+    from ..symbolic.constraints import PeriodicSpline
+    index = {x: i for i, x in enumerate(symbols)}
+
+    def slot(order, phi, k, *parameters):
+        first = index[parameters[0]]
+        assert [index[x] for x in parameters] == list(range(first, first + len(parameters)))
+        return SplineSlot(order, phi, k, first)
+    return [m.replace(PeriodicSpline, slot) if m.has(PeriodicSpline) else m for m in outputs]
+
+
+def spline_call(printer, expr, name, source) -> str:
+    """A `SplineSlot` as a call `name(order, φ, k, source)`, `source` formatted with the
+    first parameter's index and the end of the slice."""
+    order, phi, k, first = (expr.args[0], expr.args[1], int(expr.args[2]), int(expr.args[3]))
+    values = source.format(first, first + 5 * k + 1)
+    return f"{name}({int(order)}, {printer._print(phi)}, {k}, {values})"
+
+
+# What a module whose equations hold a periodic spline imports to evaluate it.
+SPLINE_IMPORT = "from mechsim.model.splines import evaluate as _pspline"
+
+
+def spline_c() -> str:
+    """`mechsim_pspline`, the C twin of `mechsim.model.splines.evaluate` (spline.c)."""
+    from importlib import resources
+    return resources.files(__package__).joinpath("spline.c").read_text(encoding="utf-8")
+
 
 def c_printer():
     """sympy's C99 printer with every integer beyond 2⁵³ written as a double: C reads a
@@ -29,6 +69,9 @@ def c_printer():
         def _print_Integer(self, expr, **kwargs):
             p = int(expr.p)
             return str(p) if abs(p) <= 2 ** 53 else repr(float(p))
+
+        def _print_SplineSlot(self, expr):
+            return spline_call(self, expr, "mechsim_pspline", "&p[{0}]")
 
     return Printer()
 
@@ -73,7 +116,7 @@ class _ModuleWriter:
     def function(self, name: str, args: tuple[str, ...], outputs: list[sp.Matrix], doc: str):
         """Write one function; returns each output's non-zero (i, j) entries."""
         sysm, pr = self.sys, self.printer
-        layout, repl, reduced, used = shared_terms(outputs)
+        layout, repl, reduced, used = shared_terms(spline_slots(outputs, sysm.p))
         if self.c_kernels is None or name in self.c_kernels:
             self._c_function(name, "_v" in args, layout, repl, reduced)
         lines = [f"def {name}({', '.join(args)}):", f'    """{doc}"""']
@@ -150,8 +193,12 @@ class _ModuleWriter:
         ]
         constants = [f"{name} = _np.array({list(values)!r}, dtype=_np.intp)"
                      for values, name in self.constants.items()]
+        if any("_pspline(" in f for f in self.functions):
+            header.insert(3, SPLINE_IMPORT)
         if self.c_functions:
-            c_source = "#include <math.h>\n\n" + "\n\n".join(self.c_functions) + "\n"
+            spline = spline_c() + "\n" if any("mechsim_pspline(" in f
+                                              for f in self.c_functions) else ""
+            c_source = "#include <math.h>\n\n" + spline + "\n\n".join(self.c_functions) + "\n"
             constants += ["", f"C_SOURCE = {c_source!r}",
                           f"C_SIGNATURES = {self.c_signatures!r}",
                           f"C_REPLACE = {self.c_replace!r}"]

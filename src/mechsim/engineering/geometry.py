@@ -99,9 +99,10 @@ def atan2(y, x):
     return np.arctan2(y, x)
 
 
-def curve(law, phi):
-    """r(φ) of an `Expression` in phi at φ (a dual or an array): its value and, by the
-    chain rule with its derivative (`Expression.jet`), its dual."""
+def curve(law, phi, parameters=()):
+    """r(φ) of an `Expression` in phi or a periodic spline (whose `parameters` are its
+    own numbers) at φ (a dual or an array): its value and, by the chain rule with its
+    derivative (`jet`), its dual."""
     at = np.atleast_1d(value(phi))
     jets = np.array([law.jet("phi", float(a))[:2] for a in at.reshape(-1)]).reshape(at.shape + (2,))
     r, dr = jets[..., 0].reshape(np.shape(value(phi))), jets[..., 1].reshape(np.shape(value(phi)))

@@ -206,7 +206,10 @@ class PointOnCurve(Joint):
     - ``("circle", radius)``: the circle of `radius` about `centre`, a curved slot;
     - ``("polar", "expression in phi")``: the closed curve r(φ) about `centre`, φ the
       polar angle in body_a from the global x axis as built, r 2π-periodic (a cam's pitch
-      curve: `"0.05 + 0.01*cos(phi)"`; parsed, never executed).
+      curve: `"0.05 + 0.01*cos(phi)"`; parsed, never executed);
+    - ``("polar", points)``: the same through the rows (φ, r) of `points` (at least 4, φ
+      increasing within one turn): their periodic cubic spline (`PeriodicSpline`; its
+      numbers are parameters, so other points need no new build).
 
     The point must be on the curve as built (within 1e-9 of its size); the multiplier is
     the force normal to the curve (`SimulationResult.joint_force`)."""
@@ -238,12 +241,17 @@ class PointOnCurve(Joint):
             self.shape = scalar(curve[1], "curve radius", owner, positive=True)
             self.parameter_names = ("ax", "ay", "bx", "by", "radius") + \
                 self.parameter_names[4:]
-        else:
+        elif isinstance(curve[1], str):
             from .expressions import parse
             self.shape = parse(curve[1], {"phi"}, f"{owner} `curve`")
             self.parameter_names = ("ax", "ay", "bx", "by", "angle0") + \
                 self.parameter_names[4:]
             self._periodic(owner)
+        else:
+            from .splines import PeriodicSpline
+            self.shape = PeriodicSpline(curve[1], owner)
+            self.parameter_names = ("ax", "ay", "bx", "by", "angle0") + \
+                self.shape.parameter_names + self.parameter_names[4:]
         self._attachments(*self.attachment_points())
         gap = self._gap()
         size = max(1.0, float(np.hypot(*(self.at - self.centre))))
@@ -285,7 +293,7 @@ class PointOnCurve(Joint):
         elif self.form == "circle":
             extra = (self.shape,)
         else:
-            extra = (float(self.body_a.angle),)
+            extra = (float(self.body_a.angle),) + getattr(self.shape, "coefficients", ())
         return (sa[0], sa[1], sb[0], sb[1]) + extra + self._attachments(sa, sb)
 
     def equations(self, ctx, p):
@@ -301,7 +309,8 @@ class PointOnCurve(Joint):
         x = e1[0] * d[0] + e1[1] * d[1]              # d in body_a's axes
         y = -e1[1] * d[0] + e1[0] * d[1]
         phi = ctx.atan2(y, x) + p["angle0"]          # from the global x axis as built
-        return [ctx.sqrt(x * x + y * y) - ctx.curve(self.shape, phi)]
+        spline = [p[n] for n in getattr(self.shape, "parameter_names", ())]
+        return [ctx.sqrt(x * x + y * y) - ctx.curve(self.shape, phi, spline)]
 
     def drawn(self, points: int = 97) -> list:
         """[(body_a, a polar curve as a closed polyline in its frame)]; [] for slots, which

@@ -121,8 +121,11 @@ def _joint(joint, owner) -> dict:
         table["axis"], table["at"] = _vector(joint.axis), _vector(joint.at)
     elif isinstance(joint, PointOnCurve):
         table["at"], table["centre"] = _vector(joint.at), _vector(joint.centre)
-        table[joint.form] = _vector(joint.shape) if joint.form == "line" else \
-            float(joint.shape) if joint.form == "circle" else joint.shape.text
+        if hasattr(joint.shape, "points"):                    # a spline through points
+            table["polar_points"] = [_vector(row) for row in joint.shape.points]
+        else:
+            table[joint.form] = _vector(joint.shape) if joint.form == "line" else \
+                float(joint.shape) if joint.form == "circle" else joint.shape.text
     else:
         raise ModelError(f"{owner}: joint '{joint.name}' is a {type(joint).__name__}, which "
                          "the scene schema does not hold")

@@ -15,6 +15,19 @@ import sympy as sp
 from ..model.context import JointContext
 
 
+class PeriodicSpline(sp.Function):
+    """The `order`-th derivative of a periodic cubic spline at φ: PeriodicSpline(order, φ,
+    k, knots and coefficients…) (`mechsim.model.splines`, whose layout its parameters
+    follow). Printed as a call of `mechsim.model.splines.evaluate` in Python and of
+    `mechsim_pspline` (codegen/spline.c) in C; its derivative in φ is the next order."""
+
+    def fdiff(self, argindex=2):
+        if argindex != 2:
+            raise sp.ArgumentIndexError(self, argindex)
+        order, phi, k, *parameters = self.args
+        return PeriodicSpline(order + 1, phi, k, *parameters)
+
+
 class SymbolicContext(JointContext):
     """What a joint sees while writing its equations: the symbols of the bodies' frames and
     the parameter symbols of every constraint item.
@@ -64,8 +77,11 @@ class SymbolicContext(JointContext):
     sqrt = staticmethod(sp.sqrt)
 
     @staticmethod
-    def curve(law, phi):
-        """A curve's r(φ) (an `Expression` in phi) at the angle φ, as sympy."""
+    def curve(law, phi, parameters=()):
+        """A curve's r(φ) at the angle φ, as sympy: an `Expression` in phi, or a periodic
+        spline (`mechsim.model.splines`) whose knots and coefficients are `parameters`."""
+        if hasattr(law, "coefficients"):
+            return PeriodicSpline(0, phi, law.k, *parameters)
         return law.to_sympy({"phi": phi})
 
     def parameters(self, item) -> dict:

@@ -1,0 +1,21 @@
+/* The periodic cubic spline of mechsim.model.splines.evaluate: the order-th derivative at
+   phi of the spline of k pieces whose k + 1 knots and 4 k coefficients are p[0 .. 5 k]. */
+static double mechsim_pspline(int order, double phi, int k, const double *p) {
+  const double two_pi = 6.283185307179586;
+  double x = fmod(phi - p[0], two_pi);
+  if (x < 0.0) x += two_pi;
+  x += p[0];
+  int lo = 0, hi = k - 1;               /* the last piece whose knot is at or below x */
+  while (lo < hi) {
+    int mid = (lo + hi + 1) / 2;
+    if (x >= p[mid]) lo = mid; else hi = mid - 1;
+  }
+  const double *c = p + k + 1 + 4 * lo;
+  const double u = x - p[lo];
+  switch (order) {
+    case 0: return ((c[0] * u + c[1]) * u + c[2]) * u + c[3];
+    case 1: return (3.0 * c[0] * u + 2.0 * c[1]) * u + c[2];
+    case 2: return 6.0 * c[0] * u + 2.0 * c[1];
+    default: return 6.0 * c[0];
+  }
+}
