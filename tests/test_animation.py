@@ -252,3 +252,42 @@ def test_an_animation_shows_inline_and_saves(tmp_path):
     with pytest.raises(ValueError, match="must end in .gif"):
         movie.save(tmp_path / "a.mp4")
     assert "0.5 × real time" in repr(movie)
+
+
+def test_stops_and_slots_are_drawn_where_they_act():
+    """A pendulum with stops at −60° and 0.3 rad: a mark from the pin along the rod's line
+    at each; a block on a guide with stops at −0.2 and 0.3 m: a bar across the guide where
+    its point stops; a pin in a circular slot of a turning disc: the slot's circle, turning
+    with the disc."""
+    from mechsim.results.animation import Scene
+    mech = ms.Mechanism("stops", gravity=(0.0, -9.81))
+    rod = mech.add(ms.RigidBody.rod("rod", (0, 0), (1.0, 0), 1.0))
+    pin = mech.add(ms.Revolute(mech.ground, rod, at=(0, 0), name="pin"))
+    mech.add(ms.Stop(pin, lower=-np.pi / 3, upper=0.3))
+    block = mech.add(ms.RigidBody("block", 1.0, 1e-3, position=(0.5, -1.0)))
+    guide = mech.add(ms.Prismatic(mech.ground, block, axis=(1, 0), at=(0.5, -1.0)))
+    mech.add(ms.Stop(guide, lower=-0.2, upper=0.3))
+    disc = mech.add(ms.RigidBody.disc("disc", (2.0, 0.0), 0.3, 1.0, angular_velocity=2.0))
+    mech.add(ms.Revolute(mech.ground, disc, at=(2.0, 0.0), name="hub"))
+    bead = mech.add(ms.RigidBody.disc("bead", (2.2, 0.0), 0.01, 0.01))
+    mech.add(ms.PointOnCurve(disc, bead, at=(2.2, 0.0), centre=(2.0, 0.0),
+                             curve=("circle", 0.2), name="slot"))
+    res = mech.simulate(0.2, rtol=1e-8, output_step=0.1)
+    scene = Scene(res, [0, len(res.t) - 1])
+    marks = [g[0] for g in scene.guides]                         # at the first frame
+    strokes = [m for m in marks if len(m) == 2 and np.allclose(np.cross(m[0], m[1]), 0.0)
+               and np.linalg.norm(m[0]) < 1.0]
+    angles = sorted(np.arctan2(m[1, 1], m[1, 0]) for m in strokes)
+    np.testing.assert_allclose(angles, [-np.pi / 3, 0.3], atol=1e-12)
+    bars = sorted(m[0, 0] for m in marks if len(m) == 2 and np.isclose(m[0, 0], m[1, 0])
+                  and abs(m[0, 1] + 1.0) < 0.2)
+    np.testing.assert_allclose(bars, [0.3, 0.8], atol=1e-12)
+    (circle,) = [g for g in scene.guides if len(g[0]) > 2]
+    x = mech.coordinate_names.index("disc.x")
+    for k, frame in enumerate(circle):                            # turning with the disc
+        centre = res.q[scene.frames[k], x:x + 2]
+        np.testing.assert_allclose(np.hypot(*(frame - centre).T), 0.2, atol=1e-12)
+    turned = circle[1][0] - res.q[scene.frames[1], x:x + 2]
+    angle = res.coordinate("disc.angle")[scene.frames[1]]
+    np.testing.assert_allclose(turned, 0.2 * np.array([np.cos(angle), np.sin(angle)]),
+                               atol=1e-12)

@@ -4,12 +4,14 @@
 A body is drawn as the polyline `SimulationResult.export` draws (a rigid body through its
 joints, load points and centre of mass; a beam along its axis, deformed by its modes times
 `exaggeration`), a revolute joint as a pin, a prismatic joint as a pin on a guide line over
-the slide it covers, a spring as a zig-zag, a traced point as the path it has covered. Under
+the slide it covers, a slot as its centre line, a stop as a mark where it stops its joint
+(fixed in the joint's body_a), a spring as a zig-zag, a traced point as the path it has covered. Under
 the mechanism a time bar shades the singular passages and marks the present time.
 """
 
 from __future__ import annotations
 
+import math
 import numbers
 
 from pathlib import Path
@@ -40,11 +42,18 @@ class Scene:
                        for name, start, local, modal in p.drawing]
         from ..engineering.geometry import joint_coordinates, joint_point
         self.pins = {name: joint_point(g, q) for name, g in p.joints.items()}
-        self.guides = []
+        self.guides = []                  # (K, P, 2) polylines fixed in a joint's body_a
         for name, g in p.joints.items():
             if g.joint.kind == "prismatic":
                 s = joint_coordinates(g, result.q, result.v)[0]
                 self.guides.append(self._guide(g, q, s.min(), s.max()))
+            elif g.joint.kind == "curve" and g.joint.form in ("line", "circle"):
+                self.guides.append(self._slot(g, q, result.q))
+        stops = [e for e in (p.friction.elements if p.friction is not None else ())
+                 if e.kind == "stop"]
+        for e in stops:
+            for _, limit in e.friction.limits():
+                self.guides.append(self._stop(e.geometry, q, limit))
         self.springs = [self._spring(q, sp) for sp in p.springs]
         self.traces = [(self._label(body, local), result.point(body, local))
                        for body, local in trace]
@@ -67,6 +76,60 @@ class Scene:
         margin = 0.15 * max(highest - lowest, 1e-3)
         ends = [lowest - margin, highest + margin]
         return np.stack([np.column_stack([ax + e * ux, ay + e * uy]) for e in ends], axis=1)
+
+    @staticmethod
+    def _in_body_a(g, q, local):
+        """(K, P, 2): the points `local` (P, 2) of joint g's body_a frame at the states q."""
+        from ..engineering.geometry import NumericContext, value
+        ctx = NumericContext(g.starts, q)
+        x, y = (value(c) * np.ones(q.shape[0]) for c in ctx.point(g.joint.body_a, 0.0, 0.0))
+        ux, uy = (value(c) * np.ones(q.shape[0]) for c in ctx.direction(g.joint.body_a,
+                                                                          1.0, 0.0))
+        lx, ly = local[:, 0], local[:, 1]
+        return np.stack([x[:, None] + ux[:, None] * lx - uy[:, None] * ly,
+                         y[:, None] + uy[:, None] * lx + ux[:, None] * ly], axis=-1)
+
+    @classmethod
+    def _slot(cls, g, q, every):
+        """A slot's centre line in body_a: a straight one over the stretch its pin covers
+        in the whole result (with a margin), a circular one whole."""
+        from ..engineering.geometry import NumericContext, value
+        joint, (cx, cy) = g.joint, g.local_a
+        if joint.form == "circle":
+            a = np.linspace(0.0, 2.0 * np.pi, 65)
+            local = np.column_stack([cx + joint.shape * np.cos(a), cy + joint.shape * np.sin(a)])
+            return cls._in_body_a(g, q, local)
+        u = np.asarray(joint.body_a.local_direction(joint.shape), float)
+        ctx = NumericContext(g.starts, every)
+        ax, ay = (value(c) for c in ctx.point(joint.body_a, cx, cy, g.parameters, "a"))
+        bx, by = (value(c) for c in ctx.point(joint.body_b, *g.local_b, g.parameters, "b"))
+        ex, ey = (value(c) for c in ctx.direction(joint.body_a, u[0], u[1]))
+        s = (np.asarray(bx - ax) * ex + np.asarray(by - ay) * ey).reshape(-1)
+        margin = 0.15 * max(np.ptp(s), 1e-3)
+        ends = np.array([s.min() - margin, s.max() + margin])
+        return cls._in_body_a(g, q, np.column_stack([cx + ends * u[0], cy + ends * u[1]]))
+
+    @classmethod
+    def _stop(cls, g, q, limit):
+        """A stop's mark in body_a at `limit`: a revolute's, a stroke from the pin out
+        where body_b's centre line reaches at the limit; a prismatic's, a bar across the
+        guide where body_b's point reaches it."""
+        joint = g.joint
+        (ax, ay), (bx, by) = g.local_a, g.local_b
+        if joint.kind == "prismatic":
+            u = np.array([g.parameters["ux"], g.parameters["uy"]])
+            n = np.array([-u[1], u[0]])
+            body = joint.body_b               # as tall as its block is drawn (√(6 I/m))
+            size = math.sqrt(6.0 * getattr(body, "inertia", 0.0) / body.mass) or 0.05
+            at = np.array([ax, ay]) + limit * u
+            return cls._in_body_a(g, q, np.array([at - size * n, at + size * n]))
+        # a revolute: body_b's arm, the pin to its centre, turned to the limit in body_a
+        arm = np.hypot(bx, by) or 0.1
+        direction = np.arctan2(-by, -bx) + joint.body_b.angle - joint.body_a.angle + \
+            limit - joint.initial_coordinate()
+        ray = np.array([0.6, 1.2])[:, None] * arm * np.array([np.cos(direction),
+                                                            np.sin(direction)])
+        return cls._in_body_a(g, q, np.array([ax, ay]) + ray)
 
     @staticmethod
     def _spring(q, sp):
