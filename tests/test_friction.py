@@ -318,3 +318,35 @@ def test_a_rubbing_pendulum_bouncing_on_a_stop_keeps_its_energy_balance():
     assert len(res.friction_switches) == len(res.impacts) - 1
     assert res.energy.channels == ("friction 'bearing'", "impacts")
     assert np.max(np.abs(res.energy.balance)) < 10 * rtol * np.ptp(res.energy.total)
+
+
+def test_the_stick_slip_scene_runs_from_the_command_line(tmp_path, capsys, monkeypatch):
+    """mechanisms/stick_slip.toml, the oscillator in SI units on its orbit: `mechsim run`
+    lists its switches where the oscillator module's flow sticks and slips (scaled from mm
+    to m), and its table's friction column is ±μ m g while slipping, the holding force
+    (within it) while stuck."""
+    from pathlib import Path
+    from mechsim.cli import main
+    scene = Path(__file__).resolve().parents[1] / "mechanisms" / "stick_slip.toml"
+    monkeypatch.chdir(tmp_path)
+    text = scene.read_text().replace("t_end = 0.3141592653589793    # five periods",
+                                     "t_end = 0.0628318530717959")
+    (tmp_path / "stick_slip.toml").write_text(text)
+    assert main(["run", "stick_slip.toml"]) == 0
+    out = capsys.readouterr().out
+    osc = CoulombOscillator(**PAPER, mu=0.08)
+    sol = ms.shooting.solve(osc, (-0.014, 2.7), method="newton", tol=1e-12)
+    switches = [t for t, kind in sol.trajectory.events if kind in ("stick", "slip")]
+    assert len(switches) == 4                                 # stick, slip, twice a period
+    for t in switches:
+        assert f"t = {t:.6f} s: 'rubbing'" in out, (t, out)
+    import csv
+    with open(tmp_path / "out" / "stick_slip" / "motion.csv", newline="",
+              encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    force = np.array([float(r["rubbing friction force [N]"]) for r in rows])
+    rate = np.array([float(r["guide rate [m/s]"]) for r in rows])
+    sliding = np.abs(rate) > 1e-9
+    np.testing.assert_allclose(force[sliding], -0.08 * 9.8 * np.sign(rate[sliding]),
+                               rtol=1e-12)
+    assert np.all(np.abs(force[~sliding]) <= 0.08 * 9.8 + 1e-12) and np.any(~sliding)

@@ -246,6 +246,15 @@ def _summary(scene, res) -> None:
     for sw in res.switches[:LISTED]:
         print(f"switch     t = {sw.t:.4f} s: {sw.from_method} → {sw.to_method} ({sw.reason})")
     _more(len(res.switches), "switches")
+    for i in res.impacts[:LISTED]:
+        what = "comes to rest" if i.resting else f"rebounds at {i.rate_after:+.4g}"
+        print(f"impact     t = {i.t:.6f} s on stop '{i.stop}' at {i.limit:g}: rate "
+              f"{i.rate_before:+.4g}, {what}, {i.energy_lost:.4g} J taken")
+    _more(len(res.impacts), "impacts")
+    for f in res.friction_switches[:LISTED]:
+        print(f"friction   t = {f.t:.6f} s: '{f.friction}' {f.before} → {f.after} (force "
+              f"{f.force:+.4g}, static limit {f.limit:.4g})")
+    _more(len(res.friction_switches), "stick-slip switches")
     for body, local in scene.output.get("points", []):
         p = res.point(body, local)[-1]
         print(f"point      {body} {tuple(local)} at t = {res.t[-1]:g}: ({p[0]:.6f}, {p[1]:.6f})")
@@ -258,8 +267,8 @@ LISTED = 4
 
 def _more(count, what) -> None:
     if count > LISTED:
-        print(f"           … {count - LISTED} more {what} (all of them in the saved result's "
-              f"singular_passages and switches)")
+        print(f"           … {count - LISTED} more {what} (all of them in the saved "
+              "result)")
 
 
 def _reaction_summary(output, res) -> None:

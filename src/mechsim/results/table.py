@@ -7,7 +7,8 @@ Columns, in order: time; every coordinate, then its rate (with `velocities`); th
 position of each point asked for; for each joint asked for, the force it applies to its
 body_b in global axes, the couple of a prismatic joint, the coordinate and rate of a
 revolute or prismatic one; for each
-driver asked for, its effort and power; the mechanism's channels (`mechsim.Channel`,
+driver asked for, its effort and power (a joint's friction and stop forces with its
+reactions); the mechanism's channels (`mechsim.Channel`,
 "name [unit]"); the functions passed as `channels`. Reactions and efforts are computed only
 when asked for (`SimulationResult.reactions`).
 """
@@ -69,6 +70,11 @@ def columns(result, points=(), joints=None, drivers=None, velocities=True,
                 unit = "m" if kind == "prismatic" else "rad"
                 out[f"{name} coordinate [{unit}]"] = result.joint_coordinate(name)
                 out[f"{name} rate [{unit}/s]"] = result.joint_rate(name)
+                effort = "N" if kind == "prismatic" else "N·m"
+                for element in _contacts(result, name):   # its friction's and stops' forces
+                    out[f"{element.name} {element.kind} force [{effort}]"] = \
+                        result.friction_force(element.name) if element.kind == "friction" \
+                        else result.stop_force(element.name)
         for driver in _chosen(drivers, table.driver_names):
             name = getattr(driver, "name", driver)
             unit = "N" if table.driver_kind(name) == "prismatic" else "N·m"
@@ -79,6 +85,13 @@ def columns(result, points=(), joints=None, drivers=None, velocities=True,
     for name, channel in (channels or {}).items():
         out[name] = _channel(result, name, channel)
     return out
+
+
+def _contacts(result, joint: str) -> list:
+    """The friction and stop elements on the joint named `joint` (`FrictionModel`)."""
+    model = getattr(result.problem, "friction", None)
+    return [e for e in (model.elements if model is not None else ())
+            if e.geometry.joint.name == joint]
 
 
 def _channel(result, name, channel) -> np.ndarray:
