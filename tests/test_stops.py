@@ -48,6 +48,13 @@ def test_a_pendulum_bounces_on_its_stop_and_comes_to_rest(method):
     assert first.rate_before == pytest.approx(-speed, rel=1e-8)
     assert first.rate_after == pytest.approx(e * speed, rel=1e-8)
     assert first.energy_lost == pytest.approx((1 - e**2) * I_O * speed**2 / 2, rel=1e-8)
+    # the stop's angular impulse is I_O (1 + e) ω; the pin's makes up the rod's momentum
+    # change m (L/2) Δω, across the rod at −60° (the weight is no impulse)
+    assert first.impulse == pytest.approx(I_O * (1 + e) * speed, rel=1e-8)
+    across = np.array([-math.sin(LIMIT), math.cos(LIMIT)])
+    np.testing.assert_allclose(first.joint_impulses["pin"],
+                               M * L / 2 * (1 + e) * speed * across,
+                               rtol=1e-8, atol=1e-10)
     for a, b in zip(res.impacts, res.impacts[1:]):
         assert b.rate_before == pytest.approx(-a.rate_after, rel=1e-6)   # the rod returns
     # Every rebound halves the speed until it is below rest_speed: then it rests, no

@@ -16,7 +16,7 @@ energy log, so its balance stays at the solver's accuracy; the friction's switch
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,7 +25,7 @@ from ..problem.friction import BACKWARD, FORWARD, STUCK
 from ..solver import output_times, simulate
 from .friction import (MODE_NAMES, FrictionEvents, FrictionSwitch, decide, initial_modes,
                        stop_element, stop_moving)
-from .geometry import joint_coordinates
+from .geometry import joint_coordinates, joint_gradient, joint_wrench
 
 
 # Impacts, holds and releases at one instant, in a row, after which the run gives up
@@ -36,8 +36,10 @@ MAX_STILL = 50
 @dataclass(frozen=True)
 class Impact:
     """An impact on a stop: time [s], the stop's name, the limit hit, the joint's rate
-    before and after it (rad/s or m/s), the kinetic energy it took [J], and whether the
-    joint came to rest on the stop."""
+    before and after it (rad/s or m/s), the kinetic energy it took [J], whether the joint
+    came to rest on the stop, the stop's impulse on body_b along the joint's coordinate
+    (N·m·s or N·s) and each joint's impulsive reaction, the impulse [N·s] it gave its
+    body_b ({joint name: [x, y]}, global axes; minimum-norm where redundant)."""
     t: float
     stop: str
     limit: float
@@ -45,6 +47,8 @@ class Impact:
     rate_after: float
     energy_lost: float
     resting: bool
+    impulse: float = 0.0
+    joint_impulses: dict = field(default_factory=dict)
 
 
 class StopEvents:
@@ -257,22 +261,16 @@ def _pressing(problem, free, t, q, v):
             if qdd is None:
                 _, J, _, gamma = problem.terms(q, v, t)
                 qdd = problem.accelerations(J, problem.forces(t, q, v), gamma, q)[0]
-            if sign * float(_gradient(geometry, q) @ qdd) < 0.0:
+            if sign * float(joint_gradient(geometry, q) @ qdd) < 0.0:
                 return k
     return None
-
-
-def _gradient(geometry, q) -> np.ndarray:
-    """∂s/∂q of the joint's coordinate at q, shape (n,): its rate along each unit velocity."""
-    n = len(q)
-    return joint_coordinates(geometry, np.repeat(np.asarray(q)[None], n, axis=0), np.eye(n))[1]
 
 
 def _impact(problem, stop, sign, limit, t, q, v):
     """(velocities after the impact, `Impact`): Newton's law on the joint's rate through
     the constrained mass matrix (`NumericProblem.project_velocities` with the joint's
     gradient as an extra row), or the rate brought to 0 where the joint comes to rest."""
-    gradient = _gradient(problem.joints[stop.joint.name], q)
+    gradient = joint_gradient(problem.joints[stop.joint.name], q)
     before = float(gradient @ v)
     after = -stop.restitution * before
     resting = stop.restitution == 0.0 or abs(after) < stop.rest_speed
@@ -282,8 +280,23 @@ def _impact(problem, stop, sign, limit, t, q, v):
     if not np.all(np.isfinite(v_after)):
         raise ModelError(f"stop '{stop.name}': the impact at t = {t:.9g} has no solution "
                          "(the joint cannot move without the others)")
+    impulse, joints = _impulses(problem, t, q, v_after - v, gradient)
     return v_after, Impact(float(t), stop.name, float(limit), before, float(gradient @ v_after),
-                           float(lost), resting)
+                           float(lost), resting, impulse, joints)
+
+
+def _impulses(problem, t, q, dv, gradient):
+    """(the stop's impulse ν along the joint's coordinate, {joint: its impulse on body_b})
+    of the velocity jump dv: M dv = −Φ_qᵀ Λ + g ν (least squares, minimum norm), the
+    joints' impulses their wrench of Λ (`joint_wrench`)."""
+    A = np.column_stack([-problem.phi_q(q, t).T, gradient])
+    x = np.linalg.lstsq(A, problem.mass(q) @ dv, rcond=None)[0]
+    joints = {}
+    for name, g in problem.joints.items():
+        rows = problem.rows_of(name)
+        force, _ = joint_wrench(g, q[None], x[rows][None])
+        joints[name] = [float(force[0, 0]), float(force[0, 1])]
+    return float(x[-1]), joints
 
 
 def _impact_work(res, impacts) -> None:

@@ -19,7 +19,7 @@ class Stop:
 
     kind = "stop"
 
-    def __init__(self, joint: Joint, lower=None, upper=None, restitution: float = 0.0,
+    def __init__(self, joint: Joint, lower=None, upper=None, restitution: float = 0.5,
                  rest_speed: float = 1e-3, name: str | None = None):
         self.joint = coordinate_joint(joint, "stop", "limit")
         self.name = name_or_default(name, f"stop({joint.name})", "stop")
