@@ -350,3 +350,25 @@ def test_the_stick_slip_scene_runs_from_the_command_line(tmp_path, capsys, monke
     np.testing.assert_allclose(force[sliding], -0.08 * 9.8 * np.sign(rate[sliding]),
                                rtol=1e-12)
     assert np.all(np.abs(force[~sliding]) <= 0.08 * 9.8 + 1e-12) and np.any(~sliding)
+
+
+def test_a_run_with_friction_and_stops_extends_as_if_uninterrupted():
+    """Extended from its end, a rubbing pendulum on a stop goes on in the modes it ended
+    in (here resting on its stop): the joined run equals one run to the same time."""
+    mech = ms.Mechanism("rubbing pendulum on a stop", gravity=(0.0, -G))
+    rod = mech.add(ms.RigidBody.rod("rod", (0, 0), (1.0, 0), 1.0))
+    pin = mech.add(ms.Revolute(mech.ground, rod, at=(0, 0), name="pin"))
+    mech.add(ms.Stop(pin, lower=-math.pi / 3, restitution=0.5))
+    mech.add(ms.Friction(pin, mu=0.2, radius=0.02, name="bearing"))
+    whole = mech.simulate(2.0, rtol=1e-10, atol=1e-12, output_step=0.05)
+    first = mech.simulate(1.0, rtol=1e-10, atol=1e-12, output_step=0.05)
+    joined = first.extend(2.0)
+    assert joined.success, joined.message
+    np.testing.assert_allclose(joined.t, whole.t, rtol=0, atol=1e-8)     # events too
+    np.testing.assert_allclose(joined.q, whole.q, rtol=0, atol=1e-8)
+    assert [i.t for i in joined.impacts] == pytest.approx([i.t for i in whole.impacts],
+                                                         abs=1e-8)
+    assert joined.impacts[-1].resting
+    np.testing.assert_allclose(joined.stop_force("stop(pin)"), whole.stop_force("stop(pin)"),
+                               atol=1e-8)
+    np.testing.assert_allclose(joined.energy.balance, whole.energy.balance, atol=1e-8)

@@ -118,18 +118,25 @@ class PiecewiseRun:
     problem's `FrictionModel` (`modes`: each friction's and each stop's), what happened at
     each event (`impacts`, `switches`) and the pieces' results."""
 
-    def __init__(self, mech, q, v, t_end, method, options):
+    def __init__(self, mech, q, v, t_end, method, options, contacts=None):
         self.mech, self.t_end, self.method = mech, t_end, method
         self.t = float(options.pop("t_start", 0.0))
-        self.grid = output_times(self.t, t_end, options.pop("output_step", None))
+        self.output_step = options.pop("output_step", None)
+        self.grid = output_times(self.t, t_end, self.output_step)
         self.options = options
         self.q, self.v = np.asarray(q, float), np.asarray(v, float)
         self.problem = problem = mech.problem()
         for stop in mech.stops:
             stop.check_start(joint_coordinates(problem.joints[stop.joint.name], self.q,
                                                self.v)[0][0])
-        self.held, self.released = [], []
-        self.modes = initial_modes(problem, self.t, self.q, self.v)
+        self.released = []
+        if contacts is None:
+            self.held = []
+            self.modes = initial_modes(problem, self.t, self.q, self.v)
+        else:                                # where an earlier run left them (`contacts`)
+            stops = {stop.name: stop for stop in mech.stops}
+            self.held = [(stops[name], sign, limit) for name, sign, limit in contacts["held"]]
+            self.modes = np.array(contacts["modes"], int)
         self.pieces, self.impacts, self.switches, self.schedule = [], [], [], []
         self.stalled, self.failure = 0, ""
 
@@ -145,6 +152,12 @@ class PiecewiseRun:
         """Every element's mode anew at the present state (after an impulse or a release)."""
         self.modes = initial_modes(p, self.t, self.q, self.v,
                                    [stop_element(p, h[0]) for h in self.held])
+
+    def contacts(self) -> dict:
+        """The modes and held stops as data (JSON): where a later run goes on from."""
+        return {"modes": [int(m) for m in self.modes],
+                "held": [[stop.name, float(sign), float(limit)] for stop, sign, limit in
+                         self.held]}
 
     def run(self):
         while self.step():
@@ -232,7 +245,10 @@ class PiecewiseRun:
             out = join(out, rest)
         out.mechanism, out.impacts, out.friction_switches = \
             self.mech, self.impacts, self.switches
-        out.settings = {}                 # `extend` would run without the stops
+        # What `SimulationResult.extend` goes on with: the settings, every element's mode
+        # and the stops the joints rest on at the end
+        out.settings = dict(self.pieces[-1].settings, method=self.method,
+                            output_step=self.output_step, contacts=self.contacts())
         # each sample's forces, reactions and work with the modes its piece ran in
         out.problem = self.problem.with_friction(
             self.problem.friction.with_schedule(self.schedule))
@@ -244,6 +260,25 @@ class PiecewiseRun:
             out.message += f"; {len(self.switches)} stick-slip switch(es)"
         _impact_work(out, self.impacts)
         return out
+
+
+def extend_piecewise(result, t_end, overrides):
+    """`SimulationResult.extend` of a run with stops or friction: the run goes on from its
+    last state with the modes and held stops it ended with, joined into one result."""
+    from ..results.join import join
+    settings = {**result.settings, **overrides}
+    contacts, method = settings.pop("contacts"), settings.pop("method", None)
+    rest = PiecewiseRun(result.mechanism, result.q[-1], result.v[-1], t_end, method,
+                        dict(settings, t_start=float(result.t[-1])), contacts).run()
+    out = join(result, rest)
+    out.mechanism, out.settings = result.mechanism, rest.settings
+    out.impacts = result.impacts + rest.impacts
+    out.friction_switches = result.friction_switches + rest.friction_switches
+    friction = result.problem.friction
+    out.problem = result.problem.with_friction(
+        friction.with_schedule(friction.schedule + rest.problem.friction.schedule))
+    _impact_work(out, out.impacts)
+    return out
 
 
 def _pressing(problem, free, t, q, v):

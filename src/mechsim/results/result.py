@@ -245,6 +245,10 @@ class SimulationResult:
         if not t_end > self.t[-1]:
             raise ValueError(f"extend: `t_end` must be after the last sample "
                              f"t = {self.t[-1]:.9g}, got {t_end!r}")
+        if "contacts" in self.settings:                       # stops or friction
+            from ..engineering.impacts import extend_piecewise
+            return extend_piecewise(self, t_end, overrides)
+        from .join import join
         settings = {**self.settings, **overrides}
         rest = simulate(p, self.q[-1], self.v[-1], t_start=float(self.t[-1]), t_end=t_end,
                         **settings)
