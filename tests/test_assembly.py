@@ -48,7 +48,25 @@ MECHANISMS = {
     **{f"random {kind}": (lambda kind=kind: examples.random_mechanism(
         np.random.default_rng(7), kind)[0]) for kind in examples.RANDOM_KINDS},
     "engine_sizing example": _engine_example,
+    "cam through points": lambda: _spline_cam(),
 }
+
+
+def _spline_cam():
+    """A cam whose pitch curve is the periodic spline through 12 points (the assembled
+    kernel and the fused model evaluate it by their own printers' calls)."""
+    phi = np.linspace(0.0, 2 * math.pi, 12, endpoint=False)
+    r = 0.05 + 0.01 * np.cos(phi) + 0.003 * np.sin(2 * phi)
+    mech = ms.Mechanism("spline cam")
+    cam = mech.add(ms.RigidBody.disc("cam", (0, 0), 0.06, 1.0))
+    y0 = float(np.interp(math.pi / 2, phi, r))
+    follower = mech.add(ms.RigidBody.point_mass("follower", (0, 0.05), 0.3))
+    mech.add(ms.Revolute(mech.ground, cam, at=(0, 0)))
+    mech.add(ms.Prismatic(mech.ground, follower, axis=(0, 1), at=(0, 0.05)))
+    contact = ms.PointOnCurve(cam, follower, at=(0, 0.05), centre=(0, 0),
+                              curve=("polar", np.column_stack([phi, r + 0.05 - y0])))
+    mech.add(contact)
+    return mech
 
 
 def _state(mech, prob, seed=3):

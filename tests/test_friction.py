@@ -157,13 +157,12 @@ def test_the_friction_oscillator_built_as_a_mechanism_has_the_oscillator_modules
     sol = ms.shooting.solve(osc, (-0.014, 2.7), method="newton", tol=1e-12)
     assert sol.converged
     period = 2 * math.pi / 100
-    res = friction_oscillator(*sol.x0).simulate(2 * period, rtol=1e-10, atol=1e-12,
+    res = friction_oscillator(*sol.x0).simulate(period, rtol=1e-10, atol=1e-12,
                                                 output_step=period / 20)
     assert res.success, res.message
-    # the stick and slip instants of the closed-form flow, in both periods
-    sticks = [t for t, kind in sol.trajectory.events if kind in ("stick", "slip")]
+    # the stick and slip instants of the closed-form flow
+    expected = [t for t, kind in sol.trajectory.events if kind in ("stick", "slip")]
     switches = [s.t for s in res.friction_switches]
-    expected = sticks + [t + period for t in sticks]
     assert np.max(np.abs(np.array(switches) - expected)) < 1e-9
     # the motion at the grid's samples, against the module's exact flow to that time
     grid = np.flatnonzero(np.isclose(np.round(res.t / (period / 20)) * period / 20, res.t,
@@ -211,7 +210,7 @@ def test_a_pendulum_with_pin_friction_swings_as_its_implicit_equation_says_then_
     evaluation of scipy's own integration). Its swings die out and it sticks where gravity's
     moment is within μ_s r |F| of the bottom."""
     from scipy.optimize import brentq
-    length, mass, mu, mu_s, r = 1.0, 1.0, 0.3, 0.4, 0.05
+    length, mass, mu, mu_s, r = 1.0, 1.0, 0.3, 0.4, 0.15
     inertia = mass * length**2 / 3
     mech = ms.Mechanism("rubbing pendulum", gravity=(0.0, -G))
     rod = mech.add(ms.RigidBody.rod("rod", (0, 0), (length, 0), mass))
@@ -233,7 +232,7 @@ def test_a_pendulum_with_pin_friction_swings_as_its_implicit_equation_says_then_
     ref = solve_ivp(lambda t, y: [y[1], acceleration(*y)], (0, 0.9), [0.0, 0.0],
                     method="DOP853", rtol=1e-12, atol=1e-14, t_eval=res.t)
     assert np.max(np.abs(res.coordinate("rod.angle") - ref.y[0])) < 1e-8
-    rest = mech.simulate(20.0, rtol=1e-8, atol=1e-10, output_step=0.1)
+    rest = mech.simulate(6.0, rtol=1e-8, atol=1e-10, output_step=0.1)
     assert rest.success, rest.message
     last = rest.friction_switches[-1]
     assert last.after == "stuck" and abs(last.force) <= last.limit
@@ -360,9 +359,9 @@ def test_a_run_with_friction_and_stops_extends_as_if_uninterrupted():
     pin = mech.add(ms.Revolute(mech.ground, rod, at=(0, 0), name="pin"))
     mech.add(ms.Stop(pin, lower=-math.pi / 3, restitution=0.5))
     mech.add(ms.Friction(pin, mu=0.2, radius=0.02, name="bearing"))
-    whole = mech.simulate(2.0, rtol=1e-10, atol=1e-12, output_step=0.05)
+    whole = mech.simulate(1.6, rtol=1e-10, atol=1e-12, output_step=0.05)
     first = mech.simulate(1.0, rtol=1e-10, atol=1e-12, output_step=0.05)
-    joined = first.extend(2.0)
+    joined = first.extend(1.6)
     assert joined.success, joined.message
     np.testing.assert_allclose(joined.t, whole.t, rtol=0, atol=1e-8)     # events too
     np.testing.assert_allclose(joined.q, whole.q, rtol=0, atol=1e-8)

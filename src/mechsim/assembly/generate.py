@@ -23,7 +23,7 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 
-from ..codegen.printer import SPLINE_IMPORT, shared_terms, spline_call, spline_slots
+from ..codegen.printer import SPLINE_IMPORT, shared_terms, spline_call
 from ..model import Driver
 from ..symbolic import SymbolicContext
 
@@ -58,7 +58,7 @@ def kernel_source(item, key: str) -> str:
 
 
 class _KernelPrinter(NumPyPrinter):
-    def _print_SplineSlot(self, expr):
+    def _print_PeriodicSpline(self, expr):
         return spline_call(self, expr, "_pspline", "P[:, {0}:{1}].T")
 
 
@@ -73,7 +73,7 @@ class _Writer:
 
     def function(self, name: str, args: tuple[str, ...], outputs: list):
         pr = self.printer
-        layout, repl, reduced, used = shared_terms(spline_slots(outputs, self.columns["P"]))
+        layout, repl, reduced, used = shared_terms(outputs)
         lines = [f"def {name}({', '.join(args)}):", "    n = len(Q)"]
         for arg in args:
             for k, sym in enumerate(self.columns[arg]):

@@ -18,32 +18,13 @@ class _Printer(PythonCodePrinter):
     def __init__(self):
         super().__init__({"fully_qualified_modules": True, "standard": "python3"})
 
-    def _print_SplineSlot(self, expr):
+    def _print_PeriodicSpline(self, expr):
         return spline_call(self, expr, "_pspline", "_p[{0}:{1}]")
 
 
-class SplineSlot(sp.Function):
-    """A `PeriodicSpline` as printed: SplineSlot(order, φ, k, first), its parameters the
-    5k + 1 entries of the parameter vector from `first` on (`spline_slots`), so that the
-    generated code reads them as one slice instead of unpacking each."""
-
-
-def spline_slots(outputs, symbols):
-    """`outputs` (matrices) with each `PeriodicSpline` written as a `SplineSlot` into the
-    vector of `symbols` (its parameters must lie there in order, as joints declare them)."""
-    from ..symbolic.constraints import PeriodicSpline
-    index = {x: i for i, x in enumerate(symbols)}
-
-    def slot(order, phi, k, *parameters):
-        first = index[parameters[0]]
-        assert [index[x] for x in parameters] == list(range(first, first + len(parameters)))
-        return SplineSlot(order, phi, k, first)
-    return [m.replace(PeriodicSpline, slot) if m.has(PeriodicSpline) else m for m in outputs]
-
-
 def spline_call(printer, expr, name, source) -> str:
-    """A `SplineSlot` as a call `name(order, φ, k, source)`, `source` formatted with the
-    first parameter's index and the end of the slice."""
+    """A `PeriodicSpline` as a call `name(order, φ, k, source)`, `source` formatted with
+    its first parameter's index and the end of the slice."""
     order, phi, k, first = (expr.args[0], expr.args[1], int(expr.args[2]), int(expr.args[3]))
     values = source.format(first, first + 5 * k + 1)
     return f"{name}({int(order)}, {printer._print(phi)}, {k}, {values})"
@@ -70,7 +51,7 @@ def c_printer():
             p = int(expr.p)
             return str(p) if abs(p) <= 2 ** 53 else repr(float(p))
 
-        def _print_SplineSlot(self, expr):
+        def _print_PeriodicSpline(self, expr):
             return spline_call(self, expr, "mechsim_pspline", "&p[{0}]")
 
     return Printer()
@@ -116,7 +97,7 @@ class _ModuleWriter:
     def function(self, name: str, args: tuple[str, ...], outputs: list[sp.Matrix], doc: str):
         """Write one function; returns each output's non-zero (i, j) entries."""
         sysm, pr = self.sys, self.printer
-        layout, repl, reduced, used = shared_terms(spline_slots(outputs, sysm.p))
+        layout, repl, reduced, used = shared_terms(outputs)
         if self.c_kernels is None or name in self.c_kernels:
             self._c_function(name, "_v" in args, layout, repl, reduced)
         lines = [f"def {name}({', '.join(args)}):", f'    """{doc}"""']

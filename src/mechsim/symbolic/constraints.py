@@ -17,15 +17,19 @@ from ..model.context import JointContext
 
 class PeriodicSpline(sp.Function):
     """The `order`-th derivative of a periodic cubic spline at φ: PeriodicSpline(order, φ,
-    k, knots and coefficients…) (`mechsim.model.splines`, whose layout its parameters
-    follow). Printed as a call of `mechsim.model.splines.evaluate` in Python and of
+    k, first), its 5k + 1 knots and coefficients (`mechsim.model.splines`) the entries of
+    the parameter vector from index `first` on (a number, not the symbols: a derivative
+    in q looks at four arguments, and the generated code reads them as one slice).
+    Printed as a call of `mechsim.model.splines.evaluate` in Python and of
     `mechsim_pspline` (codegen/spline.c) in C; its derivative in φ is the next order."""
+
+    is_real = True
 
     def fdiff(self, argindex=2):
         if argindex != 2:
             raise sp.ArgumentIndexError(self, argindex)
-        order, phi, k, *parameters = self.args
-        return PeriodicSpline(order + 1, phi, k, *parameters)
+        order, phi, k, first = self.args
+        return PeriodicSpline(order + 1, phi, k, first)
 
 
 class SymbolicContext(JointContext):
@@ -76,12 +80,12 @@ class SymbolicContext(JointContext):
     cos, sin, atan2 = staticmethod(sp.cos), staticmethod(sp.sin), staticmethod(sp.atan2)
     sqrt = staticmethod(sp.sqrt)
 
-    @staticmethod
-    def curve(law, phi, parameters=()):
+    def curve(self, law, phi, parameters=()):
         """A curve's r(φ) at the angle φ, as sympy: an `Expression` in phi, or a periodic
-        spline (`mechsim.model.splines`) whose knots and coefficients are `parameters`."""
+        spline (`mechsim.model.splines`) whose knots and coefficients are `parameters`
+        (symbols of this context's parameter vector, in order)."""
         if hasattr(law, "coefficients"):
-            return PeriodicSpline(0, phi, law.k, *parameters)
+            return PeriodicSpline(0, phi, law.k, self.p.index(parameters[0]))
         return law.to_sympy({"phi": phi})
 
     def parameters(self, item) -> dict:
