@@ -293,6 +293,8 @@ def joint_wrench(geometry: JointGeometry, q, lam, jacobian=None):
         grad = np.stack([np.broadcast_to(derivative(r, (n, 3)), (n, 3)) for r in rows], axis=1)
     generalized = -np.einsum("nr,nrc->nc", lam, grad)      # on (x, y, θ) of the body
     force = generalized[:, :2]
+    if geometry.joint.kind == "revolute":       # a pin carries no moment about its point
+        return (force if on_b else -force), np.zeros(n)
     P = _attachment(geometry, q, "b" if on_b else "a")
     r = P - q[:, start:start + 2]
     moment = generalized[:, 2] - (r[:, 0] * force[:, 1] - r[:, 1] * force[:, 0])

@@ -27,6 +27,7 @@ raises `FrictionError`, which ends a run with its partial result.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -68,6 +69,8 @@ def _newton(elements, active, equations):
     (None, constant, row) for a held one, constant + row · x = 0), by Newton's method with
     the exact Jacobian; None where it is singular or does not converge."""
     size = len(active)
+    if size == 1 and equations[0][0] is not None:
+        return _newton_one(elements[active[0]], *equations[0][:2])
     x = np.zeros(size)
     for _ in range(MAX_ITERATIONS):
         r = np.empty(size)
@@ -92,6 +95,26 @@ def _newton(elements, active, equations):
         x = x - step
         if np.max(np.abs(step)) <= TOLERANCE * max(1.0, np.max(np.abs(x))):
             return x
+    return None
+
+
+def _newton_one(element, slide, affine):
+    """`_newton` for one sliding joint alone, in floats: x + σμ L(F₀ + x DF, M₀ + x DM) = 0."""
+    F0, DF, M0, DM = affine
+    fx, fy, dfx, dfy = float(F0[0]), float(F0[1]), float(DF[0, 0]), float(DF[0, 1])
+    m0, dm = float(M0), float(DM[0])
+    x = 0.0
+    for _ in range(MAX_ITERATIONS):
+        L, dF, dM = element.load(np.array([fx + x * dfx, fy + x * dfy]), m0 + x * dm)
+        slope = 1.0 + slide * (dfx * dF[0] + dfy * dF[1] + dm * dM)
+        if not abs(slope) > SINGULAR:
+            return None
+        step = (x + slide * L) / slope
+        x -= step
+        if not math.isfinite(x):
+            return None
+        if abs(step) <= TOLERANCE * max(1.0, abs(x)):
+            return np.array([x])
     return None
 
 
