@@ -115,27 +115,20 @@ class Mechanism:
             self.joints.append(item)
             self._noted(item)
         elif isinstance(item, Driver):
-            if not any(j is item.joint for j in self.joints):
-                raise ModelError(f"driver '{item.name}': joint '{item.joint.name}' is not in "
-                                 f"{owner}; add the joint first")
+            self._check_joint(item, "driver")
             if any(d.joint is item.joint for d in self.drivers):
                 raise ModelError(f"driver '{item.name}': joint '{item.joint.name}' is driven already")
             self._check_names(item)
             self.drivers.append(item)
             self._noted(item)
         elif isinstance(item, Stop):
-            if not any(j is item.joint for j in self.joints):
-                raise ModelError(f"stop '{item.name}': joint '{item.joint.name}' is not in "
-                                 f"{owner}; add the joint first")
+            self._check_joint(item, "stop")
             if any(d.joint is item.joint for d in self.drivers):
                 raise ModelError(f"stop '{item.name}': joint '{item.joint.name}' is driven; "
                                  "a driven joint goes where its law says")
-            self.stops.append(item)
-            return item
+            self.stops.append(item)             # its holding force is part of the problem
         elif isinstance(item, Friction):
-            if not any(j is item.joint for j in self.joints):
-                raise ModelError(f"friction '{item.name}': joint '{item.joint.name}' is not in "
-                                 f"{owner}; add the joint first")
+            self._check_joint(item, "friction")
             if any(f.joint is item.joint for f in self.frictions):
                 raise ModelError(f"friction '{item.name}': joint '{item.joint.name}' has "
                                  "friction already")
@@ -166,6 +159,12 @@ class Mechanism:
         self._assembled = None
         self._state = None
         return item
+
+    def _check_joint(self, item, what: str) -> None:
+        """ModelError where the joint `item` acts on is not in this mechanism."""
+        if not any(j is item.joint for j in self.joints):
+            raise ModelError(f"{what} '{item.name}': joint '{item.joint.name}' is not in "
+                             f"mechanism '{self.name}'; add the joint first")
 
     def _all_bodies(self):
         return [self.ground] + self.bodies
