@@ -211,3 +211,18 @@ def test_the_cam_scene_lifts_its_follower_through_its_gears(tmp_path):
     table = res.table(joints=["contact"], drivers=True)
     assert "contact force x [N]" in table and "contact coordinate [rad]" not in table
     assert np.abs(table["contact force y [N]"]).min() > 5.0      # the spring holds it on
+
+
+def test_a_point_on_curve_takes_its_arguments_in_either_order():
+    """(body_a, body_b, at, curve) and the public API's (body_a, curve, body_b, point) make
+    the same joint."""
+    mech = ms.Mechanism("slot")
+    yoke = mech.add(ms.RigidBody.point_mass("yoke", (0.1, 0), 1.0))
+    pin = mech.add(ms.RigidBody.disc("pin", (0.1, 0.05), 0.01, 0.1))
+    a = ms.PointOnCurve(yoke, pin, (0.1, 0.05), ("line", (0, 1)), name="a")
+    b = ms.PointOnCurve(yoke, ("line", (0, 1)), pin, (0.1, 0.05), name="b")
+    c = ms.PointOnCurve(yoke, curve=("line", (0, 1)), body_b=pin, point=(0.1, 0.05), name="c")
+    for other in (b, c):
+        assert other.body_b is pin and other.parameter_values() == a.parameter_values()
+    with pytest.raises(ms.ModelError, match="needs body_b's point"):
+        ms.PointOnCurve(yoke, pin, curve=("line", (0, 1)))

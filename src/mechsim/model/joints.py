@@ -212,13 +212,21 @@ class PointOnCurve(Joint):
       numbers are parameters, so other points need no new build).
 
     The point must be on the curve as built (within 1e-9 of its size); the multiplier is
-    the force normal to the curve (`SimulationResult.joint_force`)."""
+    the force normal to the curve (`SimulationResult.joint_force`). The arguments may also
+    come as (body_a, curve, body_b, point)."""
 
     kind = "curve"
     equation_labels = ("normal",)
 
-    def __init__(self, body_a: Body, body_b: Body, at, curve, centre=None,
-                 name: str | None = None):
+    def __init__(self, body_a: Body, body_b: Body = None, at=None, curve=None, centre=None,
+                 name: str | None = None, *, point=None):
+        if isinstance(at, Body) and not isinstance(body_b, Body):
+            # the order (body_a, curve, body_b, point) of the public API's first listing
+            body_b, at, curve = at, curve, body_b
+        at = point if at is None else at
+        if at is None or curve is None:
+            raise ModelError("point-on-curve joint: needs body_b's point `at` (or `point`) "
+                             "and the `curve`")
         super().__init__(body_a, body_b, name)
         owner = f"point-on-curve joint '{self.name}'"
         self.at = vector2(at, "at", owner)
