@@ -48,3 +48,18 @@ def test_equilibrium_uses_one_blas_thread(monkeypatch):
     seen = []
     probed_pendulum(seen).equilibrium()
     assert seen and all(n == 1 for n in seen[0])
+
+
+def test_nested_runs_hold_one_thread_and_the_outermost_gives_them_back(monkeypatch):
+    """A run made of runs (stops, friction, shooting) sets the limit once: inside an inner
+    block BLAS still has one thread, after the inner block too, and after the outer one
+    the threads it found."""
+    from mechsim.threads import run_threads
+    for name in USER_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    before = blas_threads()
+    with run_threads():
+        with run_threads():
+            assert all(n == 1 for n in blas_threads())
+        assert all(n == 1 for n in blas_threads())
+    assert blas_threads()[:len(before)] == before

@@ -23,17 +23,28 @@ def chosen_by_user() -> bool:
     return any(os.environ.get(name, "").strip() for name in USER_VARIABLES)
 
 
+# How many `run_threads` blocks the running code is inside (one thread's): an inner block
+# (each run of a sequence of runs) finds the limit set already.
+_DEPTH = 0
+
+
 @contextlib.contextmanager
 def run_threads():
     """Within the block, BLAS runs on one thread (threadpoolctl), unless the user chose a
     count (`chosen_by_user`); the previous limits come back when it ends, also on an
-    exception."""
-    if chosen_by_user():
+    exception. Blocks nest: only the outermost sets and restores the limit."""
+    global _DEPTH
+    if chosen_by_user() or _DEPTH:
         yield
         return
+    import scipy.linalg  # noqa: F401  (its BLAS loaded now, so that the limit reaches it)
     from threadpoolctl import threadpool_limits
-    with threadpool_limits(limits=1, user_api="blas"):
-        yield
+    _DEPTH += 1
+    try:
+        with threadpool_limits(limits=1, user_api="blas"):
+            yield
+    finally:
+        _DEPTH -= 1
 
 
 def in_run_threads(function):

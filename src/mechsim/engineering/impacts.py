@@ -160,8 +160,10 @@ class PiecewiseRun:
                          self.held]}
 
     def run(self):
-        while self.step():
-            pass
+        from ..threads import run_threads
+        with run_threads():                   # once for all the pieces
+            while self.step():
+                pass
         if not self.pieces:
             raise ModelError(f"mechanism '{self.mech.name}': {self.failure}")
         return self.result()

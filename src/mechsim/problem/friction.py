@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -191,6 +192,12 @@ class FrictionModel:
             if t <= t_end:
                 return np.asarray(modes, int)
         return self.modes
+
+    @cached_property
+    def idle(self) -> bool:
+        """Whether no element acts at any state: every one `FREE` (a run's piece with no
+        friction and no stop holding its joint)."""
+        return self.modes is not None and not self.schedule and bool(np.all(self.modes == FREE))
 
     @property
     def frictions(self) -> list[int]:

@@ -223,13 +223,13 @@ class NumericProblem:
         """Generalized applied forces Q(t, q, v), shape (n,) (`Loads.forces`), with the
         joints' friction (`friction_state`) where the mechanism has any."""
         Q = self.load_model.forces(t, q, v)
-        if self.friction is None:
+        if self.friction is None or self.friction.idle:
             return Q
         return Q + self.friction.solve(self, t, q, v, Q).generalized()
 
     def forces_at(self, T, Q, V) -> np.ndarray:
         """`forces` at many states (rows), shape (N, n)."""
-        if self.friction is None:
+        if self.friction is None or self.friction.idle:
             return self.load_model.forces_at(T, Q, V)
         return np.array([self.forces(t, q, v) for t, q, v in zip(T, Q, V)]).reshape(
             len(T), self.n)
