@@ -24,8 +24,7 @@ same tables in JSON, for files ending in .json)::
 
     [[joint]]
     type = "revolute"            # "prismatic" (`axis`); "curve" (centre, and line = [ux, uy],
-                                 # circle = radius, polar = "r(phi)" or polar_points =
-                                 # [[phi, r], …]: mechsim.PointOnCurve)
+                                 # circle = r, polar = "r(phi)" or polar_points = [[phi, r], …])
     name = "A"
     bodies = ["ground", "crank"]
     at = [0, 0]

@@ -27,7 +27,7 @@ def spline_call(printer, expr, name, source) -> str:
     its first parameter's index and the end of the slice."""
     order, phi, k, first = (expr.args[0], expr.args[1], int(expr.args[2]), int(expr.args[3]))
     values = source.format(first, first + 5 * k + 1)
-    return f"{name}({int(order)}, {printer._print(phi)}, {k}, {values})"
+    return f"{name}({int(order)}, {printer.doprint(phi)}, {k}, {values})"
 
 
 # What a module whose equations hold a periodic spline imports to evaluate it.
