@@ -371,3 +371,20 @@ def test_a_run_with_friction_and_stops_extends_as_if_uninterrupted():
     np.testing.assert_allclose(joined.stop_force("stop(pin)"), whole.stop_force("stop(pin)"),
                                atol=1e-8)
     np.testing.assert_allclose(joined.energy.balance, whole.energy.balance, atol=1e-8)
+
+
+def test_a_slider_crank_locks_where_its_guide_friction_feeds_its_own_load():
+    """Driven through steep rod angles, a slider's guide friction μ N adds μ tan φ of
+    itself to N: past μ tan φ = 1 no friction force balances (self-locking). The run ends
+    there with its partial result, saying so, instead of an answer."""
+    mech = ms.examples.slider_crank(crank_length=0.28, rod_length=0.3, driven=True,
+                                    crank_speed=10.0)
+    slide = mech.joint("slide")
+    mech.add(ms.Friction(slide, mu=0.6, length=0.02, name="guide friction"))
+    res = mech.simulate(0.63, rtol=1e-8, output_step=0.01)
+    assert res.status == "failed" and "friction lock" in res.message, res.message
+    assert "'guide friction'" in res.message
+    # μ tan φ = 1 as the rod angle φ falls past −atan(1/μ) after the dead centre at θ = π,
+    # sin φ = (r/l) sin θ: at θ = π + asin((l/r) sin atan(1/μ))
+    t_lock = (math.pi + math.asin(0.3 / 0.28 * math.sin(math.atan(1 / 0.6)))) / 10.0
+    assert res.t[-1] < t_lock < res.t[-1] + 0.03, (res.t[-1], t_lock)

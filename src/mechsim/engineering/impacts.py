@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..model import ModelError
-from ..problem.friction import BACKWARD, FORWARD, STUCK
+from ..problem.friction import BACKWARD, FORWARD, STUCK, FrictionError
 from ..solver import output_times, simulate
 from .friction import (MODE_NAMES, FrictionEvents, FrictionSwitch, decide, initial_modes,
                        stop_element, stop_moving)
@@ -132,7 +132,10 @@ class PiecewiseRun:
         self.released = []
         if contacts is None:
             self.held = []
-            self.modes = initial_modes(problem, self.t, self.q, self.v)
+            try:
+                self.modes = initial_modes(problem, self.t, self.q, self.v)
+            except FrictionError as exc:
+                raise ModelError(f"mechanism '{mech.name}': at the start, {exc}") from None
         else:                                # where an earlier run left them (`contacts`)
             stops = {stop.name: stop for stop in mech.stops}
             self.held = [(stops[name], sign, limit) for name, sign, limit in contacts["held"]]
@@ -162,8 +165,11 @@ class PiecewiseRun:
     def run(self):
         from ..threads import run_threads
         with run_threads():                   # once for all the pieces
-            while self.step():
-                pass
+            try:
+                while self.step():
+                    pass
+            except FrictionError as exc:      # at an event: the run ends with what it has
+                self.failure = str(exc)
         if not self.pieces:
             raise ModelError(f"mechanism '{self.mech.name}': {self.failure}")
         return self.result()

@@ -268,6 +268,6 @@ class FrictionModel:
         stuck = [self.elements[k].name for k in active if modes[k] == STUCK]
         names = ", ".join(f"'{self.elements[k].name}'" for k in active)
         held = f" (holding {', '.join(stuck)} still)" if stuck else ""
-        return (f"the friction forces of {names}{held} have no solution at t = {t:.9g}: "
+        return (f"the forces of {names}{held} have no solution at t = {t:.9g}: "
                 "a held joint whose motion the other joints prescribe, or friction that "
                 "loads its own joint as fast as it grows (a friction lock)")
