@@ -555,11 +555,22 @@ _PROBE = textwrap.dedent("""
 
 
 def _probe(cache, n=1, **env):
-    run = subprocess.run([sys.executable, "-c", _PROBE.format(n=n)], capture_output=True,
-                         text=True, env={**os.environ, "MECHSIM_CACHE_DIR": str(cache), **env})
-    assert run.returncode == 0, f"the process died ({run.returncode}): {run.stderr[-500:]}"
-    status, err, kernels, engine = run.stdout.split()
-    return status, float(err), kernels == "True", engine == "True", run.stderr
+    return _probed(_start_probe(cache, n, **env))
+
+
+def _start_probe(cache, n=1, **env):
+    """The probe running in a new process on the cache directory `cache`."""
+    return subprocess.Popen([sys.executable, "-c", _PROBE.format(n=n)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "MECHSIM_CACHE_DIR": str(cache), **env})
+
+
+def _probed(process):
+    """(status, error, kernels compiled, engine compiled, stderr) of a started probe."""
+    out, err = process.communicate(timeout=600)
+    assert process.returncode == 0, f"the process died ({process.returncode}): {err[-500:]}"
+    status, error, kernels, engine = out.split()
+    return status, float(error), kernels == "True", engine == "True", err
 
 
 needs_compiler = pytest.mark.skipif(
@@ -569,11 +580,9 @@ needs_compiler = pytest.mark.skipif(
 @pytest.fixture(scope="module")
 def pristine(tmp_path_factory):
     """Caches built once for the damage cases: {n windows: (directory, probe result)}."""
-    out = {}
-    for n in (1, 2, 10, 11):
-        directory = tmp_path_factory.mktemp(f"cache{n}")
-        out[n] = (directory, _probe(directory, n))
-    return out
+    directories = {n: tmp_path_factory.mktemp(f"cache{n}") for n in (1, 2, 10, 11)}
+    started = {n: _start_probe(d, n) for n, d in directories.items()}     # built together
+    return {n: (directories[n], _probed(p)) for n, p in started.items()}
 
 
 @needs_compiler
