@@ -388,3 +388,25 @@ def test_a_slider_crank_locks_where_its_guide_friction_feeds_its_own_load():
     # sin φ = (r/l) sin θ: at θ = π + asin((l/r) sin atan(1/μ))
     t_lock = (math.pi + math.asin(0.3 / 0.28 * math.sin(math.atan(1 / 0.6)))) / 10.0
     assert res.t[-1] < t_lock < res.t[-1] + 0.03, (res.t[-1], t_lock)
+
+
+def test_a_driven_pin_starting_from_rest_unaccelerated_rubs_the_way_it_turns():
+    """θ = −t³ from rest: at t = 0 the pin neither moves nor accelerates, so which way its
+    friction acts shows only once it turns (backwards): the friction always resists, and
+    the motor delivers μ r ‖F‖ more than the pin's dynamics need."""
+    mech = ms.examples.pendulum()
+    pin = mech.joints[0]
+    motor = mech.add(ms.Driver(pin, "-t**3", name="motor"))
+    mech.add(ms.Friction(pin, mu=0.2, radius=0.02, name="bearing"))
+    res = mech.simulate(1.0, rtol=1e-9, output_step=0.05)
+    assert res.success, res.message
+    rate, friction = res.joint_rate(pin), res.friction_force("bearing")
+    moving = np.abs(rate) > 1e-9
+    assert np.all(friction[moving] * rate[moving] < 0.0)
+    force = np.hypot(*res.joint_force(pin).T)
+    np.testing.assert_allclose(friction[moving], 0.2 * 0.02 * force[moving], rtol=1e-9)
+    plain = ms.examples.pendulum()
+    plain.add(ms.Driver(plain.joints[0], "-t**3", name="motor"))
+    free = plain.simulate(1.0, rtol=1e-9, output_step=0.05)
+    extra = res.driver_effort(motor) - free.driver_effort(plain.drivers[0])
+    np.testing.assert_allclose(extra[moving], -friction[moving], rtol=1e-9, atol=1e-12)

@@ -82,10 +82,16 @@ def decide(problem, modes, k, t, q, v):
     trial[k] = FORWARD if modes[k] != FORWARD else BACKWARD
     state = problem.friction_state(t, q, v, trial)
     J, gamma = problem.dynamics_terms(q, v, t)
-    qdd = problem.accelerations(J, problem.load_model.forces(t, q, v) + state.generalized(),
-                                gamma, q)[0]
-    sdd = state.gradients[k] @ qdd + joint_path_rates(element.geometry, q, v)[2][0]
-    mode = FORWARD if sdd > 0.0 else BACKWARD if sdd < 0.0 else trial[k]
+    Q = problem.load_model.forces(t, q, v) + state.generalized()
+    qdd = problem.accelerations(J, Q, gamma, q)[0]
+    g, path = state.gradients[k], joint_path_rates(element.geometry, q, v)[2][0]
+    sdd = g @ qdd + path
+    # At rest and not accelerated but for round-off (against what the loads would give
+    # the joint alone), it turns: the other way than before.
+    scale = np.abs(g) @ np.abs(qdd) + abs(path) + \
+        float(np.abs(g) @ (problem.inverse_mass_diagonal * np.abs(Q)))
+    still = abs(sdd) <= 1e-10 * scale
+    mode = trial[k] if still else FORWARD if sdd > 0.0 else BACKWARD
     return mode, (state.forces[k], element.friction.mu_static * state.loads[k])
 
 

@@ -248,9 +248,15 @@ class PiecewiseRun:
 
     def result(self):
         from ..results.join import join
-        out = self.pieces[0]
-        for rest in self.pieces[1:]:
-            out = join(out, rest)
+        # A piece that ended where it began (a mode tried and changed at once) adds no
+        # motion, only a second sample at that instant: left out, with its modes (but the
+        # last, whose status ends the run).
+        last = len(self.pieces) - 1
+        kept = [i for i, p in enumerate(self.pieces) if p.t[-1] > p.t[0] or i == last]
+        self.schedule = [self.schedule[i] for i in kept]
+        out = self.pieces[kept[0]]
+        for i in kept[1:]:
+            out = join(out, self.pieces[i])
         out.mechanism, out.impacts, out.friction_switches = \
             self.mech, self.impacts, self.switches
         # What `SimulationResult.extend` goes on with: the settings, every element's mode

@@ -63,6 +63,8 @@ class WorkIntegral:
         step [a, b]; None once the integral has failed."""
         if self.failure:
             return None
+        if not b > a:                     # a step of no length (a run ending where it began)
+            return np.tile(self.total, (len(times), 1))
         unresolved = self.unresolved
         try:
             out = self._piece(a, b, states, np.asarray(times, float), self._halvings)
