@@ -49,6 +49,14 @@ def scalar(value, what: str, owner: str, *, positive: bool = False,
     return x
 
 
+def number_array(value, owner: str, expected: str) -> np.ndarray:
+    """`value` as an array of floats, or a ModelError naming `owner` and what it expected."""
+    try:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ModelError(f"{owner}: expected {expected}, got {value!r:.80}") from None
+
+
 def name_or_default(name, default: str, what: str) -> str:
     """A model object's name: `name` if given (a non-empty string), else `default`."""
     if name is None:

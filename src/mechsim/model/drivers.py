@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .checks import ModelError, name_or_default
+from .checks import ModelError, name_or_default, number_array
 from .expressions import parse
 from .joints import Joint, coordinate_joint
 
@@ -113,11 +113,7 @@ class TableLaw:
     template = "table"
 
     def __init__(self, table, owner: str):
-        try:
-            data = np.array(table, dtype=float)
-        except (TypeError, ValueError):
-            raise ModelError(f"{owner}: expected (times, values) or rows (t, value) of "
-                             f"numbers, got {table!r:.80}") from None
+        data = number_array(table, owner, "(times, values) or rows (t, value) of numbers")
         if data.ndim == 2 and data.shape[1] == 2 and data.shape[0] != 2:
             data = data.T                                  # rows (t, value)
         if data.ndim != 2 or data.shape[0] != 2:

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .checks import ModelError
+from .checks import ModelError, number_array
 
 TWO_PI = 2.0 * math.pi
 
@@ -27,11 +27,7 @@ class PeriodicSpline:
     scipy's `CubicSpline` with periodic ends. `owner` names the model object in errors."""
 
     def __init__(self, points, owner: str):
-        try:
-            table = np.array(points, dtype=float)
-        except (TypeError, ValueError):
-            raise ModelError(f"{owner}: the curve's points must be rows (phi, r) of numbers, "
-                             f"got {points!r:.80}") from None
+        table = number_array(points, owner, "the curve's points as rows (phi, r) of numbers")
         if table.ndim != 2 or table.shape[1] != 2 or len(table) < 4:
             raise ModelError(f"{owner}: the curve's points must be at least 4 rows (phi, r), "
                              f"got shape {table.shape}")
