@@ -75,7 +75,7 @@ def decide(problem, modes, k, t, q, v):
     except FrictionError:
         state = None
     if state is not None:
-        force, limit = state.forces[k], element.friction.mu_static * state.loads[k]
+        force, limit = state.forces[k], state.static_limit(problem.friction, k)
         if abs(force) <= limit:
             return STUCK, (force, limit)
         return (BACKWARD if force > 0.0 else FORWARD), (force, limit)
@@ -92,7 +92,7 @@ def decide(problem, modes, k, t, q, v):
         float(np.abs(g) @ (problem.inverse_mass_diagonal * np.abs(Q)))
     still = abs(sdd) <= 1e-10 * scale
     mode = trial[k] if still else FORWARD if sdd > 0.0 else BACKWARD
-    return mode, (state.forces[k], element.friction.mu_static * state.loads[k])
+    return mode, (state.forces[k], state.static_limit(problem.friction, k))
 
 
 class FrictionEvents:
@@ -122,8 +122,7 @@ class FrictionEvents:
             if modes[k] == FREE:
                 out.append(1.0)
             elif modes[k] == STUCK:
-                out.append(model.elements[k].friction.mu_static * state.loads[k] -
-                           abs(state.forces[k]))
+                out.append(state.static_limit(model, k) - abs(state.forces[k]))
             else:
                 out.append(modes[k] * rates[k])
         return np.array(out)

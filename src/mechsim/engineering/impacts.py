@@ -235,7 +235,7 @@ class PiecewiseRun:
         if before == STUCK:
             state = p.friction_state(self.t, self.q, self.v)
             force = state.forces[k]
-            limit = p.friction.elements[k].friction.mu_static * state.loads[k]
+            limit = state.static_limit(p.friction, k)
             after = BACKWARD if force > 0.0 else FORWARD
         else:
             after, (force, limit) = decide(p, self.modes, k, self.t, self.q, self.v)

@@ -168,6 +168,10 @@ class FrictionState:
         """Σ f_k g_k, shape (n,)."""
         return self.forces @ self.gradients
 
+    def static_limit(self, model, k) -> float:
+        """μ_s times the load of friction element k of `model`: the most it holds still."""
+        return model.elements[k].friction.mu_static * self.loads[k]
+
 
 @dataclass(frozen=True)
 class FrictionModel:
@@ -199,7 +203,7 @@ class FrictionModel:
         friction and no stop holding its joint)."""
         return self.modes is not None and not self.schedule and bool(np.all(self.modes == FREE))
 
-    @property
+    @cached_property
     def frictions(self) -> list[int]:
         """The indices of the friction elements (the others are stops)."""
         return [k for k, e in enumerate(self.elements) if e.kind == "friction"]

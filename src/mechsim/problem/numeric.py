@@ -279,16 +279,19 @@ class NumericProblem:
 
     def work_rates(self, t, q, v) -> np.ndarray:
         """The power of each of `work_channels` at the consistent state (q, v), shape (k,):
-        the loads' (`Loads.powers`), friction's f ṡ, and a driver's λᵀ Φ_t over its rows (the constraint
-        force −Φ_qᵀλ does the work −λᵀ Φ_q v = λᵀ Φ_t; λ from the equations of motion,
-        least squares at a singular configuration)."""
+        the loads' (`Loads.powers`), friction's f ṡ, and a driver's λᵀ Φ_t over its rows
+        (the constraint force −Φ_qᵀλ does the work −λᵀ Φ_q v = λᵀ Φ_t; λ from the equations
+        of motion, least squares at a singular configuration)."""
         out = self.load_model.powers(t, q, v)
         owners = self._driver_owners()
-        Q = self.load_model.forces(t, q, v) if owners or self.friction is not None else None
-        if self.friction is not None:
+        acting = self.friction is not None and not self.friction.idle
+        Q = self.load_model.forces(t, q, v) if owners or acting else None
+        if acting:
             state = self.friction.solve(self, t, q, v, Q)
             out += list((state.forces * state.rates)[self.friction.frictions])
             Q = Q + state.generalized()
+        elif self.friction is not None:               # every friction free: no power
+            out += [0.0] * len(self.friction.frictions)
         if owners:
             _, J, phi_t, gamma = self.terms(q, v, t)
             _, lam = self.accelerations(J, Q, gamma, q)
