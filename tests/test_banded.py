@@ -1,4 +1,4 @@
-"""The banded Schur complement of large rigid mechanisms (`mechsim.banded`): the same numbers
+"""The banded Schur complement of large rigid mechanisms (`mechsim.linalg.banded`): the same numbers
 as the dense path, from a factor whose band does not grow with the mechanism."""
 
 import math
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mechsim as ms
-from mechsim.banded import BandedSchur
+from mechsim.linalg.banded import BandedSchur
 from mechsim.bench import Problem
 from mechsim.examples import parallelogram_constants
 from mechsim.formulations.monitor import SingularityMonitor
@@ -95,7 +95,7 @@ def test_ten_window_chain_runs_on_the_banded_path_between_passages(monkeypatch):
     """0.5 s of the 10-window chain by the projection method (its first singular passage is
     at 0.70 s): on the branch to 1e-8, and neither the accelerations, the projections nor
     the singularity monitor needed an SVD."""
-    from mechsim import dense
+    from mechsim.linalg import dense
     svds = []
     svd = dense.svd
     monkeypatch.setattr(dense, "svd", lambda A: svds.append(A.shape) or svd(A))

@@ -292,7 +292,7 @@ def test_a_sweep_over_driver_speeds_compiles_one_model(monkeypatch):
     compiled model, so all 25 mechanisms have one structure and at most one fused model is
     generated (before: 25 sympy and gcc builds, 41 s cold), and each run follows its own
     speed exactly."""
-    from mechsim.codegen import background
+    from mechsim.build import background
     from mechsim.codegen.cache import structure_key
     monkeypatch.setenv("MECHSIM_BUILD", "fused")
     speeds = np.linspace(20.0, 140.0, 25)
@@ -354,8 +354,8 @@ def test_a_background_build_has_a_time_limit(tmp_path):
     entry point sets RLIMIT_CPU before it reads its payload."""
     import pickle
     resource = pytest.importorskip("resource")
-    from mechsim.codegen import background
-    code = ("import resource, sys; from mechsim.codegen import background; "
+    from mechsim.build import background
+    code = ("import resource, sys; from mechsim.build import background; "
             "background.build = lambda *a: print(resource.getrlimit(resource.RLIMIT_CPU), a); "
             "background.main()")
     done = subprocess.run([sys.executable, "-I", "-c", code], input=pickle.dumps((1, 2, 3)),

@@ -417,7 +417,7 @@ def test_bench_runs_the_seeds_projection_as_a_variant(monkeypatch, capsys):
     """`projection-svd` in `mechsim bench` is the projection method with
     factorization="svd": an SVD at almost every evaluation (all but the passage bridge's),
     the motion of the default projection, and the hybrid's ratio to it printed."""
-    import mechsim.dense as dense
+    import mechsim.linalg.dense as dense
     from mechsim import bench
 
     calls = []
@@ -494,7 +494,7 @@ def test_projection_with_the_seeds_svd_at_every_evaluation(parallelogram_runs, m
     and projection instead of the Cholesky factor of the Schur complement clear of the
     band. Both are exact there, so the motion agrees with the default run to round-off
     over the steps, while every evaluation pays an SVD."""
-    import mechsim.dense as dense
+    import mechsim.linalg.dense as dense
     calls = []
     svd = dense.svd
     monkeypatch.setattr(dense, "svd", lambda A: calls.append(A.shape) or svd(A))

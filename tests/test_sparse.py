@@ -1,6 +1,6 @@
-"""Long chains in O(n): Φ_q as a CSR array of its fixed pattern (`mechsim.sparse`), the
+"""Long chains in O(n): Φ_q as a CSR array of its fixed pattern (`mechsim.linalg.sparse`), the
 largest eigenvalue of the banded Schur complement by warm Lanczos, and the partition's
-pivoting by banded LU (`mechsim.banded`), each against its dense counterpart."""
+pivoting by banded LU (`mechsim.linalg.banded`), each against its dense counterpart."""
 
 import math
 
@@ -9,7 +9,7 @@ import pytest
 import scipy.linalg as sla
 
 import mechsim as ms
-from mechsim import sparse
+from mechsim.linalg import sparse
 from mechsim.formulations.partitioned import Partitioned
 
 

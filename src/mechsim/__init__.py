@@ -13,8 +13,10 @@ simulation starts, matplotlib when a plot is drawn, meshio when a result is expo
 from importlib import import_module as _import_module
 
 from .model import (AssemblyError, Body, Channel, LoadError, DofReport, Driver, FlexibleBeam, Force, Friction, Gear, Ground, Joint,
-                    Mechanism, ModelError, PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring, Spring,
+                    ModelError, PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring, Spring,
                     Stop, Torque)
+
+from .facade import Mechanism
 
 __version__ = "0.1.0"
 

@@ -103,7 +103,7 @@ def scipy_integrators():
 def seed_svd():
     """The seed's projection method (an SVD of J̃ at every evaluation) against mechsim's
     (SVDs near the passages only), on the seed's four-bar: SVDs per run."""
-    from . import dense
+    from .linalg import dense
     calls = []
     svd = dense.svd
 

@@ -12,7 +12,8 @@ import math
 
 import numpy as np
 
-from .model import (Driver, FlexibleBeam, Mechanism, Prismatic, Revolute, RigidBody, Spring,
+from .facade import Mechanism
+from .model import (Driver, FlexibleBeam, Prismatic, Revolute, RigidBody, Spring,
                     Torque)
 
 

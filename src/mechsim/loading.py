@@ -37,6 +37,11 @@ def attach_mechanism(result, meta, where) -> None:
                          f"{result.coordinate_names[:4]}…")
     result.mechanism = mech
     result.problem = mech.problem()
+    if result.settings:                  # `extend` goes on as the run that made it would
+        from .engineering.impacts import extend_piecewise
+        from .solver import continue_run
+        result.continuation = extend_piecewise if "contacts" in result.settings else \
+            continue_run
     schedule = meta.get("friction_schedule")
     if schedule and result.problem.friction is not None:      # each piece's stick and slip
         result.problem = result.problem.with_friction(

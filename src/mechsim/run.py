@@ -34,7 +34,7 @@ from .integrators import AdamsPECE
 from .integrators.adapters import (bound_read_at_start, correct_in_place, proposed_step,
                                    shift_in_place, warm_start)
 from .results import SimulationResult
-from .results.result import WorkRecord
+from .records import Status, WorkRecord
 from .results.stream import begin_stream
 from .results.work import WorkIntegral
 from .runaway import Runaway
@@ -189,7 +189,7 @@ class Run:
         self.event = None                # (t, index, q, v) where an event ended the run
         self._g_last = None if settings.events is None else \
             np.asarray(settings.events.values(settings.t_start, q0, v0), float)
-        self.status, self.message, self.exception = "success", "reached t_end", None
+        self.status, self.message, self.exception = Status.SUCCESS, "reached t_end", None
         self.t_reached = settings.t_start
         self.solver = None
         self.y0 = form.initial_state(settings.t_start, q0, v0)
@@ -208,11 +208,11 @@ class Run:
                 if progress is not None:
                     progress.update(self.solver.t)
         except KeyboardInterrupt:
-            self.status, self.message = "interrupted", "interrupted by the user"
+            self.status, self.message = Status.INTERRUPTED, "interrupted by the user"
         except FAILURES as exc:
             t = max(self.t_reached, self.out.t[-1] if self.out.count else self.s.t_start)
             self.t_reached = t
-            self.status = "failed"
+            self.status = Status.FAILED
             self.message = f"{type(exc).__name__} after t = {t:.9g}: {exc}"
             self.exception = exc
         finally:
@@ -427,7 +427,7 @@ class Run:
         return old
 
     def _stop(self, message) -> bool:
-        self.status, self.message = "failed", message
+        self.status, self.message = Status.FAILED, message
         return False
 
     def _bridge_samples(self, tk, Y):
@@ -450,7 +450,7 @@ class Run:
     def _explain(self) -> None:
         """Add to the message what the run's end and its passages mean."""
         problem, form, monitor = self.problem, self.form, self.monitor
-        if self.status == "failed":
+        if self.status == Status.FAILED:
             if form.failure and form.failure not in self.message:
                 self.message += f"; last trouble: {form.failure}"
             if "driver '" not in self.message and problem.driver_laws:
@@ -468,7 +468,7 @@ class Run:
                              f"at {monitor.peak:.2g} (very unequal masses), below round-off: "
                              "singular passages were not watched")
         passages = monitor.passages
-        if self.status != "success":
+        if self.status != Status.SUCCESS:
             return
         first = passages[0] if passages else None
         if passages and not form.resolves_passages:
@@ -530,7 +530,7 @@ class Run:
         t, q, v = out.take()
         work = self._work_record()
         if out.failure is not None and "writing the stream failed" not in self.message:
-            self.status = "failed"
+            self.status = Status.FAILED
             self.message += (f"; writing the stream failed at its end ({out.failure}): every "
                              "sample is in this result, not all in the stream's files")
         res = SimulationResult(t, q, v, self.problem.coordinate_names, problem=self.problem,

@@ -67,7 +67,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 
 
-from .model import Mechanism
+from .facade import Mechanism
 from .model.expressions import FUNCTIONS, ExpressionError, parse
 from .model.forces import TimeLaw
 from .scene_build import SceneError, body_named, build

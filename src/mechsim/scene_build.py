@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 
-from .model import (Channel, Driver, FlexibleBeam, Force, Friction, Gear, Mechanism,
-                    ModelError, PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring,
+from .facade import Mechanism
+from .model import (Channel, Driver, FlexibleBeam, Force, Friction, Gear, ModelError, PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring,
                     Spring, Stop, Torque)
 from .model.channels import channel_names
 from .model.expressions import parse

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from . import sparse
+from .linalg import sparse
 from .formulations import METHODS, formulation_class
 from .formulations.monitor import SingularityMonitor
 from .integrators import integrator_class
@@ -210,10 +210,20 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
                         singular_thresholds=singular_thresholds, max_steps=max_steps, h=h,
                         work=checked["work"], **options)
     res.mechanism = mechanism
+    res.continuation = continue_run
     if stream is not None:
         from .results.stream import finish_stream
         finish_stream(res, stream)
     return res
+
+
+def continue_run(result, t_end: float, overrides: dict):
+    """`SimulationResult.extend` of a run made by `simulate`: the run goes on from the
+    result's last sample with its settings (and `overrides` of them), joined to it."""
+    from .results.join import join
+    rest = simulate(result.problem, result.q[-1], result.v[-1], t_start=float(result.t[-1]),
+                    t_end=t_end, **{**result.settings, **overrides})
+    return join(result, rest)
 
 
 def _formulation(cls, problem, q0, t_start, rtol, atol, options, redundant, fully_driven):

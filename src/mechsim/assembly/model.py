@@ -177,7 +177,7 @@ class AssembledModel:
         """The system arrays named in `outputs` ("phi", "J", "phi_t", "gamma"), from each
         group's kernel `function` (returning those of them but Φ_t, in that order; None:
         no kernel) and the drivers' laws at t; Φ_q shaped (m, n), or "Jcsr": Φ_q as a
-        CSR array of the pattern (`mechsim.sparse`)."""
+        CSR array of the pattern (`mechsim.linalg.sparse`)."""
         size = {"J": self.M * self.N, "Jcsr": self._csr_indices.size}
         arrays = [np.zeros(size.get(name, self.M)) for name in outputs]
         filled = [(a, name) for a, name in zip(arrays, outputs) if name != "phi_t"]
@@ -229,7 +229,7 @@ class AssembledModel:
     def phi_q_csr(self, q, t, p):
         """Φ_q as a `scipy.sparse.csr_array` of the fixed pattern (`JACOBIAN_ROWS`,
         `JACOBIAN_COLS`; structural zeros are kept, so every call has the same indices:
-        `mechsim.sparse`)."""
+        `mechsim.linalg.sparse`)."""
         return self._evaluate("jacobian", ("Jcsr",), q, None, t, p)[0]
 
     def position_terms_csr(self, q, t, p):

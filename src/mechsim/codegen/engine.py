@@ -20,7 +20,7 @@ The same library serves the projection method and the solver manager:
   (`lu_condition`).
 
 The compiled path takes only the plain case: a chord Newton converging by the same rules as
-the Python path's (`mechsim.newton`, whose constants it is handed), a nonsingular square Φ_q D and a positive definite Schur complement; for the
+the Python path's (`mechsim.linalg.newton`, whose constants it is handed), a nonsingular square Φ_q D and a positive definite Schur complement; for the
 projection method, a state outside the truncation band. Anything else (a stalled chord
 that needs fresh Jacobians, redundant constraints, Newton failing altogether, a singular
 value under the cut) returns a status and the Python path takes the evaluation from the
@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
+from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
 from .compiled import shared_library
 from .layout import PARTITION, PROJECTION, Dims
 

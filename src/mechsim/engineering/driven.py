@@ -25,8 +25,9 @@ import time
 
 import numpy as np
 
-from .. import dense
-from ..newton import newton
+from ..linalg import dense
+from ..linalg.newton import newton
+from ..records import SingularPassage, Status
 from ..threads import in_run_threads
 
 # A Newton correction beyond this share of the predicted motion sends the step to halves.
@@ -122,11 +123,11 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
     kin = _Kinematics(problem, tol)
     state = (report.q, *kin.velocities(report.q, t_start)[:2])
     Q, V, shape = [state[0]], [state[1]], [_shape(problem, report.q, t_start)]
-    status, message = "success", "reached t_end"
+    status, message = Status.SUCCESS, "reached t_end"
     for t0, t1 in zip(ts[:-1], ts[1:]):
         state = kin.advance(t0, state, t1)
         if state is None:
-            status = "failed"
+            status = Status.FAILED
             message = (f"no configuration followed from t = {t0:.9g} to {t1:.9g}: the "
                        "drivers move the mechanism where it cannot assemble, or too fast for "
                        "the output step")
@@ -136,7 +137,7 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
         shape.append(_shape(problem, state[0], t1))
     n = len(Q)
     passages = _passages(ts[:n], np.array(shape))
-    if passages and status == "success":
+    if passages and status == Status.SUCCESS:
         message += (f"; it passed {len(passages)} singular configuration(s) (first at t = "
                     f"{passages[0].t_min:.6g}) where the drivers do not decide the branch: it "
                     "went on along the one it moved on, and reactions and efforts there are "
@@ -203,7 +204,6 @@ def _shape(problem, q, t):
 def _passages(ts, shape):
     """SingularPassage records where det Φ_q changes sign between two samples or runs of
     samples have σ_min/σ_max under `SINGULAR` (shape: (N, 2) of `_shape`)."""
-    from ..results import SingularPassage
     ratios, signs = shape[:, 0], shape[:, 1]
     low = ratios < SINGULAR
     crossed = np.zeros(len(ts), dtype=bool)

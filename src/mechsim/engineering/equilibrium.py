@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .reduced import ReducedCoordinates
+from ..records import Status
 from ..threads import in_run_threads
 
 # Equilibrium: ‖g‖∞ below this share of the generalized forces' size (‖R_j‖ ‖Q‖).
@@ -217,9 +218,9 @@ def _finish(mech, reduced, z, method, note, tol=RESIDUAL) -> Equilibrium:
                    "may have none within reach (a load that no joint can balance)")
     result = SimulationResult([reduced.t], q[None], np.zeros((1, problem.n)),
                               problem.coordinate_names, problem=problem,
-                              status="success" if converged else "failed", message=message,
+                              status=Status.SUCCESS if converged else Status.FAILED, message=message,
                               stats={"method": "equilibrium"})
-    from .reactions import ReactionTable, static_multipliers
+    from ..results.reactions import ReactionTable, static_multipliers
     result.__dict__["reactions"] = ReactionTable(
         result.t, result.q, result.v, problem,
         multipliers=static_multipliers(problem, reduced.t, q))

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..problem.friction import BACKWARD, FORWARD, FREE, STUCK, FrictionError
-from .geometry import joint_gradient, joint_path_rates
+from ..problem.geometry import joint_gradient, joint_path_rates
 
 MODE_NAMES = {FORWARD: "slipping forwards", BACKWARD: "slipping backwards", STUCK: "stuck"}
 

@@ -21,11 +21,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..model import ModelError
+from ..records import Status
 from ..problem.friction import BACKWARD, FORWARD, STUCK, FrictionError
 from ..solver import output_times, simulate
 from .friction import (MODE_NAMES, FrictionEvents, FrictionSwitch, decide, initial_modes,
                        stop_element, stop_moving)
-from .geometry import joint_coordinates, joint_gradient, joint_wrench
+from ..problem.geometry import joint_coordinates, joint_gradient, joint_wrench
 
 
 # Impacts, holds and releases at one instant, in a row, after which the run gives up
@@ -263,11 +264,12 @@ class PiecewiseRun:
         # and the stops the joints rest on at the end
         out.settings = dict(self.pieces[-1].settings, method=self.method,
                             output_step=self.output_step, contacts=self.contacts())
+        out.continuation = extend_piecewise
         # each sample's forces, reactions and work with the modes its piece ran in
         out.problem = self.problem.with_friction(
             self.problem.friction.with_schedule(self.schedule))
         if self.failure:
-            out.status, out.message = "failed", self.failure
+            out.status, out.message = Status.FAILED, self.failure
         elif out.success and self.impacts:
             out.message += f"; {len(self.impacts)} impact(s) on the stops"
         if out.success and self.switches:
@@ -286,6 +288,7 @@ def extend_piecewise(result, t_end, overrides):
                         dict(settings, t_start=float(result.t[-1])), contacts).run()
     out = join(result, rest)
     out.mechanism, out.settings = result.mechanism, rest.settings
+    out.continuation = extend_piecewise
     out.impacts = result.impacts + rest.impacts
     out.friction_switches = result.friction_switches + rest.friction_switches
     friction = result.problem.friction

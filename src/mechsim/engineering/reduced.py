@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..newton import newton
+from ..linalg.newton import newton
 
 
 # The dependent coordinates of a z further than this (in radians, or mechanism sizes) from the

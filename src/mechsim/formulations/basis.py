@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import dense, sparse
+from ..linalg import dense, sparse
 
 # Dependent blocks Φ_q D at least this large are factored sparse (`SparseBlock`).
 SPARSE_MIN = 40
@@ -166,7 +166,7 @@ class CoordinateBasis:
         return self._csc is not None
 
     def block(self, J):
-        """Φ_q D at Φ_q = J (dense, or CSR: `mechsim.sparse`), ready to solve with
+        """Φ_q D at Φ_q = J (dense, or CSR: `mechsim.linalg.sparse`), ready to solve with
         (`DenseBlock` or `SparseBlock`)."""
         if self._csc is None or J.shape[0] != self.r:
             return DenseBlock(self.JD(J))

@@ -16,7 +16,7 @@ reason.
 from __future__ import annotations
 
 from ..options import Option
-from ..results import Switch
+from ..records import Switch
 from .base import Formulation
 from .basis import SPARSE_MIN
 from .partitioned import Partitioned

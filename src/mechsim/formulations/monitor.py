@@ -36,8 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import dense, sparse
-from ..results import SingularPassage
+from ..linalg import dense, sparse
+from ..records import SingularPassage
 
 
 # Mechanisms with more constraint equations than this bound the search for passages inside
@@ -110,7 +110,7 @@ class SingularityMonitor:
         self.engine = _compiled(problem) if not self.redundant else None
 
     def _jacobian(self, q, t):
-        """J̃ = Φ_q L⁻ᵀ, the mass-scaled Jacobian (CSR for a long chain: `mechsim.sparse`)."""
+        """J̃ = Φ_q L⁻ᵀ, the mass-scaled Jacobian (CSR for a long chain: `mechsim.linalg.sparse`)."""
         return self.problem.mass_factor(q).cols(self.problem.solver_phi_q(q, t))
 
     def measure(self, q, t, v=None):
@@ -154,7 +154,7 @@ class SingularityMonitor:
 
     def _banded(self, J):
         """((σ_min, u, v), (σ_max, u, v)) of J̃ from the banded Schur complement of a large
-        rigid mechanism (`mechsim.banded`), or None where the dense SVD must serve: no
+        rigid mechanism (`mechsim.linalg.banded`), or None where the dense SVD must serve: no
         banded form, or J̃J̃ᵀ too near singular for its Cholesky factor and inverse
         iteration."""
         band = self.problem.schur

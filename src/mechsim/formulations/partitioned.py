@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .. import dense, sparse
-from ..newton import CHORD_CONTRACTION, newton
+from ..linalg import dense, sparse
+from ..linalg.newton import CHORD_CONTRACTION, newton
 from ..options import Option
 from .base import Formulation
 from .basis import ConstraintSolveError, CoordinateBasis, MatrixBasis
@@ -86,7 +86,7 @@ class Partitioned(Formulation):
         if self.newton_tol is None:
             self.newton_tol = 1e-2 * atol
         # Below ROUND_OFF, ‖Φ‖ may reach the round-off of the coordinates before the
-        # tolerance: Newton then stops where it stalls under ROUND_OFF (`mechsim.newton`).
+        # tolerance: Newton then stops where it stalls under ROUND_OFF (`mechsim.linalg.newton`).
         # Above it, a chord that contracts slowly has a stale factor, not round-off, and
         # takes a fresh one.
         self.stall = self.newton_tol < ROUND_OFF
@@ -102,7 +102,7 @@ class Partitioned(Formulation):
         `rank`: Φ_q's rank if the caller knows it (its SVD is dear on long chains)."""
         r = self.problem.rank(J) if rank is None else rank
         band = self.problem.schur
-        if band is not None:                 # a long chain: banded LU (`mechsim.banded`)
+        if band is not None:                 # a long chain: banded LU (`mechsim.linalg.banded`)
             perm = band.pivoted_coordinates(J)
             return self._coordinate_bases(perm[r:], perm[:r])
         with warnings.catch_warnings():      # a rank-deficient Φ_q (redundancy) is expected
@@ -221,7 +221,7 @@ class Partitioned(Formulation):
     def _newton(self, z, t, w, fresh=False):
         """(q, n_fresh) on Φ(q_ref + B z + D w, t) = 0 from the guess w: the chord with the
         factor of Φ_q D from the last accepted step, fresh Jacobians from the iteration where
-        the chord contracts too slowly (`mechsim.newton`) or where `fresh`; n_fresh counts
+        the chord contracts too slowly (`mechsim.linalg.newton`) or where `fresh`; n_fresh counts
         those. ConstraintSolveError where Newton fails."""
         prob, bs = self.problem, self.basis
         fresh = [fresh or not self._square, 0]

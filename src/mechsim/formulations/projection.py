@@ -33,8 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import dense, sparse
-from ..newton import newton
+from ..linalg import dense, sparse
+from ..linalg.newton import newton
 from .bridge import PassageBridge
 from ..options import Option
 from .full import FullCoordinates
@@ -47,7 +47,7 @@ _CLUSTER = 10.0
 _MAX_CLUSTER = 4
 # The truncation cut follows a mechanism's own level of σ_min/σ_max below this (`cut`).
 SCALE_REF = 1e-3
-# ... and a long chain's (banded, `mechsim.banded`) below this.
+# ... and a long chain's (banded, `mechsim.linalg.banded`) below this.
 CHAIN_REF = 0.1
 # The smallest σ_min/σ_max of J̃ that unequal masses may give (`cannot_resolve`).
 RESOLUTION = 1e-7
@@ -186,7 +186,7 @@ class Projection(FullCoordinates):
 
     def _banded(self, J):
         """The banded Cholesky factor of Φ_q M⁻¹ Φ_qᵀ when the problem has one
-        (`mechsim.banded`) and every singular value of J̃ is clear of the truncation cut
+        (`mechsim.linalg.banded`) and every singular value of J̃ is clear of the truncation cut
         (σ_min² > (2 rcond)² times a Gershgorin bound of σ_max²): there truncation drops
         nothing and the exact Schur complement is the projection method's q̈, at O(m) cost
         instead of an SVD's O(m³). None otherwise, and then the SVD decides."""

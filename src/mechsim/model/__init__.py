@@ -10,8 +10,8 @@ from .gears import Gear
 from .friction import Friction
 from .stops import Stop
 from .joints import Joint, PointOnCurve, Prismatic, Revolute
-from .mechanism import AssemblyError, AssemblyReport, DofReport, Mechanism
+from .mechanism import AssemblyError, AssemblyReport, DofReport, MechanismModel
 
 __all__ = ["AssemblyError", "LoadError", "AssemblyReport", "Body", "Channel", "DofReport", "Driver", "FlexibleBeam", "Force", "Friction", "Gear", "Ground",
-           "Joint", "Mechanism", "ModelError", "PointOnCurve", "Prismatic", "Revolute", "RigidBody", "RotationalSpring", "Spring",
+           "Joint", "MechanismModel", "ModelError", "PointOnCurve", "Prismatic", "Revolute", "RigidBody", "RotationalSpring", "Spring",
            "Stop", "Torque"]

@@ -4,7 +4,7 @@
 node's angle on a flexible beam); a subclass supplies the frames (`frame`, `modal`) and the
 trigonometry (`cos`, `sin`) in its own kind of number: sympy symbols for the generated
 constraint equations (`mechsim.symbolic.constraints.SymbolicContext`), or dual numbers over
-many states for joint coordinates and reactions (`mechsim.engineering.geometry`). A joint
+many states for joint coordinates and reactions (`mechsim.problem.geometry`). A joint
 only does arithmetic on what the context hands it, so the same `equations` serve both.
 """
 

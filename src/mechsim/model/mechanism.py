@@ -1,9 +1,9 @@
-"""Mechanism: the container users build (`mechsim.build` turns it into a NumericProblem)."""
+"""MechanismModel: the container users build, declarative (`mechsim.build` turns it into
+a NumericProblem; `mechsim.Mechanism` adds the analyses on it)."""
 
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,16 +59,10 @@ class AssemblyReport:
                 f"max |Φ| = {self.residual:.3g}")
 
 
-class Mechanism:
-    """A planar mechanism: bodies, joints, drivers and loads.
-
-    >>> import mechsim as ms
-    >>> mech = ms.Mechanism("pendulum", gravity=(0.0, -9.81))
-    >>> rod = mech.add(ms.RigidBody.rod("rod", (0, 0), (1, 0), mass=1.0))
-    >>> _ = mech.add(ms.Revolute(mech.ground, rod, at=(0, 0)))
-    >>> mech.dof().dof
-    1
-    """
+class MechanismModel:
+    """A planar mechanism as the user builds it: bodies, joints, drivers and loads, checked
+    as they are added. What it does (build, assemble, simulate, analyse) is
+    `mechsim.Mechanism`, its subclass."""
 
     def __init__(self, name: str = "mechanism", gravity=(0.0, -9.81)):
         self.name = name_or_default(name, "mechanism", "mechanism")
@@ -248,134 +242,6 @@ class Mechanism:
         """Everything that writes rows of Φ, in row order: joints, drivers, gears."""
         return self.joints + self.drivers + self.gears
 
-    def problem(self, build: str | None = None):
-        """The NumericProblem of this mechanism, built once (`mechsim.build`). `build`:
-        "fused" (one generated model for the whole mechanism, compiled where small),
-        "assembled" (from joint-type kernels: no sympy run for a new structure), or
-        "auto" (the fused model where the cache has it, else the assembled one); None:
-        `$MECHSIM_BUILD`, else "auto". Asking for another build than the one made
-        rebuilds."""
-        from ..build import build_mode, build_problem
-        mode = None if build is None else build_mode(build)
-        if self._problem is None or (mode is not None and mode != self._build):
-            if not self.bodies:
-                raise ModelError(f"mechanism '{self.name}' has no moving bodies")
-            self._build = mode or build_mode()
-            self._problem, self.from_cache = build_problem(self, self._build)
-            import warnings
-            for text in self.placement_warnings():
-                warnings.warn(f"mechsim: mechanism '{self.name}': {text}", stacklevel=2)
-        return self._problem
-
-    # --- analysis ----------------------------------------------------------------------------
-    def dof(self, t: float = 0.0) -> DofReport:
-        """Degrees of freedom from the rank of Φ_q at the (assembled, if available) initial
-        configuration; names the joints whose equations are redundant."""
-        prob = self.problem()
-        q = self._assembled.q if self._assembled is not None else self.initial_coordinates()
-        J = prob.phi_q(q, t)
-        m, n = J.shape
-        if m == 0:
-            return DofReport(n, 0, 0, n, 0, [], np.zeros(0))
-        U, s, _ = np.linalg.svd(J)
-        tol = max(m, n) * np.finfo(float).eps * 1e3 * (s[0] if s.size else 1.0)
-        rank = int(np.sum(s > tol))
-        involved = []
-        if rank < m:
-            left_null = U[:, rank:]          # combinations of rows that vanish: redundancy
-            weight = np.linalg.norm(left_null, axis=1)
-            for i in np.flatnonzero(weight > 1e-8):
-                if prob.constraint_owners[i] not in involved:
-                    involved.append(prob.constraint_owners[i])
-        return DofReport(n, m, rank, n - rank, m - rank, involved, s)
-
-    def compilation(self):
-        """Whether compiled C serves this mechanism's runs: a `Compilation` with `kernels`
-        (its generated functions run as C), `engine` (compiled evaluations of the rigid
-        formulations) and the `reason` where neither does (no compiler and the compiler's
-        error, `MECHSIM_NO_COMPILE`, flexible bodies, …). Builds what is missing."""
-        from ..codegen.compiled import compilation
-        return compilation(self.problem())
-
-    def assemble(self, t: float = 0.0, tol: float = 1e-10, max_iter: int = 50) -> AssemblyReport:
-        """Make the initial state consistent: positions by Newton with the smallest change
-        (kinetic metric), then velocities by projection in the mass metric. Consistent input is
-        kept exactly. Raises AssemblyError naming the joint with the largest residual, or a
-        driver whose law (or its rate or acceleration) is undefined at t."""
-        for name, value, rule in (("tol", tol, "a positive number"),
-                                  ("max_iter", max_iter, "a whole number ≥ 1")):
-            ok = (isinstance(value, numbers.Real) and not isinstance(value, bool) and
-                  value > 0 and math.isfinite(value) and
-                  (name == "tol" or float(value).is_integer()))
-            if not ok:
-                raise ValueError(f"assemble: `{name}` must be {rule}, got {value!r:.40}")
-        for driver in self.drivers:
-            try:
-                jet = driver.law.jet("t", float(t))
-            except (ArithmeticError, ValueError) as exc:
-                jet = (exc,)
-            if not all(isinstance(x, float) and math.isfinite(x) for x in jet):
-                why = f" ({jet[0]})" if isinstance(jet[0], Exception) else ""
-                raise AssemblyError(
-                    f"mechanism '{self.name}': driver '{driver.name}' prescribes "
-                    f"{driver.expression}, whose value, rate or acceleration is not defined "
-                    f"at t = {float(t):g}, where the run starts{why}; start the run where it "
-                    "is (t_start) or change the law")
-        prob = self.problem()
-        q0, v0 = self._state if self._state is not None else \
-            (self.initial_coordinates(), self.initial_velocities())
-        q, iterations, err = prob.project_positions(q0, t, tol=tol, max_iter=max_iter)
-        if not err <= tol:
-            raise AssemblyError(
-                f"mechanism '{self.name}' cannot be assembled: after {iterations} Newton "
-                f"iterations the largest residual is {prob.worst_constraint(prob.phi(q, t))}. "
-                "Check that joint's points and the link lengths it implies.")
-        v = self._velocities(prob, q, v0, t, tol)
-        self._assembled = AssemblyReport(
-            q, v, iterations, float(np.max(np.abs(q - q0), initial=0.0)),
-            float(np.max(np.abs(v - v0), initial=0.0)),
-            float(np.max(np.abs(prob.phi(q, t)), initial=0.0)))
-        return self._assembled
-
-    def _velocities(self, prob, q, v0, t, tol):
-        """Consistent velocities nearest the given ones (mass metric) with the joint rates
-        of `set_speed`; a warning where a velocity the user gave (non-zero) had to change."""
-        extra = None
-        if self.speeds:
-            from ..engineering.geometry import joint_gradient
-            G = np.array([joint_gradient(prob.joints[name], q) for name in self.speeds])
-            extra = (G, np.array(list(self.speeds.values())))
-        J = prob.phi_q(q, t)
-        rows = [J @ v0 + prob.phi_t(q, t)] + ([extra[0] @ v0 - extra[1]] if extra else [])
-        vscale = max(1.0, float(np.max(np.abs(v0))) if v0.size else 1.0,
-                     *(abs(r) for r in self.speeds.values()))
-        v = v0 if np.max(np.abs(np.concatenate(rows)), initial=0.0) <= tol * vscale \
-            else prob.project_velocities(q, v0, t, extra)
-        r_after = np.max(np.abs(prob.phi_q(q, t) @ v + prob.phi_t(q, t)), initial=0.0)
-        missed = np.abs(extra[0] @ v - extra[1]) if extra is not None else np.zeros(1)
-        if extra is not None and max(r_after, np.max(missed)) > 1e-8 * vscale:
-            name = list(self.speeds)[int(np.argmax(missed))]
-            raise AssemblyError(f"mechanism '{self.name}': the joint rates of set_speed "
-                                f"cannot all hold with the constraints and drivers (joint "
-                                f"'{name}' off by {np.max(missed):.3g}, the constraints by "
-                                f"{r_after:.3g}); the mechanism has fewer degrees of "
-                                "freedom than rates set")
-        if r_after > 1e-8 * vscale:
-            raise AssemblyError(f"mechanism '{self.name}': no velocity satisfies the "
-                                f"constraints (residual {r_after:.3g}); check the drivers")
-        given = np.flatnonzero(v0 != 0.0)
-        change = np.abs(v - v0)[given]
-        if change.size and np.max(change) > 1e-6 * vscale:
-            import warnings
-            k = given[int(np.argmax(change))]
-            warnings.warn(
-                f"mechsim: assembling mechanism '{self.name}' changed the initial velocity "
-                f"'{prob.coordinate_names[k]}' from {v0[k]:.6g} to {v[k]:.6g}: the velocities "
-                "given do not satisfy the joints, and the nearest ones that do were taken. "
-                "Give the speeds of joints instead (Mechanism.set_speed(joint, rate)).",
-                stacklevel=3)
-        return v
-
     def placement_warnings(self) -> list[str]:
         """What is likely a mistake in how the mechanism is put together, though it can be
         simulated: a body joined to nothing (it moves freely: a joint left out?), and a
@@ -443,70 +309,6 @@ class Mechanism:
         from .scene_save import scene_data, write_scene
         return write_scene(scene_data(self), path)
 
-    def set_state(self, q, v=None, t: float = 0.0) -> AssemblyReport:
-        """Start later simulations from the consistent state (q, v) (v default zeros),
-        such as an equilibrium's `eq.q`, instead of the assembled initial configuration;
-        a `set_speed` after it starts the joint turning from that state. Raises ModelError
-        if (q, v) does not satisfy the constraints; adding to the mechanism forgets the
-        state."""
-        from ..solver import check_initial_state
-        prob = self.problem()
-        v = np.zeros(prob.n) if v is None else v
-        try:
-            q, v = check_initial_state(prob, q, v, t)
-        except ValueError as exc:
-            raise ModelError(f"mechanism '{self.name}': set_state: {exc}") from None
-        self._state = (q, v)
-        self._assembled = AssemblyReport(q, v, 0, 0.0, 0.0,
-                                         float(np.max(np.abs(prob.phi(q, t)), initial=0.0)))
-        return self._assembled
-
-    # --- engineering analysis ----------------------------------------------------------------
-    def equilibrium(self, t: float = 0.0):
-        """The static equilibrium nearest the assembled state under gravity, springs and
-        constant loads, with the drivers held where their laws put them at t: an
-        `Equilibrium` (`mechsim.engineering.equilibrium`) with `q`, `converged`, `stable`
-        (the reduced stiffness positive definite), the stiffness itself and the reactions
-        there (`eq.joint_force(joint)`). `mech.set_state(eq.q)` starts simulations there."""
-        from ..engineering.equilibrium import equilibrium
-        return equilibrium(self, t)
-
-    def linearize(self, q=None, v=None, t: float = 0.0):
-        """The linearized equations of motion about the consistent state (q, v) at t, in the
-        independent coordinates: a `Linearization` with M, C, K, A, natural frequencies,
-        damping ratios and mode shapes in all coordinates. q=None: the static equilibrium
-        found from the assembled state (`equilibrium`); v=None: at rest, but for what the
-        drivers move (the consistent velocity of least kinetic energy)."""
-        from ..engineering.linearize import linearize
-        prob = self.problem()
-        if q is None:
-            eq = self.equilibrium(t)
-            q = eq.q if eq.converged else self.assemble(t=t).q
-        if v is None:
-            v = prob.project_velocities(np.asarray(q, float), np.zeros(prob.n), t) \
-                if prob.m else np.zeros(prob.n)
-        from ..solver import check_initial_state
-        try:
-            q, v = check_initial_state(prob, q, v, t)
-        except ValueError as exc:
-            raise ModelError(f"mechanism '{self.name}': linearize: {exc}") from None
-        return linearize(prob, q, v, t)
-
-    def kinematics(self, t_end: float | None = None, output_step: float | None = None,
-                   t_start: float = 0.0, over=None):
-        """Kinematic analysis of a fully driven mechanism (0 degrees of freedom): its
-        positions, velocities and accelerations solved from the constraints at t_start,
-        t_start + output_step, …, t_end (no integration), or over a driver's range with
-        `over=(driver, values)` (the times where its law reaches each change of its
-        joint's coordinate, e.g. `(motor, np.radians(np.arange(0, 361)))`), as a
-        `SimulationResult` whose `driver_effort`, `joint_force` and `cycle_figures()` give
-        the inverse dynamics: the efforts the drivers need and the loads on the joints. See
-        `mechsim.engineering.driven`."""
-        from ..engineering.driven import kinematic_analysis
-        if over is None and isinstance(t_end, numbers.Real):
-            self.check_tables(t_start, t_end)
-        return kinematic_analysis(self, t_end, output_step, t_start, over=over)
-
     def check_tables(self, t_start, t_end) -> None:
         """ModelError naming the first driver given by a table (`TableLaw`) whose times do
         not cover [t_start, t_end]: its law is data, not defined beyond them."""
@@ -520,33 +322,6 @@ class Mechanism:
                 raise ModelError(f"driver '{d.name}' is given by {d.expression}; the run "
                                  f"asks for [{float(t_start):g}, {float(t_end):g}] s: give "
                                  "a table that covers it, or a shorter run")
-
-    # --- simulation --------------------------------------------------------------------------
-    def simulate(self, t_end: float, method: str | None = None, **options):
-        """Simulate from the assembled initial state to `t_end`; see `mechsim.solver.simulate`
-        for the options. Returns a SimulationResult (partial, with a status, on failure)."""
-        from ..solver import check_simulate_arguments, simulate
-        check_simulate_arguments(len(self.coordinate_names), t_end, method, options)
-        self.check_tables(options.get("t_start", 0.0), t_end)
-        report = self._assembled or self.assemble(t=options.get("t_start", 0.0))
-        if self.stops or self.frictions:
-            from ..engineering.impacts import simulate_with_stops
-            return simulate_with_stops(self, report, t_end, method, **options)
-        return simulate(self.problem(), report.q, report.v, t_end=t_end, method=method,
-                        mechanism=self, **options)
-
-    def steady_state(self, period: float, guess=None, method: str = "newton",
-                     tol: float = 1e-8, max_iter: int = 30, t0: float = 0.0,
-                     **simulate_options):
-        """The periodic steady state of period `period` (e.g. 2π/ω of a driver or a
-        forcing), found by shooting on the independent coordinates and velocities without
-        simulating the transient. Returns a `ShootingResult`; `result.trajectory.result` is
-        the SimulationResult over one period. `guess` defaults to the assembled state."""
-        from ..shooting import solve
-        from ..shooting.mechanism import MechanismPeriodicProblem
-        problem = MechanismPeriodicProblem(self, period, t0, **simulate_options)
-        start = problem.guess0 if guess is None else guess
-        return solve(problem, start, method=method, tol=tol, max_iter=max_iter)
 
     def __repr__(self):
         return (f"Mechanism({self.name!r}: {len(self.bodies)} bodies, {len(self.joints)} joints, "

@@ -12,7 +12,7 @@ saddle-point system for Q and one for each g_k). Each f_k is given by its joint'
 
 - slipping in direction σ = ±1: f_k = −σ μ(ṡ_k) L_k(λ), L_k the joint's load (the pin's
   ‖F‖ times its radius, a guide's normal load), each a norm of the wrench its rows of λ
-  apply (`mechsim.engineering.geometry.joint_wrench`, linear in λ);
+  apply (`mechsim.problem.geometry.joint_wrench`, linear in λ);
 - stuck: whatever holds it, s̈_k = g_k q̈ + vᵀ(∂²s_k/∂q²)v = 0 (linear in f).
 
 A stop on which a joint rests is an element of the same kind (`kind` "stop"): its force
@@ -33,7 +33,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ..engineering.geometry import joint_gradient, joint_path_rates, joint_wrench
+from .geometry import joint_gradient, joint_path_rates, joint_wrench
 
 # What an element is doing: sliding forwards or backwards, held at zero rate, or nothing (a
 # stop its joint does not rest on; a joint's friction while its stop holds it).

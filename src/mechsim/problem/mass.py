@@ -3,7 +3,7 @@
 For rigid bodies in absolute coordinates M is constant and diagonal, so it is stored once
 and never rebuilt; a flexible beam adds a dense block that depends on its angle and modal
 amplitudes (`mechsim.flexible.invariants`). The Schur complement is solved by a banded
-Cholesky factor for long rigid chains (`mechsim.banded`), else densely, with the
+Cholesky factor for long rigid chains (`mechsim.linalg.banded`), else densely, with the
 least-squares solution where it is singular (redundant constraints).
 """
 
@@ -13,7 +13,7 @@ import functools
 
 import numpy as np
 
-from .. import sparse
+from ..linalg import sparse
 
 
 class MassFactor:
@@ -25,7 +25,7 @@ class MassFactor:
         self.s, self.Linv = s, Linv
 
     def cols(self, J):
-        """J L⁻ᵀ: the mass-scaled Jacobian (CSR where J is: `mechsim.sparse`)."""
+        """J L⁻ᵀ: the mass-scaled Jacobian (CSR where J is: `mechsim.linalg.sparse`)."""
         if self.Linv is None:
             return sparse.scale_columns(J, self.s)
         return J @ self.Linv.T
@@ -169,8 +169,8 @@ class SchurSolver:
 
 @functools.cache
 def dense():
-    """`mechsim.dense`, imported on first use (scipy: not needed to build a scene). An
+    """`mechsim.linalg.dense`, imported on first use (scipy: not needed to build a scene). An
     import statement in the function that solves would cost as much as the small
     Cholesky solve it imports."""
-    from .. import dense as module
+    from ..linalg import dense as module
     return module

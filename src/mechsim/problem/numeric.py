@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import sparse
-from ..newton import newton
+from ..linalg import sparse
+from ..linalg.newton import newton
 from .loads import Loads
 from .mass import MassFactor, MassModel, SchurSolver, dense
 
@@ -54,7 +54,7 @@ class NumericProblem:
         None): the polylines `SimulationResult.export` draws
     driver_laws : list of (driver name, `mechsim.model.expressions.Expression` in t): what
         each driver prescribes, for the failure messages of a run
-    joints : dict joint name -> `mechsim.engineering.geometry.JointGeometry`: what joint
+    joints : dict joint name -> `mechsim.problem.geometry.JointGeometry`: what joint
         coordinates and reactions are evaluated from (results only; never the solvers)
     driver_joints : dict driver name -> the name of the joint it drives
     friction : `mechsim.problem.friction.FrictionModel` of the joints with friction or stops,
@@ -98,12 +98,12 @@ class NumericProblem:
         self._sparse = None               # decided on first use (`sparse`)
 
     def _banded_form(self):
-        from ..banded import for_problem
+        from ..linalg.banded import for_problem
         return for_problem(self)
 
     @property
     def schur(self):
-        """The banded Schur complement of a large rigid mechanism (`mechsim.banded`), built
+        """The banded Schur complement of a large rigid mechanism (`mechsim.linalg.banded`), built
         on first use; None where the dense path serves. Assign None to force the dense
         path, or a `BandedSchur` to force the banded one."""
         return self.solver.band
@@ -114,7 +114,7 @@ class NumericProblem:
 
     @property
     def sparse(self) -> bool:
-        """Do the solvers take Φ_q as a CSR array of its fixed pattern (`mechsim.sparse`)?
+        """Do the solvers take Φ_q as a CSR array of its fixed pattern (`mechsim.linalg.sparse`)?
         For a long chain (one with the banded Schur complement) whose model gives it (an
         assembled model): its Φ_q has a handful of entries a row, and a dense m × n array
         would make every evaluation O(mn). Assign False to force dense arrays."""
@@ -160,7 +160,7 @@ class NumericProblem:
         self.counters.constraint_terms += 1
         return self.model.dynamics_terms(q, v, t, self.p)
 
-    # Φ_q in the form the solvers take: CSR where `sparse`, else dense (`mechsim.sparse`).
+    # Φ_q in the form the solvers take: CSR where `sparse`, else dense (`mechsim.linalg.sparse`).
     def solver_phi_q(self, q, t):
         return self.model.phi_q_csr(q, t, self.p) if self.sparse else self.phi_q(q, t)
 
@@ -253,7 +253,7 @@ class NumericProblem:
         """(q̈, λ) of [M Φ_qᵀ; Φ_q 0][q̈; λ] = [Q; c] by the Schur complement of M = L Lᵀ (a
         diagonal for rigid mechanisms; `q` is needed only when M depends on it). Redundant
         constraints (a singular Φ_q M⁻¹ Φ_qᵀ) fall back to the least-squares λ. `factor`:
-        the complement's banded factor at J, if the caller has it (`mechsim.banded`)."""
+        the complement's banded factor at J, if the caller has it (`mechsim.linalg.banded`)."""
         self.counters.factorizations += 1
         return self.solver.accelerations(J, Q, c, q, factor)
 
@@ -334,7 +334,7 @@ class NumericProblem:
     def project_positions(self, q, t, tol=1e-12, max_iter=20):
         """Newton steps Δq = −W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ Φ with W = M⁻¹: the smallest correction in
         the kinetic metric, a fresh Jacobian each iteration. Returns (q, iterations, final
-        ‖Φ‖∞); stops at round-off (`mechsim.newton`)."""
+        ‖Φ‖∞); stops at round-off (`mechsim.linalg.newton`)."""
         f = self.mass_factor(q)
 
         def correct(q, phi, J, slow):

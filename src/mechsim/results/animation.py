@@ -40,7 +40,7 @@ class Scene:
         q = result.q[self.frames]
         self.bodies = [(name, drawn_points(q, start, local, modal, exaggeration))
                        for name, start, local, modal in p.drawing]
-        from ..engineering.geometry import joint_coordinates, joint_point
+        from ..problem.geometry import joint_coordinates, joint_point
         self.pins = {name: joint_point(g, q) for name, g in p.joints.items()}
         self.guides = []                  # (K, P, 2) polylines fixed in a joint's body_a
         for name, g in p.joints.items():
@@ -66,7 +66,7 @@ class Scene:
     def _guide(g, q, lowest, highest):
         """(K, 2, 2) ends of a prismatic joint's guide line: along its axis (turning with
         body_a) through the slides the whole result covers, with a margin."""
-        from ..engineering.geometry import NumericContext, value
+        from ..problem.geometry import NumericContext, value
         ctx = NumericContext(g.starts, q)
         p = g.parameters
         ax, ay = (value(c) * np.ones(q.shape[0]) for c in ctx.point(
@@ -80,7 +80,7 @@ class Scene:
     @staticmethod
     def _in_body_a(g, q, local):
         """(K, P, 2): the points `local` (P, 2) of joint g's body_a frame at the states q."""
-        from ..engineering.geometry import NumericContext, value
+        from ..problem.geometry import NumericContext, value
         ctx = NumericContext(g.starts, q)
         x, y = (value(c) * np.ones(q.shape[0]) for c in ctx.point(g.joint.body_a, 0.0, 0.0))
         ux, uy = (value(c) * np.ones(q.shape[0]) for c in ctx.direction(g.joint.body_a,
@@ -93,7 +93,7 @@ class Scene:
     def _slot(cls, g, q, every):
         """A slot's centre line in body_a: a straight one over the stretch its pin covers
         in the whole result (with a margin), a circular one whole."""
-        from ..engineering.geometry import NumericContext, value
+        from ..problem.geometry import NumericContext, value
         joint, (cx, cy) = g.joint, g.local_a
         if joint.form == "circle":
             a = np.linspace(0.0, 2.0 * np.pi, 65)

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .result import SimulationResult, WorkRecord
+from ..records import WorkRecord
+from .result import SimulationResult
 
 
 def join(first: SimulationResult, rest: SimulationResult) -> SimulationResult:
@@ -27,5 +28,6 @@ def join(first: SimulationResult, rest: SimulationResult) -> SimulationResult:
         singular_passages=first.singular_passages + rest.singular_passages,
         switches=first.switches + rest.switches, exception=rest.exception, work=work)
     out.settings = dict(rest.settings)
+    out.continuation = rest.continuation
     out.mechanism = first.mechanism
     return out

@@ -15,41 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..kinematics import frame_point, frame_point_acceleration, frame_point_velocity
-
-
-@dataclass(frozen=True)
-class SingularPassage:
-    """A passage through a singular configuration of Φ_q: from `t_start` to `t_end` the
-    normalized smallest singular value of Φ_q M^{-1/2} stayed below the monitor's threshold;
-    its minimum `min_sigma` came at `t_min`; `joints` own the rows of its singular vector;
-    `bridged`: crossed in one step by the passage bridge, `t_min` being its predicted
-    singular instant."""
-    t_start: float
-    t_end: float
-    min_sigma: float
-    joints: tuple[str, ...] = ()
-    t_min: float | None = None
-    bridged: bool = False
-
-
-@dataclass(frozen=True)
-class Switch:
-    """A change of formulation by the solver manager."""
-    t: float
-    from_method: str
-    to_method: str
-    reason: str
-
-
-@dataclass(frozen=True)
-class WorkRecord:
-    """The work integrated with the motion (`mechsim.results.work`): `channels` as
-    `NumericProblem.work_channels`, `values` W of each at the first len(values) output
-    samples (shape (s, k); fewer than the samples where the integral stopped), `note` what
-    limits it ("" where nothing does)."""
-    channels: tuple[str, ...]
-    values: np.ndarray
-    note: str = ""
+from ..records import Status, WorkRecord
 
 
 @dataclass
@@ -90,14 +56,15 @@ class SimulationResult:
     Attributes
     ----------
     t : ndarray (n,);  q, v : ndarray (n, nq);  coordinate_names : list of str
-    status : "success", "failed" or "interrupted";  message : str
+    status : a `Status` ("success", "failed", "interrupted"; "partial": a stream not
+        finished);  message : str
     exception : the exception that ended a failed run (a user's own, such as one raised by a
         load function, is its `__cause__`, with the traceback), else None
     stats : dict (steps, rhs_evaluations, partitions, wall_time, …)
     singular_passages : list of SingularPassage;  switches : list of Switch
     """
 
-    def __init__(self, t, q, v, coordinate_names, *, problem=None, status="success",
+    def __init__(self, t, q, v, coordinate_names, *, problem=None, status=Status.SUCCESS,
                  message="", stats=None, singular_passages=(), switches=(),
                  energy: EnergyLog | None = None, constraint_violation=None,
                  exception: BaseException | None = None, work: WorkRecord | None = None,
@@ -107,7 +74,7 @@ class SimulationResult:
         self.v = np.asarray(v, float)
         self.coordinate_names = list(coordinate_names)
         self.problem = problem
-        self.status = status
+        self.status = Status(status)
         self.message = message
         self.exception = exception
         self.stats = dict(stats or {})
@@ -116,6 +83,11 @@ class SimulationResult:
         self.work_record = work      # the work integrated with the motion, if any
         self._saved_reactions = saved_reactions
         self.settings: dict = {}      # simulate's settings (what `extend` goes on with)
+        # How `extend` goes on: continuation(result, t_end, overrides) -> the joined result;
+        # set by the run that made this result (`mechsim.solver.continue_run`, or
+        # `mechsim.engineering.impacts.extend_piecewise` for runs between events) or by
+        # `load_result`. None: the result cannot be continued (kinematics, equilibrium).
+        self.continuation = None
         self.mechanism = None         # the Mechanism simulated, where known (saved with it)
         self.model_note = ""          # why a loaded result came without its mechanism
         self.stream_path = None       # the directory a streamed run's samples are in
@@ -129,7 +101,7 @@ class SimulationResult:
 
     @property
     def success(self) -> bool:
-        return self.status == "success"
+        return self.status == Status.SUCCESS
 
     def __repr__(self):
         return (f"SimulationResult(status={self.status!r}, t=[{self.t[0]:.6g}, {self.t[-1]:.6g}], "
@@ -236,31 +208,23 @@ class SimulationResult:
         statistics, and the work of every channel carried on from where it stood, so the
         energy balance keeps its baseline. The integrator starts afresh at the join; the
         joined run equals an uninterrupted one to the integration tolerance."""
-        from ..solver import simulate
-        p = self._need_problem("extending the run")
-        if not self.settings:
+        self._need_problem("extending the run")
+        if not self.settings or self.continuation is None:
             raise RuntimeError("this result does not hold the settings of the run that made "
                                "it; simulate again from its last state instead")
         t_end = float(t_end)
         if not t_end > self.t[-1]:
             raise ValueError(f"extend: `t_end` must be after the last sample "
                              f"t = {self.t[-1]:.9g}, got {t_end!r}")
-        if "contacts" in self.settings:                       # stops or friction
-            from ..engineering.impacts import extend_piecewise
-            return extend_piecewise(self, t_end, overrides)
-        from .join import join
-        settings = {**self.settings, **overrides}
-        rest = simulate(p, self.q[-1], self.v[-1], t_start=float(self.t[-1]), t_end=t_end,
-                        **settings)
-        return join(self, rest)
+        return self.continuation(self, t_end, overrides)
 
     # --- reactions, efforts and joint coordinates ---------------------------------------------
     @cached_property
     def reactions(self):
-        """The `ReactionTable` of this result (`mechsim.engineering.reactions`): the Lagrange
+        """The `ReactionTable` of this result (`mechsim.results.reactions`): the Lagrange
         multipliers at every sample, computed on first use, and which reactions are not
         unique where (`reactions.note()`, `reactions.flagged`)."""
-        from ..engineering.reactions import ReactionTable
+        from .reactions import ReactionTable
         watched = self.stats.get("method") not in ("kinematics", "equilibrium")
         return ReactionTable(self.t, self.q, self.v, self.problem, self._saved_reactions,
                              passages=self.singular_passages if watched else None)
@@ -321,8 +285,8 @@ class SimulationResult:
     def cycle_figures(self):
         """Peak and RMS driver effort and power, peak joint forces and four-bar
         transmission angles over this result: a `CycleFigures` (printable;
-        `mechsim.engineering.figures`)."""
-        from ..engineering.figures import cycle_figures
+        `mechsim.results.figures`)."""
+        from .figures import cycle_figures
         return cycle_figures(self)
 
     def joint_coordinate(self, joint) -> np.ndarray:

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .result import EnergyLog, SimulationResult, SingularPassage, Switch
+from ..records import SingularPassage, Switch
+from .result import EnergyLog, SimulationResult
 
 
 def read_saved(path) -> tuple[SimulationResult, dict]:

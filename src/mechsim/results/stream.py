@@ -11,19 +11,18 @@ import json
 
 import numpy as np
 
-from .result import SimulationResult, SingularPassage, Switch, WorkRecord, metadata
+from ..records import SingularPassage, Status, Switch, WorkRecord
+from .result import SimulationResult, metadata
 
 # The files a streamed run writes into its directory (`simulate(stream=...)`).
 STREAM_FILES = ("samples.bin", "work.bin", "meta.json")
-# The status of a stream whose run did not finish writing it (killed, or still running).
-PARTIAL = "partial"
 
 
 def begin_stream(directory, coordinate_names, channels) -> None:
     """meta.json of a stream whose run has begun: what reading its samples needs, with
     status "partial" until `finish_stream` replaces it (a run killed on the way loads as
     partial, its samples those whole on disk)."""
-    meta = {"coordinate_names": list(coordinate_names), "status": PARTIAL,
+    meta = {"coordinate_names": list(coordinate_names), "status": Status.PARTIAL,
             "message": "the run writing this stream did not finish (killed, or still "
                        "running): its samples up to the last written", "stats": {},
             "singular_passages": [], "switches": [],
@@ -72,7 +71,7 @@ def read_stream(path) -> tuple[SimulationResult, dict]:
         raise ValueError(f"{where}: meta.json gives rows of {width} numbers for {n} "
                          f"coordinates (expected {1 + 2 * n})")
     rows = _whole_rows(directory, "samples.bin", width, where)
-    partial = meta["status"] == PARTIAL
+    partial = meta["status"] == Status.PARTIAL
     count = rows if partial else meta["samples"]
     if not isinstance(count, int) or count < 0 or count > rows or (not partial and count != rows):
         raise ValueError(f"{where}: meta.json says {count} samples, samples.bin holds {rows}")

@@ -14,6 +14,7 @@ import numbers
 
 import numpy as np
 
+from ..records import Status
 from .oscillators import PeriodicProblem, Trajectory
 
 
@@ -60,7 +61,7 @@ class MechanismPeriodicProblem(PeriodicProblem):
         else:
             res = simulate(self.problem, q, v, t_start=self.t0, t_end=self.t0 + self.period,
                            output_step=self.period / samples, **options)
-        if res.status != "success":
+        if res.status != Status.SUCCESS:
             raise ValueError(f"steady_state: the flow over one period failed: {res.message}")
         x = np.hstack([res.q[:, self.ind], res.v[:, self.ind]])
         traj = Trajectory(res.t, x)

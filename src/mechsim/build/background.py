@@ -25,14 +25,14 @@ import pickle
 import subprocess
 import sys
 
-from .cache import cache_dir, env_flag, store, structure_key
+from ..codegen.cache import cache_dir, env_flag, store, structure_key
 
 _started: set[str] = set()
 # The processor time a background build may take.
 CPU_SECONDS = 300
 # What the child runs: the import path from its arguments, then `main`.
 _CHILD = ("import sys; sys.path[:0] = sys.argv[1:]; "
-          "from mechsim.codegen.background import main; main()")
+          "from mechsim.build.background import main; main()")
 
 
 def enabled() -> bool:
@@ -87,7 +87,7 @@ def main() -> None:
 def fused_source(bodies, items, structure) -> str:
     """The fused module's text (sympy): what `mechsim.build` compiles on a miss."""
     from ..symbolic import build_system
-    from .printer import model_source
+    from ..codegen.printer import model_source
     return model_source(build_system(bodies, items), structure_key(structure))
 
 
@@ -95,8 +95,8 @@ def build(bodies, items, structure):
     """The fused model (from the cache, or built into it), with its compiled evaluations
     where they serve; returns the module."""
     from ..model import FlexibleBeam
-    from . import engine
-    from .cache import load_model
+    from ..codegen import engine
+    from ..codegen.cache import load_model
     module, _ = load_model(structure, lambda: fused_source(bodies, items, structure))
     if not any(isinstance(b, FlexibleBeam) for b in bodies):
         engine.library(module)             # the compiled evaluations take rigid models only

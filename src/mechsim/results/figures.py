@@ -78,7 +78,7 @@ def cycle_figures(res) -> CycleFigures:
 def transmission_angles(problem, q) -> dict:
     """joint name -> {"min", "max"} of the transmission angle (module docstring) at every
     coupler–output joint of the mechanism, over the states q."""
-    from .geometry import joint_point
+    from ..problem.geometry import joint_point
     joints = problem.joints
     driven = set(problem.driver_joints.values())
     grounded = {}            # body id -> the name of its (undriven) revolute to the ground

@@ -12,11 +12,11 @@ import math
 
 import numpy as np
 
-from .model import (Driver, FlexibleBeam, Force, LoadError, ModelError, RigidBody,
+from ..model import (Driver, FlexibleBeam, Force, LoadError, ModelError, RigidBody,
                     RotationalSpring, Spring)
-from .model.forces import load_points
-from .model.checks import call_user
-from .problem import FlexibleData, NumericProblem, PointLoad, RotationalSpringData, SpringData
+from ..model.forces import load_points
+from ..model.checks import call_user
+from ..problem import FlexibleData, NumericProblem, PointLoad, RotationalSpringData, SpringData
 
 
 def body_starts(mech) -> dict:
@@ -53,9 +53,10 @@ def constraint_model(mech, items, build: str = "auto"):
     - "auto": the fused model where the cache has it; else the assembled one, and for a
       small mechanism (fewer than `compiled.C_MIN_COORDINATES` coordinates, where fusing
       pays most) the fused model is built in a background process for the runs after
-      (`mechsim.codegen.background`).
+      (`mechsim.build.background`).
     """
-    from .codegen import background, cached_model, load_model
+    from . import background
+    from ..codegen import cached_model, load_model
 
     structure = mech.structure()
     if build != "assembled":
@@ -65,8 +66,8 @@ def constraint_model(mech, items, build: str = "auto"):
         if build == "fused":
             return load_model(structure, lambda: background.fused_source(mech.bodies, items,
                                                                          structure))
-    from .assembly import AssembledModel
-    from .codegen.compiled import C_MIN_COORDINATES
+    from ..assembly import AssembledModel
+    from ..codegen.compiled import C_MIN_COORDINATES
     model = AssembledModel(mech.bodies, items)
     if build == "auto" and model.N < C_MIN_COORDINATES:
         background.start(mech.bodies, items, structure)
@@ -113,7 +114,7 @@ def _friction_model(mech, joints, owners):
     items = list(getattr(mech, "frictions", ())) + list(getattr(mech, "stops", ()))
     if not items:
         return None
-    from .problem.friction import FrictionElement, FrictionModel
+    from ..problem.friction import FrictionElement, FrictionModel
     return FrictionModel(tuple(
         FrictionElement(f, joints[f.joint.name],
                         tuple(i for i, o in enumerate(owners) if o == f.joint.name))
@@ -156,9 +157,9 @@ def mass_diagonal(mech) -> np.ndarray:
 
 
 def joint_geometry(mech, starts) -> dict:
-    """Each joint's name -> its `JointGeometry` (`mechsim.engineering.geometry`): what its
+    """Each joint's name -> its `JointGeometry` (`mechsim.problem.geometry`): what its
     coordinate, rate and reactions are evaluated from."""
-    from .engineering.geometry import JointGeometry
+    from ..problem.geometry import JointGeometry
     by_id = {id(b): starts[b.name] for b in mech.bodies}
     out = {}
     for j in mech.joints:
@@ -203,7 +204,7 @@ def _flexible_data(mech, starts) -> list[FlexibleData]:
     flexible = []
     for b in mech.bodies:
         if isinstance(b, FlexibleBeam):
-            from .flexible.kernel import load_kernel
+            from ..flexible.kernel import load_kernel
             inv = b.invariants()
             flexible.append(FlexibleData(b.name, starts[b.name], inv, load_kernel(b.n_modes),
                                          inv.kernel_parameters(mech.gravity), b.point_modes))
@@ -286,7 +287,7 @@ def _checked(load, given, owner: str, convert, expected: str, joints):
     if not callable(given):
         return given
     if load.inputs == "joint":
-        from .engineering.geometry import joint_coordinates
+        from ..problem.geometry import joint_coordinates
         geometry = joints[load.joint.name]
 
         def arguments(t, q, v):

@@ -2,7 +2,7 @@
 
 `ReactionTable` answers for one `SimulationResult`: from its model (λ once for all samples,
 `NumericProblem.multipliers`; each joint's wrench and coordinates when first asked,
-`mechsim.engineering.geometry`), or from the arrays a saved result holds. Nothing is computed
+`mechsim.problem.geometry`), or from the arrays a saved result holds. Nothing is computed
 for a run whose reactions nobody reads.
 
 Conventions (mechsim's API):
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import joint_coordinates, joint_wrench
+from ..problem.geometry import joint_coordinates, joint_wrench
 
 
 def static_multipliers(problem, t, q):

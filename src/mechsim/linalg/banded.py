@@ -22,7 +22,7 @@ import numpy as np
 
 from . import sparse
 
-# Below this many constraints the dense LAPACK path (`mechsim.dense`) is as fast.
+# Below this many constraints the dense LAPACK path (`mechsim.linalg.dense`) is as fast.
 MIN_CONSTRAINTS = 40
 
 
@@ -74,7 +74,7 @@ class BandedSchur:
 
     def assemble(self, J, scaled=False):
         """S in band storage ((kd + 1) × m); `scaled`: J is already J̃ = J W^{1/2}. J is
-        dense or a CSR array of its pattern (`mechsim.sparse`)."""
+        dense or a CSR array of its pattern (`mechsim.linalg.sparse`)."""
         if isinstance(J, np.ndarray):
             v, ia, ib = J.ravel(), self._ia, self._ib
         else:
