@@ -136,7 +136,7 @@ def study(quick):
 
 def work_precision(quick):
     """Run time against error for two solvers on the falling four-bar (`mechsim bench`)."""
-    from mechsim import bench
+    from mechsim.app import bench
     rtols = (1e-5, 1e-7) if quick else (1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
     rows = bench.run(["parallelogram"], ["lu", "hybrid"], rtols, progress=None)
     fig = Figure(figsize=(7.0, 4.0), layout="constrained")

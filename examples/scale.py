@@ -24,7 +24,7 @@ from mechsim import examples
 
 _BUILD = """
 import sys, time
-import mechsim, mechsim.solver, mechsim.formulations
+import mechsim, mechsim.run.solver, mechsim.formulations
 from mechsim import examples
 n = int(sys.argv[1])
 t0 = time.perf_counter()

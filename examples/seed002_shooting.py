@@ -20,7 +20,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 import mechsim as ms
-from mechsim import bench
+from mechsim.app import bench
 from mechsim.shooting.oscillators import CoulombOscillator, LinearOscillator
 
 PAPER = bench.COULOMB                   # ζ = 0.05, ω_n = 100, δ_st = 0.1, ω = 100

@@ -8,7 +8,7 @@ import pytest
 
 import mechsim as ms
 from mechsim.linalg.banded import BandedSchur
-from mechsim.bench import Problem
+from mechsim.app.bench import Problem
 from mechsim.examples import parallelogram_constants
 from mechsim.formulations.monitor import SingularityMonitor
 from mechsim.formulations.projection import Projection

@@ -163,7 +163,7 @@ def test_a_noise_limited_bridge_takes_its_best_declined_attempt(path):
     assert [p.bridged for p in res.singular_passages] == [True, True, True]
     assert res.stats["bridges"] == 3 and res.stats["bridges_over_tolerance"] <= 3
     assert res.stats["bridge_evaluations"] <= 3 * 556
-    from mechsim.bench import PROBLEMS
+    from mechsim.app.bench import PROBLEMS
     assert PROBLEMS["parallelogram"].error(res) < 1e-10
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import mechsim as ms
-from mechsim.cli import main
+from mechsim.app.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "mechanisms"

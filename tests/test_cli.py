@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import mechsim as ms
-from mechsim.cli import main
+from mechsim.app.cli import main
 
 SCENE = textwrap.dedent("""
     name = "pendulum"

@@ -127,7 +127,7 @@ def test_compiled_projection_accelerations_agree_with_the_python_path():
     Python truncates and interpolates."""
     from mechsim.formulations.monitor import SingularityMonitor
     from mechsim.formulations.projection import Projection
-    from mechsim.solver import simulate
+    from mechsim.run.solver import simulate
 
     mech = ms.examples.double_four_bar(2)
     run = dict(method="projection", rtol=1e-9, atol=1e-11)

@@ -325,7 +325,7 @@ def test_the_stick_slip_scene_runs_from_the_command_line(tmp_path, capsys, monke
     to m), and its table's friction column is ±μ m g while slipping, the holding force
     (within it) while stuck."""
     from pathlib import Path
-    from mechsim.cli import main
+    from mechsim.app.cli import main
     scene = Path(__file__).resolve().parents[1] / "mechanisms" / "stick_slip.toml"
     monkeypatch.chdir(tmp_path)
     text = scene.read_text().replace("t_end = 0.3141592653589793    # five periods",

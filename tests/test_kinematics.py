@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import mechsim as ms
-from mechsim.cli import main
+from mechsim.app.cli import main
 from mechsim.engineering.driven import KinematicsError
 from mechsim.examples import four_bar_angles, general_four_bar, slider_crank_position
 from test_driven import crank_rocker

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import mechsim as ms
-from mechsim import peers
+from mechsim.app import peers
 
 
 def test_the_mujoco_model_is_a_tree_of_hinges_closed_by_connects():

@@ -32,7 +32,7 @@ def test_a_background_build_never_imports_from_the_working_directory(tmp_path):
     scene.write_text((ROOT / "mechanisms" / "four_bar.toml").read_text())
     env = {**os.environ, "MECHSIM_CACHE_DIR": str(cache), "MECHSIM_BUILD": "auto",
            "MECHSIM_BACKGROUND": "1"}
-    done = subprocess.run([sys.executable, "-P", "-m", "mechsim.cli", "run", scene.name,
+    done = subprocess.run([sys.executable, "-P", "-m", "mechsim.app.cli", "run", scene.name,
                            "--t-end", "0.05", "--quiet", "--out", str(tmp_path / "out")],
                           cwd=work, env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
@@ -205,7 +205,7 @@ SCENE = CLI_SCENE.replace("t_end = 1.0", "t_end = 0.5").replace(
 
 
 def _cli(capsys, *argv):
-    from mechsim.cli import main
+    from mechsim.app.cli import main
     code = main(["run", *map(str, argv)])
     out = capsys.readouterr()
     return code, out.out, out.err
@@ -241,7 +241,7 @@ def test_outputs_are_never_written_through_a_planted_link(pendulum_scene, tmp_pa
     file (renamed into place), its target untouched. The same for the output directory
     swapped for a link during the run: mechsim holds the directory open and writes into
     it, not through the new link."""
-    import mechsim.cli as cli
+    import mechsim.app.cli as cli
     out, moved = tmp_path / "out", tmp_path / "out-moved"
     victim, elsewhere = tmp_path / "victim", tmp_path / "elsewhere"
     victim.write_text("precious")
@@ -273,7 +273,7 @@ def test_an_interrupt_after_the_run_keeps_the_saved_result(pendulum_scene, capsy
     """Ctrl-C (or SIGTERM, taken as Ctrl-C) during the summary after a finished run: the
     result was saved first (before, plots came first and the result was lost)."""
     import signal
-    import mechsim.cli as cli
+    import mechsim.app.cli as cli
 
     def summary(scene, res):
         os.kill(os.getpid(), signal.SIGTERM)
@@ -336,7 +336,7 @@ def test_names_with_math_markup_are_drawn_as_written(tmp_path):
 def test_an_unreachable_dask_scheduler_is_said_plainly(tmp_path, capsys, monkeypatch):
     pytest.importorskip("distributed")
     import distributed
-    from mechsim.cli import main
+    from mechsim.app.cli import main
 
     def refuse(address, timeout=None):
         raise OSError(f"Timed out trying to connect to {address} after 10 s")

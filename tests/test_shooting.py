@@ -452,7 +452,7 @@ def test_flexible_slider_crank_steady_state_and_its_modal_floquet_multipliers():
     # error at this simulation tolerance (0.0176 measured at rtol 1e-6; 0.0138 at 1e-7).
     np.testing.assert_allclose(mags[2:], decay[1], atol=0.01)
     res = sol.trajectory.result
-    from mechsim.solver import simulate
+    from mechsim.run.solver import simulate
     two = simulate(mech.problem(), res.q[0], res.v[0], t_end=2 * T, rtol=1e-8, atol=1e-11,
                    output_step=T / 100)
     assert two.success
@@ -492,7 +492,7 @@ def test_coulomb_shooting_bench_counts_flows_against_periods():
     (μ = 0.07 slips all the time, so it contracts linearly), Newton at most one more flow;
     at 1e-10 shooting takes more than 10 times fewer flows. With sticking (μ = 0.09) brute
     force settles within a few periods, as shooting does."""
-    from mechsim import bench
+    from mechsim.app import bench
     rows = bench.shooting_run(cases=((0.07, (0.0, 0.0)), (0.09, (0.0, 0.0))),
                               accuracies=(1e-6, 1e-10), repeat=1, progress=None)
     for r in rows:

@@ -399,7 +399,7 @@ def test_projection_accelerations_through_a_double_singularity(theta):
 def test_bench_repeat_keeps_each_runs_shortest_time():
     """`mechsim bench --repeat N` runs every case N times in rounds and reports one row per
     case with the same run (error, steps, evaluations) as a single repeat."""
-    from mechsim import bench
+    from mechsim.app import bench
 
     kw = dict(problems=["parallelogram"], methods=["projection", "lu"], rtols=[1e-5],
               progress=None)
@@ -418,7 +418,7 @@ def test_bench_runs_the_seeds_projection_as_a_variant(monkeypatch, capsys):
     factorization="svd": an SVD at almost every evaluation (all but the passage bridge's),
     the motion of the default projection, and the hybrid's ratio to it printed."""
     import mechsim.linalg.dense as dense
-    from mechsim import bench
+    from mechsim.app import bench
 
     calls = []
     svd = dense.svd
@@ -433,7 +433,7 @@ def test_bench_runs_the_seeds_projection_as_a_variant(monkeypatch, capsys):
     assert ratios["hybrid/projection-svd"] == rows[1].wall_time / seed.wall_time
     with pytest.raises(ValueError, match="'projektion'; methods: .*projection-svd"):
         bench.run(["parallelogram"], ["lu", "projektion"], [1e-6], progress=None)
-    from mechsim.cli import main
+    from mechsim.app.cli import main
     capsys.readouterr()
     assert main(["bench", "parallelogram", "--methods", "lu,projektion"]) == 2
     out, err = capsys.readouterr()
@@ -445,7 +445,7 @@ def test_bench_compares_methods_at_equal_error():
     successful run within each decade of error, skips failed runs however accurate, gives
     consecutive decades served by the same runs once, and stops where fewer than two
     methods get there."""
-    from mechsim.bench import Row, equal_error, format_within
+    from mechsim.app.bench import Row, equal_error, format_within
 
     def row(method, rtol, error, wall, status="success"):
         return Row("p", method, "DOP853", rtol, status, error, 0.0, wall, 10, 100, 1)
@@ -558,7 +558,7 @@ def test_bench_driven_slider_crank_and_random_sweep(tmp_path, capsys):
     """`mechsim bench driven-slider-crank random`: the slider against its exact kinematics,
     and random mechanisms by the hybrid and projection, each error within 100 rtol of its
     reference; the summary compares their work."""
-    from mechsim import bench
+    from mechsim.app import bench
     (row,) = bench.run(["driven-slider-crank"], ["hybrid"], [1e-8], progress=None)
     assert row.status == "success" and row.error < 1e-8 and row.passages == 0
     rows = bench.random_run(count=6, rtol=1e-8, t_end=1.0, progress=None)

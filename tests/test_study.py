@@ -198,7 +198,7 @@ def test_sweep_command_runs_a_study_file(tmp_path, capsys):
     the same draws at each speed); the piston's stroke is 2r in each (at 1500 and 3000 rpm
     the output grid holds both dead centres), and the motor's peak torque grows with
     speed."""
-    from mechsim.cli import main
+    from mechsim.app.cli import main
     study = tmp_path / "study.toml"
     study.write_text(STUDY)
     out = tmp_path / "table.csv"
@@ -232,7 +232,7 @@ def test_sweep_command_runs_a_study_file(tmp_path, capsys):
     (('w = ["2*pi*25", "2*pi*50"]', 'w = ["__import__(\'os\')"]'), "unknown function '__import__'"),
 ])
 def test_bad_study_files_are_refused_before_any_sample(tmp_path, capsys, edit, message):
-    from mechsim.cli import main
+    from mechsim.app.cli import main
     study = tmp_path / "study.toml"
     old, new = edit
     assert old in STUDY

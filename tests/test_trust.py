@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 
 import mechsim as ms
 from mechsim.model.expressions import ExpressionError, parse
-from mechsim.scene import SceneError
+from mechsim.app.scene import SceneError
 
 ROOT = Path(__file__).resolve().parents[1]
 FOUR_BAR = (ROOT / "mechanisms" / "four_bar.toml").read_text()
@@ -80,7 +80,7 @@ def four_bar_with(old, new):
 
 def run_cli(tmp, text):
     """`mechsim run` of a scene in a fresh directory: (exit status, stderr)."""
-    from mechsim.cli import main
+    from mechsim.app.cli import main
     path = tmp / "scene.toml"
     path.write_text(text)
     cwd = os.getcwd()

@@ -20,14 +20,15 @@ from .facade import Mechanism
 
 __version__ = "0.1.0"
 
-_LAZY_MODULES = {"examples", "scene", "solver", "codegen", "formulations", "integrators",
-                 "results", "linear", "bench", "shooting", "engineering", "study",
+_LAZY_MODULES = {"examples", "codegen", "formulations", "integrators", "run", "app",
+                 "results", "linear", "shooting", "engineering", "study",
                  "assembly"}
-_LAZY_NAMES = {"SimulationResult": "results", "load_result": "loading",
-               "load_scene": "scene", "load_mechanism": "scene", "LinearSystem": "linear",
+_LAZY_NAMES = {"SimulationResult": "results", "load_result": "app.loading",
+               "load_scene": "app.scene", "load_mechanism": "app.scene", "LinearSystem": "linear",
                "sweep": "study",
                "Study": "study"}
-_ALIASES = {"rotor": "linear.rotor", "analysis": "linear.analysis",
+_ALIASES = {"solver": "run.solver", "scene": "app.scene", "bench": "app.bench",
+            "rotor": "linear.rotor", "analysis": "linear.analysis",
             "oscillators": "shooting.oscillators"}
 
 

@@ -1,6 +1,6 @@
 """The user's `Mechanism`: the declarative model (`mechsim.model.MechanismModel`) with what
 can be done with it: its numeric problem built (`mechsim.build`), assembled, simulated
-(`mechsim.solver`, or the runs between events of `mechsim.engineering.impacts`), analysed
+(`mechsim.run.solver`, or the runs between events of `mechsim.engineering.impacts`), analysed
 (equilibrium, linearization, kinematics) and driven to a periodic steady state
 (`mechsim.shooting`).
 
@@ -170,7 +170,7 @@ class Mechanism(MechanismModel):
         a `set_speed` after it starts the joint turning from that state. Raises ModelError
         if (q, v) does not satisfy the constraints; adding to the mechanism forgets the
         state."""
-        from .solver import check_initial_state
+        from .run.solver import check_initial_state
         prob = self.problem()
         v = np.zeros(prob.n) if v is None else v
         try:
@@ -206,7 +206,7 @@ class Mechanism(MechanismModel):
         if v is None:
             v = prob.project_velocities(np.asarray(q, float), np.zeros(prob.n), t) \
                 if prob.m else np.zeros(prob.n)
-        from .solver import check_initial_state
+        from .run.solver import check_initial_state
         try:
             q, v = check_initial_state(prob, q, v, t)
         except ValueError as exc:
@@ -231,9 +231,9 @@ class Mechanism(MechanismModel):
 
     # --- simulation --------------------------------------------------------------------------
     def simulate(self, t_end: float, method: str | None = None, **options):
-        """Simulate from the assembled initial state to `t_end`; see `mechsim.solver.simulate`
+        """Simulate from the assembled initial state to `t_end`; see `mechsim.run.solver.simulate`
         for the options. Returns a SimulationResult (partial, with a status, on failure)."""
-        from .solver import check_simulate_arguments, simulate
+        from .run.solver import check_simulate_arguments, simulate
         check_simulate_arguments(len(self.coordinate_names), t_end, method, options)
         self.check_tables(options.get("t_start", 0.0), t_end)
         report = self._assembled or self.assemble(t=options.get("t_start", 0.0))

@@ -100,7 +100,7 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
     `cycle_figures()` answer as for a simulation). Raises KinematicsError where the
     mechanism has degrees of freedom left or the arguments do not describe the samples."""
     from ..results import SimulationResult
-    from ..solver import output_times
+    from ..run.solver import output_times
     started = time.perf_counter()
     problem = mech.problem()
     report = mech.assemble(t=t_start)

@@ -1,13 +1,13 @@
 """Running a mechanism with end stops (`mechsim.model.stops.Stop`) or joints with friction
 (`mechsim.model.friction.Friction`): smooth motion between events, each located in time by
-the run's events (`mechsim.run`). An impact on a stop is resolved by Newton's restitution
+the run's events (`mechsim.run.loop`). An impact on a stop is resolved by Newton's restitution
 law through the constrained mass matrix, and resting contact held by the stop's force,
 which keeps the joint still (`mechsim.problem.friction`: the same model, no other
 mechanism built) while it pushes; a joint with friction sticks or slips as
 `mechsim.engineering.friction` decides. The stop's force is a reaction like any other:
 the joints' forces of a resting mechanism carry what the stop does not.
 
-Such a run is a sequence of runs of `mechsim.solver.simulate`, joined into one result:
+Such a run is a sequence of runs of `mechsim.run.solver.simulate`, joined into one result:
 the samples of the output grid and one at each event (its state before it), the impacts
 in `SimulationResult.impacts` and the energy they took as a work channel "impacts" of the
 energy log, so its balance stays at the solver's accuracy; the friction's switches in
@@ -23,7 +23,7 @@ import numpy as np
 from ..model import ModelError
 from ..records import Status
 from ..problem.friction import BACKWARD, FORWARD, STUCK, FrictionError
-from ..solver import output_times, simulate
+from ..run.solver import output_times, simulate
 from .friction import (MODE_NAMES, FrictionEvents, FrictionSwitch, decide, initial_modes,
                        stop_element, stop_moving)
 from ..problem.geometry import joint_coordinates, joint_gradient, joint_wrench

@@ -1,4 +1,4 @@
-"""The contract between a formulation and the run that integrates it (`mechsim.run.Run`).
+"""The contract between a formulation and the run that integrates it (`mechsim.run.loop.Run`).
 
 A formulation turns a `NumericProblem` into a first-order ODE y' = f(t, y) whose state y may
 be any coordinates (all of q and v, independent ones, …) and says how to get back the full

@@ -300,7 +300,7 @@ class MechanismModel:
         self._assembled = None
 
     def save(self, path):
-        """Write the mechanism as a scene (`mechsim.scene`'s schema; JSON where `path` ends
+        """Write the mechanism as a scene (`mechsim.app.scene`'s schema; JSON where `path` ends
         in .json, else TOML): bodies, joints, drivers, springs, constant forces and torques,
         joint speeds, every number exact; `mechsim.load_mechanism(path)` builds it again. A
         ModelError names what a scene cannot hold (a load given as a function, a beam that

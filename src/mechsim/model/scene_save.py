@@ -1,4 +1,4 @@
-"""A mechanism built in Python written as a scene (`mechsim.scene`'s schema), TOML or JSON:
+"""A mechanism built in Python written as a scene (`mechsim.app.scene`'s schema), TOML or JSON:
 declarative data that `mechsim.load_mechanism` (or `load_scene`) builds again, never pickle.
 
 Every number is written to round-trip exactly. What the schema cannot hold is refused,

@@ -84,7 +84,7 @@ class SimulationResult:
         self._saved_reactions = saved_reactions
         self.settings: dict = {}      # simulate's settings (what `extend` goes on with)
         # How `extend` goes on: continuation(result, t_end, overrides) -> the joined result;
-        # set by the run that made this result (`mechsim.solver.continue_run`, or
+        # set by the run that made this result (`mechsim.run.solver.continue_run`, or
         # `mechsim.engineering.impacts.extend_piecewise` for runs between events) or by
         # `load_result`. None: the result cannot be continued (kinematics, equilibrium).
         self.continuation = None

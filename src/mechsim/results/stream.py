@@ -1,6 +1,6 @@
 """A run's samples streamed to a directory (`simulate(stream=...)`) and read back.
 
-The directory holds samples.bin and work.bin (raw float64 rows, `mechsim.samples.DiskRows`)
+The directory holds samples.bin and work.bin (raw float64 rows, `mechsim.run.samples.DiskRows`)
 and meta.json, which says how to read them: written with status "partial" before the first
 sample and replaced, atomically, when the run ends (`mechsim.files`).
 """

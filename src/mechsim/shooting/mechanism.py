@@ -48,7 +48,7 @@ class MechanismPeriodicProblem(PeriodicProblem):
         return q, reduced.velocities(q, u[f:])
 
     def flow(self, u, samples=200):
-        from ..solver import simulate
+        from ..run.solver import simulate
         q, v = self.initial_state(u)
         # The flow is evaluated many times per Newton iteration: the work of its dampers
         # and drivers is integrated only where the caller asks for it.

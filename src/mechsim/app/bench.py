@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import examples
-from .files import save_figure, written
+from .. import examples
+from ..files import save_figure, written
 
 
 @dataclass(frozen=True)
@@ -160,7 +160,7 @@ def check(problems, methods, repeat=1):
     `VARIANTS` one), or a `repeat` below 1: before any run starts."""
     if int(repeat) < 1:
         raise ValueError(f"`repeat` must be a positive number of runs, got {repeat!r}")
-    from .formulations import METHODS
+    from ..formulations import METHODS
     for method in methods:
         if method not in METHODS and method not in VARIANTS:
             raise ValueError(f"unknown method {method!r}; methods: "
@@ -471,8 +471,8 @@ def shooting_run(cases=COULOMB_CASES, accuracies=DEFAULT_ACCURACIES, repeat=5,
     measured against u*.
     Every run starts on a fresh oscillator (nothing cached), is repeated `repeat` times in
     rounds, and keeps its shortest wall time."""
-    from . import shooting
-    from .shooting.oscillators import CoulombOscillator
+    from .. import shooting
+    from ..shooting.oscillators import CoulombOscillator
     if int(repeat) < 1:
         raise ValueError(f"`repeat` must be a positive number of runs, got {repeat!r}")
     refs = {}

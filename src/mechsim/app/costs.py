@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import examples
+from .. import examples
 
 
 @dataclass(frozen=True)
@@ -40,7 +40,7 @@ def noisy_bridge():
     """The seed's falling four-bar, projection at rtol 1e-9 with its 0.01 s step bound: at
     its third passage the bridge's error estimate is the round-off of q̈, and the best
     declined bridge is taken. On the Python and on the compiled evaluations."""
-    from .codegen import engine
+    from ..codegen import engine
     mech = examples.four_bar()
     run = dict(t_end=2.0, method="projection", rtol=1e-9, atol=1e-11, max_step=0.01,
                output_step=0.002)
@@ -103,7 +103,7 @@ def scipy_integrators():
 def seed_svd():
     """The seed's projection method (an SVD of J̃ at every evaluation) against mechsim's
     (SVDs near the passages only), on the seed's four-bar: SVDs per run."""
-    from .linalg import dense
+    from ..linalg import dense
     calls = []
     svd = dense.svd
 
@@ -132,7 +132,7 @@ def random_work(rtol=1e-8, t_end=2.0):
     """The random mechanisms of the tests (two of each kind, `examples.random_mechanism`
     from the tests' seed): the default method's right-hand sides against the cheapest
     method that followed the motion."""
-    from .formulations import METHODS
+    from ..formulations import METHODS
     rng = np.random.default_rng(20261124)
     rows = []
     for kind in examples.RANDOM_KINDS:
@@ -153,7 +153,7 @@ def random_work(rtol=1e-8, t_end=2.0):
 def heavy_rod():
     """The slider-crank scene with a 1e10 kg rod: the singularity monitor's evaluations of
     σ_min/σ_max (the search inside each step once took its whole budget of 4000)."""
-    from .formulations.monitor import SingularityMonitor
+    from ..formulations.monitor import SingularityMonitor
     from .scene import load_scene
     scene_file = Path(__file__).resolve().parents[2] / "mechanisms" / "slider_crank.toml"
     if not scene_file.is_file():

@@ -6,7 +6,7 @@ integrate the work along it; let the singularity monitor look at it; let the for
 correct the state (in place where the integrator allows, else a restart); cross a singular
 passage ahead with the passage bridge. Its parts:
 
-- `Recorder` (`mechsim.samples`): the output samples, in one array grown in place and handed
+- `Recorder` (`mechsim.run.samples`): the output samples, in one array grown in place and handed
   to the result without a copy (no lists of small arrays),
   with the work of each channel at each sample;
 - `StepBound`: the one bound on the next step (the run's `max_step`, the formulation's
@@ -28,15 +28,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .formulations.bridge import bridge_passage
-from .formulations.full import settle_samples
-from .integrators import AdamsPECE
-from .integrators.adapters import (bound_read_at_start, correct_in_place, proposed_step,
-                                   shift_in_place, warm_start)
-from .results import SimulationResult
-from .records import Status, WorkRecord
-from .results.stream import begin_stream
-from .results.work import WorkIntegral
+from ..formulations.bridge import bridge_passage
+from ..formulations.full import settle_samples
+from ..integrators import AdamsPECE
+from ..integrators.adapters import bound_read_at_start, correct_in_place, proposed_step, shift_in_place, warm_start
+from ..results import SimulationResult
+from ..records import Status, WorkRecord
+from ..results.stream import begin_stream
+from ..results.work import WorkIntegral
 from .runaway import Runaway
 from .samples import FAILURES, Recorder, check_finite, fastest_motion, troubled_drivers
 
@@ -110,7 +109,7 @@ class Statistics:
 
 @dataclass(frozen=True)
 class Settings:
-    """A run's checked settings (`mechsim.solver.check_settings`)."""
+    """A run's checked settings (`mechsim.run.solver.check_settings`)."""
     t_start: float
     t_end: float
     rtol: float
@@ -131,7 +130,7 @@ class Progress:
     once and no bar)."""
 
     def __init__(self, t_start, t_end, title):
-        from .progress import tqdm_bar
+        from ..progress import tqdm_bar
         self.t = t_start
         self.bar = tqdm_bar(total=t_end - t_start, desc=title, unit="s", unit_scale=True,
                             bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g} of "

@@ -1,6 +1,6 @@
 """Runs that cannot end: a motion that speeds up without bound (a driver law with a pole,
 an unstable load) is stopped once the trend of its steps shows it cannot reach t_end
-(`Runaway`, used by `mechsim.run`)."""
+(`Runaway`, used by `mechsim.run.loop`)."""
 
 from __future__ import annotations
 

@@ -55,7 +55,7 @@ same tables in JSON, for files ending in .json)::
 Numbers may be expressions (``+ − * / **``, pi, sin, …, radians, degrees) of the
 parameters, parsed by `mechsim.model.expressions`, never by `eval`: a scene cannot run
 code. Every table and key is checked against one schema (`SCHEMA`; `[simulation]` against
-`mechsim.solver.simulate` and every method) before anything is built or run: an unknown
+`mechsim.run.solver.simulate` and every method) before anything is built or run: an unknown
 key (with the closest valid one), a wrong type, a missing key, an output path leaving the
 output directory or an unknown plot is a `SceneError` naming file, table and key.
 """
@@ -67,11 +67,11 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 
 
-from .facade import Mechanism
-from .model.expressions import FUNCTIONS, ExpressionError, parse
-from .model.forces import TimeLaw
+from ..facade import Mechanism
+from ..model.expressions import FUNCTIONS, ExpressionError, parse
+from ..model.forces import TimeLaw
 from .scene_build import SceneError, body_named, build
-from .options import unknown_names
+from ..options import unknown_names
 
 
 MAX_SCENE_BYTES = 4 * 2 ** 20
@@ -358,7 +358,7 @@ def scene_from(data: dict, path, parameters: dict | None = None, *, run: bool = 
             tables[key].append((where, r.table(raw, schema, where)))
     output = r.table(data.get("output", {}), "output", "[output]")
     if "export" in output:
-        from .results.export import check_format
+        from ..results.export import check_format
         try:
             check_format(output["export"])
         except ValueError as exc:
@@ -422,10 +422,10 @@ def read_toml(path) -> dict:
 
 def _simulation(r, raw, mech) -> dict:
     """The [simulation] table as keyword arguments of `Mechanism.simulate`, each value read
-    by the kind its `Option` declares and checked by `mechsim.solver`'s own checks."""
-    from .formulations import METHODS
-    from .options import Option
-    from .solver import SETTINGS, check_simulate_arguments
+    by the kind its `Option` declares and checked by `mechsim.run.solver`'s own checks."""
+    from ..formulations import METHODS
+    from ..options import Option
+    from ..run.solver import SETTINGS, check_simulate_arguments
 
     where = "[simulation]"
     if "t_end" not in raw:

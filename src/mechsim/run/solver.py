@@ -1,8 +1,8 @@
 """`simulate`: a run's settings checked before any work, its formulation chosen (a fully
-driven mechanism goes to the projection method), and the run (`mechsim.run.Run`) executed.
+driven mechanism goes to the projection method), and the run (`mechsim.run.loop.Run`) executed.
 
 Formulations supply the ODE and the corrections; integrators supply steps and dense output;
-`mechsim.run` owns the loop, the output, the step bounds, the restarts and the status.
+`mechsim.run.loop` owns the loop, the output, the step bounds, the restarts and the status.
 """
 
 from __future__ import annotations
@@ -11,15 +11,15 @@ import math
 
 import numpy as np
 
-from .linalg import sparse
-from .formulations import METHODS, formulation_class
-from .formulations.monitor import SingularityMonitor
-from .integrators import integrator_class
-from .options import Option, check_all, check_memory, unknown_names
-from .problem import NumericProblem
-from .results import SimulationResult, Switch
-from .run import Run, Settings
-from .threads import run_threads
+from ..linalg import sparse
+from ..formulations import METHODS, formulation_class
+from ..formulations.monitor import SingularityMonitor
+from ..integrators import integrator_class
+from ..options import Option, check_all, check_memory, unknown_names
+from ..problem import NumericProblem
+from ..results import SimulationResult, Switch
+from .loop import Run, Settings
+from ..threads import run_threads
 
 
 def output_times(t0: float, t_end: float, output_step: float | None) -> np.ndarray | None:
@@ -212,7 +212,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     res.mechanism = mechanism
     res.continuation = continue_run
     if stream is not None:
-        from .results.stream import finish_stream
+        from ..results.stream import finish_stream
         finish_stream(res, stream)
     return res
 
@@ -220,7 +220,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
 def continue_run(result, t_end: float, overrides: dict):
     """`SimulationResult.extend` of a run made by `simulate`: the run goes on from the
     result's last sample with its settings (and `overrides` of them), joined to it."""
-    from .results.join import join
+    from ..results.join import join
     rest = simulate(result.problem, result.q[-1], result.v[-1], t_start=float(result.t[-1]),
                     t_end=t_end, **{**result.settings, **overrides})
     return join(result, rest)
@@ -281,8 +281,8 @@ def stream_directory(stream):
     if stream is None:
         return None
     from pathlib import Path
-    from .files import STAGING, OutputDirectory, UnsafePathError
-    from .results.stream import STREAM_FILES
+    from ..files import STAGING, OutputDirectory, UnsafePathError
+    from ..results.stream import STREAM_FILES
     try:
         path = Path(stream)
     except TypeError:

@@ -1,4 +1,4 @@
-"""The output samples of a run (`mechsim.run`): recorded into one growing array, checked
+"""The output samples of a run (`mechsim.run.loop`): recorded into one growing array, checked
 finite as they come, and handed to the result without a copy."""
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def troubled_drivers(problem, times) -> str:
 
 def fastest_motion(problem, t, v) -> str:
     """"; fastest: …" naming the coordinate moving fastest in v at t and each driver's rate
-    there: where a run's motion ran away (`mechsim.runaway.Runaway`)."""
+    there: where a run's motion ran away (`mechsim.run.runaway.Runaway`)."""
     k = int(np.argmax(np.abs(v)))
     out = [f"fastest: {problem.coordinate_names[k]} at {v[k]:.3g}/s"]
     for driver, law in problem.driver_laws:

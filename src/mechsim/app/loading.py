@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .results.result import SimulationResult
-from .results.saved import read_saved
-from .results.stream import read_stream
+from ..results.result import SimulationResult
+from ..results.saved import read_saved
+from ..results.stream import read_stream
 from .scene import scene_from
 
 
@@ -38,15 +38,15 @@ def attach_mechanism(result, meta, where) -> None:
     result.mechanism = mech
     result.problem = mech.problem()
     if result.settings:                  # `extend` goes on as the run that made it would
-        from .engineering.impacts import extend_piecewise
-        from .solver import continue_run
+        from ..engineering.impacts import extend_piecewise
+        from ..run.solver import continue_run
         result.continuation = extend_piecewise if "contacts" in result.settings else \
             continue_run
     schedule = meta.get("friction_schedule")
     if schedule and result.problem.friction is not None:      # each piece's stick and slip
         result.problem = result.problem.with_friction(
             result.problem.friction.with_schedule((t, tuple(m)) for t, m in schedule))
-    from .engineering.friction import FrictionSwitch
-    from .engineering.impacts import Impact
+    from ..engineering.friction import FrictionSwitch
+    from ..engineering.impacts import Impact
     result.impacts = [Impact(**i) for i in meta.get("impacts", ())]
     result.friction_switches = [FrictionSwitch(**s) for s in meta.get("friction_switches", ())]

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 
-from . import examples
+from .. import examples
 from .bench import write_csv
 
 

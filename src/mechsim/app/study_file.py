@@ -31,10 +31,10 @@ from pathlib import Path, PurePath
 
 import numpy as np
 
-from .model import ModelError
-from .options import unknown_names
+from ..model import ModelError
+from ..options import unknown_names
 from .scene import SceneError, evaluate, load_scene, read_toml
-from .study import RESERVED
+from ..study import RESERVED
 
 _TOP = {"scene", "samples", "seed", "output", "workers", "vary", "measure"}
 _DISTRIBUTIONS = {"normal": ("mean", "standard deviation"), "uniform": ("low", "high")}
@@ -59,7 +59,7 @@ class StudyFile:
 
     def run(self, client=None, workers=None, progress=False):
         """The study (`mechsim.study.sweep`) of the scene over the grid."""
-        from .study import sweep
+        from ..study import sweep
         return sweep(partial(_scene_mechanism, self.scene), self.grid, analyse=_simulate,
                      measure=partial(_measure, self.measures), client=client,
                      samples=self.samples, seed=self.seed,

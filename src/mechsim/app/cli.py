@@ -13,7 +13,7 @@ import numpy as np
 
 
 def _run(args) -> int:
-    from .model import ModelError
+    from ..model import ModelError
     from .scene import load_scene
 
     t0 = time.perf_counter()
@@ -30,7 +30,7 @@ def _run(args) -> int:
         ("h", args.fixed_step), ("integrator", args.integrator)) if value is not None}
     try:
         if overrides:
-            from .solver import check_simulate_arguments
+            from ..run.solver import check_simulate_arguments
             settings = {**scene.simulation, **overrides}
             check_simulate_arguments(len(mech.coordinate_names), settings.pop("t_end"),
                                      settings.pop("method", None), settings)
@@ -391,7 +391,7 @@ def _bench(args) -> int:
 
 
 def _sweep(args) -> int:
-    from .model import ModelError
+    from ..model import ModelError
     from .study_file import load_study, summary, write_table
 
     try:
@@ -436,7 +436,7 @@ def _sweep(args) -> int:
 
 
 def main(argv=None) -> int:
-    from . import __version__
+    from .. import __version__
     parser = argparse.ArgumentParser(prog="mechsim", description="Planar mechanism simulator")
     parser.add_argument("--version", action="version", version=f"mechsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)

@@ -1,4 +1,4 @@
-"""Building a scene's mechanism from its checked tables (`mechsim.scene`): bodies from
+"""Building a scene's mechanism from its checked tables (`mechsim.app.scene`): bodies from
 their shapes, joints, drivers, gears, loads, speeds and channels, each error re-raised
 naming the table it came from."""
 
@@ -8,11 +8,10 @@ import math
 
 import numpy as np
 
-from .facade import Mechanism
-from .model import (Channel, Driver, FlexibleBeam, Force, Friction, Gear, ModelError, PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring,
-                    Spring, Stop, Torque)
-from .model.channels import channel_names
-from .model.expressions import parse
+from ..facade import Mechanism
+from ..model import Channel, Driver, FlexibleBeam, Force, Friction, Gear, ModelError, PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring, Spring, Stop, Torque
+from ..model.channels import channel_names
+from ..model.expressions import parse
 
 
 class SceneError(ModelError):

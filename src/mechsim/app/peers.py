@@ -11,7 +11,7 @@ precision beside mechsim's, each peer modelled as its own documentation recommen
   0.8) at fixed steps.
 
 Each run traces one body point, sampled every `output_step`; its error is measured as the
-bench measures mechsim's (`mechsim.bench.Problem.point_error`). Times are the integration
+bench measures mechsim's (`mechsim.app.bench.Problem.point_error`). Times are the integration
 alone (model building excluded for all three tools).
 """
 
@@ -188,7 +188,7 @@ STEPS = {"mujoco implicitfast": (1e-2, 2e-3, 1e-3, 2e-4, 1e-4),
 
 def run(problems, repeat: int = 1, steps=None) -> list[PeerRow]:
     """Rows of every peer at every step of `steps` (default `STEPS`) on each problem of
-    `mechsim.bench.PROBLEMS` named, each run's shortest wall time of `repeat`."""
+    `mechsim.app.bench.PROBLEMS` named, each run's shortest wall time of `repeat`."""
     from .bench import PROBLEMS
     rows = []
     for name in problems:
@@ -238,8 +238,8 @@ def write(mechsim_rows, rows: list[PeerRow], out_dir) -> list:
     from pathlib import Path
 
     from .bench import write_csv
-    from .files import save_figure
-    from .results.plots import new_figure
+    from ..files import save_figure
+    from ..results.plots import new_figure
     out_dir = Path(out_dir)
     written = [write_csv(rows, out_dir / "peers.csv",
                          ["problem", "tool", "step", "error", "wall_time"])]

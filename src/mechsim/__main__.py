@@ -1,0 +1,6 @@
+"""`python -m mechsim ...`: the `mechsim` command."""
+import sys
+
+from .app.cli import main
+
+sys.exit(main())
