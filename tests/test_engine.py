@@ -27,7 +27,7 @@ def _pair(result, rtol=1e-9):
         y = f.initial_state(t, q, v)
         if not compiled:
             f.engine = None
-        f.after_step(t, y)
+        f.after_step(t, y, 0.0)
         pair.append(f)
     return pair, t, y
 

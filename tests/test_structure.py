@@ -12,7 +12,8 @@ ROOT = pathlib.Path(mechsim.__file__).parent
 # Bottom first. A part may import the parts of the layers below its own, never its own
 # layer's other parts nor a layer above.
 LAYERS = [
-    {"records", "files", "options", "progress", "threads", "linalg", "integrators", "fem",
+    {"records", "tolerances", "files", "options", "progress", "threads", "linalg",
+     "integrators", "fem",
      "kinematics"},
     {"codegen"},
     {"flexible"},

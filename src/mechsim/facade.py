@@ -233,15 +233,15 @@ class Mechanism(MechanismModel):
     def simulate(self, t_end: float, method: str | None = None, **options):
         """Simulate from the assembled initial state to `t_end`; see `mechsim.run.solver.simulate`
         for the options. Returns a SimulationResult (partial, with a status, on failure)."""
-        from .run.solver import check_simulate_arguments, simulate
-        check_simulate_arguments(len(self.coordinate_names), t_end, method, options)
-        self.check_tables(options.get("t_start", 0.0), t_end)
-        report = self._assembled or self.assemble(t=options.get("t_start", 0.0))
+        from .run.solver import check_simulate_arguments, run
+        config = check_simulate_arguments(len(self.coordinate_names), t_end, method, options)
+        self.check_tables(config.t_start, config.t_end)
+        report = self._assembled or self.assemble(t=config.t_start)
         if self.stops or self.frictions:
             from .engineering.impacts import simulate_with_stops
             return simulate_with_stops(self, report, t_end, method, **options)
-        return simulate(self.problem(), report.q, report.v, t_end=t_end, method=method,
-                        mechanism=self, **options)
+        return run(self.problem(), report.q, report.v, config, stream=options.get("stream"),
+                   mechanism=self)
 
     def steady_state(self, period: float, guess=None, method: str = "newton",
                      tol: float = 1e-8, max_iter: int = 30, t0: float = 0.0,

@@ -8,10 +8,34 @@ calls the formulation as the `Formulation` docstring below says, and uses nothin
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..options import check_all, unknown_names
 from ..problem import NumericProblem
+from ..tolerances import Tolerances
+
+
+@dataclass(frozen=True)
+class Correction:
+    """What a formulation's `after_step` did after an accepted step.
+
+    y : the state the run goes on from, or None (the integrator's own)
+    layout_changed : y means other coordinates (a new partition, a switch of formulation):
+        the run restarts the integrator there
+    shifted : y is the integrator's state shifted by a constant (another reference): the
+        integrator takes it in place where it can
+    step_limit : the largest next step the formulation can take safely, or None
+    (A y with neither flag keeps its meaning, a projection: into the integrator in place
+    where it allows.)"""
+    y: np.ndarray | None = None
+    layout_changed: bool = False
+    shifted: bool = False
+    step_limit: float | None = None
+
+
+KEEP = Correction()          # nothing corrected, no limit
 
 
 class Formulation:
@@ -53,23 +77,24 @@ class Formulation:
     states(ts, Y) -> (Q, V) : the same for the output samples inside a step (rows)
     keeps_branch(t, y) -> bool : the step just taken stayed on its assembly branch (else
         one that resolves passages gets it again, shorter)
-    after_step(t, y) -> corrected y or None : after each accepted step. A correction that
-        keeps the meaning of y (a projection) goes into the running integrator in place
-        where it allows; one that changes it (a new partition, a switch) sets
-        `layout_changed` (the run restarts the integrator); a constant shift of y (another
-        reference) sets `shifted`.
+    after_step(t, y, step) -> Correction : after each accepted step of length `step` (or a
+        bridge's crossing) to (t, y): the state to go on from, what it means, and the
+        largest next step (see `Correction`). The run applies it; the formulation writes
+        nothing the run reads back.
     derivative(t, q, v) -> y' : `rhs` at the y of a consistent (q, v), re-expressing a
         multistep history after a restart (NotImplementedError: history not carried over)
     resume(t, q, v) -> y : the state of (q, v) in the present layout (after a bridge)
     project_now : None or (t, y) -> projected y or None: projection inside an integrator's
         step where it can (Adams: P E C, project, E)
 
-    Exchanged as attributes
-    -----------------------
-    monitor, last_step : set by the run: its `SingularityMonitor` (before `initial_state`),
-        the size of the step just accepted (before `after_step`); the rest by the formulation
-    layout_changed, shifted : see `after_step`
-    step_limit : the largest next step it can take safely, or None
+    Given at construction
+    ---------------------
+    problem, rtol, atol, monitor : the `NumericProblem`, the run's tolerances (`tol`, a
+        `Tolerances`, derives the others from them) and its `SingularityMonitor` (None:
+        unwatched, as where a formulation serves alone)
+
+    Read by the run (the formulation's own state; the run never writes them)
+    -------------------------------------------------------------------------
     bridge, bridging : a `PassageBridge` that crosses singular passages in one step (else
         None), and whether the run may use it at the present step
     failure : what went wrong last, for the message of a failed run
@@ -81,12 +106,7 @@ class Formulation:
     options: dict = {}
     needs_freedom = False
     resolves_passages = False
-    monitor = None
-    last_step = 0.0
     failure = ""
-    layout_changed = False
-    shifted = False
-    step_limit = None
     bridge = None
     bridging = False
     project_now = None
@@ -108,12 +128,15 @@ class Formulation:
         """The state y for a consistent (q, v) at t in the present layout (after a bridge)."""
         return self.initial_state(t, q, v)
 
-    def __init__(self, problem: NumericProblem, rtol: float, atol: float, **options):
+    def __init__(self, problem: NumericProblem, rtol: float, atol: float, monitor=None,
+                 **options):
         message = unknown_names(options, self.options, f"method {self.name!r}")
         if message:
             raise ValueError(message)
         self.problem = problem
         self.rtol, self.atol = rtol, atol
+        self.tol = Tolerances(rtol, atol)       # and every tolerance derived from them
+        self.monitor = monitor
         for key, value in check_all(self.options, options, f"method {self.name!r}").items():
             setattr(self, key, value)
         self.switches: list = []
@@ -150,8 +173,8 @@ class Formulation:
         solve overrides it to solve for all at once."""
         return np.array([self.state(t, y)[0] for t, y in zip(ts, Y)])
 
-    def after_step(self, t: float, y: np.ndarray) -> np.ndarray | None:
-        return None
+    def after_step(self, t: float, y: np.ndarray, step: float) -> Correction:
+        return KEEP
 
     def keeps_branch(self, t: float, y: np.ndarray) -> bool:
         """Whether the step just taken to (t, y) stayed on the assembly branch, as far as

@@ -43,6 +43,7 @@ import numpy as np
 
 from ..integrators.adams import error_norm, integration_weights, step_weights
 from ..integrators.adapters import proposed_step
+from ..tolerances import Tolerances
 
 # The band's edge, in multiples of the truncation cut (σ_min/σ_max = rcond).
 EDGE = 3.0
@@ -92,6 +93,7 @@ class PassageBridge:
         self.engine = engine
         self._cut = cut
         self.rtol, self.atol = rtol, atol
+        self.tol = Tolerances(rtol, atol)
         self.order = order
         self.free_step = None                   # step size before the approach
         self.landing = None                     # distance d before t* while approaching
@@ -185,6 +187,7 @@ class PassageBridge:
         the run's tolerances; None if that integration fails."""
         from scipy.integrate import solve_ivp
         n = self.problem.n
+        inner = self.tol.inner()
         budget = [HISTORY_BUDGET * len(ts)]
 
         def f(t, y):
@@ -195,8 +198,7 @@ class PassageBridge:
 
         try:
             sol = solve_ivp(f, (t_n, ts[-1]), np.concatenate([q_n, v_n]), method="DOP853",
-                            t_eval=ts, rtol=max(1e-13, 1e-2 * self.rtol),
-                            atol=1e-2 * self.atol)
+                            t_eval=ts, rtol=inner.rtol, atol=inner.atol)
         except _OverBudget:
             return None
         if sol.status != 0:

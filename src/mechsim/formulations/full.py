@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..options import Option
-from .base import Formulation
+from .base import Correction, Formulation
 from .basis import ConstraintSolveError
 
 # An output sample is projected onto the constraints where it leaves them by more than this
@@ -28,9 +28,7 @@ class FullCoordinates(Formulation):
     def __init__(self, problem, rtol, atol, **options):
         super().__init__(problem, rtol, atol, **options)
         if self.projection_tol is None:
-            # One step's own error is of order rtol; a threshold below it would restart the
-            # integrator after every step (multistep methods then never leave their start-up).
-            self.projection_tol = max(10.0 * rtol, 100.0 * atol)
+            self.projection_tol = self.tol.manifold
         self.n = problem.n
 
     def initial_state(self, t, q, v):
@@ -62,8 +60,8 @@ class FullCoordinates(Formulation):
         self.problem.counters.rhs += 1
         return self.derivative(t, y[:self.n], y[self.n:])
 
-    def after_step(self, t, y):
-        return self.project_now(t, y)
+    def after_step(self, t, y, step):
+        return Correction(self.project_now(t, y))
 
     def project_now(self, t, y):
         """The state projected onto the constraints (mass metric) where ‖Φ‖∞ exceeds

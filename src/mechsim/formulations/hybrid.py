@@ -15,12 +15,101 @@ reason.
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass, field
+
 from ..options import Option
 from ..records import Switch
-from .base import Formulation
+from .base import Correction, Formulation
 from .basis import SPARSE_MIN
 from .partitioned import Partitioned
 from .projection import Projection
+
+
+@dataclass
+class SwitchPolicy:
+    """When the hybrid method leaves LU partitioning for the projection method and when it
+    comes back (seed 001, section 3), from what the singularity monitor reads after each
+    accepted step. It decides; `Hybrid` switches. Each decision is a reason (the text of
+    the `Switch` record) or None.
+
+    stable_steps : projection steps clear of the band, not shrinking, with LU ready, before
+        going back to LU
+    repartition_burst, burst_steps : LU re-partitions within that many steps that send the
+        run to projection (the paper's symptom of a passage)
+    """
+    stable_steps: int = 5
+    repartition_burst: int = 3
+    burst_steps: int = 10
+    steps: int = 0                  # accepted steps seen
+    stable: int = 0                 # consecutive projection steps fit for LU
+    held: int = 0                   # consecutive LU steps held by the limit
+    limit: float | None = None      # the limit LU's last step was taken under
+    previous: float = 0.0           # the last projection step's length
+    recent: list[int] = field(default_factory=list)    # steps at which LU re-partitioned
+
+    def switched(self) -> None:
+        """A switch happened: every count starts again."""
+        self.stable, self.limit, self.held = 0, None, 0
+        self.recent.clear()
+
+    def lu_limit(self, mon) -> float | None:
+        """The largest next LU step: LU may not stride across a singular configuration, so
+        the next step may only reach half the linearly predicted entry into the band (σ
+        falls faster than its tangent when the motion accelerates into the singularity, as
+        the seed's falling four-bar does), where the manager switches; None where σ is not
+        falling towards the band."""
+        if mon is None or not mon.rate < 0.0:
+            return None
+        s = mon.last
+        if not s > mon.enter:
+            return None
+        return max(0.5 * (s - mon.enter) / -mon.rate, 1e-6)
+
+    def leave_lu(self, mon, step: float, limit: float | None) -> str | None:
+        """Why LU, having taken a step of length `step`, hands over to projection now.
+        Each step held by the limit covers half the rest of the way to the entry, so an
+        integrator whose steps are short anyway (Adams) would creep up to it in steps
+        halving down to the limit's floor (40 steps a passage on the double four-bar):
+        after two held steps it switches."""
+        held = self.limit is not None and step >= 0.99 * self.limit
+        self.held = self.held + 1 if held else 0
+        self.limit = limit
+        if not mon or not (mon.predicted_within(step) or self.held >= 2):
+            return None
+        s = mon.last
+        if mon.inside:
+            return (f"σ_min/σ_max at {s:.3g} of its peak (< {mon.enter:g}): near a "
+                    f"singular configuration (joints {', '.join(mon.open_passage.joints)})")
+        return (f"σ_min/σ_max at {s:.3g} of its peak, falling {-mon.rate:.3g}/s: "
+                "a singular configuration ahead")
+
+    def repartitioned(self) -> str | None:
+        """LU chose a new partition at this step: why that sends the run to projection."""
+        self.recent = [k for k in self.recent if self.steps - k < self.burst_steps]
+        self.recent.append(self.steps)
+        if len(self.recent) >= self.repartition_burst:
+            return (f"independent set changed {len(self.recent)} times in "
+                    f"{self.burst_steps} steps")
+        return None
+
+    def back_to_lu(self, mon, step: float, lu_ready) -> str | None:
+        """Why projection, having taken a step of length `step`, hands back to LU now:
+        `stable_steps` steps in a row with σ above `leave` and not predicted to fall into
+        the band within a step, steps not shrinking, and `lu_ready()` (LU's partition well
+        conditioned there)."""
+        growing = step >= 0.99 * self.previous
+        self.previous = step
+        clear = not mon or (mon.last > mon.leave and not mon.predicted_within(step))
+        if clear and growing and lu_ready():
+            self.stable += 1
+        else:
+            self.stable = 0
+        if self.stable < self.stable_steps:
+            return None
+        s = mon.last if mon else 1.0
+        return (f"{self.stable} stable steps clear of the singularity "
+                f"(σ_min/σ_max at {s:.3g} of its peak)")
 
 
 class Hybrid(Formulation):
@@ -34,21 +123,18 @@ class Hybrid(Formulation):
 
     def __init__(self, problem, rtol, atol, **options):
         super().__init__(problem, rtol, atol, **options)
-        self.lu = Partitioned(problem, rtol, atol)
-        self.proj = Projection(problem, rtol, atol)
+        self.lu = Partitioned(problem, rtol, atol, monitor=self.monitor)
+        self.proj = Projection(problem, rtol, atol, monitor=self.monitor)
         self.active = self.lu
         self.sign_changes = self.lu.sign_changes
         self.bridge = self.proj.bridge
-        self._stable = 0
-        self._recent: list[int] = []      # steps at which LU re-partitioned
-        self._step = 0
-        self._limit = None                # the step limit LU's last step was taken under
-        self._held = 0                    # consecutive LU steps held by that limit
+        self.policy = SwitchPolicy(self.stable_steps, self.repartition_burst,
+                                   self.burst_steps)
         # The compiled condition of LU's block (`_lu_ready`) where the block is dense.
         self.engine = self.proj.engine if problem.m < SPARSE_MIN else None
 
     def initial_state(self, t, q, v):
-        self.proj.monitor = mon = self.monitor
+        mon = self.monitor
         reason = None
         if mon is not None and mon.redundant:
             # Redundant constraints: a partition's dependent block is not square, so LU
@@ -127,70 +213,34 @@ class Hybrid(Formulation):
         basis = self.lu.choose(J)
         return basis.r == J.shape[0] and basis.block(J).condition() < 0.1 * self.lu.cond_max
 
-    def _switch(self, t, y, to, reason):
+    def _switch(self, t, y, to, reason, step_limit=None) -> Correction:
         q, v = self.active.state(t, y)
         name_from = self.active.name
         self.active = to
-        self._stable = 0
-        self._limit, self._held = None, 0
-        self._recent.clear()
+        self.policy.switched()
         self.switches.append(Switch(t, name_from, to.name, reason))
         self.problem.counters.switches += 1
-        self.layout_changed = True
-        return to.initial_state(t, q, v)
+        return Correction(to.initial_state(t, q, v), layout_changed=True,
+                          step_limit=step_limit)
 
-    def after_step(self, t, y):
-        # The projection formulation reads these as the manager's own formulation would.
-        proj = self.proj
-        proj.monitor, proj.last_step = self.monitor, self.last_step
-        self._step += 1
-        self.layout_changed = self.shifted = False
-        self.step_limit = None
-        mon = self.monitor
-        s = mon.last if mon else 1.0
-        if self.active is self.lu and mon and mon.rate < 0.0 and s > mon.enter:
-            # Do not let LU stride across a singular configuration: the next step may only
-            # reach the predicted entry into the band, where the manager switches.
-            # Half the linear prediction: s falls faster than its tangent when the motion
-            # accelerates into the singularity (the seed's falling four-bar does).
-            self.step_limit = max(0.5 * (s - mon.enter) / -mon.rate, 1e-6)
+    def after_step(self, t, y, step):
+        policy, mon = self.policy, self.monitor
+        policy.steps += 1
         if self.active is self.lu:
-            # Each step held by the limit covers half the rest of the way to the entry, so
-            # an integrator whose steps are short anyway (Adams) would creep up to it in
-            # steps halving down to the limit's floor, and then climb back from there (40
-            # steps a passage on the double four-bar): after two held steps it switches.
-            held = self._limit is not None and self.last_step >= 0.99 * self._limit
-            self._held = self._held + 1 if held else 0
-            self._limit = self.step_limit
-            if mon and (mon.predicted_within(self.last_step) or self._held >= 2):
-                if mon.inside:
-                    why = (f"σ_min/σ_max at {s:.3g} of its peak (< {mon.enter:g}): near a "
-                           f"singular configuration (joints {', '.join(mon.open_passage.joints)})")
-                else:
-                    why = (f"σ_min/σ_max at {s:.3g} of its peak, falling {-mon.rate:.3g}/s: "
-                           "a singular configuration ahead")
-                return self._switch(t, y, self.proj, why)
-            out = self.lu.after_step(t, y)
-            self.layout_changed, self.shifted = self.lu.layout_changed, self.lu.shifted
-            if out is not None and self.lu.layout_changed:
-                self._recent = [k for k in self._recent if self._step - k < self.burst_steps]
-                self._recent.append(self._step)
-                if len(self._recent) >= self.repartition_burst:
-                    return self._switch(t, out, self.proj,
-                                        f"independent set changed {len(self._recent)} times in "
-                                        f"{self.burst_steps} steps")
-            return out
-        out = self.proj.after_step(t, y)
-        q, _ = self.proj.state(t, y if out is None else out)
-        growing = self.last_step >= 0.99 * getattr(self, "_prev_step", 0.0)
-        self._prev_step = self.last_step
-        clear = not mon or (s > mon.leave and not mon.predicted_within(self.last_step))
-        if clear and growing and self._lu_ready(q, t):
-            self._stable += 1
-        else:
-            self._stable = 0
-        if self._stable >= self.stable_steps:
-            return self._switch(t, y if out is None else out, self.lu,
-                                f"{self._stable} stable steps clear of the singularity "
-                                f"(σ_min/σ_max at {s:.3g} of its peak)")
+            limit = policy.lu_limit(mon)
+            why = policy.leave_lu(mon, step, limit)
+            if why:
+                return self._switch(t, y, self.proj, why, limit)
+            out = self.lu.after_step(t, y, step)
+            if out.layout_changed:
+                why = policy.repartitioned()
+                if why:
+                    return self._switch(t, out.y, self.proj, why, limit)
+            return dataclasses.replace(out, step_limit=limit)
+        out = self.proj.after_step(t, y, step)
+        y_here = y if out.y is None else out.y
+        why = policy.back_to_lu(mon, step,
+                                lambda: self._lu_ready(self.proj.state(t, y_here)[0], t))
+        if why:
+            return self._switch(t, y_here, self.lu, why)
         return out

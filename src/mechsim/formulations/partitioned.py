@@ -35,7 +35,7 @@ import scipy.linalg as sla
 from ..linalg import dense, sparse
 from ..linalg.newton import CHORD_CONTRACTION, newton
 from ..options import Option
-from .base import Formulation
+from .base import KEEP, Correction, Formulation
 from .basis import ConstraintSolveError, CoordinateBasis, MatrixBasis
 
 
@@ -84,7 +84,7 @@ class Partitioned(Formulation):
     def __init__(self, problem, rtol, atol, **options):
         super().__init__(problem, rtol, atol, **options)
         if self.newton_tol is None:
-            self.newton_tol = 1e-2 * atol
+            self.newton_tol = self.tol.newton
         # Below ROUND_OFF, ‖Φ‖ may reach the round-off of the coordinates before the
         # tolerance: Newton then stops where it stalls under ROUND_OFF (`mechsim.linalg.newton`).
         # Above it, a chord that contracts slowly has a stale factor, not round-off, and
@@ -421,9 +421,8 @@ class Partitioned(Formulation):
             return True                         # the integrator's own failure handling
         return self._end_sign in (0, self._sign)
 
-    def after_step(self, t, y):
+    def after_step(self, t, y, step):
         q, v, J, n_fresh, block = self._block_at(t, y)
-        self.layout_changed = self.shifted = False
         bs = self.basis
         # det(Φ_q D) keeps its sign while the motion stays on its branch with this
         # partition: the two assembly branches at the same independent coordinates lie on
@@ -431,15 +430,14 @@ class Partitioned(Formulation):
         # crossed a singular configuration, or Newton landed on the other branch.
         sign = block.sign() if self._square else 0
         if sign and self._sign and sign != self._sign:
-            self.sign_changes.append((t - self.last_step, t))
+            self.sign_changes.append((t - step, t))
         self._sign = sign or self._sign
         condition = block.condition()
         if n_fresh >= 2 or condition > self._repartition_at:
             before = self.independent
             basis = self.choose(J)
             if self.moving_basis or self.independent != before:
-                self.layout_changed = True
-                return self.partition(t, q, v, basis)
+                return Correction(self.partition(t, q, v, basis), layout_changed=True)
             # The pivoting keeps this set: it is as good as any, so keep it until its
             # condition grows as much again.
             self._repartition_at = self._threshold(condition)
@@ -455,10 +453,9 @@ class Partitioned(Formulation):
             self._accept(t, np.zeros(bs.f), zd, bs.Dt(q - self.q_ref), bs.Dt(v), J,
                          block=block)
             self._cache = None
-            self.shifted = True
-            return np.concatenate([np.zeros(bs.f), zd])
+            return Correction(np.concatenate([np.zeros(bs.f), zd]), shifted=True)
         self._accept(t, z, zd, bs.Dt(q - self.q_ref), bs.Dt(v), J, block=block)
-        return None
+        return KEEP
 
 
 class SSNewmark(Partitioned):

@@ -37,6 +37,8 @@ from ..linalg import dense, sparse
 from ..linalg.newton import newton
 from .bridge import PassageBridge
 from ..options import Option
+from ..tolerances import Tolerances
+from .base import Correction
 from .full import FullCoordinates
 
 # Singular values below this multiple of the truncation cut join the crossing cluster.
@@ -65,11 +67,9 @@ class Projection(FullCoordinates):
 
     def __init__(self, problem, rtol, atol, **options):
         if options.get("projection_tol") is None:
-            # Near a singular configuration any inconsistency of (q, v) enters γ and is
-            # amplified by 1/σ_min in J̃⁺γ: keep the state on the manifold to round-off.
             # (The integrators keep ‖Φ‖ that small on their own most of the time, and they
             # take the projected state in place, without a restart.)
-            options["projection_tol"] = max(1e-13, 1e-3 * atol)
+            options["projection_tol"] = Tolerances(rtol, atol).tight_manifold
         super().__init__(problem, rtol, atol, **options)
         self._redundant = 0          # singular values found to stay at zero (redundancy)
         self.engine = self._compiled_engine()
@@ -235,7 +235,7 @@ class Projection(FullCoordinates):
             self.bridging = False
         return super().initial_state(t, q, v)
 
-    def _far_from_band(self):
+    def _far_from_band(self, step):
         """Will every evaluation of the next step find J̃ clear of the truncation cut? So
         the monitor says after this step: σ_min/σ_max above its `leave` threshold, not
         predicted to fall under `enter` within three steps like this one, and the
@@ -245,7 +245,7 @@ class Projection(FullCoordinates):
         mon = self.monitor
         return (mon is not None and self._cholesky
                 and mon.last >= mon.leave and mon.leave * mon.peak > 100.0 * self.cut
-                and not mon.predicted_within(3.0 * self.last_step))
+                and not mon.predicted_within(3.0 * step))
 
     def rhs(self, t, y):
         """[v; q̈], in one compiled call where it takes the evaluation."""
@@ -382,14 +382,14 @@ class Projection(FullCoordinates):
             x = x + W @ (W.T @ (f.unright(mean) - x))
         return x
 
-    def after_step(self, t, y):
+    def after_step(self, t, y, step):
         """Project an accepted state back onto the constraints (FullCoordinates) with one
         factor of Φ_q M⁻¹ Φ_qᵀ for positions and velocities (`NumericProblem.project_state`)
         where J̃ is clear of the band: the dense Cholesky factor, or the banded one of a
         long chain. On the double four-bar one Jacobian and one factorisation per
         projection instead of four of each."""
-        self._far = self._far_from_band()
-        return self.project_now(t, y)
+        self._far = self._far_from_band(step)
+        return Correction(self.project_now(t, y))
 
     def project_now(self, t, y):
         prob, n = self.problem, self.n

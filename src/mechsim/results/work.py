@@ -22,11 +22,6 @@ from numpy.polynomial import chebyshev as cheb
 # resolved again: no stretch of steps costs more than 9 evaluations each.
 POINTS = 9
 MAX_HALVINGS = 3
-# The resolution asked of each piece: a tenth of rtol of the run's peak power (or of the
-# mechanism's energy spread over the run, where that is larger: a run starting at rest),
-# but not below what the power's round-off allows.
-SHARE = 0.1
-FLOOR = 1e-13
 
 _NODES = cheb.chebpts1(POINTS)            # on [−1, 1]
 _TO_COEFFICIENTS = np.linalg.inv(cheb.chebvander(_NODES, POINTS - 1))
@@ -46,10 +41,13 @@ class WorkIntegral:
     be evaluated stops the integral: `failure` says where, and later samples have none.
     """
 
-    def __init__(self, channels, rates, rtol: float, energy: float, span: float):
+    def __init__(self, channels, rates, tolerance: float, energy: float, span: float):
+        """`tolerance`: the resolution asked of each piece, relative to the run's peak
+        power (or to the mechanism's energy spread over the run, where that is larger: a
+        run starting at rest); `Tolerances.work`."""
         self.channels = list(channels)
         self.rates = rates
-        self.tolerance = max(SHARE * rtol, FLOOR)
+        self.tolerance = tolerance
         self.total = np.zeros(len(self.channels))
         self.energy, self.span = energy, span
         self.peak = 0.0                 # the largest |power| seen

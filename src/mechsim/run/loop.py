@@ -64,8 +64,8 @@ class StepBound:
         self.max_step = max_step
         self._started_with = max_step if read_at_start else None
 
-    def after_step(self, solver, form) -> None:
-        limit = form.step_limit
+    def after_step(self, solver, limit: float | None) -> None:
+        """Bound the next step by the run's max_step and the formulation's `limit`."""
         solver.max_step = self.max_step if limit is None else min(self.max_step, limit)
 
     def land(self, solver, reach: float) -> None:
@@ -109,7 +109,8 @@ class Statistics:
 
 @dataclass(frozen=True)
 class Settings:
-    """A run's checked settings (`mechsim.run.solver.check_settings`)."""
+    """What the loop reads of a run's settings (`mechsim.run.solver.RunConfig`), with the
+    output grid, the stream's directory and the events resolved."""
     t_start: float
     t_end: float
     rtol: float
@@ -167,7 +168,7 @@ class Run:
         if channels:
             energy = (problem.kinetic_energy(q0, v0) + abs(problem.potential_energy(q0))
                       + problem.strain_energy(q0))
-            self.work = WorkIntegral(channels, problem.work_rates, settings.rtol,
+            self.work = WorkIntegral(channels, problem.work_rates, form.tol.work,
                                      float(energy), settings.t_end - settings.t_start)
         self.out = Recorder(problem, settings.ts, channels, settings.stream)
         if settings.stream is not None:
@@ -331,10 +332,9 @@ class Run:
         self.monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
                              t_old=t_old, positions_at=lambda ts: form.positions(
                                  ts, np.atleast_2d(dense(ts).T)))
-        form.last_step = t_new - t_old
-        form.layout_changed = False
-        corrected = form.after_step(t_new, y_new)
-        self.bound.after_step(solver, form)
+        correction = form.after_step(t_new, y_new, t_new - t_old)
+        self.bound.after_step(solver, correction.step_limit)
+        corrected = correction.y
         y_here = y_new if corrected is None else corrected
         self.t_reached = t_new
         if self.keep_past:
@@ -342,16 +342,16 @@ class Run:
         if due:
             out.record_due(t_new, *form.state(t_new, y_here))
         if corrected is not None and solver.status == "running":
-            self._correct(t_new, y_new, corrected)
+            self._correct(t_new, y_new, correction)
         return y_here
 
-    def _correct(self, t, y, corrected) -> None:
+    def _correct(self, t, y, correction) -> None:
         """Put the formulation's correction into the integrator: in place where it can
         take it (a projection, a constant shift), else by a restart there."""
-        form, solver = self.form, self.solver
-        if form.shifted and shift_in_place(solver, corrected - y):
+        form, solver, corrected = self.form, self.solver, correction.y
+        if correction.shifted and shift_in_place(solver, corrected - y):
             self.stats.corrections += 1
-        elif not form.layout_changed and not form.shifted and \
+        elif not correction.layout_changed and not correction.shifted and \
                 correct_in_place(solver, corrected):
             self.stats.corrections += 1
         else:
@@ -385,8 +385,7 @@ class Run:
         self.monitor.crossed(t, t_b, t_star, interp(t_star)[:n])
         self.monitor.observe(t_b, q_b, v_b)
         y_b = form.resume(t_b, q_b, v_b)
-        form.last_step = t_b - t
-        after = form.after_step(t_b, y_b)
+        after = form.after_step(t_b, y_b, t_b - t).y
         y_b = y_b if after is None else after
         self.t_reached = t_b
         old = self._replace(t_b, y_b, proposed_step(solver))
@@ -432,7 +431,7 @@ class Run:
     def _bridge_samples(self, tk, Y):
         """A bridge's output samples, onto the constraints as the steps' are."""
         Q, V = _split(np.array(Y), self.problem.n)
-        settle_samples(self.problem, tk, Q, V, max(10.0 * self.s.rtol, 100.0 * self.s.atol))
+        settle_samples(self.problem, tk, Q, V, self.form.tol.manifold)
         return Q, V
 
     def _add_work(self, a, b, states, recorded, more) -> None:

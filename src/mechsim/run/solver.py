@@ -8,6 +8,7 @@ Formulations supply the ODE and the corrections; integrators supply steps and de
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from ..problem import NumericProblem
 from ..results import SimulationResult, Switch
 from .loop import Run, Settings
 from ..threads import run_threads
+from ..tolerances import Tolerances
 
 
 def output_times(t0: float, t_end: float, output_step: float | None) -> np.ndarray | None:
@@ -52,45 +54,89 @@ SETTINGS = {
 }
 
 
-def check_settings(n, t_end, method, integrator, settings: dict, options: dict,
-                   streamed: bool = False):
-    """The formulation class, the integrator class and every setting of a run of a problem
-    with `n` coordinates checked, before any work: a ValueError names the argument and
-    says what is wrong (an unknown name gets the closest valid one, or the methods that
-    take it). `streamed`: the samples go to disk, only the output grid's times stay in
-    memory. Returns (formulation class, integrator class, t_end, settings)."""
-    cls = formulation_class(method)
-    valid = {**SETTINGS, **cls.options, "t_end": None, "method": None, "integrator": None,
-             "stream": None}
-    message = unknown_names(options, valid, f"simulate (method {cls.name!r})")
-    if message:
-        elsewhere = {name: [m for m, c in METHODS.items() if name in c.options]
-                     for name in options if name not in valid}
-        message += "".join(f"; {name!r} is an option of method(s) {', '.join(ms)}"
-                           for name, ms in elsewhere.items() if ms)
-        raise ValueError(message)
-    checked = check_all(SETTINGS, settings)
-    for name, value in options.items():
-        cls.options[name].check(value, name, f"method {cls.name!r}")
-    t0 = checked["t_start"]
-    t_end = Option.real(None).check(t_end, "t_end")
-    if not t_end > t0:
-        raise ValueError(f"`t_end` must be after t_start = {t0}, got {t_end!r}")
-    solver_cls = integrator_class(integrator or cls.default_integrator)
-    if checked["h"] is None and getattr(solver_cls, "fixed_step", False):
-        raise ValueError(f"method {cls.name!r} steps at a fixed size: give `h`, e.g. h=1e-3")
-    if checked["output_step"] is not None:
-        _check_output_size(0 if streamed else n, t_end - t0, checked["output_step"])
-    return cls, solver_cls, t_end, checked
+@dataclass(frozen=True)
+class RunConfig:
+    """A run's settings, built once from the user's keywords and checked before any work
+    (`RunConfig.from_keywords`): the formulation and integrator classes, the time span, the
+    tolerances (a `Tolerances`, which derives every other tolerance) and the other
+    settings of `simulate` (see there), with the method's own options."""
+    method: type
+    integrator: type
+    t_start: float
+    t_end: float
+    tolerances: Tolerances
+    max_step: float
+    output_step: float | None
+    first_step: float | None
+    h: float | None
+    max_steps: int | None
+    singular_thresholds: tuple
+    work: bool
+    progress: bool
+    options: dict = field(default_factory=dict)
+    integrator_name: str | None = None      # as given (None: the method's default)
+
+    @classmethod
+    def from_keywords(cls, n: int, t_end, method=None, integrator=None, *,
+                      streamed: bool = False, **keywords) -> "RunConfig":
+        """The settings of a run of a problem with `n` coordinates: `keywords` are
+        `simulate`'s settings and the method's options. A ValueError names the argument
+        and says what is wrong (an unknown name gets the closest valid one, or the methods
+        that take it). `streamed`: the samples go to disk, only the output grid's times
+        stay in memory."""
+        form = formulation_class(method)
+        valid = {**SETTINGS, **form.options, "t_end": None, "method": None,
+                 "integrator": None, "stream": None}
+        message = unknown_names(keywords, valid, f"simulate (method {form.name!r})")
+        if message:
+            elsewhere = {name: [m for m, c in METHODS.items() if name in c.options]
+                         for name in keywords if name not in valid}
+            message += "".join(f"; {name!r} is an option of method(s) {', '.join(ms)}"
+                               for name, ms in elsewhere.items() if ms)
+            raise ValueError(message)
+        options = {k: v for k, v in keywords.items() if k not in SETTINGS}
+        checked = check_all(SETTINGS, {k: v for k, v in keywords.items() if k in SETTINGS})
+        for name, value in options.items():
+            form.options[name].check(value, name, f"method {form.name!r}")
+        t0 = checked["t_start"]
+        t_end = Option.real(None).check(t_end, "t_end")
+        if not t_end > t0:
+            raise ValueError(f"`t_end` must be after t_start = {t0}, got {t_end!r}")
+        solver_cls = integrator_class(integrator or form.default_integrator)
+        if checked["h"] is None and getattr(solver_cls, "fixed_step", False):
+            raise ValueError(f"method {form.name!r} steps at a fixed size: give `h`, e.g. "
+                             "h=1e-3")
+        if checked["output_step"] is not None:
+            _check_output_size(0 if streamed else n, t_end - t0, checked["output_step"])
+        h = checked["h"]
+        return cls(form, solver_cls, t0, t_end, Tolerances(checked["rtol"], checked["atol"]),
+                   checked["max_step"], checked["output_step"],
+                   checked["first_step"] if h is None else h, h, checked["max_steps"],
+                   checked["singular_thresholds"], checked["work"], checked["progress"],
+                   options, integrator)
+
+    @property
+    def rtol(self) -> float:
+        return self.tolerances.rtol
+
+    @property
+    def atol(self) -> float:
+        return self.tolerances.atol
+
+    def settings(self) -> dict:
+        """What a result keeps of them, and `SimulationResult.extend` goes on with."""
+        return dict(method=self.method.name, integrator=self.integrator_name, rtol=self.rtol,
+                    atol=self.atol, max_step=self.max_step, output_step=self.output_step,
+                    singular_thresholds=self.singular_thresholds, max_steps=self.max_steps,
+                    h=self.h, work=self.work, **self.options)
 
 
-def check_simulate_arguments(n, t_end, method=None, options=None):
-    """`check_settings` for the keyword arguments as `Mechanism.simulate` takes them."""
+def check_simulate_arguments(n, t_end, method=None, options=None) -> RunConfig:
+    """The `RunConfig` of the keyword arguments as `Mechanism.simulate` takes them."""
     options = dict(options or {})
     integrator = options.pop("integrator", None)
     streamed = options.pop("stream", None) is not None      # checked where the run starts
-    settings = {k: options.pop(k) for k in list(options) if k in SETTINGS}
-    return check_settings(n, t_end, method, integrator, settings, options, streamed)
+    return RunConfig.from_keywords(n, t_end, method, integrator, streamed=streamed, **options)
 
 
 def _check_output_size(n, span, step):
@@ -176,39 +222,39 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     output_grid : the output times (from t_start to t_end), instead of `output_step`'s
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
-    cls, solver_cls, t_end, checked = check_settings(
-        problem.n, t_end, method, integrator,
-        dict(t_start=t_start, rtol=rtol, atol=atol, max_step=max_step, output_step=output_step,
-             first_step=first_step, singular_thresholds=singular_thresholds,
-             max_steps=max_steps, h=h, work=work, progress=progress), options,
-        streamed=stream is not None)
-    t_start, rtol, atol = checked["t_start"], checked["rtol"], checked["atol"]
-    max_step, output_step, h = checked["max_step"], checked["output_step"], checked["h"]
-    max_steps, singular_thresholds = checked["max_steps"], checked["singular_thresholds"]
-    first_step = checked["first_step"] if h is None else h
-    q0, v0 = check_initial_state(problem, q0, v0, t_start)
+    config = RunConfig.from_keywords(
+        problem.n, t_end, method, integrator, streamed=stream is not None, t_start=t_start,
+        rtol=rtol, atol=atol, max_step=max_step, output_step=output_step,
+        first_step=first_step, singular_thresholds=singular_thresholds,
+        max_steps=max_steps, h=h, work=work, progress=progress, **options)
+    return run(problem, q0, v0, config, stream=stream, mechanism=mechanism, events=events,
+               output_grid=output_grid)
+
+
+def run(problem: NumericProblem, q0, v0, config: RunConfig, *, stream=None, mechanism=None,
+        events=None, output_grid=None) -> SimulationResult:
+    """`simulate` with its settings checked already (`RunConfig`): the formulation chosen,
+    the run executed, the result given its settings and continuation."""
+    c = config
+    q0, v0 = check_initial_state(problem, q0, v0, c.t_start)
     stream = stream_directory(stream)
     problem.start_run()
-    dof = problem.degrees_of_freedom(q0, t_start) if problem.m else problem.n
+    dof = problem.degrees_of_freedom(q0, c.t_start) if problem.m else problem.n
     fully_driven = problem.m >= problem.n and dof == 0
     # Constraint equations redundant at the start (Φ_q's rank n − dof below m) are taken
     # as redundant everywhere: the singularity monitor watches the rank-th singular value.
     redundant = max(problem.m - (problem.n - dof), 0)
-    form = _formulation(cls, problem, q0, t_start, rtol, atol, options, redundant,
-                        fully_driven)
-    form.monitor = SingularityMonitor(problem, *singular_thresholds, redundant=redundant)
-    grid = output_times(t_start, t_end, output_step) if output_grid is None else \
+    monitor = SingularityMonitor(problem, *c.singular_thresholds, redundant=redundant)
+    form = _formulation(c.method, problem, q0, c.t_start, c.rtol, c.atol, c.options,
+                        redundant, fully_driven, monitor)
+    grid = output_times(c.t_start, c.t_end, c.output_step) if output_grid is None else \
         np.asarray(output_grid, float)
-    settings = Settings(t_start, t_end, rtol, atol, max_step, first_step, h, max_steps,
-                        grid, checked["work"], checked["progress"], stream, events)
+    settings = Settings(c.t_start, c.t_end, c.rtol, c.atol, c.max_step, c.first_step, c.h,
+                        c.max_steps, grid, c.work, c.progress, stream, events)
     with run_threads():
-        res = Run(problem, form, solver_cls, settings, q0, v0, method=cls.name,
+        res = Run(problem, form, c.integrator, settings, q0, v0, method=c.method.name,
                   fully_driven=fully_driven).execute()
-    # What `SimulationResult.extend` goes on with.
-    res.settings = dict(method=cls.name, integrator=integrator, rtol=rtol, atol=atol,
-                        max_step=max_step, output_step=output_step,
-                        singular_thresholds=singular_thresholds, max_steps=max_steps, h=h,
-                        work=checked["work"], **options)
+    res.settings = c.settings()
     res.mechanism = mechanism
     res.continuation = continue_run
     if stream is not None:
@@ -226,7 +272,8 @@ def continue_run(result, t_end: float, overrides: dict):
     return join(result, rest)
 
 
-def _formulation(cls, problem, q0, t_start, rtol, atol, options, redundant, fully_driven):
+def _formulation(cls, problem, q0, t_start, rtol, atol, options, redundant, fully_driven,
+                 monitor):
     """The formulation of the method `cls` for this run, or a ValueError saying why the
     mechanism cannot be run (locked where it starts, beyond the method's resolution)."""
     if redundant:
@@ -238,14 +285,14 @@ def _formulation(cls, problem, q0, t_start, rtol, atol, options, redundant, full
         # the drivers' kinematics, which the projection method follows on its branch with
         # the integrator's error control (a partitioned run took one step for the whole
         # run and landed on the mirror branch).
-        form = METHODS["projection"](problem, rtol, atol)
+        form = METHODS["projection"](problem, rtol, atol, monitor=monitor)
         form.switches.append(Switch(t_start, cls.name, form.name, "0 degrees of freedom: the "
                                     "drivers' motion, followed by the projection method"))
         return form
     why = cls.cannot_resolve(problem, q0, t_start, rtol, redundant)
     if why:
         raise ValueError(why)
-    return cls(problem, rtol, atol, **options)
+    return cls(problem, rtol, atol, monitor=monitor, **options)
 
 
 def locked(problem, q, t) -> str:

@@ -1,0 +1,58 @@
+"""`Tolerances`: a run's rtol and atol, and every tolerance mechsim derives from them, in one
+place. The formulations, the passage bridge, the output samples and the work integral ask
+it; none re-derives its own from rtol and atol."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """The integrator's tolerances and what follows from them (all absolute, in the
+    coordinates' units unless said otherwise).
+
+    rtol, atol : the local error test's relative and absolute tolerances, as in scipy's
+        `solve_ivp` (error ≤ atol + rtol |y| per component)
+    """
+    rtol: float
+    atol: float
+
+    def __post_init__(self):
+        for name, value in (("rtol", self.rtol), ("atol", self.atol)):
+            if not (isinstance(value, (int, float)) and not isinstance(value, bool)
+                    and value > 0 and math.isfinite(value)):
+                raise ValueError(f"`{name}` must be a positive number, got {value!r:.40}")
+
+    @property
+    def newton(self) -> float:
+        """Newton's tolerance on ‖Φ‖ for the dependent coordinates of a partition: well
+        below what the integrator resolves, so its error is the integrator's."""
+        return 1e-2 * self.atol
+
+    @property
+    def manifold(self) -> float:
+        """How far off the constraints (‖Φ‖∞) a state of the full coordinates may drift
+        before it is projected back, and to what output samples are settled: above one
+        step's own error (a lower threshold would restart the integrator after every
+        step; multistep methods then never leave their start-up)."""
+        return max(10.0 * self.rtol, 100.0 * self.atol)
+
+    @property
+    def tight_manifold(self) -> float:
+        """The same for the projection method: near a singular configuration any
+        inconsistency of (q, v) enters γ and is amplified by 1/σ_min in J̃⁺γ, so states
+        are kept on the manifold to round-off."""
+        return max(1e-13, 1e-3 * self.atol)
+
+    def inner(self) -> "Tolerances":
+        """The tolerances of an integration inside a step (the bridge's reference
+        solution over a passage): a hundredth of these, rtol not below 1e-13."""
+        return Tolerances(max(1e-13, 1e-2 * self.rtol), 1e-2 * self.atol)
+
+    @property
+    def work(self) -> float:
+        """The relative tolerance of the work integral along the steps (a tenth of rtol,
+        not below 1e-13): the energy balance then measures the solver."""
+        return max(0.1 * self.rtol, 1e-13)
