@@ -89,9 +89,8 @@ class Formulation:
 
     Given at construction
     ---------------------
-    problem, rtol, atol, monitor : the `NumericProblem`, the run's tolerances (`tol`, a
-        `Tolerances`, derives the others from them) and its `SingularityMonitor` (None:
-        unwatched, as where a formulation serves alone)
+    problem, rtol, atol, monitor : the `NumericProblem`, the run's tolerances (`tol`
+        derives the others) and its `SingularityMonitor` (None: unwatched)
 
     Read by the run (the formulation's own state; the run never writes them)
     -------------------------------------------------------------------------

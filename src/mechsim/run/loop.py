@@ -37,7 +37,10 @@ from ..records import Status, WorkRecord
 from ..results.stream import begin_stream
 from ..results.work import WorkIntegral
 from .runaway import Runaway
-from .samples import FAILURES, Recorder, check_finite, fastest_motion, troubled_drivers
+from ..formulations.basis import ConstraintSolveError
+from ..model.checks import LoadError
+from .samples import (FAILURES, NonFiniteState, Recorder, check_finite, fastest_motion,
+                      troubled_drivers)
 
 # A run stops as stuck when this many steps together advance less than this fraction of
 # its span (LU alone at the flexible four-bar's passage: 2000 steps of 2e-12–7e-12 s).
@@ -190,6 +193,7 @@ class Run:
         self._g_last = None if settings.events is None else \
             np.asarray(settings.events.values(settings.t_start, q0, v0), float)
         self.status, self.message, self.exception = Status.SUCCESS, "reached t_end", None
+        self.stream_failed = False       # the message says so already
         self.t_reached = settings.t_start
         self.solver = None
         self.y0 = form.initial_state(settings.t_start, q0, v0)
@@ -264,6 +268,7 @@ class Run:
             self._bridge(self.solver.t, y_here)
         self.out.flush()
         if self.out.failure is not None:
+            self.stream_failed = True
             return self._stop(f"writing the stream failed at t = {self.solver.t:.9g} "
                               f"({self.out.failure}); the samples after it are in memory")
         return True
@@ -449,9 +454,9 @@ class Run:
         """Add to the message what the run's end and its passages mean."""
         problem, form, monitor = self.problem, self.form, self.monitor
         if self.status == Status.FAILED:
-            if form.failure and form.failure not in self.message:
+            if form.failure and not self._told(form.failure):
                 self.message += f"; last trouble: {form.failure}"
-            if "driver '" not in self.message and problem.driver_laws:
+            if problem.driver_laws and not self._drivers_told():
                 h = proposed_step(self.solver) if self.solver is not None else None
                 t = self.t_reached
                 trial = min(self.s.t_end, t + (h if h else self.s.t_end - t))
@@ -483,6 +488,20 @@ class Run:
                 "loses rank, so the drivers alone do not decide which branch follows, and "
                 "the joint reactions and driver efforts are not unique")
         self._explain_jumps()
+
+    def _told(self, failure: str) -> bool:
+        """Is `failure` (the formulation's last trouble) what ended the run, its message
+        said already?"""
+        return isinstance(self.exception, ConstraintSolveError) and \
+            str(self.exception) == failure
+
+    def _drivers_told(self) -> bool:
+        """Does the message name the cause among the drivers already: a user's function
+        that raised (a LoadError names its driver or load), or a non-finite motion whose
+        check named the drivers behind it?"""
+        exc = self.exception
+        return isinstance(exc, LoadError) or (isinstance(exc, NonFiniteState) and
+                                              bool(exc.drivers))
 
     def _explain_jumps(self) -> None:
         jumps = [(a, b) for a, b in self.form.sign_changes
@@ -527,7 +546,7 @@ class Run:
         out = self.out
         t, q, v = out.take()
         work = self._work_record()
-        if out.failure is not None and "writing the stream failed" not in self.message:
+        if out.failure is not None and not self.stream_failed:
             self.status = Status.FAILED
             self.message += (f"; writing the stream failed at its end ({out.failure}): every "
                              "sample is in this result, not all in the stream's files")

@@ -16,7 +16,12 @@ CHUNK = 1024
 
 
 class NonFiniteState(RuntimeError):
-    """The motion became infinite or NaN: the run stops there with its partial result."""
+    """The motion became infinite or NaN: the run stops there with its partial result.
+    `drivers`: what its message says of the drivers that caused it ("" where none did)."""
+
+    def __init__(self, message: str, drivers: str = ""):
+        super().__init__(message)
+        self.drivers = drivers
 
 
 def check_finite(problem, t, q, v) -> None:
@@ -28,9 +33,10 @@ def check_finite(problem, t, q, v) -> None:
             break
     else:
         return
+    drivers = troubled_drivers(problem, (t,))
     raise NonFiniteState(f"the motion became non-finite at t = {t:.9g} ({name} of "
-                         f"'{problem.coordinate_names[bad[0]]}' = {x[bad[0]]})"
-                         f"{troubled_drivers(problem, (t,))}")
+                         f"'{problem.coordinate_names[bad[0]]}' = {x[bad[0]]}){drivers}",
+                         drivers)
 
 
 def troubled_drivers(problem, times) -> str:
