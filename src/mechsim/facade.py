@@ -244,14 +244,20 @@ class Mechanism(MechanismModel):
                    mechanism=self)
 
     def steady_state(self, period: float, guess=None, method: str = "newton",
-                     tol: float = 1e-8, max_iter: int = 30, t0: float = 0.0,
-                     **simulate_options):
+                     tol: float = 1e-8, max_iter: int = 30, t_start: float = 0.0,
+                     t0: float | None = None, **simulate_options):
         """The periodic steady state of period `period` (e.g. 2π/ω of a driver or a
-        forcing), found by shooting on the independent coordinates and velocities without
-        simulating the transient. Returns a `ShootingResult`; `result.trajectory.result` is
-        the SimulationResult over one period. `guess` defaults to the assembled state."""
+        forcing) starting at `t_start` (as in `simulate`; `t0` is its older name), found by
+        shooting on the independent coordinates and velocities without simulating the
+        transient. Returns a `ShootingResult`; `result.trajectory.result` is the
+        SimulationResult over one period. `guess` defaults to the assembled state."""
         from .shooting import solve
         from .shooting.mechanism import MechanismPeriodicProblem
-        problem = MechanismPeriodicProblem(self, period, t0, **simulate_options)
+        if t0 is not None:
+            if t_start != 0.0:
+                raise ValueError("steady_state: give `t_start` or `t0` (its older name), "
+                                 "not both")
+            t_start = t0
+        problem = MechanismPeriodicProblem(self, period, t_start, **simulate_options)
         start = problem.guess0 if guess is None else guess
         return solve(problem, start, method=method, tol=tol, max_iter=max_iter)
