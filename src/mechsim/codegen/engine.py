@@ -76,9 +76,10 @@ def _lapack(name: str) -> int:
 
 def for_problem(problem):
     """The compiled engine for a NumericProblem whose evaluations it can take: constraints,
-    a constant diagonal mass (no flexible bodies) and the dense Schur complement (not a
-    long chain's banded one); None elsewhere or where there is no library."""
-    if not problem.m or not problem.constant_mass or problem.schur is not None:
+    a constant diagonal mass (no flexible bodies) and a constraint algebra whose arithmetic
+    the engine mirrors (`compiles`: the dense one, not a long chain's banded one); None
+    elsewhere or where there is no library."""
+    if not problem.m or not problem.constant_mass or not problem.algebra.compiles:
         return None
     return library(problem.model)
 
@@ -97,8 +98,9 @@ def why_not(problem) -> str:
     if not problem.constant_mass:
         return ("flexible bodies: the compiled evaluations take rigid mechanisms "
                 "(constant diagonal mass) only")
-    if problem.schur is not None:
-        return "a long chain: its banded Schur complement runs on the Python path"
+    if not problem.algebra.compiles:
+        return (f"the {problem.algebra.name} constraint algebra (a long chain's banded Schur "
+                "complement, or one given) runs on the Python path")
     return ""
 
 

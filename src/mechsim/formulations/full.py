@@ -120,7 +120,7 @@ def settle_samples(problem, ts, Q, V, accept, engine=None) -> None:
     off = np.flatnonzero(np.max(np.abs(phis), axis=1) > floors)
     if not off.size:
         return
-    if problem.constant_mass and problem.schur is None:
+    if problem.algebra.dense_complement:
         off = _settle_together(problem, ts, Q, V, phis, floors, off)
     for k in off:
         t = ts[k]

@@ -36,14 +36,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..linalg import dense, sparse
+from ..linalg import sparse
 from ..records import SingularPassage
 
 
-# Mechanisms with more constraint equations than this bound the search for passages inside
-# a step by the rates of σ_min/σ_max seen, not by ‖dJ̃/dt‖ (whose Frobenius norm grows with
-# the rows and made the 40-window chain's 20 s search every step), and search more briefly.
-SEARCH_MAX_ROWS = 60
+# Mechanisms that are not small (`ConstraintAlgebra.small`) bound the search for passages
+# inside a step by the rates of σ_min/σ_max seen, not by ‖dJ̃/dt‖ (whose Frobenius norm grows
+# with the rows and made the 40-window chain's 20 s search every step), and search more
+# briefly.
 # Where σ_min/σ_max of J̃ never rises above BLIND while Φ_q's own ratio is above PLAIN_OK
 # (a rod 1e100 times heavier than the crank: 1e-53), the measure is round-off and the
 # monitor watches no passage (`blind`); the run's message says so.
@@ -135,14 +135,10 @@ class SingularityMonitor:
         m = J.shape[0]
         if m == 0:
             return 1.0, 0.0, np.zeros(0), 1.0, 1.0, J
-        pair = self._banded(J)
-        if pair is None:
-            U, sig, Vt = dense.svd(sparse.dense(J))
-            k = m - 1 - self.redundant
-            if k >= sig.size or k < 0 or sig[0] <= 0.0:
-                return 0.0, 0.0, U[:, -1], 0.0, 0.0, J
-            pair = (sig[k], U[:, k], Vt[k]), (sig[0], U[:, 0], Vt[0])
-        (smin, u_min, v_min), (smax, u_max, v_max) = pair
+        smin, u_min, v_min, smax, u_max, v_max = self.problem.algebra.extremes(
+            J, m - 1 - self.redundant)
+        if not smax > 0.0:
+            return 0.0, 0.0, u_min, 0.0, 0.0, J
         s = float(smin / smax)
         rate = 0.0
         if eps:
@@ -151,25 +147,6 @@ class SingularityMonitor:
             d_max = u_max @ (dJ @ v_max)
             rate = float((d_min * smax - smin * d_max) / smax ** 2)
         return s, rate, u_min, float(smin), float(smax), J
-
-    def _banded(self, J):
-        """((σ_min, u, v), (σ_max, u, v)) of J̃ from the banded Schur complement of a large
-        rigid mechanism (`mechsim.linalg.banded`), or None where the dense SVD must serve: no
-        banded form, or J̃J̃ᵀ too near singular for its Cholesky factor and inverse
-        iteration."""
-        band = self.problem.schur
-        if band is None or self.redundant:
-            return None
-        c = band.factor(J, scaled=True)
-        low = band.smallest(c) if c is not None else None
-        if low is None:
-            return None
-        lam_min, u_min = low
-        lam_max, u_max = band.largest()
-        if not lam_min > 1e-12 * lam_max:
-            return None      # σ_min below 1e-6 σ_max: squared, it would be lost to round-off
-        smin, smax = np.sqrt(lam_min), np.sqrt(lam_max)
-        return (smin, u_min, J.T @ u_min / smin), (smax, u_max, J.T @ u_max / smax)
 
     def _masses_hide(self, q, t) -> bool:
         """Do unequal masses, not the configuration, make σ_min/σ_max of J̃ that small?
@@ -285,7 +262,7 @@ class SingularityMonitor:
         """A bound on how fast σ_min/σ_max can change at (q, v): every singular value of J̃
         moves at most ‖dJ̃/dt‖ (Weyl), so |d(σ_min/σ_max)/dt| ≤ 2 ‖dJ̃/dt‖_F / σ_max. Unlike
         the rates of s seen so far it holds near a passage, where s turns sharply."""
-        if v is None or not smax > 0.0 or not v.size or self.problem.m > SEARCH_MAX_ROWS:
+        if v is None or not smax > 0.0 or not v.size or not self.problem.algebra.small:
             return 0.0
         speed = float(np.max(np.abs(v)))
         if speed == 0.0:
@@ -298,8 +275,7 @@ class SingularityMonitor:
     def _batched(self) -> bool:
         """Are many states measured together (`ratios`): by the compiled engine, or by a
         stacked SVD of a small dense J̃ (not a long chain's banded one)?"""
-        p = self.problem
-        return self.engine is not None or (0 < p.m <= SEARCH_MAX_ROWS and p.schur is None)
+        return self.engine is not None or self.problem.algebra.batched
 
     def ratios(self, times, Q) -> np.ndarray:
         """σ_min/σ_max of J̃ (not normalized) at each configuration Q[i] at times[i], shape
@@ -362,7 +338,7 @@ class SingularityMonitor:
         # Enough evaluations to cover the step with intervals the bound can clear (a
         # large mechanism's SVD costs milliseconds: there the rates seen bound the search).
         budget = int(min(4000, 16 + 4 * rate_bound * h / max((s0 + s1) * peak, enter)))
-        if self.problem.m > SEARCH_MAX_ROWS:
+        if not self.problem.algebra.small:
             budget = min(budget, 64)
         seen = self._bisect((t0, s0 * peak, t1, s1 * peak), s_many, rate_bound, budget,
                             2.0 * (leave - enter) / rate_bound)

@@ -26,7 +26,6 @@ method's known weakness, which "hybrid" removes.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -101,16 +100,7 @@ class Partitioned(Formulation):
         """The independent and dependent directions at Φ_q = J (f = n − r and r of them).
         `rank`: Φ_q's rank if the caller knows it (its SVD is dear on long chains)."""
         r = self.problem.rank(J) if rank is None else rank
-        band = self.problem.schur
-        if band is not None:                 # a long chain: banded LU (`mechsim.linalg.banded`)
-            perm = band.pivoted_coordinates(J)
-            return self._coordinate_bases(perm[r:], perm[:r])
-        with warnings.catch_warnings():      # a rank-deficient Φ_q (redundancy) is expected
-            warnings.simplefilter("ignore", sla.LinAlgWarning)
-            _, piv = sla.lu_factor(sparse.dense(J).T, check_finite=False)
-        perm = np.arange(self.n)
-        for i, p in enumerate(piv):
-            perm[i], perm[p] = perm[p], perm[i]
+        perm = self.problem.algebra.pivots(J)       # dense LU, or a long chain's banded LU
         return self._coordinate_bases(perm[r:], perm[:r])
 
     def _coordinate_bases(self, independent, dependent):

@@ -47,10 +47,6 @@ _CLUSTER = 10.0
 # its passage, each crossing the band slowly, and interpolating them all is no smoother than
 # truncating them and costs several times the evaluations (docs/design-notes.md).
 _MAX_CLUSTER = 4
-# The truncation cut follows a mechanism's own level of σ_min/σ_max below this (`cut`).
-SCALE_REF = 1e-3
-# ... and a long chain's (banded, `mechsim.linalg.banded`) below this.
-CHAIN_REF = 0.1
 # The smallest σ_min/σ_max of J̃ that unequal masses may give (`cannot_resolve`).
 RESOLUTION = 1e-7
 
@@ -74,7 +70,7 @@ class Projection(FullCoordinates):
         self._redundant = 0          # singular values found to stay at zero (redundancy)
         self.engine = self._compiled_engine()
         # The bound on LAPACK's estimate of 1/cond₁ of J̃J̃ᵀ above which the Cholesky
-        # factor stands in for the SVD (see `_clear`).
+        # factor stands in for the SVD (see `_clear_solver`).
         # Set after an accepted step far from any passage: until the next one, the
         # integrator's evaluations skip the condition estimate (see `_far_from_band`).
         self._far = False
@@ -117,29 +113,29 @@ class Projection(FullCoordinates):
     @property
     def cut(self) -> float:
         """The truncation cut, relative to σ_max: `rcond`, scaled down for a mechanism
-        whose σ_min/σ_max has never risen above `SCALE_REF` in the run (its peak, from
+        whose σ_min/σ_max has never risen above the algebra's `cut_reference` (1e-3,
+        `mechsim.problem.algebra.SCALE_REF`) in the run (its peak, from
         the singularity monitor). There the ratio is small because the masses are very
         unequal (a point mass on a link, a heavy body of small inertia), not because the
         configuration is singular, and a fixed cut would drop one of the mechanism's own
         constraint equations. The cut keeps its place relative to the mechanism's own
-        level; for every mechanism whose ratio reaches SCALE_REF it is `rcond`.
+        level; for every mechanism whose ratio reaches that reference it is `rcond`.
 
         A long chain (one with the banded Schur complement) is never well conditioned
         either, because of its length: σ_min/σ_max peaks near 0.6/N for N windows, and
         near a passage it moves as slowly, so a fixed cut leaves a band whose duration
         grows with N, beyond what the passage bridge's Adams step can span at tight
         tolerances (docs/benchmarks.md, long chains). There the
-        cut is `rcond` relative to the chain's own level, `CHAIN_REF`, which keeps the
-        band as short as a short chain's."""
+        cut is `rcond` relative to the chain's own level (the banded algebra's reference,
+        0.1), which keeps the band as short as a short chain's."""
         mon = self.monitor
         peak = mon.peak if mon is not None and mon.peak > 0.0 else 1.0
-        ref = CHAIN_REF if self.problem.schur is not None else SCALE_REF
-        return self.rcond * min(1.0, max(peak, 1e-12) / ref)
+        return self.rcond * min(1.0, max(peak, 1e-12) / self.problem.algebra.cut_reference)
 
     @property
     def _min_rcond(self) -> float:
         """The bound on LAPACK's estimate of 1/cond₁ of J̃J̃ᵀ above which the Cholesky
-        factor stands in for the SVD (see `_clear`)."""
+        factor stands in for the SVD (see `_clear_solver`)."""
         return max(100, self.problem.m) * self.cut ** 2
 
     @staticmethod
@@ -184,42 +180,16 @@ class Projection(FullCoordinates):
         σ) and with the default `factorization`."""
         return self.regularization == "truncate" and self.factorization == "auto"
 
-    def _banded(self, J):
-        """The banded Cholesky factor of Φ_q M⁻¹ Φ_qᵀ when the problem has one
-        (`mechsim.linalg.banded`) and every singular value of J̃ is clear of the truncation cut
-        (σ_min² > (2 rcond)² times a Gershgorin bound of σ_max²): there truncation drops
-        nothing and the exact Schur complement is the projection method's q̈, at O(m) cost
-        instead of an SVD's O(m³). None otherwise, and then the SVD decides."""
-        band = self.problem.schur
-        if band is None or not self._cholesky:
-            return None
-        c = band.factor(J)
-        if c is None:
-            return None
-        low = band.smallest(c)
-        if low is None or not low[0] > (2.0 * self.cut) ** 2 * band.largest_bound():
-            return None
-        return c
-
-    def _clear(self, Jt):
-        """The dense Cholesky factor of J̃J̃ᵀ where every singular value of J̃ is clear of
-        the truncation cut, else None (then the SVD decides, at several times the cost).
-        Truncation would drop σ ≤ rcond σ_max, i.e. λ ≤ rcond² λ_max of
-        J̃J̃ᵀ; the estimate of 1/κ₁ ≤ 1/κ₂ must exceed max(100, m) rcond², margin for an
-        estimate that may read high by a factor up to m."""
-        if not self._cholesky or not Jt.shape[0]:
-            return None
-        return dense.cholesky_conditioned(Jt @ Jt.T, self._min_rcond)
-
     def _clear_solver(self, J, f):
-        """r ↦ (J̃J̃ᵀ)⁻¹ r from the banded or the dense Cholesky factor where every singular
-        value of J̃ is clear of the truncation cut, else None."""
-        band = self.problem.schur
-        if band is not None:
-            c = self._banded(J)
-            return None if c is None else (lambda r: band.solve(c, r))
-        c = self._clear(f.cols(J))
-        return None if c is None else (lambda r: dense.cho_solve(c, r))
+        """r ↦ (J̃J̃ᵀ)⁻¹ r from a Cholesky factor where every singular value of J̃ is clear
+        of the truncation cut (the problem's algebra: dense, or banded for a long chain),
+        else None: there truncation drops nothing and the exact Schur complement is the
+        projection method's q̈. J̃J̃ᵀ's estimated 1/κ₁ ≤ 1/κ₂ must exceed `_min_rcond`
+        (truncation drops σ ≤ cut σ_max, λ ≤ cut² λ_max; margin for an estimate that may
+        read high by a factor up to m)."""
+        if not self._cholesky:
+            return None
+        return self.problem.algebra.clear_solver(J, f, self.cut, self._min_rcond)
 
     def _clear_at(self, J, f):
         """Is every singular value of J̃ clear of the truncation cut?"""
@@ -276,28 +246,21 @@ class Projection(FullCoordinates):
         return self._accelerations(t, q, v, Q, far)
 
     def _accelerations(self, t, q, v, Q, far):
-        """`accelerations` in Python, under the applied forces Q."""
+        """`accelerations` in Python, under the applied forces Q: the exact Schur
+        complement where J̃ is clear of the cut (the problem's algebra), else by the SVD."""
         prob = self.problem
         J, gamma = prob.solver_dynamics_terms(q, v, t)
         m = J.shape[0]
-        banded = m and prob.schur is not None
-        c = self._banded(J) if banded else None
-        if c is not None:
-            return prob.accelerations(J, Q, gamma, factor=c)[0]
+        if m and self._cholesky:
+            out = prob.algebra.clear_accelerations(J, Q, gamma, q, self.cut, self._min_rcond,
+                                                   self._far if far is None else far)
+            if out is not None:
+                return out
         J = sparse.dense(J)
         f = prob.mass_factor(q)
         x = f.left(Q)                                      # L⁻¹ Q
         if m:
             Jt = f.cols(J)
-            if banded:
-                c = None
-            elif self._far if far is None else far:
-                c = dense.cho_factor_or_none(Jt @ Jt.T)
-            else:
-                c = self._clear(Jt)
-            if c is not None:
-                prob.counters.factorizations += 1
-                return f.right(x - Jt.T @ dense.cho_solve(c, Jt @ x - gamma))
             U, sig, Vt = dense.svd(Jt)
             prob.counters.factorizations += 1
             V, Ui = self._regularized(U, sig, Vt)

@@ -54,7 +54,7 @@ def _responses(problem, J, gamma, q, R):
     complement dense; else column by column."""
     C = np.zeros((len(gamma), R.shape[1]))
     C[:, 0] = gamma
-    if problem.constant_mass and problem.schur is None:
+    if problem.algebra.dense_complement:
         from .mass import dense
         w = problem.inverse_mass_diagonal[:, None]
         wr = w * R

@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..linalg import sparse
 from ..linalg.newton import newton
 from .loads import Loads
 from .mass import MassFactor, MassModel, SchurSolver, dense
@@ -96,6 +95,7 @@ class NumericProblem:
         self.springs, self.loads = self.load_model.springs, self.load_model.loads
         self.solver = SchurSolver(self.mass_model, self._banded_form)
         self._sparse = None               # decided on first use (`sparse`)
+        self._algebra = None              # decided on first use (`algebra`)
 
     def _banded_form(self):
         from ..linalg.banded import for_problem
@@ -111,6 +111,25 @@ class NumericProblem:
     @schur.setter
     def schur(self, value):
         self.solver.band = value
+        self._algebra = None
+
+    @property
+    def algebra(self):
+        """The constraint algebra the solvers use (`mechsim.problem.algebra`): banded for
+        a long chain with the banded Schur complement, else dense; chosen on first use and
+        kept (assigning `schur` chooses again)."""
+        if self._algebra is None or self._algebra.problem is not self:   # (a copy's own)
+            from .algebra import choose
+            self._algebra = choose(self)
+        return self._algebra
+
+    @algebra.setter
+    def algebra(self, value):
+        """Serve the solvers with another `ConstraintAlgebra` (made for this problem)."""
+        if getattr(value, "problem", None) is not self:
+            raise ValueError("`algebra` must be a ConstraintAlgebra made for this problem "
+                             f"(its `problem`), got {value!r:.60}")
+        self._algebra = value
 
     @property
     def sparse(self) -> bool:
@@ -195,20 +214,8 @@ class NumericProblem:
 
     def rank(self, J) -> int:
         """The numerical rank of Φ_q = J: the number of its singular values above
-        1e3 ε max(m, n) σ_max (as `Mechanism.dof`). A long chain's banded complement
-        settles the common case in O(n): where its smallest eigenvalue is above 1e-12 of
-        its largest (σ_min > 1e-6 σ_max, far above the cut), J has full row rank; anything
-        else takes the dense SVD."""
-        band = self.schur
-        if band is not None:
-            c = band.factor(J, scaled=True)
-            low = band.smallest(c) if c is not None else None
-            if low is not None and low[0] > 1e-12 * band.largest()[0]:
-                return self.m
-        if J.shape[0] == 0:
-            return 0
-        s = dense().svdvals(sparse.dense(J))
-        return int(np.sum(s > max(J.shape) * np.finfo(float).eps * 1e3 * s[0]))
+        1e3 ε max(m, n) σ_max (as `Mechanism.dof`), by the problem's `algebra`."""
+        return self.algebra.rank(J)
 
     # --- mass and forces -------------------------------------------------------------------
     def mass(self, q=None) -> np.ndarray:

@@ -1,0 +1,209 @@
+"""The constraint algebra of a problem, chosen once when the problem is built: how the
+solvers hold Φ_q and factor, decompose and pivot it and its mass-scaled form J̃ = Φ_q L⁻ᵀ.
+The formulations and the singularity monitor are written once against this interface;
+which algebra serves is decided here, with the tuning that belongs to it, and never again
+by an `if` inside an algorithm.
+
+`ConstraintAlgebra` is the contract. A new algebra is a subclass implementing its
+methods (see the class docstring); `NumericProblem.algebra` chooses `DenseAlgebra` or, for a
+long chain with the banded Schur complement, `BandedAlgebra` (assign it to install
+another). The compiled engine (`mechsim.codegen.engine`) computes as the dense algebra
+does and serves in its place where it takes the problem (`compiles`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..linalg import dense, sparse
+
+# The projection method's truncation cut is `rcond` relative to σ_min/σ_max of J̃'s own
+# level: `SCALE_REF` for an ordinary mechanism (a peak below it means very unequal
+# masses, not a singular configuration), `CHAIN_REF` for a long chain, whose ratio falls
+# as 1/N with N windows and moves as slowly near a passage.
+SCALE_REF = 1e-3
+CHAIN_REF = 0.1
+# Mechanisms with at most this many constraint rows are small: J̃'s SVD costs little (the
+# singularity monitor searches inside a step freely, bounds its rate by Weyl's bound, and
+# with the dense algebra measures many states together by one stacked SVD). A larger one's
+# SVD costs milliseconds: there the rates seen bound the search.
+SMALL_ROWS = 60
+
+
+class ConstraintAlgebra:
+    """The contract of a constraint algebra (one per problem; the problem is `problem`).
+
+    cut_reference : float, the level of σ_min/σ_max of J̃ that the projection method's
+        truncation cut `rcond` is relative to (see `mechsim.formulations.projection`)
+    small : bool, J̃'s SVD is cheap (at most `SMALL_ROWS` constraint rows)
+    batched : bool, J̃ of many states is measured together by one stacked dense SVD
+    jacobian(q, t) -> Φ_q in the form the solvers take (dense, or CSR)
+    pivots(J) -> permutation of the coordinates: the first rank(J) are dependent
+        (LU pivoting of Φ_qᵀ), the rest independent
+    rank(J) -> the numerical rank of Φ_q = J (singular values above 1e3 ε max(m, n) σ_max)
+    extremes(J̃, k) -> (σ_k, u_k, v_k, σ_max, u_max, v_max): the k-th largest singular
+        value of J̃ (k = m − 1 − redundant rows) and its singular vectors, and the largest;
+        σ_max = 0 where J̃ has lost that rank (u_k: a left singular vector of the smallest)
+    clear_solver(J, f, cut, bound) -> r ↦ (J̃J̃ᵀ)⁻¹ r, or None: where every singular value
+        of J̃ = f.cols(J) is clear of the truncation cut (relative to σ_max; `bound`: the
+        smallest acceptable estimate of 1/cond₁(J̃J̃ᵀ))
+    clear_accelerations(J, Q, gamma, q, cut, bound, far) -> q̈, or None where J̃ is not
+        clear of the cut (the formulation then decides by the SVD); `far`: the last
+        accepted step found the motion far from any singular configuration, so no
+        condition estimate is needed
+    dense_complement : bool, Φ_q M⁻¹ Φ_qᵀ is formed dense with a constant diagonal mass, so
+        many right-hand sides share one factor (output samples settled by one stacked
+        Newton step, the friction forces' unit responses)
+    compiles : bool, the compiled engine (`mechsim.codegen.engine`) computes as this
+        algebra does and may serve its runs
+    """
+    name = ""
+    cut_reference = SCALE_REF
+    batched = False
+    dense_complement = False
+    compiles = False
+
+    def __init__(self, problem):
+        self.problem = problem
+
+    @property
+    def small(self) -> bool:
+        return self.problem.m <= SMALL_ROWS
+
+    def jacobian(self, q, t):
+        return self.problem.solver_phi_q(q, t)
+
+    def pivots(self, J) -> np.ndarray:
+        raise NotImplementedError
+
+    def rank(self, J) -> int:
+        if J.shape[0] == 0:
+            return 0
+        s = dense.svdvals(sparse.dense(J))
+        return int(np.sum(s > max(J.shape) * np.finfo(float).eps * 1e3 * s[0]))
+
+    def extremes(self, Jt, k):
+        U, sig, Vt = dense.svd(sparse.dense(Jt))
+        if k >= sig.size or k < 0 or sig[0] <= 0.0:
+            return 0.0, U[:, -1], None, 0.0, None, None
+        return sig[k], U[:, k], Vt[k], sig[0], U[:, 0], Vt[0]
+
+    def clear_solver(self, J, f, cut, bound):
+        raise NotImplementedError
+
+    def clear_accelerations(self, J, Q, gamma, q, cut, bound, far):
+        raise NotImplementedError
+
+
+class DenseAlgebra(ConstraintAlgebra):
+    """Φ_q as a dense array: J̃J̃ᵀ by dense Cholesky with LAPACK's condition estimate,
+    singular values by the SVD, pivots by LU of Φ_qᵀ. Serves every mechanism."""
+    name = "dense"
+    compiles = True
+
+    @property
+    def batched(self) -> bool:
+        return 0 < self.problem.m and self.small
+
+    @property
+    def dense_complement(self) -> bool:
+        return self.problem.constant_mass
+
+    def pivots(self, J):
+        import warnings
+        with warnings.catch_warnings():      # a rank-deficient Φ_q (redundancy) is expected
+            warnings.simplefilter("ignore", sla.LinAlgWarning)
+            _, piv = sla.lu_factor(sparse.dense(J).T, check_finite=False)
+        perm = np.arange(self.problem.n)
+        for i, p in enumerate(piv):
+            perm[i], perm[p] = perm[p], perm[i]
+        return perm
+
+    def clear_solver(self, J, f, cut, bound):
+        Jt = f.cols(sparse.dense(J))
+        c = dense.cholesky_conditioned(Jt @ Jt.T, bound) if Jt.shape[0] else None
+        return None if c is None else (lambda r: dense.cho_solve(c, r))
+
+    def clear_accelerations(self, J, Q, gamma, q, cut, bound, far):
+        prob = self.problem
+        f = prob.mass_factor(q)
+        Jt = f.cols(sparse.dense(J))
+        S = Jt @ Jt.T
+        c = dense.cho_factor_or_none(S) if far else dense.cholesky_conditioned(S, bound)
+        if c is None:
+            return None
+        prob.counters.factorizations += 1
+        x = f.left(Q)                                      # L⁻¹ Q
+        return f.right(x - Jt.T @ dense.cho_solve(c, Jt @ x - gamma))
+
+
+class BandedAlgebra(DenseAlgebra):
+    """A long chain's: Φ_q as CSR of its fixed pattern where the model gives it
+    (`mechsim.linalg.sparse`), J̃J̃ᵀ as a band in reverse Cuthill–McKee order
+    (`mechsim.linalg.banded`: Cholesky, extreme eigenvalues by inverse iteration and
+    Lanczos), pivots by banded LU; each falls back to the dense algebra where the band
+    cannot decide (too near singular). O(n) a step."""
+    name = "banded"
+    cut_reference = CHAIN_REF
+    batched = False
+    dense_complement = False
+    compiles = False
+
+    def __init__(self, problem, band):
+        super().__init__(problem)
+        self.band = band
+
+    def pivots(self, J):
+        return self.band.pivoted_coordinates(J)
+
+    def rank(self, J) -> int:
+        band = self.band
+        c = band.factor(J, scaled=True)
+        low = band.smallest(c) if c is not None else None
+        if low is not None and low[0] > 1e-12 * band.largest()[0]:
+            return self.problem.m          # σ_min > 1e-6 σ_max: full row rank
+        return super().rank(J)
+
+    def extremes(self, Jt, k):
+        band = self.band
+        if k == self.problem.m - 1:        # no redundant rows (the band sees all of them)
+            c = band.factor(Jt, scaled=True)
+            low = band.smallest(c) if c is not None else None
+            if low is not None:
+                lam_min, u_min = low
+                lam_max, u_max = band.largest()
+                # σ_min below 1e-6 σ_max: squared, it would be lost to round-off
+                if lam_min > 1e-12 * lam_max:
+                    smin, smax = np.sqrt(lam_min), np.sqrt(lam_max)
+                    return smin, u_min, Jt.T @ u_min / smin, smax, u_max, Jt.T @ u_max / smax
+        return super().extremes(Jt, k)
+
+    def _clear_factor(self, J, cut):
+        """The banded Cholesky factor of Φ_q M⁻¹ Φ_qᵀ where every singular value of J̃ is
+        clear of the cut (σ_min² > (2 cut)² times a Gershgorin bound of σ_max²), else None."""
+        band = self.band
+        c = band.factor(J)
+        if c is None:
+            return None
+        low = band.smallest(c)
+        if low is None or not low[0] > (2.0 * cut) ** 2 * band.largest_bound():
+            return None
+        return c
+
+    def clear_solver(self, J, f, cut, bound):
+        c = self._clear_factor(J, cut)
+        return None if c is None else (lambda r: self.band.solve(c, r))
+
+    def clear_accelerations(self, J, Q, gamma, q, cut, bound, far):
+        c = self._clear_factor(J, cut) if J.shape[0] else None
+        if c is None:
+            return None
+        return self.problem.accelerations(J, Q, gamma, factor=c)[0]
+
+
+def choose(problem) -> ConstraintAlgebra:
+    """The algebra that serves `problem`: banded where it has the banded Schur complement
+    (a long rigid chain), else dense."""
+    band = problem.schur
+    return DenseAlgebra(problem) if band is None else BandedAlgebra(problem, band)
