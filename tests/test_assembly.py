@@ -180,27 +180,34 @@ print(json.dumps(dict(kind=type(prob.model).__name__, from_cache=mech.from_cache
 """
 
 
-def test_auto_build_assembles_then_fuses_in_the_background(tmp_path):
-    """A new small mechanism runs assembled at once while a background process fuses it;
-    a later build loads the fused model with its compiled evaluations. A new topology of
-    the same joint types (the 10-window chain after the 2-window one) runs assembled with
-    no sympy import and no background build (it is large)."""
-    first = json.loads(_python(_BUILD.format(n=2), tmp_path))
+def test_auto_build_fuses_small_mechanisms_at_once_and_larger_ones_in_the_background(
+        tmp_path):
+    """A new small mechanism (the double four-bar, 15 coordinates) is fused at once, with
+    its compiled evaluations, so its first run uses the model its later runs use. A larger
+    one (4 windows, 27 coordinates) runs assembled at once while a background process
+    fuses it; a later build loads the fused model. A new topology of the same joint types
+    (10 windows, 63 coordinates) runs assembled with no sympy import and no background
+    build (it is large)."""
+    small = json.loads(_python(_BUILD.format(n=2), tmp_path))
+    assert small == dict(kind="module", from_cache=False, sympy=True, engine=True)
+    again = json.loads(_python(_BUILD.format(n=2), tmp_path))
+    assert again == dict(kind="module", from_cache=True, sympy=False, engine=True)
+    first = json.loads(_python(_BUILD.format(n=4), tmp_path))
     assert first == dict(kind="AssembledModel", from_cache=False, sympy=True, engine=False)
     deadline = time.monotonic() + 120
     while True:
-        later = json.loads(_python(_BUILD.format(n=2), tmp_path))
+        later = json.loads(_python(_BUILD.format(n=4), tmp_path))
         if later["kind"] != "AssembledModel" or time.monotonic() > deadline:
             break
         time.sleep(1.0)
     assert later == dict(kind="module", from_cache=True, sympy=False, engine=True)
     chain = json.loads(_python(_BUILD.format(n=10), tmp_path))
     assert chain == dict(kind="AssembledModel", from_cache=True, sympy=False, engine=False)
-    assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 3   # 2 kernels, 1 fused
+    assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 4   # 2 kernels, 2 fused
 
 
 def test_background_builds_can_be_switched_off(tmp_path):
-    _python(_BUILD.format(n=2), tmp_path, MECHSIM_BACKGROUND="0")
+    _python(_BUILD.format(n=4), tmp_path, MECHSIM_BACKGROUND="0")
     time.sleep(3.0)
     assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 2   # the kernels only
 
@@ -216,10 +223,10 @@ def test_unknown_build_is_an_error(monkeypatch):
 
 def test_assembled_kernels_survive_a_damaged_cache_entry(tmp_path):
     """A kernel whose cache entry was edited is rebuilt with a warning."""
-    _python(_BUILD.format(n=1), tmp_path, MECHSIM_BACKGROUND="0")
+    _python(_BUILD.format(n=4), tmp_path, MECHSIM_BACKGROUND="0")
     for path in tmp_path.glob("mechsim_model_*.py"):
         path.write_text(path.read_text().replace("numpy.zeros", "numpy.ones"))
-    code = _BUILD.format(n=1) + "print(abs(prob.phi(mech.initial_coordinates(), 0.0)).max())"
+    code = _BUILD.format(n=4) + "print(abs(prob.phi(mech.initial_coordinates(), 0.0)).max())"
     out = _python(code, tmp_path, MECHSIM_BACKGROUND="0")
     report, residual = out.splitlines()
     assert json.loads(report)["from_cache"] is False

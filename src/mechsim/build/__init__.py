@@ -29,6 +29,10 @@ def body_starts(mech) -> dict:
 
 
 BUILDS = ("auto", "fused", "assembled")
+# Up to this many coordinates "auto" builds the fused model at once: there a new
+# structure's sympy run and compile cost about what assembling its kernels does, and its
+# runs are several times faster (docs/benchmarks.md, the build strategy).
+FUSE_AT_ONCE = 20
 
 
 def build_mode(build: str | None = None) -> str:
@@ -50,10 +54,13 @@ def constraint_model(mech, items, build: str = "auto"):
       structure costs a sympy run and a C compile, growing with its size.
     - "assembled": the system assembled from joint-type kernels (`mechsim.assembly`): a
       new structure of known joint types costs milliseconds at any size.
-    - "auto": the fused model where the cache has it; else the assembled one, and for a
-      small mechanism (fewer than `compiled.C_MIN_COORDINATES` coordinates, where fusing
-      pays most) the fused model is built in a background process for the runs after
-      (`mechsim.build.background`).
+    - "auto": the fused model where the cache has it; else, for a mechanism of at most
+      `FUSE_AT_ONCE` coordinates, the fused model built at once (as "fused"); else the
+      assembled one, and below `compiled.C_MIN_COORDINATES` coordinates (where fusing
+      still pays) the fused model is built in a background process for the runs after
+      (`mechsim.build.background`). So a small mechanism's first run uses the model its
+      later runs use (the same numbers, to the last bit), and a larger one's first run
+      does not wait for sympy.
     """
     from . import background
     from ..codegen import cached_model, load_model
@@ -63,7 +70,7 @@ def constraint_model(mech, items, build: str = "auto"):
         model = cached_model(structure)
         if model is not None:
             return model, True
-        if build == "fused":
+        if build == "fused" or len(mech.coordinate_names) <= FUSE_AT_ONCE:
             return load_model(structure, lambda: background.fused_source(mech.bodies, items,
                                                                          structure))
     from ..assembly import AssembledModel
