@@ -275,7 +275,7 @@ def test_stops_and_slots_are_drawn_where_they_act():
     res = mech.simulate(0.2, rtol=1e-8, output_step=0.1)
     scene = Scene(res, [0, len(res.t) - 1])
     marks = [g[0] for g in scene.guides]                         # at the first frame
-    strokes = [m for m in marks if len(m) == 2 and np.allclose(np.cross(m[0], m[1]), 0.0)
+    strokes = [m for m in marks if len(m) == 2 and np.isclose(np.linalg.det(m[:2]), 0.0)
                and np.linalg.norm(m[0]) < 1.0]
     angles = sorted(np.arctan2(m[1, 1], m[1, 0]) for m in strokes)
     np.testing.assert_allclose(angles, [-np.pi / 3, 0.3], atol=1e-12)

@@ -230,6 +230,19 @@ class Recorder:
         row[0], row[1:1 + self.n], row[1 + self.n:] = t, q, v
         s.held += 1
 
+    def record_many(self, ts, Q, V) -> None:
+        """`record` of the samples (ts[k], Q[k], V[k]) as one block (a sample that is not
+        finite is found one by one: the ones before it are kept, and it raises)."""
+        if not (np.isfinite(Q).all() and np.isfinite(V).all()):
+            for tk, q, v in zip(ts, Q, V):
+                self.record(tk, q, v)
+            return
+        s, k, n = self.samples, len(ts), self.n
+        s.room(k)
+        block = s.data[s.held:s.held + k]
+        block[:, 0], block[:, 1:1 + n], block[:, 1 + n:] = ts, Q, V
+        s.held += k
+
     def flush(self) -> None:
         """Between steps: samples and work beyond a chunk go to disk (when streamed)."""
         self.samples.flush()
@@ -278,5 +291,4 @@ class Recorder:
                 q, v = states(inside[k:k + 1], Y[k:k + 1])
                 self.record(inside[k], q[0], v[0])
             return
-        for tk, q, v in zip(inside, Q, V):
-            self.record(tk, q, v)
+        self.record_many(inside, Q, V)
