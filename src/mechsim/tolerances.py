@@ -14,7 +14,7 @@ class Tolerances:
     coordinates' units unless said otherwise).
 
     rtol, atol : the local error test's relative and absolute tolerances, as in scipy's
-        `solve_ivp` (error ≤ atol + rtol |y| per component)
+        `solve_ivp` (error ≤ atol + rtol·abs(y) per component)
     """
     rtol: float
     atol: float

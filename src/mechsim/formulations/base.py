@@ -19,16 +19,23 @@ from ..tolerances import Tolerances
 
 @dataclass(frozen=True)
 class Correction:
-    """What a formulation's `after_step` did after an accepted step.
+    """What a formulation's `after_step` did after an accepted step. A `y` with neither
+    flag keeps its meaning (a projection): it goes into the integrator in place where the
+    integrator allows.
 
-    y : the state the run goes on from, or None (the integrator's own)
-    layout_changed : y means other coordinates (a new partition, a switch of formulation):
-        the run restarts the integrator there
-    shifted : y is the integrator's state shifted by a constant (another reference): the
-        integrator takes it in place where it can
-    step_limit : the largest next step the formulation can take safely, or None
-    (A y with neither flag keeps its meaning, a projection: into the integrator in place
-    where it allows.)"""
+    Attributes
+    ----------
+    y : ndarray or None
+        The state the run goes on from; None: the integrator's own.
+    layout_changed : bool
+        `y` means other coordinates (a new partition, a switch of formulation): the run
+        restarts the integrator there.
+    shifted : bool
+        `y` is the integrator's state shifted by a constant (another reference): the
+        integrator takes it in place where it can.
+    step_limit : float or None
+        The largest next step the formulation can take safely.
+    """
     y: np.ndarray | None = None
     layout_changed: bool = False
     shifted: bool = False

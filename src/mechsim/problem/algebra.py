@@ -32,31 +32,33 @@ SMALL_ROWS = 60
 
 
 class ConstraintAlgebra:
-    """The contract of a constraint algebra (one per problem; the problem is `problem`).
+    """The contract of a constraint algebra: one per problem (`problem`), with
 
-    cut_reference : float, the level of σ_min/σ_max of J̃ that the projection method's
-        truncation cut `rcond` is relative to (see `mechsim.formulations.projection`)
-    small : bool, J̃'s SVD is cheap (at most `SMALL_ROWS` constraint rows)
-    batched : bool, J̃ of many states is measured together by one stacked dense SVD
-    jacobian(q, t) -> Φ_q in the form the solvers take (dense, or CSR)
-    pivots(J) -> permutation of the coordinates: the first rank(J) are dependent
-        (LU pivoting of Φ_qᵀ), the rest independent
-    rank(J) -> the numerical rank of Φ_q = J (singular values above 1e3 ε max(m, n) σ_max)
-    extremes(J̃, k) -> (σ_k, u_k, v_k, σ_max, u_max, v_max): the k-th largest singular
-        value of J̃ (k = m − 1 − redundant rows) and its singular vectors, and the largest;
-        σ_max = 0 where J̃ has lost that rank (u_k: a left singular vector of the smallest)
-    clear_solver(J, f, cut, bound) -> r ↦ (J̃J̃ᵀ)⁻¹ r, or None: where every singular value
-        of J̃ = f.cols(J) is clear of the truncation cut (relative to σ_max; `bound`: the
-        smallest acceptable estimate of 1/cond₁(J̃J̃ᵀ))
-    clear_accelerations(J, Q, gamma, q, cut, bound, far) -> q̈, or None where J̃ is not
-        clear of the cut (the formulation then decides by the SVD); `far`: the last
-        accepted step found the motion far from any singular configuration, so no
-        condition estimate is needed
-    dense_complement : bool, Φ_q M⁻¹ Φ_qᵀ is formed dense with a constant diagonal mass, so
-        many right-hand sides share one factor (output samples settled by one stacked
-        Newton step, the friction forces' unit responses)
-    compiles : bool, the compiled engine (`mechsim.codegen.engine`) computes as this
-        algebra does and may serve its runs
+    - ``cut_reference``: float, the level of σ_min/σ_max of J̃ that the projection
+      method's truncation cut `rcond` is relative to (`mechsim.formulations.projection`)
+    - ``small``: bool, J̃'s SVD is cheap (at most `SMALL_ROWS` constraint rows)
+    - ``batched``: bool, J̃ of many states is measured together by one stacked dense SVD
+    - ``dense_complement``: bool, Φ_q M⁻¹ Φ_qᵀ is formed dense with a constant diagonal
+      mass, so many right-hand sides share one factor (output samples settled by one
+      stacked Newton step, the friction forces' unit responses)
+    - ``compiles``: bool, the compiled engine (`mechsim.codegen.engine`) computes as this
+      algebra does and may serve its runs
+    - ``jacobian(q, t)``: Φ_q in the form the solvers take (dense, or CSR)
+    - ``pivots(J)``: a permutation of the coordinates whose first rank(J) are dependent
+      (LU pivoting of Φ_qᵀ), the rest independent
+    - ``rank(J)``: the numerical rank of Φ_q = J (singular values above
+      1e3 ε max(m, n) σ_max)
+    - ``extremes(J̃, k)``: (σ_k, u_k, v_k, σ_max, u_max, v_max), the k-th largest singular
+      value of J̃ (k = m − 1 − redundant rows) with its singular vectors, and the largest;
+      σ_max = 0 where J̃ has lost that rank (u_k then a left singular vector of the
+      smallest)
+    - ``clear_solver(J, f, cut, bound)``: r ↦ (J̃J̃ᵀ)⁻¹ r where every singular value of
+      J̃ = f.cols(J) is clear of the truncation cut (relative to σ_max; `bound`: the
+      smallest acceptable estimate of 1/cond₁(J̃J̃ᵀ)), else None
+    - ``clear_accelerations(J, Q, gamma, q, cut, bound, far)``: q̈ where J̃ is clear of
+      the cut, else None (the formulation then decides by the SVD); `far`: the last
+      accepted step found the motion far from any singular configuration, so no
+      condition estimate is needed
     """
     name = ""
     cut_reference = SCALE_REF
