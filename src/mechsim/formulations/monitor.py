@@ -107,11 +107,10 @@ class SingularityMonitor:
         # no passage is watched, and the run says so.
         self.blind = False
         self._hidden_by_masses = None
-        self.engine = _compiled(problem) if not self.redundant else None
 
     def _jacobian(self, q, t):
         """J̃ = Φ_q L⁻ᵀ, the mass-scaled Jacobian (CSR for a long chain: `mechsim.linalg.sparse`)."""
-        return self.problem.mass_factor(q).cols(self.problem.solver_phi_q(q, t))
+        return self.problem.algebra.scaled_jacobian(q, t)
 
     def measure(self, q, t, v=None):
         """(s, ṡ, left singular vector of σ_min); ṡ = 0 when v is None."""
@@ -122,31 +121,15 @@ class SingularityMonitor:
         (`J` if the caller has it)."""
         speed = float(np.max(np.abs(v))) if v is not None and v.size else 0.0
         eps = 1e-7 / speed if speed > 0.0 else 0.0
-        if self.engine is not None:
-            got = self.engine.measure(t, q, v, eps)
-            if got is not None:
-                smin, smax, d_min, d_max, u_min, J = got
-                if not smax > 0.0:
-                    return 0.0, 0.0, u_min, 0.0, 0.0, J
-                rate = (d_min * smax - smin * d_max) / smax ** 2 if eps else 0.0
-                return smin / smax, rate, u_min, smin, smax, J
-        if J is None:
-            J = self._jacobian(q, t)
-        m = J.shape[0]
+        m = self.problem.m
         if m == 0:
-            return 1.0, 0.0, np.zeros(0), 1.0, 1.0, J
-        smin, u_min, v_min, smax, u_max, v_max = self.problem.algebra.extremes(
-            J, m - 1 - self.redundant)
+            return 1.0, 0.0, np.zeros(0), 1.0, 1.0, self._jacobian(q, t) if J is None else J
+        smin, smax, d_min, d_max, u_min, J = self.problem.algebra.measure(
+            q, t, v, eps, m - 1 - self.redundant, J)
         if not smax > 0.0:
             return 0.0, 0.0, u_min, 0.0, 0.0, J
-        s = float(smin / smax)
-        rate = 0.0
-        if eps:
-            dJ = sparse.difference(self._jacobian(q + eps * v, t + eps), J, 1.0 / eps)
-            d_min = u_min @ (dJ @ v_min)
-            d_max = u_max @ (dJ @ v_max)
-            rate = float((d_min * smax - smin * d_max) / smax ** 2)
-        return s, rate, u_min, float(smin), float(smax), J
+        rate = float((d_min * smax - smin * d_max) / smax ** 2) if eps else 0.0
+        return float(smin / smax), rate, u_min, float(smin), float(smax), J
 
     def _masses_hide(self, q, t) -> bool:
         """Do unequal masses, not the configuration, make σ_min/σ_max of J̃ that small?
@@ -275,25 +258,16 @@ class SingularityMonitor:
     def _batched(self) -> bool:
         """Are many states measured together (`ratios`): by the compiled engine, or by a
         stacked SVD of a small dense J̃ (not a long chain's banded one)?"""
-        return self.engine is not None or self.problem.algebra.batched
+        return self.problem.algebra.measures_together(self.problem.m - 1 - self.redundant)
 
     def ratios(self, times, Q) -> np.ndarray:
         """σ_min/σ_max of J̃ (not normalized) at each configuration Q[i] at times[i], shape
         (k,): in one call of the compiled engine, or by one stacked SVD of the dense J̃ of a
         small mechanism, else one `measure` each."""
-        if self.engine is not None:
-            got = self.engine.ratios(times, Q)
-            if got is not None:
-                return got
-        if not self._batched:
+        got = self.problem.algebra.ratios(times, Q, self.problem.m - 1 - self.redundant)
+        if got is None:
             return np.array([self.measure(q, tk)[0] for tk, q in zip(times, Q)])
-        J = np.array([sparse.dense(self._jacobian(q, tk)) for tk, q in zip(times, Q)])
-        sig = np.linalg.svd(J, compute_uv=False)
-        k = self.problem.m - 1 - self.redundant
-        if k < 0 or k >= sig.shape[1]:
-            return np.zeros(len(times))
-        top = sig[:, 0]
-        return np.where(top > 0.0, sig[:, k] / np.where(top > 0.0, top, 1.0), 0.0)
+        return got
 
     def _hidden_passages(self, a, b, state_at, ratio_speed=0.0,
                          positions_at=None) -> list[Dip]:
@@ -440,12 +414,3 @@ def _dips(values, enter, leave, open_at_start=False):
         dips.append((run, False))
     return dips
 
-
-def _compiled(problem):
-    """The compiled measurement (`mechsim.codegen.engine`) where the problem has it and
-    σ_min is a singular value of J̃ (m ≤ n); else None."""
-    if problem.m > problem.n:
-        return None
-    from ..codegen import engine
-    lib = engine.for_problem(problem)
-    return None if lib is None else engine.ProjectionEngine(lib, problem)

@@ -165,13 +165,9 @@ class Projection(FullCoordinates):
         return Vt.T, (U * (sig / (sig**2 + mu2))).T
 
     def _compiled_engine(self):
-        """The compiled accelerations clear of the band (`mechsim.codegen.engine`) where
-        Cholesky may stand in for the SVD and the engine takes the problem; else None."""
-        if not self._cholesky:
-            return None
-        from ..codegen import engine
-        lib = engine.for_problem(self.problem)
-        return None if lib is None else engine.ProjectionEngine(lib, self.problem)
+        """The compiled accelerations clear of the band (the problem's algebra's engine)
+        where Cholesky may stand in for the SVD; else None."""
+        return self.problem.algebra.engine if self._cholesky else None
 
     @property
     def _cholesky(self):

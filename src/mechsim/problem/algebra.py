@@ -13,6 +13,8 @@ does and serves in its place where it takes the problem (`compiles`).
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 import scipy.linalg as sla
 
@@ -59,6 +61,13 @@ class ConstraintAlgebra:
       the cut, else None (the formulation then decides by the SVD); `far`: the last
       accepted step found the motion far from any singular configuration, so no
       condition estimate is needed
+    - ``measure(q, t, v, eps, k, J=None)``: (σ_k, σ_max, σ̇_k, σ̇_max, u_k, J̃) at (q, t),
+      the rates along v from J̃ at (q + eps v, t + eps) (0 where eps is 0; `J`: J̃ at q
+      if the caller has it); σ_max = 0 where J̃ has lost that rank
+    - ``ratios(times, Q, k)``: σ_k/σ_max at every configuration Q[i] at times[i] measured
+      together, or None where they are measured one by one (`measure`)
+    - ``engine``: the compiled engine (`mechsim.codegen.engine.ProjectionEngine`) that
+      serves in the algebra's place where it takes the problem, one per problem; None
     """
     name = ""
     cut_reference = SCALE_REF
@@ -97,6 +106,39 @@ class ConstraintAlgebra:
     def clear_accelerations(self, J, Q, gamma, q, cut, bound, far):
         raise NotImplementedError
 
+    engine = None
+
+    def scaled_jacobian(self, q, t):
+        """J̃ = Φ_q L⁻ᵀ, the mass-scaled Jacobian, in the form `jacobian` gives."""
+        return self.problem.mass_factor(q).cols(self.jacobian(q, t))
+
+    def measure(self, q, t, v, eps, k, J=None):
+        if J is None:
+            J = self.scaled_jacobian(q, t)
+        smin, u_min, v_min, smax, u_max, v_max = self.extremes(J, k)
+        if not smax > 0.0:
+            return 0.0, 0.0, 0.0, 0.0, u_min, J
+        d_min = d_max = 0.0
+        if eps:
+            dJ = sparse.difference(self.scaled_jacobian(q + eps * v, t + eps), J, 1.0 / eps)
+            d_min = u_min @ (dJ @ v_min)
+            d_max = u_max @ (dJ @ v_max)
+        return smin, smax, d_min, d_max, u_min, J
+
+    def ratios(self, times, Q, k):
+        if not self.batched:
+            return None
+        J = np.array([sparse.dense(self.scaled_jacobian(q, tk)) for tk, q in zip(times, Q)])
+        sig = np.linalg.svd(J, compute_uv=False)
+        if k < 0 or k >= sig.shape[1]:
+            return np.zeros(len(times))
+        top = sig[:, 0]
+        return np.where(top > 0.0, sig[:, k] / np.where(top > 0.0, top, 1.0), 0.0)
+
+    def measures_together(self, k) -> bool:
+        """Does `ratios` measure many states together (compiled, or stacked)?"""
+        return self.batched
+
 
 class DenseAlgebra(ConstraintAlgebra):
     """Φ_q as a dense array: J̃J̃ᵀ by dense Cholesky with LAPACK's condition estimate,
@@ -121,6 +163,42 @@ class DenseAlgebra(ConstraintAlgebra):
         for i, p in enumerate(piv):
             perm[i], perm[p] = perm[p], perm[i]
         return perm
+
+    @cached_property
+    def engine(self):
+        """The compiled engine where it takes the problem (`compiles`), built on first use
+        and shared by the formulations and the monitor of every run of the problem."""
+        if not self.compiles:
+            return None
+        from ..codegen import engine
+        lib = engine.for_problem(self.problem)
+        return None if lib is None else engine.ProjectionEngine(lib, self.problem)
+
+    def _compiled(self, k):
+        """The engine where it may measure: J̃ without redundant rows (k = m − 1) whose
+        σ_min is a singular value (m ≤ n)."""
+        p = self.problem
+        return self.engine if k == p.m - 1 and p.m <= p.n else None
+
+    def measure(self, q, t, v, eps, k, J=None):
+        engine = self._compiled(k)
+        if engine is not None:
+            got = engine.measure(t, q, v, eps)
+            if got is not None:
+                smin, smax, d_min, d_max, u_min, Jt = got
+                return smin, smax, d_min, d_max, u_min, Jt
+        return super().measure(q, t, v, eps, k, J)
+
+    def ratios(self, times, Q, k):
+        engine = self._compiled(k)
+        if engine is not None:
+            got = engine.ratios(times, Q)
+            if got is not None:
+                return got
+        return super().ratios(times, Q, k)
+
+    def measures_together(self, k) -> bool:
+        return self._compiled(k) is not None or self.batched
 
     def clear_solver(self, J, f, cut, bound):
         Jt = f.cols(sparse.dense(J))

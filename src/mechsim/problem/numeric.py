@@ -315,11 +315,8 @@ class NumericProblem:
         """λ at the consistent states (T[i], Q[i], V[i]), with the rows whose share is not
         unique there (`mechsim.problem.multipliers`; `passages`: the (t_start, t_end) of a
         run's singular passages, None where no monitor watched): a `Multipliers`."""
-        from ..codegen import engine
         from .multipliers import multipliers
-        lib = engine.for_problem(self)
-        compiled = engine.ProjectionEngine(lib, self) if lib is not None else None
-        return multipliers(self, T, Q, V, passages, engine=compiled)
+        return multipliers(self, T, Q, V, passages, engine=self.algebra.engine)
 
     def kinetic_energy(self, q, v) -> np.ndarray:
         return self.mass_model.kinetic_energy(q, v)
