@@ -214,44 +214,35 @@ class Projection(FullCoordinates):
                 and not mon.predicted_within(3.0 * step))
 
     def rhs(self, t, y):
-        """[v; q̈], in one compiled call where it takes the evaluation."""
-        if self.engine is None:
-            return super().rhs(t, y)
+        """[v; q̈], in one call of the problem's algebra where it takes the evaluation
+        (compiled)."""
         prob, n = self.problem, self.n
         prob.counters.rhs += 1
         q, v = y[:n], y[n:]
         Q = prob.forces(t, q, v)
-        out = self.engine.rhs(t, y, Q, -1.0 if self._far else self._min_rcond, self.cut)
-        if out is not None:
-            prob.counters.factorizations += 1
-            return out
-        return np.concatenate([v, self._accelerations(t, q, v, Q, None)])
+        if self._cholesky:
+            out = prob.algebra.derivative(t, y, Q, self.cut, self._min_rcond, self._far)
+            if out is not None:
+                return out
+        return np.concatenate([v, self._accelerations(t, q, v, Q, None, compiled=False)])
 
     def accelerations(self, t, q, v, far=None):
         """q̈ at (t, q, v); `far`: skip the condition estimate (default: as the last
         accepted step decided, `_far_from_band`)."""
-        prob = self.problem
-        Q = prob.forces(t, q, v)
-        if self.engine is not None:
-            clear = self._far if far is None else far
-            out = self.engine.accelerations(t, q, v, Q, -1.0 if clear else self._min_rcond,
-                                               self.cut)
-            if out is not None:
-                prob.counters.factorizations += 1
-                return out
-        return self._accelerations(t, q, v, Q, far)
+        return self._accelerations(t, q, v, self.problem.forces(t, q, v), far)
 
-    def _accelerations(self, t, q, v, Q, far):
-        """`accelerations` in Python, under the applied forces Q: the exact Schur
-        complement where J̃ is clear of the cut (the problem's algebra), else by the SVD."""
+    def _accelerations(self, t, q, v, Q, far, compiled=True):
+        """q̈ under the applied forces Q: the exact Schur complement where J̃ is clear of
+        the cut (the problem's algebra, compiled unless `compiled` is False: the engine
+        declined this state already), else by the SVD."""
         prob = self.problem
+        if self._cholesky:
+            out = prob.algebra.accelerations(t, q, v, Q, self.cut, self._min_rcond,
+                                             self._far if far is None else far, compiled)
+            if out is not None:
+                return out
         J, gamma = prob.solver_dynamics_terms(q, v, t)
         m = J.shape[0]
-        if m and self._cholesky:
-            out = prob.algebra.clear_accelerations(J, Q, gamma, q, self.cut, self._min_rcond,
-                                                   self._far if far is None else far)
-            if out is not None:
-                return out
         J = sparse.dense(J)
         f = prob.mass_factor(q)
         x = f.left(Q)                                      # L⁻¹ Q
@@ -355,9 +346,9 @@ class Projection(FullCoordinates):
         if not self.projection or not prob.m:
             return super().project_now(t, y)
         q, v = y[:n], y[n:]
-        if self.engine is not None:
-            done = self.engine.project_state(t, q, v, 0.01 * self.projection_tol,
-                                                self._min_rcond, skip_tol=self.projection_tol)
+        if self._cholesky:
+            done = prob.algebra.project_state(t, q, v, 0.01 * self.projection_tol,
+                                              self._min_rcond, self.projection_tol)
             if done is False:
                 return None
             if done is not None:
