@@ -206,6 +206,24 @@ def test_auto_build_fuses_small_mechanisms_at_once_and_larger_ones_in_the_backgr
     assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 4   # 2 kernels, 2 fused
 
 
+_RUN = """
+import hashlib, mechsim as ms
+mech = ms.examples.double_four_bar(2)
+res = mech.simulate(2.0, rtol=1e-8, atol=1e-10, output_step=0.01)
+print(mech.from_cache, res.stats["steps"],
+      hashlib.sha256(res.t.tobytes() + res.q.tobytes() + res.v.tobytes()).hexdigest())
+"""
+
+
+def test_a_small_mechanism_runs_bitwise_alike_in_every_process(tmp_path):
+    """The first process (empty cache: the fused model built at once) and a later one
+    (loading it) run the double four-bar through its passages to the same bits."""
+    first = _python(_RUN, tmp_path).split()
+    later = _python(_RUN, tmp_path).split()
+    assert first[0] == "False" and later[0] == "True"
+    assert first[1:] == later[1:]
+
+
 def test_background_builds_can_be_switched_off(tmp_path):
     _python(_BUILD.format(n=4), tmp_path, MECHSIM_BACKGROUND="0")
     time.sleep(3.0)
