@@ -82,15 +82,15 @@ class PassageBridge:
     """Plans the approach to a passage and crosses it.
 
     `accelerations(t, q, v)` must be exact outside the band (the projection method's);
-    `cut()` gives its truncation cut (relative to σ_max); `engine`: the compiled projection
-    of states onto the constraints (`mechsim.codegen.engine.ProjectionEngine`), if there
-    is one.
+    `cut()` gives its truncation cut (relative to σ_max); `compiled`: states may be
+    projected onto the constraints by the problem's algebra compiled (`project_state`),
+    where it has the engine.
     """
 
-    def __init__(self, problem, accelerations, cut, rtol, atol, order=10, engine=None):
+    def __init__(self, problem, accelerations, cut, rtol, atol, order=10, compiled=False):
         self.problem = problem
         self.accelerations = accelerations
-        self.engine = engine
+        self.compiled = compiled
         self._cut = cut
         self.rtol, self.atol = rtol, atol
         self.tol = Tolerances(rtol, atol)
@@ -166,8 +166,7 @@ class PassageBridge:
         prob = self.problem
         # Close to the configuration a residual of Φ is amplified by 1/σ_min² in q̈: one
         # Newton step past 1e-13 takes it to round-off.
-        done = None if self.engine is None else self.engine.project_state(t, q, v, 1e-13,
-                                                                          extra=1)
+        done = prob.algebra.project_state(t, q, v, 1e-13, extra=1) if self.compiled else None
         if done is None:
             done = prob.project_state(q, v, t, 1e-13, extra=1)
         if done is not None:

@@ -24,6 +24,8 @@ SETTLE_STEPS = 4
 class FullCoordinates(Formulation):
     options = {"projection": Option.flag(True),
                "projection_tol": Option.positive(None, optional=True)}
+    # Whether the problem's algebra may settle samples compiled (`settle_samples`).
+    compiled = False
 
     def __init__(self, problem, rtol, atol, **options):
         super().__init__(problem, rtol, atol, **options)
@@ -44,7 +46,7 @@ class FullCoordinates(Formulation):
         Q, V = np.array(Y[:, :self.n]), np.array(Y[:, self.n:])
         if self.projection:
             settle_samples(self.problem, ts, Q, V, 0.01 * self.projection_tol,
-                           getattr(self, "engine", None))
+                           self.compiled)
         return Q, V
 
     def positions(self, ts, Y):
@@ -89,7 +91,7 @@ class FullCoordinates(Formulation):
         return self.problem.project_velocities(q, v, t)
 
 
-def settle_samples(problem, ts, Q, V, accept, engine=None) -> None:
+def settle_samples(problem, ts, Q, V, accept, compiled=False) -> None:
     """Project each output sample (rows of Q, V at times ts, in place) onto the constraints,
     positions then velocities in the mass metric, where it leaves them by more than
     round-off (`ROUND_OFF` of its largest coordinate). Rigid mechanisms take Newton steps
@@ -99,14 +101,16 @@ def settle_samples(problem, ts, Q, V, accept, engine=None) -> None:
     flexible mechanism, is
     projected on its own (`NumericProblem.project_state`, the full projections where its
     chord fails). A sample at a singular configuration, where the projection ends above
-    `accept`, is kept as it was. With the compiled `engine` every sample is first
-    projected in C, in one call (`ProjectionEngine.project_states`)."""
+    `accept`, is kept as it was. `compiled`: every sample is first projected by the
+    problem's algebra in one call where it is compiled (`project_states`)."""
     if not problem.m or not len(ts):
         return
-    if engine is not None:
+    if compiled:
         floors = ROUND_OFF * np.maximum(1.0, np.max(np.abs(Q), axis=1))
         Qc, Vc = np.ascontiguousarray(Q), np.ascontiguousarray(V)
-        status = engine.project_states(ts, Qc, Vc, floors)
+        status = problem.algebra.project_states(ts, Qc, Vc, floors)
+        compiled = status is not None
+    if compiled:
         Q[:], V[:] = Qc, Vc
         left = np.flatnonzero(status == 1)
         if not left.size:

@@ -69,6 +69,7 @@ class Projection(FullCoordinates):
         super().__init__(problem, rtol, atol, **options)
         self._redundant = 0          # singular values found to stay at zero (redundancy)
         self.engine = self._compiled_engine()
+        self.compiled = self._cholesky
         # The bound on LAPACK's estimate of 1/cond₁ of J̃J̃ᵀ above which the Cholesky
         # factor stands in for the SVD (see `_clear_solver`).
         # Set after an accepted step far from any passage: until the next one, the
@@ -76,7 +77,7 @@ class Projection(FullCoordinates):
         self._far = False
         if self.regularization == "truncate" and self.bridge_passages:
             self.bridge = PassageBridge(problem, lambda t, q, v: self.accelerations(t, q, v, False),
-                                        lambda: self.cut, rtol, atol, engine=self.engine)
+                                        lambda: self.cut, rtol, atol, compiled=self._cholesky)
             self.bridging = True
 
     @classmethod

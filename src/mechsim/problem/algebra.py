@@ -70,9 +70,12 @@ class ConstraintAlgebra:
       forces Q where J̃ is clear of the cut (compiled where the engine takes it), else None
     - ``derivative(t, y, Q, cut, bound, far)``: [v; q̈] at y = [q; v] in one compiled call
       where the engine takes it, else None (then `accelerations`)
-    - ``project_state(t, q, v, tol, bound, skip_tol)``: `NumericProblem.project_state`
-      compiled: (q, v) on the constraints, False where ‖Φ‖∞ ≤ skip_tol already, None
-      where the Python path must decide
+    - ``project_state(t, q, v, tol, bound, skip_tol, extra)``:
+      `NumericProblem.project_state` compiled: (q, v) on the constraints, False where
+      ‖Φ‖∞ ≤ skip_tol already, None where the Python path must decide
+    - ``project_states(ts, Q, V, tols)``: `project_state` of many states in one call, Q
+      and V (C-contiguous) in place: a status per state (0 projected, 2 within its
+      tolerance already, 1 left for the Python path), or None where nothing is compiled
     - ``engine``: the compiled engine (`mechsim.codegen.engine.ProjectionEngine`) that
       serves in the algebra's place where it takes the problem, one per problem; None
     """
@@ -156,7 +159,10 @@ class ConstraintAlgebra:
     def derivative(self, t, y, Q, cut, bound, far):
         return None
 
-    def project_state(self, t, q, v, tol, bound, skip_tol):
+    def project_state(self, t, q, v, tol, bound=-1.0, skip_tol=-1.0, extra=0):
+        return None
+
+    def project_states(self, ts, Q, V, tols):
         return None
 
 
@@ -237,10 +243,16 @@ class DenseAlgebra(ConstraintAlgebra):
             self.problem.counters.factorizations += 1
         return out
 
-    def project_state(self, t, q, v, tol, bound, skip_tol):
+    def project_state(self, t, q, v, tol, bound=-1.0, skip_tol=-1.0, extra=0):
         if self.engine is None:
             return None
-        return self.engine.project_state(t, q, v, tol, bound, skip_tol=skip_tol)
+        return self.engine.project_state(t, q, v, tol, bound, skip_tol=skip_tol,
+                                         extra=extra)
+
+    def project_states(self, ts, Q, V, tols):
+        if self.engine is None:
+            return None
+        return self.engine.project_states(ts, Q, V, tols)
 
     def clear_solver(self, J, f, cut, bound):
         Jt = f.cols(sparse.dense(J))
