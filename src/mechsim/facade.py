@@ -39,8 +39,9 @@ class Mechanism(MechanismModel):
         """The NumericProblem of this mechanism, built once (`mechsim.build`). `build`:
         "fused" (one generated model for the whole mechanism, compiled where small),
         "assembled" (from joint-type kernels: no sympy run for a new structure), or
-        "auto" (the fused model where the cache has it, else the assembled one); None:
-        `$MECHSIM_BUILD`, else "auto". Asking for another build than the one made
+        "auto" (the fused model where the cache has it or the mechanism is small, else the
+        assembled one; `mechsim.build.constraint_model`); None: `$MECHSIM_BUILD`, else
+        "auto". Asking for another build than the one made
         rebuilds."""
         from .build import build_mode, build_problem
         mode = None if build is None else build_mode(build)

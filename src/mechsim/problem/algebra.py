@@ -211,8 +211,7 @@ class DenseAlgebra(ConstraintAlgebra):
         if engine is not None:
             got = engine.measure(t, q, v, eps)
             if got is not None:
-                smin, smax, d_min, d_max, u_min, Jt = got
-                return smin, smax, d_min, d_max, u_min, Jt
+                return got
         return super().measure(q, t, v, eps, k, J)
 
     def ratios(self, times, Q, k):
