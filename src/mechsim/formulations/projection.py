@@ -237,13 +237,19 @@ class Projection(FullCoordinates):
         the cut (the problem's algebra, compiled unless `compiled` is False: the engine
         declined this state already), else by the SVD."""
         prob = self.problem
-        if self._cholesky:
-            out = prob.algebra.accelerations(t, q, v, Q, self.cut, self._min_rcond,
-                                             self._far if far is None else far, compiled)
+        far = self._far if far is None else far
+        if self._cholesky and compiled:
+            out = prob.algebra.compiled_accelerations(t, q, v, Q, self.cut, self._min_rcond,
+                                                      far)
             if out is not None:
                 return out
         J, gamma = prob.solver_dynamics_terms(q, v, t)
         m = J.shape[0]
+        if m and self._cholesky:
+            out = prob.algebra.clear_accelerations(J, Q, gamma, q, self.cut,
+                                                   self._min_rcond, far)
+            if out is not None:
+                return out
         J = sparse.dense(J)
         f = prob.mass_factor(q)
         x = f.left(Q)                                      # L⁻¹ Q

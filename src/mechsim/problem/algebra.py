@@ -66,8 +66,9 @@ class ConstraintAlgebra:
       if the caller has it); σ_max = 0 where J̃ has lost that rank
     - ``ratios(times, Q, k)``: σ_k/σ_max at every configuration Q[i] at times[i] measured
       together, or None where they are measured one by one (`measure`)
-    - ``accelerations(t, q, v, Q, cut, bound, far)``: q̈ at (t, q, v) under the applied
-      forces Q where J̃ is clear of the cut (compiled where the engine takes it), else None
+    - ``compiled_accelerations(t, q, v, Q, cut, bound, far)``: q̈ at (t, q, v) under the
+      applied forces Q by the compiled engine where it takes the state, else None (then
+      `clear_accelerations` on the terms the caller evaluates once)
     - ``derivative(t, y, Q, cut, bound, far)``: [v; q̈] at y = [q; v] in one compiled call
       where the engine takes it, else None (then `accelerations`)
     - ``project_state(t, q, v, tol, bound, skip_tol, extra)``:
@@ -149,12 +150,8 @@ class ConstraintAlgebra:
         """Does `ratios` measure many states together (compiled, or stacked)?"""
         return self.batched
 
-    def accelerations(self, t, q, v, Q, cut, bound, far, compiled=True):
-        """(`compiled`: False where the engine has declined this state already.)"""
-        J, gamma = self.problem.solver_dynamics_terms(q, v, t)
-        if not J.shape[0]:
-            return None
-        return self.clear_accelerations(J, Q, gamma, q, cut, bound, far)
+    def compiled_accelerations(self, t, q, v, Q, cut, bound, far):
+        return None
 
     def derivative(self, t, y, Q, cut, bound, far):
         return None
@@ -225,14 +222,13 @@ class DenseAlgebra(ConstraintAlgebra):
     def measures_together(self, k) -> bool:
         return self._compiled(k) is not None or self.batched
 
-    def accelerations(self, t, q, v, Q, cut, bound, far, compiled=True):
-        engine = self.engine if compiled else None
-        if engine is not None:
-            out = engine.accelerations(t, q, v, Q, -1.0 if far else bound, cut)
-            if out is not None:
-                self.problem.counters.factorizations += 1
-                return out
-        return super().accelerations(t, q, v, Q, cut, bound, far)
+    def compiled_accelerations(self, t, q, v, Q, cut, bound, far):
+        if self.engine is None:
+            return None
+        out = self.engine.accelerations(t, q, v, Q, -1.0 if far else bound, cut)
+        if out is not None:
+            self.problem.counters.factorizations += 1
+        return out
 
     def derivative(self, t, y, Q, cut, bound, far):
         if self.engine is None:
