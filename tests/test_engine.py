@@ -297,23 +297,24 @@ def test_output_samples_settle_alike_in_c_and_in_python(rng):
 @needs_compiler
 def test_compiled_lu_condition_agrees_with_the_python_path():
     """The hybrid's test for a return to LU (`Hybrid._lu_ready`): cond₁ of the block LU
-    pivoting picks, compiled and from `Partitioned.choose`, over the double four-bar's
-    first passage, to round-off; with the block it picks near the passage
-    ill-conditioned enough to matter (cond ≥ 1e3 there)."""
+    pivoting picks, compiled (the algebra's `lu_condition`) and from `Partitioned.choose`,
+    over the double four-bar's first passage, to round-off; with the block it picks near
+    the passage ill-conditioned enough to matter (cond ≥ 1e3 there)."""
     from mechsim.formulations.hybrid import Hybrid
 
     mech = ms.examples.double_four_bar(2)
     res = mech.simulate(t_end=0.8, method="projection", rtol=1e-9, atol=1e-11,
                         output_step=1e-3)
     prob = res.problem
+    if engine.library(prob.model) is None:
+        pytest.skip("no C compiler: the engine is not built")
     hybrid = Hybrid(prob, 1e-8, 1e-10)
-    assert hybrid.engine is not None
     conds = []
     for k in range(0, len(res.t), 4):
         t, q = res.t[k], res.q[k]
         J = prob.phi_q(q, t)
         slow = hybrid.lu.choose(J, prob.m).block(J).condition()
-        assert hybrid.engine.lu_condition(t, q) == pytest.approx(slow, rel=1e-9)
+        assert prob.algebra.lu_condition(t, q) == pytest.approx(slow, rel=1e-9)
         conds.append(slow)
     assert max(conds) >= 1e3 and min(conds) < 100
 

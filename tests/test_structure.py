@@ -88,3 +88,13 @@ def test_the_check_sees_an_upward_import(tmp_path):
     source = "def f():\n    from ..run.solver import simulate\n    from .. import app\n"
     found = [t for _, t in imported_parts(fake, source)]
     assert found == ["run", "app"]
+
+
+def test_the_algorithms_reach_compiled_code_through_the_algebra_only():
+    """The formulations, the monitor, the run and the analyses are written once against
+    the constraint algebra (`mechsim.problem.algebra`): none of them imports the code
+    generation (the compiled engine serves them as the dense algebra's implementation)."""
+    direct = [f"{path.relative_to(ROOT)}:{line}" for path in modules()
+              if part_of(path) in ("formulations", "run", "engineering", "shooting", "linear")
+              for line, target in imported_parts(path) if target == "codegen"]
+    assert not direct, "algorithms that import codegen:\n" + "\n".join(direct)

@@ -8,7 +8,12 @@ the model's C twins of Φ, Φ_q, Φ_t and γ, with LAPACK taken from scipy's own
 pointers `scipy.linalg.cython_lapack` exports). Python keeps the forces, which may be any
 user code, between the state and the accelerations.
 
-The same library serves the projection method and the solver manager:
+It is the dense constraint algebra's implementation of its state-level operations
+(`mechsim.problem.algebra.DenseAlgebra`, which builds and calls it; no formulation does):
+
+- one coordinate partition's solver (`PartitionedEngine`, the algebra's
+  `partition_solver`): the dependent coordinates and velocities of a state or of a
+  step's samples, and the reduced accelerations;
 
 - the projection method's accelerations (`ProjectionEngine.accelerations`, `rhs`): by the
   Cholesky factor of J W Jᵀ where LAPACK's condition estimate clears it, else by the SVD
@@ -17,7 +22,8 @@ The same library serves the projection method and the solver manager:
   for the positions' chord Newton and the velocities;
 - the singularity monitor's σ_min, σ_max and their rates (`measure`);
 - the hybrid's test for a return to LU, cond₁ of the block LU pivoting picks
-  (`lu_condition`).
+  (`lu_condition`);
+- the multipliers of many states (`multipliers`).
 
 The compiled path takes only the plain case: a chord Newton converging by the same rules as
 the Python path's (`mechsim.linalg.newton`, whose constants it is handed), a nonsingular square Φ_q D and a positive definite Schur complement; for the
@@ -184,11 +190,13 @@ def python_path(model):
 class PartitionedEngine:
     """One partition's compiled evaluation (`library`): the buffers the C side reads and
     writes, and the calls. `accept` loads an accepted step's predictor and chord factor;
-    `state` and `accelerations` mirror `Partitioned.full_state` and its q̈ solve."""
+    `state`, `states` and `accelerations` compute what `Partitioned.full_state`, its
+    samples' solve and its q̈ solve compute, for the partition whose independent and
+    dependent coordinates are `independent` and `dependent`."""
 
-    def __init__(self, lib, problem, basis, newton_tol, max_newton, rheonomic,
-                 round_off=None):
-        n, m, f = problem.n, problem.m, basis.f
+    def __init__(self, lib, problem, independent, dependent, newton_tol, max_newton,
+                 rheonomic, round_off=None):
+        n, m, f = problem.n, problem.m, len(independent)
         r = n - f
         self.f = f
         self.p = np.ascontiguousarray(problem.p, dtype=float)
@@ -196,8 +204,8 @@ class PartitionedEngine:
         self.P = np.zeros((r, 3 + f))
         self.C = np.zeros((r, m))
         self.winv = np.ascontiguousarray(problem.inverse_mass_diagonal, dtype=float)
-        self.ind = np.ascontiguousarray(basis.ind, dtype=np.int64)
-        self.dep = np.ascontiguousarray(basis.dep, dtype=np.int64)
+        self.ind = np.ascontiguousarray(independent, dtype=np.int64)
+        self.dep = np.ascontiguousarray(dependent, dtype=np.int64)
         self.y, self.out = np.zeros(2 * f), np.zeros(2 * f)
         self.q, self.v, self.Q = np.zeros(n), np.zeros(n), np.zeros(n)
         self.J, self.J_samples = np.zeros((m, n)), np.zeros((m, n))
@@ -274,6 +282,7 @@ class ProjectionEngine:
             n=n, m=m, count=0, lwork=self.buffers["svd_work"].size,
             stall_ratio=STALL_RATIO, stall_span=STALL_SPAN), arrays)
         self.n = n
+        self.lib = lib
         self._ptr = ctypes.addressof(self.ctx)
         self._fn = lib.mechsim_projection_accelerations
         self._project = lib.mechsim_project_state

@@ -130,8 +130,8 @@ class Hybrid(Formulation):
         self.bridge = self.proj.bridge
         self.policy = SwitchPolicy(self.stable_steps, self.repartition_burst,
                                    self.burst_steps)
-        # The compiled condition of LU's block (`_lu_ready`) where the block is dense.
-        self.engine = self.proj.engine if problem.m < SPARSE_MIN else None
+        # LU's block is dense below SPARSE_MIN rows: its condition may come compiled.
+        self._dense_block = problem.m < SPARSE_MIN
 
     def initial_state(self, t, q, v):
         mon = self.monitor
@@ -201,8 +201,10 @@ class Hybrid(Formulation):
         if mon is not None and mon.redundant:
             return False                  # projection throughout (see `initial_state`)
         full = mon is not None and mon.last * mon.peak > 1e-6
-        if full and self.engine is not None:
-            return self.engine.lu_condition(t, q) < 0.1 * self.lu.cond_max
+        if full and self._dense_block:
+            cond = self.problem.algebra.lu_condition(t, q)
+            if cond is not None:
+                return cond < 0.1 * self.lu.cond_max
         J = self.problem.phi_q(q, t)
         basis = self.lu.choose(J, J.shape[0] if full else None)
         return basis.block(J).condition() < 0.1 * self.lu.cond_max

@@ -155,18 +155,14 @@ class Partitioned(Formulation):
                                 self._chord.inverse() if self._square else None)
 
     def _compiled_engine(self, basis):
-        """The compiled evaluation (`mechsim.codegen.engine`) for this partition where it
-        applies: a subset of coordinates with a square, dense Φ_q D (no redundant
-        constraints, no long chain) in a problem the engine takes; None elsewhere."""
-        prob = self.problem
-        if type(basis) is not CoordinateBasis or basis.sparse or basis.r != prob.m:
+        """The compiled evaluation of this partition (the problem's algebra's
+        `partition_solver`) where it applies: a subset of coordinates with a square, dense
+        Φ_q D (no redundant constraints, no long chain); None elsewhere."""
+        if type(basis) is not CoordinateBasis or basis.sparse:
             return None
-        from ..codegen import engine
-        lib = engine.for_problem(prob)
-        if lib is None:
-            return None
-        return engine.PartitionedEngine(lib, prob, basis, self.newton_tol, self.max_newton,
-                                        self._rheonomic, ROUND_OFF if self.stall else None)
+        return self.problem.algebra.partition_solver(
+            basis.ind, basis.dep, self.newton_tol, self.max_newton, self._rheonomic,
+            ROUND_OFF if self.stall else None)
 
     def initial_state(self, t, q, v):
         return self.partition(t, q, v)

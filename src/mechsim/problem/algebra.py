@@ -77,6 +77,20 @@ class ConstraintAlgebra:
     - ``project_states(ts, Q, V, tols)``: `project_state` of many states in one call, Q
       and V (C-contiguous) in place: a status per state (0 projected, 2 within its
       tolerance already, 1 left for the Python path), or None where nothing is compiled
+    - ``partition_solver(independent, dependent, newton_tol, max_newton, rheonomic,
+      round_off)``: the compiled evaluation of one coordinate partition of the
+      partitioned method (`mechsim.codegen.engine.PartitionedEngine`: the dependent
+      coordinates' chord Newton, their velocities and the reduced accelerations, of one
+      state or of a step's samples) for the dependent coordinates `dependent` of a
+      full-row-rank Φ_q, or None where nothing is compiled
+    - ``lu_condition(t, q)``: cond₁ of Φ_q D for the dependent set `pivots` picks at
+      (q, t), Φ_q of full row rank, inf where that block is singular; None where nothing
+      is compiled (the caller factors the block itself)
+    - ``multipliers(T, Q, V, F, min_rcond, min_pivot, lam)``: λ at the states (T[i], Q[i],
+      V[i]) under the applied forces F[i] into the rows of `lam`, where the Cholesky
+      factor of Φ_q M⁻¹ Φ_qᵀ has a condition estimate above min_rcond (< 0: not
+      estimated) and every pivot above min_pivot times its largest diagonal: (N,) bool,
+      where it did; None where nothing is compiled (`mechsim.problem.multipliers`)
     - ``engine``: the compiled engine (`mechsim.codegen.engine.ProjectionEngine`) that
       serves in the algebra's place where it takes the problem, one per problem; None
     """
@@ -160,6 +174,16 @@ class ConstraintAlgebra:
         return None
 
     def project_states(self, ts, Q, V, tols):
+        return None
+
+    def partition_solver(self, independent, dependent, newton_tol, max_newton, rheonomic,
+                         round_off=None):
+        return None
+
+    def lu_condition(self, t, q):
+        return None
+
+    def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam):
         return None
 
 
@@ -248,6 +272,22 @@ class DenseAlgebra(ConstraintAlgebra):
         if self.engine is None:
             return None
         return self.engine.project_states(ts, Q, V, tols)
+
+    def partition_solver(self, independent, dependent, newton_tol, max_newton, rheonomic,
+                         round_off=None):
+        if self.engine is None or len(dependent) != self.problem.m:
+            return None
+        from ..codegen import engine
+        return engine.PartitionedEngine(self.engine.lib, self.problem, independent, dependent,
+                                        newton_tol, max_newton, rheonomic, round_off)
+
+    def lu_condition(self, t, q):
+        return None if self.engine is None else self.engine.lu_condition(t, q)
+
+    def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam):
+        if self.engine is None:
+            return None
+        return self.engine.multipliers(T, Q, V, F, min_rcond, min_pivot, lam)
 
     def clear_solver(self, J, f, cut, bound):
         Jt = f.cols(sparse.dense(J))

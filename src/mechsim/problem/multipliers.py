@@ -52,14 +52,14 @@ class Multipliers:
         return self.indeterminate.any(axis=1)
 
 
-def multipliers(problem, T, Q, V, passages=None, engine=None) -> Multipliers:
+def multipliers(problem, T, Q, V, passages=None) -> Multipliers:
     """λ at the consistent states (T[i], Q[i], V[i]) of `problem`, shapes (N,), (N, n),
     (N, n). `passages`: (t_start, t_end) of the singular passages a run's monitor recorded
     (their samples are cut at `BAND`), or None where no monitor watched the states (a
-    kinematic analysis). `engine`: the compiled evaluations
-    (`mechsim.codegen.engine`), which take the states outside the passages where S is
-    positive definite and clearly conditioned in one call; the rest, and every state
-    without an engine, are solved here."""
+    kinematic analysis). The problem's constraint algebra solves, where it is compiled
+    (`ConstraintAlgebra.multipliers`), the states where S is positive definite and
+    clearly conditioned in one call; the rest, and every state where it is not compiled,
+    are solved here."""
     T = np.asarray(T, float)
     N, m = len(T), problem.m
     lam = np.zeros((N, m))
@@ -71,19 +71,21 @@ def multipliers(problem, T, Q, V, passages=None, engine=None) -> Multipliers:
     inside = np.zeros(N, dtype=bool)
     for t_start, t_end in passages or ():
         inside |= (T >= t_start) & (T <= t_end)
-    todo = np.arange(N)
-    if engine is not None:
-        done = np.zeros(N, dtype=bool)
-        for group, cut, estimate in _groups(problem, T, Q, inside, passages is not None):
-            k = np.flatnonzero(group)
-            if k.size:
-                part = np.zeros((k.size, m))
-                # 1/κ₁ of S under-estimates 1/κ₂ = (σ_min/σ_max)² by at most a factor m;
-                # a Cholesky pivot is never below S's smallest eigenvalue.
-                rcond = m * cut ** 2 if estimate else -1.0
-                done[k] = engine.multipliers(T[k], Q[k], V[k], F[k], rcond, cut ** 2, part)
-                lam[k] = part
-        todo = np.flatnonzero(~done)
+    algebra = problem.algebra
+    done = np.zeros(N, dtype=bool)
+    for group, cut, estimate in _groups(problem, T, Q, inside, passages is not None):
+        k = np.flatnonzero(group)
+        if k.size:
+            part = np.zeros((k.size, m))
+            # 1/κ₁ of S under-estimates 1/κ₂ = (σ_min/σ_max)² by at most a factor m;
+            # a Cholesky pivot is never below S's smallest eigenvalue.
+            rcond = m * cut ** 2 if estimate else -1.0
+            ok = algebra.multipliers(T[k], Q[k], V[k], F[k], rcond, cut ** 2, part)
+            if ok is None:                    # not compiled: every state is solved below
+                break
+            done[k] = ok
+            lam[k] = part
+    todo = np.flatnonzero(~done)
     for i in todo:
         cut = BAND if inside[i] else INDETERMINATE
         lam[i], flags[i], dropped[i] = _one(problem, T[i], Q[i], V[i], F[i], cut)
@@ -95,13 +97,13 @@ def _groups(problem, T, Q, inside, watched):
     inside the passages at `BAND`, with LAPACK's estimate; outside at `INDETERMINATE`. There
     the monitor saw S clear of singular configurations all along, and its Cholesky pivots
     are checked only, unless Φ_q is rank deficient at the first sample (redundant
-    constraints) or no monitor watched the states."""
-    out = [(inside, BAND, True)]
+    constraints) or no monitor watched the states. (A generator: Φ_q's rank is computed
+    only if the first group was solved compiled.)"""
+    yield inside, BAND, True
     J = problem.phi_q(Q[0], T[0])
     s = np.linalg.svd(J, compute_uv=False)
     full = s.size == J.shape[0] and s[-1] > INDETERMINATE * s[0]
-    out.append((~inside, INDETERMINATE, not (full and watched)))
-    return out
+    yield ~inside, INDETERMINATE, not (full and watched)
 
 
 def _one(problem, t, q, v, F, cut):

@@ -316,7 +316,7 @@ class NumericProblem:
         unique there (`mechsim.problem.multipliers`; `passages`: the (t_start, t_end) of a
         run's singular passages, None where no monitor watched): a `Multipliers`."""
         from .multipliers import multipliers
-        return multipliers(self, T, Q, V, passages, engine=self.algebra.engine)
+        return multipliers(self, T, Q, V, passages)
 
     def kinetic_energy(self, q, v) -> np.ndarray:
         return self.mass_model.kinetic_energy(q, v)
