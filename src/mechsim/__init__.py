@@ -13,8 +13,8 @@ simulation starts, matplotlib when a plot is drawn, meshio when a result is expo
 from importlib import import_module as _import_module
 
 from .model import (AssemblyError, Body, Channel, LoadError, DofReport, Driver, FlexibleBeam, Force, Friction, Gear, Ground, Joint,
-                    ModelError, PointOnCurve, Prismatic, Revolute, RigidBody, RotationalSpring, Spring,
-                    Stop, Torque)
+                    ModelError, Parameter, PointOnCurve, Prismatic, Revolute, RigidBody,
+                    RotationalSpring, Spring, Stop, Torque)
 
 from .facade import Mechanism
 
@@ -48,6 +48,6 @@ def __dir__():
 
 
 __all__ = ["AssemblyError", "Body", "Channel", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Friction", "Gear", "Ground", "Joint",
-           "LinearSystem", "Mechanism", "ModelError", "PointOnCurve", "Prismatic", "Revolute", "RigidBody",
+           "LinearSystem", "Mechanism", "ModelError", "Parameter", "PointOnCurve", "Prismatic", "Revolute", "RigidBody",
            "RotationalSpring", "SimulationResult", "Spring", "Stop", "Study", "Torque", "load_mechanism",
            "load_result", "load_scene", "sweep"]

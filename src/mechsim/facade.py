@@ -215,19 +215,21 @@ class Mechanism(MechanismModel):
         return linearize(prob, q, v, t)
 
     def kinematics(self, t_end: float | None = None, output_step: float | None = None,
-                   t_start: float = 0.0, over=None):
+                   t_start: float = 0.0, over=None, sensitivities=None):
         """Kinematic analysis of a fully driven mechanism (0 degrees of freedom): its
         positions, velocities and accelerations solved from the constraints at t_start,
         t_start + output_step, …, t_end (no integration), or over a driver's range with
         `over=(driver, values)` (the times where its law reaches each change of its
         joint's coordinate, e.g. `(motor, np.radians(np.arange(0, 361)))`), as a
         `SimulationResult` whose `driver_effort`, `joint_force` and `cycle_figures()` give
-        the inverse dynamics: the efforts the drivers need and the loads on the joints. See
-        `mechsim.engineering.driven`."""
+        the inverse dynamics: the efforts the drivers need and the loads on the joints.
+        `sensitivities`: names of Parameters (`parameters`) whose exact sensitivities the
+        result keeps (`SimulationResult.sensitivity`). See `mechsim.engineering.driven`."""
         from .engineering.driven import kinematic_analysis
         if over is None and isinstance(t_end, numbers.Real):
             self.check_tables(t_start, t_end)
-        return kinematic_analysis(self, t_end, output_step, t_start, over=over)
+        return kinematic_analysis(self, t_end, output_step, t_start, over=over,
+                                  sensitivities=sensitivities)
 
 
     # --- simulation --------------------------------------------------------------------------

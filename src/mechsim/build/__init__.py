@@ -16,6 +16,7 @@ from ..model import (Driver, FlexibleBeam, Force, LoadError, ModelError, RigidBo
                     RotationalSpring, Spring)
 from ..model.forces import load_points
 from ..model.checks import call_user
+from ..model.parameters import gradient, parameter_names, value_of
 from ..problem import FlexibleData, NumericProblem, PointLoad, RotationalSpringData, SpringData
 
 
@@ -91,8 +92,12 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
         mode = "assembled"                # a table or a function is evaluated, never generated
     model, from_cache = constraint_model(mech, items, mode)
     starts = body_starts(mech)
-    params = [x for item in items for x in item.parameter_values()] + \
+    exact = [x for item in items for x in item.parameter_values()] + \
         [x for item in items for x in getattr(item, "law_constants", ())]
+    params = [value_of(x) for x in exact]
+    # ∂p/∂(each Parameter the geometry depends on), exact (`mechsim.model.parameters`).
+    named = parameter_names(exact)
+    partials = dict(zip(named, gradient(exact, named).T))
     names, owners, kinds = [], [], []
     for item in items:
         for label in item.equation_labels:
@@ -111,8 +116,34 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
                              driver_joints={d.name: d.joint.name for d in mech.drivers},
                              gear_signs={g.name: 1.0 if getattr(g, "internal", False) else -1.0
                                          for g in mech.gears},
-                             friction=_friction_model(mech, joints, owners))
+                             friction=_friction_model(mech, joints, owners),
+                             parameter_partials=partials)
     return problem, from_cache
+
+
+def sensitivity_model(mech):
+    """The module of the constraints' derivatives in the model's parameters
+    (`mechsim.symbolic.sensitivity`) for `mech`'s structure, from the cache or generated
+    by sympy into it. ModelError where a driver's law is evaluated (a table or a
+    function: sympy cannot differentiate it)."""
+    from ..codegen import load_model
+    evaluated = [d.name for d in mech.drivers if getattr(d, "evaluated", False)]
+    if evaluated:
+        raise ModelError(f"sensitivities: driver '{evaluated[0]}' follows a table or a "
+                         "function, which the derivatives cannot be generated through; give "
+                         "its law as an expression")
+    items = mech.constraint_items
+    structure = {"sensitivity": 1, **mech.structure()}
+
+    def source():
+        from ..codegen.printer import sensitivity_source
+        from ..codegen.cache import structure_key
+        from ..symbolic import build_system
+        from ..symbolic.sensitivity import SensitivitySystem
+        return sensitivity_source(SensitivitySystem(build_system(mech.bodies, items)),
+                                  structure_key(structure))
+
+    return load_model(structure, source)[0]
 
 
 def _friction_model(mech, joints, owners):
@@ -171,7 +202,8 @@ def joint_geometry(mech, starts) -> dict:
     out = {}
     for j in mech.joints:
         local_a, local_b = (tuple(float(x) for x in pt) for pt in j.attachment_points())
-        out[j.name] = JointGeometry(j, dict(zip(j.parameter_names, j.parameter_values())),
+        values = [value_of(x) for x in j.parameter_values()]
+        out[j.name] = JointGeometry(j, dict(zip(j.parameter_names, values)),
                                     by_id, local_a, local_b)
     return out
 

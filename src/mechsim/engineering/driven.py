@@ -25,6 +25,7 @@ import time
 
 import numpy as np
 
+from ..build import sensitivity_model
 from ..linalg import dense
 from ..linalg.newton import newton
 from ..records import SingularPassage, Status
@@ -92,16 +93,21 @@ class _Kinematics:
 
 @in_run_threads
 def kinematic_analysis(mech, t_end: float | None = None, output_step: float | None = None,
-                       t_start: float = 0.0, over=None, tol: float = 1e-12):
+                       t_start: float = 0.0, over=None, tol: float = 1e-12,
+                       sensitivities=None):
     """Positions, velocities and accelerations of the fully driven `mech` at t_start,
     t_start + output_step, …, t_end, or over a driver's range (`over` = (driver, values):
     the times where the driver's law reaches each value, see `times_of`), as a
     `SimulationResult` (its `accelerations()`, `driver_effort`, `joint_force`,
-    `cycle_figures()` answer as for a simulation). Raises KinematicsError where the
-    mechanism has degrees of freedom left or the arguments do not describe the samples."""
+    `cycle_figures()` answer as for a simulation). `sensitivities`: names of Parameters
+    (`mech.parameters`) whose exact sensitivities ∂q/∂k, ∂v/∂k, ∂q̈/∂k at every sample
+    the result keeps (`SimulationResult.sensitivity`; see `sensitivities_at`). Raises
+    KinematicsError where the mechanism has degrees of freedom left or the arguments do
+    not describe the samples or name no parameter of it."""
     from ..results import SimulationResult
     from ..run.solver import output_times
     started = time.perf_counter()
+    names = _sensitivity_names(mech, sensitivities)
     problem = mech.problem()
     report = mech.assemble(t=t_start)
     dof = problem.degrees_of_freedom(report.q, t_start)
@@ -123,6 +129,7 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
     kin = _Kinematics(problem, tol)
     state = (report.q, *kin.velocities(report.q, t_start)[:2])
     Q, V, shape = [state[0]], [state[1]], [_shape(problem, report.q, t_start)]
+    A = [state[2]]
     status, message = Status.SUCCESS, "reached t_end"
     for t0, t1 in zip(ts[:-1], ts[1:]):
         state = kin.advance(t0, state, t1)
@@ -134,6 +141,7 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
             break
         Q.append(state[0])
         V.append(state[1])
+        A.append(state[2])
         shape.append(_shape(problem, state[0], t1))
     n = len(Q)
     passages = _passages(ts[:n], np.array(shape))
@@ -147,8 +155,67 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
         status=status, message=message, singular_passages=passages,
         stats={"method": "kinematics", "samples": n,
                "wall_time": time.perf_counter() - started})
+    if names:
+        module = sensitivity_model(mech)
+        result.sensitivities = sensitivities_at(problem, module, ts[:n], result.q, result.v,
+                                                np.array(A), names)
+        if passages:
+            result.message += ("; the sensitivities are not defined at the singular "
+                               "configurations (Φ_q singular there: they grow without bound "
+                               "near them)")
     result.mechanism = mech
     return result
+
+
+def _sensitivity_names(mech, sensitivities) -> list[str]:
+    """The Parameter names asked for, checked against `mech.parameters` before any work."""
+    if sensitivities is None:
+        return []
+    if isinstance(sensitivities, str):
+        sensitivities = [sensitivities]
+    try:
+        asked = list(sensitivities)
+    except TypeError:
+        raise KinematicsError(f"kinematics: `sensitivities` must be a list of Parameter "
+                              f"names, got {sensitivities!r:.60}") from None
+    known = mech.parameters
+    for name in asked:
+        if not isinstance(name, str) or name not in known:
+            raise KinematicsError(
+                f"kinematics: `sensitivities` names {name!r:.60}, which is no Parameter of "
+                f"mechanism '{mech.name}'; its parameters: {', '.join(known) or '(none)'}")
+    return list(dict.fromkeys(asked))
+
+
+def sensitivities_at(problem, module, ts, Q, V, A, names) -> dict:
+    """The exact sensitivities of the consistent states (ts[i], Q[i], V[i], A[i]) of a
+    driven mechanism to the Parameters `names`: {name: {"q": ∂q/∂k, "v": ∂v/∂k, "a":
+    ∂q̈/∂k}}, each (N, n), from the triangular system of the implicit function theorem
+    (`mechsim.symbolic.sensitivity`) with Φ_q factored once per sample. `module`: the
+    derivatives' module (`mechsim.build.sensitivity_model`). A parameter the constraints
+    do not depend on (a mass) has zero sensitivities."""
+    import scipy.linalg as sla
+    P = np.column_stack([problem.parameter_partials.get(k, np.zeros(len(problem.p)))
+                         for k in names])                                  # (np, K)
+    p = problem.p
+    N, n, K = len(ts), problem.n, len(names)
+    dq, dv, da = np.zeros((N, n, K)), np.zeros((N, n, K)), np.zeros((N, n, K))
+    for i, (t, q, v, a) in enumerate(zip(ts, Q, V, A)):
+        r0p, r1q, r1p, r2q, r2v, r2p = module.sensitivity_terms(q, v, a, t, p)
+        J = problem.phi_q(q, t)
+        if J.shape[0] == J.shape[1]:
+            lu = sla.lu_factor(J, check_finite=False)
+
+            def solve(b, lu=lu):
+                return sla.lu_solve(lu, b, check_finite=False)
+        else:
+            def solve(b, J=J):
+                return np.linalg.lstsq(J, b, rcond=None)[0]
+        dq[i] = solve(-(r0p @ P))
+        dv[i] = solve(-(r1q @ dq[i] + r1p @ P))
+        da[i] = solve(-(r2q @ dq[i] + r2v @ dv[i] + r2p @ P))
+    return {k: {"q": dq[:, :, j], "v": dv[:, :, j], "a": da[:, :, j]}
+            for j, k in enumerate(names)}
 
 
 def times_of(mech, driver, values, t_start=0.0, horizon=1e6) -> np.ndarray:

@@ -11,7 +11,8 @@ from .friction import Friction
 from .stops import Stop
 from .joints import Joint, PointOnCurve, Prismatic, Revolute
 from .mechanism import AssemblyError, AssemblyReport, DofReport, MechanismModel
+from .parameters import Dual, Parameter
 
-__all__ = ["AssemblyError", "LoadError", "AssemblyReport", "Body", "Channel", "DofReport", "Driver", "FlexibleBeam", "Force", "Friction", "Gear", "Ground",
-           "Joint", "MechanismModel", "ModelError", "PointOnCurve", "Prismatic", "Revolute", "RigidBody", "RotationalSpring", "Spring",
+__all__ = ["AssemblyError", "LoadError", "AssemblyReport", "Body", "Channel", "DofReport", "Driver", "Dual", "FlexibleBeam", "Force", "Friction", "Gear", "Ground",
+           "Joint", "MechanismModel", "ModelError", "Parameter", "PointOnCurve", "Prismatic", "Revolute", "RigidBody", "RotationalSpring", "Spring",
            "Stop", "Torque"]

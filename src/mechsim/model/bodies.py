@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-from .checks import ModelError, rotation, scalar, vector2
+from . import parameters as dual
+from .checks import ModelError, rotation, scalar, scalar_exact, vector2, vector2_exact
 
 
 class Body:
@@ -27,12 +28,44 @@ class Body:
         self.position = np.zeros(2)
         self.angle = 0.0
 
+    # The frame as given, Parameters and numbers computed from them kept
+    # (`mechsim.model.parameters`): what the joints' geometry is computed from. A body
+    # whose arguments take no parameters has its plain numbers there.
+    _given_position = _given_angle = None
+
+    @property
+    def exact_position(self):
+        return self.position if self._given_position is None else self._given_position
+
+    @property
+    def exact_angle(self):
+        return self.angle if self._given_angle is None else self._given_angle
+
     def local_point(self, global_point) -> np.ndarray:
         """Body-fixed coordinates of a point given globally in the initial configuration."""
         return rotation(self.angle).T @ (np.asarray(global_point, float) - self.position)
 
     def local_direction(self, global_direction) -> np.ndarray:
         return rotation(self.angle).T @ np.asarray(global_direction, float)
+
+    def exact_local_point(self, global_point) -> np.ndarray:
+        """`local_point` carrying the derivatives of a point or a body frame that depends
+        on Parameters (an object array of Duals then; the float array otherwise)."""
+        if not (dual.is_exact(global_point) or self._exact_frame):
+            return self.local_point(global_point)
+        d = np.asarray(global_point, dtype=object) - np.asarray(self.exact_position, dtype=object)
+        return dual.rotation(dual.lift(self.exact_angle)).T @ d
+
+    def exact_local_direction(self, global_direction) -> np.ndarray:
+        """`local_direction` carrying derivatives (see `exact_local_point`)."""
+        if not (dual.is_exact(global_direction) or self._exact_frame):
+            return self.local_direction(global_direction)
+        return dual.rotation(dual.lift(self.exact_angle)).T @ \
+            np.asarray(global_direction, dtype=object)
+
+    @property
+    def _exact_frame(self) -> bool:
+        return dual.is_exact(self.exact_position) or dual.is_exact(self.exact_angle)
 
     # Hooks for bodies whose points move relative to their frame (flexible beams); a rigid
     # body's points do not.
@@ -84,10 +117,11 @@ class RigidBody(Body):
                  angle: float = 0.0, velocity=(0.0, 0.0), angular_velocity: float = 0.0):
         super().__init__(name)
         owner = f"body '{name}'"
-        self.mass = scalar(mass, "mass", owner, positive=True)
-        self.inertia = scalar(inertia, "inertia", owner, nonnegative=True)
-        self.position = vector2(position, "position", owner)
-        self.angle = scalar(angle, "angle", owner)
+        self.mass, self.exact_mass = scalar_exact(mass, "mass", owner, positive=True)
+        self.inertia, self.exact_inertia = scalar_exact(inertia, "inertia", owner,
+                                                        nonnegative=True)
+        self.position, self._given_position = vector2_exact(position, "position", owner)
+        self.angle, self._given_angle = scalar_exact(angle, "angle", owner)
         self.velocity = vector2(velocity, "velocity", owner)
         self.angular_velocity = scalar(angular_velocity, "angular_velocity", owner)
         # The body's boundary in its frame, closed, where a shape constructor knows it
@@ -99,11 +133,17 @@ class RigidBody(Body):
             angular_velocity: float = 0.0) -> "RigidBody":
         """A uniform slender rod from `start` to `end` (inertia m L²/12 about its middle)."""
         owner = f"body '{name}'"
-        a, b = vector2(start, "start", owner), vector2(end, "end", owner)
+        (a, ea), (b, eb) = vector2_exact(start, "start", owner), vector2_exact(end, "end", owner)
         length = float(np.hypot(*(b - a)))
         if not length > 0.0:
             raise ModelError(f"{owner}: rod `start` and `end` coincide at {a.tolist()}")
-        m = scalar(mass, "mass", owner, positive=True)
+        m, em = scalar_exact(mass, "mass", owner, positive=True)
+        if dual.is_exact([ea, eb, em]):          # a rod sized by Parameters
+            d = eb - ea
+            long = dual.hypot(d[0], d[1])
+            return cls(name, mass=em, inertia=em * long * long / 12.0,
+                       position=(ea + eb) / 2.0, angle=dual.atan2(d[1], d[0]),
+                       velocity=velocity, angular_velocity=angular_velocity)
         return cls(name, mass=m, inertia=m * length * length / 12.0, position=(a + b) / 2.0,
                    angle=math.atan2(b[1] - a[1], b[0] - a[0]), velocity=velocity,
                    angular_velocity=angular_velocity)

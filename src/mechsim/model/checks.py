@@ -11,6 +11,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .parameters import Dual, is_exact, values
+
 
 class ModelError(ValueError):
     """A mechanism was described inconsistently; the message names the object at fault."""
@@ -30,10 +32,20 @@ def call_user(function, args, owner: str):
                         f"(at t = {args[0]:.9g})") from exc
 
 
+def _no_parameter(value, what: str, owner: str):
+    """A ModelError where an argument that does not take parameters is given one."""
+    if is_exact(value):
+        raise ModelError(f"{owner}: `{what}` cannot depend on a Parameter (sensitivities are "
+                         "carried through bodies' position, angle, mass and inertia and "
+                         "through revolute and prismatic joints' geometry); give a number")
+
+
 def scalar(value, what: str, owner: str, *, positive: bool = False,
            nonnegative: bool = False) -> float:
     """Return `value` as a finite float, or raise naming `owner` and `what` (a string or a
-    boolean is not a number here, even where float() would read it)."""
+    boolean is not a number here, even where float() would read it; nor is a Parameter,
+    see `scalar_exact`)."""
+    _no_parameter(value, what, owner)
     if isinstance(value, (str, bytes, bool, np.bool_)):
         raise ModelError(f"{owner}: `{what}` must be a number, got {value!r:.60}")
     try:
@@ -67,8 +79,33 @@ def name_or_default(name, default: str, what: str) -> str:
     return name
 
 
+def scalar_exact(value, what: str, owner: str, **checks):
+    """(`value` as a checked float as `scalar` gives it, `value` itself where it is a
+    Parameter or a number computed from them, else that float): for an argument that
+    takes parameters (`mechsim.model.parameters`)."""
+    if isinstance(value, Dual):
+        return scalar(value.value, what, owner, **checks), value
+    x = scalar(value, what, owner, **checks)
+    return x, x
+
+
+def vector2_exact(value, what: str, owner: str):
+    """(`value` as `vector2` gives it, its two entries as given where either is a
+    Dual, else the same array): for an argument that takes parameters."""
+    if not is_exact(value):
+        a = vector2(value, what, owner)
+        return a, a
+    entries = list(np.asarray(value, dtype=object).ravel()) \
+        if np.ndim(np.asarray(value, dtype=object)) == 1 else None
+    if entries is None or len(entries) != 2:
+        raise ModelError(f"{owner}: `{what}` must be a 2-vector of numbers, got {value!r:.60}")
+    return vector2(values(entries), what, owner), np.array(entries, dtype=object)
+
+
 def vector2(value, what: str, owner: str) -> np.ndarray:
-    """Return `value` as a finite float array of shape (2,), or raise naming `owner`."""
+    """Return `value` as a finite float array of shape (2,), or raise naming `owner` (a
+    Parameter is refused here: see `vector2_exact`)."""
+    _no_parameter(value, what, owner)
     if isinstance(value, (str, bytes)) or (isinstance(value, (list, tuple)) and any(
             isinstance(x, (str, bytes, bool)) for x in value)):
         raise ModelError(f"{owner}: `{what}` must be a 2-vector of numbers, got {value!r:.60}")

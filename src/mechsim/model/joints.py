@@ -23,7 +23,8 @@ import math
 
 import numpy as np
 
-from .checks import ModelError, name_or_default, vector2
+from . import parameters as dual
+from .checks import ModelError, name_or_default, vector2, vector2_exact
 from .bodies import Body
 
 
@@ -46,6 +47,25 @@ class Joint:
     def attachment_points(self):
         """(body_a's point, body_b's point) in their body frames, from the global `at`."""
         return self.body_a.local_point(self.at), self.body_b.local_point(self.at)
+
+    # `at` as given, Parameters kept (`mechsim.model.parameters`); None: `at` itself.
+    _exact_at = None
+
+    def exact_attachment_points(self):
+        """`attachment_points` carrying the derivatives of Parameters the joint's point
+        or its bodies' frames depend on (see `Body.exact_local_point`)."""
+        at = self.at if self._exact_at is None else self._exact_at
+        points = self.body_a.exact_local_point(at), self.body_b.exact_local_point(at)
+        self._rigid_where_exact(points)
+        return points
+
+    def _rigid_where_exact(self, points):
+        """A ModelError where a point that depends on a Parameter lies on a flexible body
+        (its mode shapes, fixed at a node, would not follow the point)."""
+        for body, point in zip((self.body_a, self.body_b), points):
+            if dual.is_exact(point) and body.attachment_parameter_names("a"):
+                raise ModelError(f"{self.kind} joint '{self.name}': its point on the flexible "
+                                 f"body '{body.name}' cannot depend on a Parameter")
 
     def _attachments(self, sa, sb) -> tuple[float, ...]:
         """Mode-shape parameter values of the attachment points sa (on body_a) and sb."""
@@ -109,24 +129,34 @@ class Revolute(Joint):
         if at is not None:
             if local_a is not None or local_b is not None:
                 raise ModelError(f"{owner}: give either `at` or `local_a` and `local_b`, not both")
-            self.at = vector2(at, "at", owner)
+            self.at, self._exact_at = vector2_exact(at, "at", owner)
             self.local_a = self.local_b = None
         else:
             if local_a is None or local_b is None:
                 raise ModelError(f"{owner}: needs `at` (a global point) or both `local_a` and `local_b`")
             self.at = None
-            self.local_a = vector2(local_a, "local_a", owner)
-            self.local_b = vector2(local_b, "local_b", owner)
+            self.local_a, self._exact_a = vector2_exact(local_a, "local_a", owner)
+            self.local_b, self._exact_b = vector2_exact(local_b, "local_b", owner)
         self._attachments(*self.attachment_points())   # a point on a beam must be a node
 
     def parameter_values(self):
+        """(ax, ay, bx, by, mode shapes…): numbers, or Duals where they depend on
+        Parameters (`mechsim.model.parameters`)."""
         sa, sb = self.attachment_points()
-        return (sa[0], sa[1], sb[0], sb[1]) + self._attachments(sa, sb)
+        ea, eb = self.exact_attachment_points()
+        return (ea[0], ea[1], eb[0], eb[1]) + self._attachments(sa, sb)
 
     def attachment_points(self):
         if self.at is not None:
             return super().attachment_points()
         return self.local_a, self.local_b
+
+    def exact_attachment_points(self):
+        if self.at is not None:
+            return super().exact_attachment_points()
+        points = self._exact_a, self._exact_b
+        self._rigid_where_exact(points)
+        return points
 
     def equations(self, ctx, p):
         pa = ctx.point(self.body_a, p["ax"], p["ay"], p, "a")
@@ -159,20 +189,25 @@ class Prismatic(Joint):
                  name: str | None = None):
         super().__init__(body_a, body_b, name)
         owner = f"prismatic joint '{self.name}'"
-        axis = vector2(axis, "axis", owner)
+        axis, exact_axis = vector2_exact(axis, "axis", owner)
         norm = float(np.hypot(*axis))
         if not norm > 1e-12:
             raise ModelError(f"{owner}: `axis` must be a non-zero direction, got {axis.tolist()}")
         self.axis = axis / norm
-        self.at = vector2(at, "at", owner)
+        self._exact_axis = exact_axis / dual.hypot(exact_axis[0], exact_axis[1]) \
+            if dual.is_exact(exact_axis) else self.axis
+        self.at, self._exact_at = vector2_exact(at, "at", owner)
         self._attachments(*self.attachment_points())
 
     def parameter_values(self):
+        """(ax, ay, bx, by, ux, uy, angle0, mode shapes…): numbers, or Duals where they
+        depend on Parameters (`mechsim.model.parameters`)."""
         sa, sb = self.attachment_points()
-        u = self.body_a.local_direction(self.axis)
-        angle0 = (self.body_b.angle + self.body_b.initial_node_rotation(sb)
-                  - self.body_a.angle - self.body_a.initial_node_rotation(sa))
-        return (sa[0], sa[1], sb[0], sb[1], u[0], u[1], angle0) + self._attachments(sa, sb)
+        ea, eb = self.exact_attachment_points()
+        u = self.body_a.exact_local_direction(self._exact_axis)
+        angle0 = (self.body_b.exact_angle + self.body_b.initial_node_rotation(sb)
+                  - self.body_a.exact_angle - self.body_a.initial_node_rotation(sa))
+        return (ea[0], ea[1], eb[0], eb[1], u[0], u[1], angle0) + self._attachments(sa, sb)
 
     def _separation(self, ctx, p):
         pa = ctx.point(self.body_a, p["ax"], p["ay"], p, "a")

@@ -17,6 +17,7 @@ from .gears import Gear
 from .friction import Friction
 from .stops import Stop
 from .joints import Joint
+from .parameters import parameter_names
 
 
 class AssemblyError(ModelError):
@@ -236,6 +237,19 @@ class MechanismModel:
         return {"bodies": [(type(b).__name__, list(b.coordinate_names)) for b in self.bodies],
                 "constraints": [list(item.structure(lambda x: index[id(x)]))
                                 for item in self.constraint_items]}
+
+    @property
+    def parameters(self) -> list[str]:
+        """The names of the Parameters (`mechsim.model.parameters`) this mechanism's
+        numbers depend on, sorted: its bodies' frames, masses and inertias and its
+        constraints' geometry."""
+        numbers = []
+        for b in self.bodies:
+            numbers += [*np.ravel(np.asarray(b.exact_position, dtype=object)), b.exact_angle,
+                        getattr(b, "exact_mass", 0.0), getattr(b, "exact_inertia", 0.0)]
+        for item in self.constraint_items:
+            numbers += list(item.parameter_values())
+        return parameter_names(numbers)
 
     @property
     def constraint_items(self) -> list:

@@ -94,6 +94,9 @@ class SimulationResult:
         self.event = None             # (t, index, q, v) where an event ended the run
         self.impacts = []             # the stops' impacts (`mechsim.engineering.impacts.Impact`)
         self.friction_switches = []   # stick and slip (`mechsim.engineering.friction.FrictionSwitch`)
+        # Parameter name -> {"q", "v", "a"}: exact sensitivities at the samples, where the
+        # analysis was asked for them (`sensitivity`).
+        self.sensitivities: dict = {}
         if energy is not None:
             self.__dict__["energy"] = energy
         if constraint_violation is not None:
@@ -183,6 +186,26 @@ class SimulationResult:
         return frame_point_acceleration(self.q, self.v, self.accelerations(),
                                         self._body_start(body), local,
                                         self._point_modes(body, local))
+
+    def sensitivity(self, name: str, of: str = "q", body=None, local=(0.0, 0.0)) -> np.ndarray:
+        """The exact sensitivity to the Parameter `name` of a quantity over time, with the
+        quantity's shape: of "q" (∂q/∂k, the shape of `q`), "v", "a" (of q̈), or "point"
+        (∂r/∂k of the body-fixed point `local` of `body`, (n, 2): r's Jacobian in q
+        applied to ∂q/∂k). The analysis must have been asked for it
+        (`kinematics(..., sensitivities=[name])`)."""
+        got = self.sensitivities.get(name)
+        if got is None:
+            raise ValueError(f"sensitivity: no sensitivities to {name!r:.60} in this result; "
+                             f"it has {', '.join(self.sensitivities) or 'none'} (ask the "
+                             "analysis for them: sensitivities=[...])")
+        if of in ("q", "v", "a"):
+            return got[of]
+        if of == "point":
+            if body is None:
+                raise ValueError("sensitivity(of='point') needs the `body` the point is on")
+            return frame_point_velocity(self.q, got["q"], self._body_start(body), local,
+                                        self._point_modes(body, local))
+        raise ValueError(f"sensitivity: `of` must be 'q', 'v', 'a' or 'point', got {of!r:.40}")
 
     def angular_velocity(self, body) -> np.ndarray:
         """The angular velocity [rad/s] of a body's frame over time, shape (n,) (0 for the

@@ -1,0 +1,186 @@
+"""Exact design sensitivities (`ms.Parameter`, `kinematics(..., sensitivities=...)`):
+against the offset slider-crank's closed form and against central finite differences of
+rebuilt mechanisms, and the errors that keep a derivative from being dropped silently."""
+
+import math
+
+import numpy as np
+import pytest
+
+import mechsim as ms
+from mechsim.engineering.driven import KinematicsError
+from mechsim.model.parameters import Dual, atan2, hypot
+
+THETA0, SPEED = 0.3, 5.0
+
+
+def offset_slider_crank(r=0.15, l=0.40, e=0.05, tilt=0.0):
+    """Crank r from the origin (driven at SPEED from THETA0), rod l, slider on the line
+    y = e (tilted by `tilt`: its axis (1, tilt)); numbers or Parameters."""
+    mech = ms.Mechanism("offset slider-crank", gravity=(0.0, -9.81))
+    b = np.array([r * np.cos(THETA0), r * np.sin(THETA0)])
+    # The slider's point on its line y = e + tilt·x, found from the rod's length by one
+    # quadratic in x (numpy functions carry the Parameters' derivatives).
+    u = np.array([1.0, tilt]) / np.hypot(1.0, tilt)
+    p0 = np.array([0.0, e])
+    w = p0 - b
+    half = w @ u
+    s = -half + np.sqrt(half * half - (w @ w - l * l))
+    c = p0 + s * u
+    crank = mech.add(ms.RigidBody.rod("crank", (0.0, 0.0), b, mass=0.4))
+    rod = mech.add(ms.RigidBody.rod("rod", b, c, mass=0.8))
+    slider = mech.add(ms.RigidBody("slider", mass=0.3, inertia=1e-4, position=c))
+    pin = mech.add(ms.Revolute(mech.ground, crank, at=(0.0, 0.0), name="O"))
+    mech.add(ms.Revolute(crank, rod, at=b, name="A"))
+    mech.add(ms.Revolute(rod, slider, at=c, name="B"))
+    mech.add(ms.Prismatic(mech.ground, slider, axis=(1.0, tilt), at=c, name="guide"))
+    mech.add(ms.Driver(pin, f"{SPEED}*t"))
+    return mech
+
+
+def four_bar(a=0.10, d=0.40, coupler_mass=2.0):
+    """Crank a, ground pivots (0, 0) and (d, 0), coupler to (d, 0.3), driven crank."""
+    mech = ms.Mechanism("four-bar", gravity=(0.0, -9.81))
+    g = mech.ground
+    crank = mech.add(ms.RigidBody.rod("crank", (0.0, 0.0), (a, 0.0), mass=1.0))
+    coupler = mech.add(ms.RigidBody.rod("coupler", (a, 0.0), (d, 0.3), mass=coupler_mass))
+    rocker = mech.add(ms.RigidBody.rod("rocker", (d, 0.3), (d, 0.0), mass=1.5))
+    pin = mech.add(ms.Revolute(g, crank, at=(0.0, 0.0)))
+    mech.add(ms.Revolute(crank, coupler, at=(a, 0.0)))
+    mech.add(ms.Revolute(coupler, rocker, at=(d, 0.3)))
+    mech.add(ms.Revolute(rocker, g, at=(d, 0.0)))
+    mech.add(ms.Driver(pin, "6*t"))
+    return mech
+
+
+def central_difference(build, value, quantity, t_end=1.0, step=0.05):
+    """(quantity(+h) − quantity(−h)) / 2h of the kinematics of `build(value ± h)`; h from
+    the error balance of a central difference on states solved to ~1e-12: ∛(3e-12)·scale."""
+    h = (3e-12) ** (1.0 / 3.0) * max(1.0, abs(value))
+    plus = build(value + h).kinematics(t_end, step)
+    minus = build(value - h).kinematics(t_end, step)
+    return (quantity(plus) - quantity(minus)) / (2.0 * h)
+
+
+def relative(a, b):
+    return np.max(np.abs(a - b)) / np.max(np.abs(b))
+
+
+def test_the_offset_slider_crank_matches_its_closed_form():
+    """x = r cos θ + √(l² − (r sin θ − e)²): ∂x/∂e = (r sin θ − e)/√(…) and
+    ∂x/∂r = cos θ − sin θ (r sin θ − e)/√(…), and their rates in time, at every sample."""
+    r, l, e = ms.Parameter("r", 0.15), ms.Parameter("l", 0.40), ms.Parameter("e", 0.05)
+    kin = offset_slider_crank(r, l, e).kinematics(1.2, 0.01, sensitivities=["e", "r", "l"])
+    assert kin.success
+    th = THETA0 + SPEED * kin.t
+    r, l, e = 0.15, 0.40, 0.05
+    root = np.sqrt(l**2 - (r * np.sin(th) - e) ** 2)
+    k = kin.coordinate_names.index("slider.x")
+    exact = {"e": (r * np.sin(th) - e) / root,
+             "r": np.cos(th) - np.sin(th) * (r * np.sin(th) - e) / root,
+             "l": l / root}
+    for name, d in exact.items():
+        assert relative(kin.sensitivity(name)[:, k], d) < 1e-10, name
+    # d/dt (∂x/∂e) = ∂ẋ/∂e, by the closed form differentiated in θ
+    s = r * np.sin(th) - e
+    rate = SPEED * (r * np.cos(th) / root + s * s * r * np.cos(th) / root**3)
+    assert relative(kin.sensitivity("e", of="v")[:, k], rate) < 1e-9
+
+
+@pytest.mark.parametrize("which", ["r", "e", "tilt"])
+def test_slider_crank_sensitivities_agree_with_finite_differences(which):
+    values = {"r": 0.15, "e": 0.05, "tilt": 0.1}
+    p = ms.Parameter(which, values[which])
+    kin = offset_slider_crank(**{**values, which: p}).kinematics(
+        1.0, 0.05, sensitivities=[which])
+
+    def build(x):
+        return offset_slider_crank(**{**values, which: x})
+
+    assert relative(kin.sensitivity(which), central_difference(build, values[which],
+                                                               lambda res: res.q)) < 1e-6
+    assert relative(kin.sensitivity(which, of="v"),
+                    central_difference(build, values[which], lambda res: res.v)) < 1e-6
+    assert relative(kin.sensitivity(which, of="a"),
+                    central_difference(build, values[which],
+                                       lambda res: res.accelerations())) < 1e-6
+
+
+def test_four_bar_sensitivities_of_states_and_a_coupler_point():
+    """Crank length and ground pivot of a driven four-bar: ∂q, ∂v, ∂q̈ and the coupler
+    point's ∂r against central differences."""
+    a, d = ms.Parameter("a", 0.10), ms.Parameter("d", 0.40)
+    mech = four_bar(a, d)
+    assert mech.parameters == ["a", "d"]
+    kin = mech.kinematics(1.0, 0.05, sensitivities=["a", "d"])
+    coupler = mech.bodies[1]
+    point = (0.05, 0.02)
+    for name, build, value in (("a", lambda x: four_bar(x, 0.40), 0.10),
+                               ("d", lambda x: four_bar(0.10, x), 0.40)):
+        for of, quantity in (("q", lambda r: r.q), ("v", lambda r: r.v),
+                             ("a", lambda r: r.accelerations())):
+            assert relative(kin.sensitivity(name, of=of),
+                            central_difference(build, value, quantity)) < 1e-6, (name, of)
+        fd = central_difference(build, value,
+                                lambda r: r.point(r.mechanism.bodies[1], point))
+        got = kin.sensitivity(name, of="point", body=coupler, local=point)
+        assert got.shape == (len(kin.t), 2)
+        assert relative(got, fd) < 1e-6
+
+
+def test_a_mass_moves_no_driven_kinematics():
+    """A Parameter in a mass: a driven mechanism's motion does not depend on it (exact
+    zeros), and it is one of the mechanism's parameters."""
+    m = ms.Parameter("m", 2.0)
+    mech = four_bar(coupler_mass=m)
+    assert mech.parameters == ["m"]
+    kin = mech.kinematics(0.5, 0.05, sensitivities=["m"])
+    assert np.all(kin.sensitivity("m") == 0.0) and np.all(kin.sensitivity("m", of="a") == 0.0)
+
+
+def test_a_model_with_parameters_runs_as_one_with_their_values():
+    e = ms.Parameter("e", 0.05)
+    with_parameter = offset_slider_crank(e=e).kinematics(0.5, 0.05)
+    plain = offset_slider_crank(e=0.05).kinematics(0.5, 0.05)
+    np.testing.assert_allclose(with_parameter.q, plain.q, rtol=0, atol=1e-14)
+
+
+def test_dual_arithmetic_carries_exact_derivatives():
+    x, y = ms.Parameter("x", 0.7), ms.Parameter("y", -1.3)
+    f = x * x * y - 3.0 / x + y ** 3 + np.sin(x * y) + np.sqrt(x) * np.exp(y)
+    assert f.value == pytest.approx(0.7**2 * -1.3 - 3 / 0.7 + (-1.3) ** 3 + math.sin(-0.91)
+                                    + math.sqrt(0.7) * math.exp(-1.3))
+    dfx = 2 * 0.7 * -1.3 + 3 / 0.49 + math.cos(-0.91) * -1.3 + 0.5 / math.sqrt(0.7) * math.exp(-1.3)
+    dfy = 0.49 + 3 * 1.69 + math.cos(-0.91) * 0.7 + math.sqrt(0.7) * math.exp(-1.3)
+    assert f.partials["x"] == pytest.approx(dfx, rel=1e-14)
+    assert f.partials["y"] == pytest.approx(dfy, rel=1e-14)
+    g = atan2(y, x) + hypot(x, y)
+    r2 = 0.49 + 1.69
+    assert g.partials["x"] == pytest.approx(1.3 / r2 + 0.7 / math.sqrt(r2), rel=1e-14)
+    v = np.array([1.0, 2.0]) * x                          # arrays carry them elementwise
+    assert [e.partials["x"] for e in v] == [1.0, 2.0]
+    assert isinstance(np.cos(x), Dual)
+
+
+def test_what_would_drop_a_derivative_is_refused():
+    k = ms.Parameter("k", 100.0)
+    with pytest.raises(TypeError, match="numpy's functions"):
+        math.cos(k)
+    with pytest.raises(TypeError, match="numpy's functions"):
+        float(k)
+    mech = four_bar()
+    with pytest.raises(ms.ModelError, match=r"spring .*`stiffness` cannot depend on a Parameter"):
+        ms.Spring(mech.bodies[0], mech.bodies[2], at_a=(0.0, 0.0), at_b=(0.4, 0.0),
+                  stiffness=k, rest_length=0.3)
+    with pytest.raises(ms.ModelError, match="Parameter 'z': `value` must be a finite number"):
+        ms.Parameter("z", float("nan"))
+
+
+def test_sensitivities_to_an_unknown_name_are_refused_before_any_work():
+    mech = four_bar(ms.Parameter("a", 0.1))
+    with pytest.raises(KinematicsError, match=r"names 'b', which is no Parameter of "
+                                              r"mechanism 'four-bar'; its parameters: a"):
+        mech.kinematics(0.5, 0.05, sensitivities=["b"])
+    res = mech.kinematics(0.5, 0.05)
+    with pytest.raises(ValueError, match="no sensitivities to 'a'"):
+        res.sensitivity("a")
