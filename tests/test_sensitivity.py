@@ -159,6 +159,9 @@ def test_dual_arithmetic_carries_exact_derivatives():
     assert g.partials["x"] == pytest.approx(1.3 / r2 + 0.7 / math.sqrt(r2), rel=1e-14)
     v = np.array([1.0, 2.0]) * x                          # arrays carry them elementwise
     assert [e.partials["x"] for e in v] == [1.0, 2.0]
+    w = 1.0 / (np.array([3.0, 4.0]) - x)                  # reflected operators as well
+    assert [e.partials["x"] for e in w] == pytest.approx([1 / 2.3**2, 1 / 3.3**2], rel=1e-14)
+    assert (2.0 ** x).partials["x"] == pytest.approx(2.0**0.7 * math.log(2.0), rel=1e-14)
     assert isinstance(np.cos(x), Dual)
 
 

@@ -68,53 +68,49 @@ class Dual:
     __index__ = __int__
 
     # --- arithmetic ----------------------------------------------------------------------------
-    def _binary(self, other, rule):
+    def _binary(self, other, rule, ufunc, reflected=False):
+        """self ∘ other (other ∘ self where `reflected`) by `rule` on values and partials;
+        with an array, elementwise over object arrays (`ufunc`)."""
         b = _partials(other)
-        if b is None:
-            if isinstance(other, np.ndarray):
-                return rule.__name__, other
-            return NotImplemented
-        y = other.value if isinstance(other, Dual) else float(other)
-        return rule(self.value, self.partials, y, b)
+        if b is not None:
+            y = other.value if isinstance(other, Dual) else float(other)
+            if reflected:
+                return rule(y, b, self.value, self.partials)
+            return rule(self.value, self.partials, y, b)
+        if isinstance(other, np.ndarray):
+            args = (other, self) if reflected else (self, other)
+            return ufunc(*[_objects(x) for x in args])
+        return NotImplemented
 
     def __add__(self, other):
-        got = self._binary(other, _add)
-        return _with_array(got, np.add, self, "left")
+        return self._binary(other, _add, np.add)
 
     def __radd__(self, other):
-        return self.__add__(other)
+        return self._binary(other, _add, np.add, reflected=True)
 
     def __sub__(self, other):
-        return _with_array(self._binary(other, _sub), np.subtract, self, "left")
+        return self._binary(other, _sub, np.subtract)
 
     def __rsub__(self, other):
-        return (-self).__add__(other)
+        return self._binary(other, _sub, np.subtract, reflected=True)
 
     def __mul__(self, other):
-        return _with_array(self._binary(other, _mul), np.multiply, self, "left")
+        return self._binary(other, _mul, np.multiply)
 
     def __rmul__(self, other):
-        return self.__mul__(other)
+        return self._binary(other, _mul, np.multiply, reflected=True)
 
     def __truediv__(self, other):
-        return _with_array(self._binary(other, _div), np.true_divide, self, "left")
+        return self._binary(other, _div, np.true_divide)
 
     def __rtruediv__(self, other):
-        b = _partials(other)
-        if b is None:
-            return _with_array(("", other), np.true_divide, self, "right")
-        x = other.value if isinstance(other, Dual) else float(other)
-        return _div(x, b, self.value, self.partials)
+        return self._binary(other, _div, np.true_divide, reflected=True)
 
     def __pow__(self, other):
-        return _with_array(self._binary(other, _pow), np.power, self, "left")
+        return self._binary(other, _pow, np.power)
 
     def __rpow__(self, other):
-        b = _partials(other)
-        if b is None:
-            return NotImplemented
-        x = other.value if isinstance(other, Dual) else float(other)
-        return _pow(x, b, self.value, self.partials)
+        return self._binary(other, _pow, np.power, reflected=True)
 
     def __neg__(self):
         return Dual(-self.value, {k: -d for k, d in self.partials.items()})
@@ -265,16 +261,6 @@ def _objects(x):
     out = np.empty((), dtype=object)
     out[()] = x
     return out
-
-
-def _with_array(got, ufunc, self, side):
-    """Finish a binary operator: a Dual's result, or (where the other operand was an
-    array) the elementwise operation over object arrays."""
-    if not isinstance(got, tuple):
-        return got
-    other = got[1]
-    args = (self, other) if side == "left" else (other, self)
-    return ufunc(*[_objects(x) for x in args])
 
 
 def lift(x) -> Dual:
