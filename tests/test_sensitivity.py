@@ -14,11 +14,11 @@ from mechsim.model.parameters import Dual, atan2, hypot
 THETA0, SPEED = 0.3, 5.0
 
 
-def offset_slider_crank(r=0.15, l=0.40, e=0.05, tilt=0.0):
-    """Crank r from the origin (driven at SPEED from THETA0), rod l, slider on the line
+def offset_slider_crank(r=0.15, l=0.40, e=0.05, tilt=0.0, theta0=THETA0):
+    """Crank r from the origin (driven at SPEED from theta0), rod l, slider on the line
     y = e (tilted by `tilt`: its axis (1, tilt)); numbers or Parameters."""
     mech = ms.Mechanism("offset slider-crank", gravity=(0.0, -9.81))
-    b = np.array([r * np.cos(THETA0), r * np.sin(THETA0)])
+    b = np.array([r * np.cos(theta0), r * np.sin(theta0)])
     # The slider's point on its line y = e + tilt·x, found from the rod's length by one
     # quadratic in x (numpy functions carry the Parameters' derivatives).
     u = np.array([1.0, tilt]) / np.hypot(1.0, tilt)
@@ -87,9 +87,11 @@ def test_the_offset_slider_crank_matches_its_closed_form():
     assert relative(kin.sensitivity("e", of="v")[:, k], rate) < 1e-9
 
 
-@pytest.mark.parametrize("which", ["r", "e", "tilt"])
+@pytest.mark.parametrize("which", ["r", "e", "tilt", "theta0"])
 def test_slider_crank_sensitivities_agree_with_finite_differences(which):
-    values = {"r": 0.15, "e": 0.05, "tilt": 0.1}
+    """Each geometric parameter, the crank's starting angle too (it enters the driver's
+    offset: the drive holds the crank at theta0 + SPEED t)."""
+    values = {"r": 0.15, "e": 0.05, "tilt": 0.1, "theta0": THETA0}
     p = ms.Parameter(which, values[which])
     kin = offset_slider_crank(**{**values, which: p}).kinematics(
         1.0, 0.05, sensitivities=[which])
@@ -187,3 +189,47 @@ def test_sensitivities_to_an_unknown_name_are_refused_before_any_work():
     res = mech.kinematics(0.5, 0.05)
     with pytest.raises(ValueError, match="no sensitivities to 'a'"):
         res.sensitivity("a")
+
+
+def test_new_values_need_no_new_build_and_equal_a_fresh_model():
+    """`set_parameters` computes the model's numbers again from the Parameters: the
+    analysis and its sensitivities equal those of a model built with the new values, and
+    values that make it invalid (an offset beyond the rod) are refused, the old ones
+    kept."""
+    e, r = ms.Parameter("e", 0.05), ms.Parameter("r", 0.15)
+    mech = offset_slider_crank(r=r, e=e)
+    mech.kinematics(0.5, 0.05, sensitivities=["e"])
+    mech.set_parameters(e=0.07, r=0.12)
+    again = mech.kinematics(0.5, 0.05, sensitivities=["e", "r"])
+    fresh = offset_slider_crank(r=ms.Parameter("r", 0.12), e=ms.Parameter("e", 0.07))
+    built = fresh.kinematics(0.5, 0.05, sensitivities=["e", "r"])
+    np.testing.assert_array_equal(again.q, built.q)
+    np.testing.assert_array_equal(again.sensitivity("r", of="a"), built.sensitivity("r", of="a"))
+    plain = offset_slider_crank(r=0.12, e=0.07).kinematics(0.5, 0.05)
+    np.testing.assert_allclose(again.q, plain.q, rtol=0, atol=1e-13)
+    with pytest.raises(ms.ModelError, match=r"make it invalid .*old values are kept"):
+        mech.set_parameters(e=0.6)                  # the slider's line beyond the rod
+    assert (e.value, r.value) == (0.07, 0.12)
+    np.testing.assert_array_equal(mech.kinematics(0.5, 0.05).q, again.q)
+    with pytest.raises(ms.ModelError, match="names 'z', which is no Parameter"):
+        mech.set_parameters(z=1.0)
+    with pytest.raises(ms.ModelError, match="`value` must be a finite number"):
+        mech.set_parameters(e=float("inf"))
+
+
+def test_a_constraint_that_drops_derivatives_refuses_sensitivities():
+    """A gear whose joints' bodies move with a Parameter does not carry its derivatives:
+    sensitivities through it are refused, naming it (a plain run is not)."""
+    a = ms.Parameter("a", 0.1)
+    mech = ms.Mechanism("gear pair")
+    g = mech.ground
+    one = mech.add(ms.RigidBody("one", mass=1.0, inertia=0.01, position=(0.0, a)))
+    two = mech.add(ms.RigidBody("two", mass=1.0, inertia=0.01, position=(0.3, 0.0)))
+    p1 = mech.add(ms.Revolute(g, one, at=(0.0, a)))
+    p2 = mech.add(ms.Revolute(g, two, at=(0.3, 0.0)))
+    mech.add(ms.Gear(p1, p2, ratio=-2.0, name="pair"))
+    mech.add(ms.Driver(p1, "t"))
+    assert mech.parameter_blind() == ["pair"]
+    with pytest.raises(KinematicsError, match="'pair' depends on Parameters but does not carry"):
+        mech.kinematics(0.5, 0.1, sensitivities=["a"])
+    assert mech.kinematics(0.5, 0.1).success

@@ -184,6 +184,12 @@ def _sensitivity_names(mech, sensitivities) -> list[str]:
             raise KinematicsError(
                 f"kinematics: `sensitivities` names {name!r:.60}, which is no Parameter of "
                 f"mechanism '{mech.name}'; its parameters: {', '.join(known) or '(none)'}")
+    blind = mech.parameter_blind() if asked else []
+    if blind:
+        raise KinematicsError(
+            f"kinematics: '{blind[0]}' depends on Parameters but does not carry their "
+            "derivatives (sensitivities are carried through revolute and prismatic joints and "
+            "drivers); give the numbers it depends on as plain numbers")
     return list(dict.fromkeys(asked))
 
 

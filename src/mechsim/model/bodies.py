@@ -67,6 +67,19 @@ class Body:
     def _exact_frame(self) -> bool:
         return dual.is_exact(self.exact_position) or dual.is_exact(self.exact_angle)
 
+    def exact_numbers(self) -> list:
+        """The numbers as given that may be Parameters or computed from them."""
+        return [self._given_position, self._given_angle]
+
+    def refresh_numbers(self) -> None:
+        """Take the numbers computed from Parameters again (after
+        `mechsim.model.parameters.refresh`), checked as when built."""
+        owner = f"body '{self.name}'"
+        if self._given_position is not None:
+            self.position = vector2(dual.values(self._given_position), "position", owner)
+        if self._given_angle is not None:
+            self.angle = scalar(dual.value_of(self._given_angle), "angle", owner)
+
     # Hooks for bodies whose points move relative to their frame (flexible beams); a rigid
     # body's points do not.
     def attachment_parameter_names(self, role: str) -> tuple[str, ...]:
@@ -117,13 +130,13 @@ class RigidBody(Body):
                  angle: float = 0.0, velocity=(0.0, 0.0), angular_velocity: float = 0.0):
         super().__init__(name)
         owner = f"body '{name}'"
-        self.mass, self.exact_mass = scalar_exact(mass, "mass", owner, positive=True)
-        self.inertia, self.exact_inertia = scalar_exact(inertia, "inertia", owner,
-                                                        nonnegative=True)
+        self.mass, exact_mass = scalar_exact(mass, "mass", owner, positive=True)
+        self.inertia, exact_inertia = scalar_exact(inertia, "inertia", owner, nonnegative=True)
         self.position, self._given_position = vector2_exact(position, "position", owner)
         self.angle, self._given_angle = scalar_exact(angle, "angle", owner)
         self.velocity = vector2(velocity, "velocity", owner)
         self.angular_velocity = scalar(angular_velocity, "angular_velocity", owner)
+        self.exact_mass, self.exact_inertia = exact_mass, exact_inertia
         # The body's boundary in its frame, closed, where a shape constructor knows it
         # (rectangle, disc, polygon): what drawings and exports show of it.
         self.outline: np.ndarray | None = None
@@ -215,6 +228,16 @@ class RigidBody(Body):
                    velocity=velocity, angular_velocity=angular_velocity)
         body.outline = np.vstack([pts, pts[:1]]) - centroid
         return body
+
+    def exact_numbers(self) -> list:
+        return super().exact_numbers() + [self.exact_mass, self.exact_inertia]
+
+    def refresh_numbers(self) -> None:
+        super().refresh_numbers()
+        owner = f"body '{self.name}'"
+        self.mass = scalar(dual.value_of(self.exact_mass), "mass", owner, positive=True)
+        self.inertia = scalar(dual.value_of(self.exact_inertia), "inertia", owner,
+                              nonnegative=True)
 
     @property
     def initial_coordinates(self) -> np.ndarray:

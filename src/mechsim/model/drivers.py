@@ -65,8 +65,11 @@ class Driver:
     def n_equations(self) -> int:
         return 1
 
+    # Its offset carries the derivatives of Parameters in its joint's bodies' angles.
+    carries_parameters = True
+
     def parameter_values(self):
-        return (self.joint.initial_coordinate(),)
+        return (self.joint.exact_initial_coordinate(),)
 
     @property
     def law_constants(self) -> list[float]:

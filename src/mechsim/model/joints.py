@@ -59,6 +59,17 @@ class Joint:
         self._rigid_where_exact(points)
         return points
 
+    def exact_numbers(self) -> list:
+        """The numbers as given that may be Parameters or computed from them."""
+        return [self._exact_at]
+
+    def refresh_numbers(self) -> None:
+        """Take the numbers computed from Parameters again (after
+        `mechsim.model.parameters.refresh`), checked as when built."""
+        if self._exact_at is not None and dual.is_exact(self._exact_at):
+            self.at = vector2(dual.values(self._exact_at), "at", f"{self.kind} joint '{self.name}'")
+        self._attachments(*self.attachment_points())
+
     def _rigid_where_exact(self, points):
         """A ModelError where a point that depends on a Parameter lies on a flexible body
         (its mode shapes, fixed at a node, would not follow the point)."""
@@ -90,6 +101,15 @@ class Joint:
     def initial_coordinate(self) -> float:
         raise ModelError(f"joint '{self.name}' ({self.kind}) has no coordinate a driver can prescribe")
 
+    def exact_initial_coordinate(self):
+        """`initial_coordinate`, a Dual where it depends on Parameters
+        (`mechsim.model.parameters`)."""
+        return self.initial_coordinate()
+
+    # Does it carry the derivatives of Parameters in its geometry and its bodies' frames
+    # into its equations' parameters (`parameter_values`)?
+    carries_parameters = False
+
     def structure(self, index) -> tuple:
         """What this joint's generated equations depend on: its kind and its bodies'
         positions `index(body)` (−1: the ground), with its parameter names."""
@@ -119,6 +139,7 @@ class Revolute(Joint):
     """
 
     kind = "revolute"
+    carries_parameters = True
     parameter_names = ("ax", "ay", "bx", "by")
     equation_labels = ("x", "y")
 
@@ -151,6 +172,18 @@ class Revolute(Joint):
             return super().attachment_points()
         return self.local_a, self.local_b
 
+    def exact_numbers(self) -> list:
+        if self.at is not None:
+            return super().exact_numbers()
+        return [self._exact_a, self._exact_b]
+
+    def refresh_numbers(self) -> None:
+        if self.at is None:
+            owner = f"revolute joint '{self.name}'"
+            self.local_a = vector2(dual.values(self._exact_a), "local_a", owner)
+            self.local_b = vector2(dual.values(self._exact_b), "local_b", owner)
+        super().refresh_numbers()
+
     def exact_attachment_points(self):
         if self.at is not None:
             return super().exact_attachment_points()
@@ -173,6 +206,11 @@ class Revolute(Joint):
         return (self.body_b.angle + self.body_b.initial_node_rotation(sb)
                 - self.body_a.angle - self.body_a.initial_node_rotation(sa))
 
+    def exact_initial_coordinate(self):
+        sa, sb = self.attachment_points()
+        return (self.body_b.exact_angle + self.body_b.initial_node_rotation(sb)
+                - self.body_a.exact_angle - self.body_a.initial_node_rotation(sa))
+
 
 class Prismatic(Joint):
     """A slider: body_b translates along `axis` (fixed in body_a) without relative rotation.
@@ -182,6 +220,7 @@ class Prismatic(Joint):
     """
 
     kind = "prismatic"
+    carries_parameters = True
     parameter_names = ("ax", "ay", "bx", "by", "ux", "uy", "angle0")
     equation_labels = ("angle", "normal")
 
@@ -198,6 +237,14 @@ class Prismatic(Joint):
             if dual.is_exact(exact_axis) else self.axis
         self.at, self._exact_at = vector2_exact(at, "at", owner)
         self._attachments(*self.attachment_points())
+
+    def exact_numbers(self) -> list:
+        return super().exact_numbers() + [self._exact_axis]
+
+    def refresh_numbers(self) -> None:
+        if dual.is_exact(self._exact_axis):
+            self.axis = dual.values(self._exact_axis)
+        super().refresh_numbers()
 
     def parameter_values(self):
         """(ax, ay, bx, by, ux, uy, angle0, mode shapes…): numbers, or Duals where they

@@ -17,7 +17,7 @@ from .gears import Gear
 from .friction import Friction
 from .stops import Stop
 from .joints import Joint
-from .parameters import parameter_names
+from .parameters import finite_value, leaves, refresh
 
 
 class AssemblyError(ModelError):
@@ -238,18 +238,71 @@ class MechanismModel:
                 "constraints": [list(item.structure(lambda x: index[id(x)]))
                                 for item in self.constraint_items]}
 
+    def _exact_numbers(self) -> list:
+        """Every number of the bodies and joints that may be a Parameter or computed from
+        them (`mechsim.model.parameters`)."""
+        return [x for owner in self.bodies + self.joints for x in owner.exact_numbers()]
+
+    def parameter_blind(self) -> list[str]:
+        """The constraints that depend on Parameters but do not carry their derivatives
+        into the equations (a gear, a point on a curve on a body whose frame is a
+        Parameter's): sensitivities through them are refused, naming them."""
+        out = []
+        for item in self.constraint_items:
+            if getattr(item, "carries_parameters", False):
+                continue
+            joints = list(getattr(item, "joints", ()) or ())
+            joints += [j for j in (getattr(item, "joint", None),) if j is not None]
+            bodies = [b for b in (getattr(item, "body_a", None), getattr(item, "body_b", None),
+                                  getattr(item, "carrier", None)) if b is not None]
+            bodies += [b for j in joints for b in (j.body_a, j.body_b)]
+            numbers = [x for b in bodies for x in b.exact_numbers()]
+            numbers += [x for j in joints for x in j.exact_numbers()]
+            if leaves(numbers):
+                out.append(item.name)
+        return out
+
     @property
     def parameters(self) -> list[str]:
         """The names of the Parameters (`mechsim.model.parameters`) this mechanism's
-        numbers depend on, sorted: its bodies' frames, masses and inertias and its
-        constraints' geometry."""
-        numbers = []
-        for b in self.bodies:
-            numbers += [*np.ravel(np.asarray(b.exact_position, dtype=object)), b.exact_angle,
-                        getattr(b, "exact_mass", 0.0), getattr(b, "exact_inertia", 0.0)]
-        for item in self.constraint_items:
-            numbers += list(item.parameter_values())
-        return parameter_names(numbers)
+        numbers depend on, sorted: its bodies' frames, masses and inertias and its joints'
+        geometry."""
+        return sorted(leaves(self._exact_numbers()))
+
+    def set_parameters(self, **values) -> None:
+        """Give the named Parameters new values and compute every number of the model
+        that depends on them again (bodies' frames, masses and inertias, joints' points and
+        axes): the generated equations take the geometry as parameters, so the next run
+        needs no new build. ModelError naming what is wrong, before anything changes, for
+        an unknown name or a value that is not a finite number; where the new values make
+        the model invalid (a zero axis, a point off a beam's nodes), the old values are
+        restored and a ModelError says why."""
+        numbers = self._exact_numbers()
+        found = leaves(numbers)
+        for name, value in values.items():
+            if name not in found:
+                raise ModelError(f"mechanism '{self.name}': set_parameters names {name!r}, which "
+                                 f"is no Parameter of it; its parameters: "
+                                 f"{', '.join(sorted(found)) or '(none)'}")
+            finite_value(value, name)
+        before = {name: found[name].value for name in values}
+        try:
+            self._take(found, values, numbers)
+        except (ModelError, ArithmeticError, ValueError) as exc:
+            self._take(found, before, numbers)
+            raise ModelError(f"mechanism '{self.name}': the values {values} make it invalid "
+                             f"({exc}); the old values are kept") from exc
+
+    def _take(self, found, values, numbers) -> None:
+        """Set the Parameters `values` and compute the model's numbers again."""
+        for name, value in values.items():
+            found[name].set(value)
+        refresh(numbers)
+        for owner in self.bodies + self.joints:
+            owner.refresh_numbers()
+        self._problem = None
+        self._assembled = None
+        self._state = None
 
     @property
     def constraint_items(self) -> list:

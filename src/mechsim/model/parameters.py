@@ -15,7 +15,15 @@ would drop its derivatives silently; numpy's functions (`np.cos(x)`) carry them,
 model argument that does not take parameters yet refuses one with a ModelError naming it.
 Arguments that take parameters: a rigid body's `position`, `angle`, `mass` and `inertia`
 (and `RigidBody.rod`'s `start`, `end` and `mass`); a revolute joint's `at`, `local_a`,
-`local_b`; a prismatic joint's `axis` and `at`.
+`local_b`; a prismatic joint's `axis` and `at` (a driver's offset, its joint's initial
+coordinate, follows its bodies' angles). A constraint that reads such numbers without
+carrying their derivatives (a gear, a point on a curve) refuses sensitivities, naming
+itself (`MechanismModel.parameter_blind`).
+
+Every Dual remembers what it was computed from, so `refresh` computes it again after a
+Parameter takes a new value (`MechanismModel.set_parameters`): a model built once takes
+new values without being built again, and its generated equations, which take the
+geometry as parameters, need no new code.
 """
 
 from __future__ import annotations
@@ -50,11 +58,15 @@ class Dual:
     arrays of Duals) and numpy's ufuncs (sin, cos, tan, arctan2, hypot, sqrt, exp, log,
     square, absolute, power) carry the derivatives; comparisons compare values."""
 
-    __slots__ = ("value", "partials")
+    __slots__ = ("value", "partials", "_parents", "_again")
 
     def __init__(self, value: float, partials: dict | None = None):
         self.value = float(value)
         self.partials = dict(partials or {})
+        # How it was computed, for `refresh`: the Duals it came from and a function that
+        # computes it again from them (None for a leaf: a Parameter or a constant).
+        self._parents: tuple = ()
+        self._again = None
 
     # --- what a Dual is not ------------------------------------------------------------------
     def __float__(self):
@@ -74,9 +86,10 @@ class Dual:
         b = _partials(other)
         if b is not None:
             y = other.value if isinstance(other, Dual) else float(other)
-            if reflected:
-                return rule(y, b, self.value, self.partials)
-            return rule(self.value, self.partials, y, b)
+            out = rule(y, b, self.value, self.partials) if reflected else \
+                rule(self.value, self.partials, y, b)
+            return _recorded(out, (self, other),
+                             lambda: self._binary(other, rule, ufunc, reflected))
         if isinstance(other, np.ndarray):
             args = (other, self) if reflected else (self, other)
             return ufunc(*[_objects(x) for x in args])
@@ -113,7 +126,8 @@ class Dual:
         return self._binary(other, _pow, np.power, reflected=True)
 
     def __neg__(self):
-        return Dual(-self.value, {k: -d for k, d in self.partials.items()})
+        return _recorded(Dual(-self.value, {k: -d for k, d in self.partials.items()}),
+                         (self,), self.__neg__)
 
     def __pos__(self):
         return self
@@ -170,25 +184,25 @@ class Dual:
 
     # numpy's object loops call these methods by the ufunc's name.
     def sin(self):
-        return _chain(self, math.sin(self.value), math.cos(self.value))
+        return _chain(self, math.sin(self.value), math.cos(self.value), self.sin)
 
     def cos(self):
-        return _chain(self, math.cos(self.value), -math.sin(self.value))
+        return _chain(self, math.cos(self.value), -math.sin(self.value), self.cos)
 
     def tan(self):
         t = math.tan(self.value)
-        return _chain(self, t, 1.0 + t * t)
+        return _chain(self, t, 1.0 + t * t, self.tan)
 
     def sqrt(self):
         r = math.sqrt(self.value)
-        return _chain(self, r, 0.5 / r if r > 0 else math.inf)
+        return _chain(self, r, 0.5 / r if r > 0 else math.inf, self.sqrt)
 
     def exp(self):
         e = math.exp(self.value)
-        return _chain(self, e, e)
+        return _chain(self, e, e, self.exp)
 
     def log(self):
-        return _chain(self, math.log(self.value), 1.0 / self.value)
+        return _chain(self, math.log(self.value), 1.0 / self.value, self.log)
 
     def arctan2(self, x):
         return atan2(self, x)
@@ -215,16 +229,27 @@ class Parameter(Dual):
         from .checks import ModelError
         if not isinstance(name, str) or not name.strip():
             raise ModelError(f"a Parameter needs a non-empty name, got {name!r:.60}")
-        if isinstance(value, (bool, str, bytes, Dual)) or \
-                not isinstance(value, (numbers.Real, np.floating, np.integer)) or \
-                not math.isfinite(value):
-            raise ModelError(f"Parameter '{name}': `value` must be a finite number, got "
-                             f"{value!r:.60}")
-        super().__init__(value, {name: 1.0})
+        super().__init__(finite_value(value, name), {name: 1.0})
         self.name = name
+
+    def set(self, value) -> None:
+        """Give it a new value (`MechanismModel.set_parameters` does, and computes the
+        numbers that depend on it again)."""
+        self.value = finite_value(value, self.name)
 
     def __repr__(self):
         return f"Parameter({self.name!r}, {self.value!r})"
+
+
+def finite_value(value, name: str) -> float:
+    """`value` as a float, or a ModelError naming the Parameter: a plain finite number."""
+    from .checks import ModelError
+    if isinstance(value, (bool, str, bytes, Dual)) or \
+            not isinstance(value, (numbers.Real, np.floating, np.integer)) or \
+            not math.isfinite(value):
+        raise ModelError(f"Parameter '{name}': `value` must be a finite number, got "
+                         f"{value!r:.60}")
+    return float(value)
 
 
 def _add(x, a, y, b):
@@ -250,8 +275,71 @@ def _pow(x, a, y, b):
     return Dual(value, _combine(a, da, b, db))
 
 
-def _chain(x: Dual, value: float, slope: float) -> Dual:
-    return Dual(value, {k: slope * d for k, d in x.partials.items()})
+def _chain(x: Dual, value: float, slope: float, again) -> Dual:
+    """f(x) of value `value` and slope f'(x); `again` computes it anew (`refresh`)."""
+    return _recorded(Dual(value, {k: slope * d for k, d in x.partials.items()}), (x,), again)
+
+
+def _recorded(out: Dual, parents, again) -> Dual:
+    """`out`, with what it was computed from (`refresh`)."""
+    out._parents = tuple(x for x in parents if isinstance(x, Dual))
+    out._again = again
+    return out
+
+
+def refresh(numbers) -> None:
+    """Compute every Dual among `numbers` (numbers, arrays or sequences of them) again, in
+    place, from the Parameters' present values: each from the Duals it was computed from,
+    in the order they were computed, so all that share a Parameter agree."""
+    done, order = set(), []
+
+    def visit(x):
+        stack = [(x, False)]
+        while stack:
+            node, expanded = stack.pop()
+            if id(node) in done:
+                continue
+            if expanded or not node._parents:
+                done.add(id(node))
+                order.append(node)
+                continue
+            stack.append((node, True))
+            stack.extend((p, False) for p in node._parents if id(p) not in done)
+
+    for x in _flat(numbers):
+        visit(x)
+    for node in order:
+        if node._again is not None:
+            new = node._again()
+            node.value, node.partials = new.value, new.partials
+
+
+def _flat(numbers):
+    """The Duals among numbers, arrays and (nested) sequences of them."""
+    if isinstance(numbers, Dual):
+        yield numbers
+    elif isinstance(numbers, np.ndarray):
+        if numbers.dtype == object:
+            for x in numbers.flat:
+                yield from _flat(x)
+    elif isinstance(numbers, (list, tuple)):
+        for x in numbers:
+            yield from _flat(x)
+
+
+def leaves(numbers) -> dict:
+    """name -> Parameter of every Parameter the numbers were computed from."""
+    out, seen = {}, set()
+    stack = list(_flat(numbers))
+    while stack:
+        node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, Parameter):
+            out.setdefault(node.name, node)
+        stack.extend(node._parents)
+    return out
 
 
 def _objects(x):
@@ -308,8 +396,9 @@ def atan2(y, x):
         return math.atan2(y, x)
     y, x = lift(y), lift(x)
     r2 = x.value * x.value + y.value * y.value
-    return Dual(math.atan2(y.value, x.value),
-                _combine(y.partials, x.value / r2, x.partials, -y.value / r2))
+    return _recorded(Dual(math.atan2(y.value, x.value),
+                          _combine(y.partials, x.value / r2, x.partials, -y.value / r2)),
+                     (y, x), lambda: atan2(y, x))
 
 
 def hypot(x, y):
@@ -317,7 +406,8 @@ def hypot(x, y):
         return math.hypot(x, y)
     x, y = lift(x), lift(y)
     r = math.hypot(x.value, y.value)
-    return Dual(r, _combine(x.partials, x.value / r, y.partials, y.value / r))
+    return _recorded(Dual(r, _combine(x.partials, x.value / r, y.partials, y.value / r)),
+                     (x, y), lambda: hypot(x, y))
 
 
 _UFUNCS = {
