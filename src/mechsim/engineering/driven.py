@@ -126,12 +126,44 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
                               f"`over`), got t_end = {t_end!r}, output_step = {output_step!r}")
     else:
         ts = output_times(t_start, t_end, output_step)
-    kin = _Kinematics(problem, tol)
-    state = (report.q, *kin.velocities(report.q, t_start)[:2])
-    Q, V, shape = [state[0]], [state[1]], [_shape(problem, report.q, t_start)]
-    A = [state[2]]
+    ts, Q, V, A, shape, status, message = _march(_Kinematics(problem, tol), problem,
+                                                 report.q, t_start, ts)
+    n = len(Q)
+    passages = _passages(ts, np.array(shape))
+    if passages and status == Status.SUCCESS:
+        message += (f"; it passed {len(passages)} singular configuration(s) (first at t = "
+                    f"{passages[0].t_min:.6g}) where the drivers do not decide the branch: it "
+                    "went on along the one it moved on, and reactions and efforts there are "
+                    "not unique")
+    result = SimulationResult(
+        ts, np.array(Q), np.array(V), problem.coordinate_names, problem=problem,
+        status=status, message=message, singular_passages=passages,
+        stats={"method": "kinematics", "samples": n,
+               "wall_time": time.perf_counter() - started})
+    if names:
+        module = sensitivity_model(mech)
+        result.sensitivities = sensitivities_at(problem, module, ts, result.q, result.v,
+                                                np.array(A), names)
+        if passages:
+            result.message += ("; the sensitivities are not defined at the singular "
+                               "configurations (Φ_q singular there: they grow without bound "
+                               "near them)")
+    result.mechanism = mech
+    return result
+
+
+def _march(kin, problem, q0, t_start, ts):
+    """The states at the times `ts` from the assembled q0 at t_start (a first step from
+    t_start where the first sample lies later, as over a driver's range that does not
+    start at its present value): (times reached, Q, V, A, shapes, status, message)."""
+    steps = np.asarray(ts, float)
+    skip = int(steps[0] != t_start)
+    if skip:
+        steps = np.concatenate([[t_start], steps])
+    state = (q0, *kin.velocities(q0, t_start)[:2])
+    Q, V, A, shape = [state[0]], [state[1]], [state[2]], [_shape(problem, q0, t_start)]
     status, message = Status.SUCCESS, "reached t_end"
-    for t0, t1 in zip(ts[:-1], ts[1:]):
+    for t0, t1 in zip(steps[:-1], steps[1:]):
         state = kin.advance(t0, state, t1)
         if state is None:
             status = Status.FAILED
@@ -144,27 +176,7 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
         A.append(state[2])
         shape.append(_shape(problem, state[0], t1))
     n = len(Q)
-    passages = _passages(ts[:n], np.array(shape))
-    if passages and status == Status.SUCCESS:
-        message += (f"; it passed {len(passages)} singular configuration(s) (first at t = "
-                    f"{passages[0].t_min:.6g}) where the drivers do not decide the branch: it "
-                    "went on along the one it moved on, and reactions and efforts there are "
-                    "not unique")
-    result = SimulationResult(
-        ts[:n], np.array(Q), np.array(V), problem.coordinate_names, problem=problem,
-        status=status, message=message, singular_passages=passages,
-        stats={"method": "kinematics", "samples": n,
-               "wall_time": time.perf_counter() - started})
-    if names:
-        module = sensitivity_model(mech)
-        result.sensitivities = sensitivities_at(problem, module, ts[:n], result.q, result.v,
-                                                np.array(A), names)
-        if passages:
-            result.message += ("; the sensitivities are not defined at the singular "
-                               "configurations (Φ_q singular there: they grow without bound "
-                               "near them)")
-    result.mechanism = mech
-    return result
+    return (steps[skip:n], Q[skip:], V[skip:], A[skip:], shape[skip:], status, message)
 
 
 def _sensitivity_names(mech, sensitivities) -> list[str]:
