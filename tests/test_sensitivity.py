@@ -14,7 +14,7 @@ from mechsim.model.parameters import Dual, atan2, hypot
 THETA0, SPEED = 0.3, 5.0
 
 
-def offset_slider_crank(r=0.15, l=0.40, e=0.05, tilt=0.0, theta0=THETA0):
+def offset_slider_crank(r=0.15, l=0.40, e=0.05, tilt=0.0, theta0=THETA0, m_rod=0.8):
     """Crank r from the origin (driven at SPEED from theta0), rod l, slider on the line
     y = e (tilted by `tilt`: its axis (1, tilt)); numbers or Parameters."""
     mech = ms.Mechanism("offset slider-crank", gravity=(0.0, -9.81))
@@ -28,7 +28,7 @@ def offset_slider_crank(r=0.15, l=0.40, e=0.05, tilt=0.0, theta0=THETA0):
     s = -half + np.sqrt(half * half - (w @ w - l * l))
     c = p0 + s * u
     crank = mech.add(ms.RigidBody.rod("crank", (0.0, 0.0), b, mass=0.4))
-    rod = mech.add(ms.RigidBody.rod("rod", b, c, mass=0.8))
+    rod = mech.add(ms.RigidBody.rod("rod", b, c, mass=m_rod))
     slider = mech.add(ms.RigidBody("slider", mass=0.3, inertia=1e-4, position=c))
     pin = mech.add(ms.Revolute(mech.ground, crank, at=(0.0, 0.0), name="O"))
     mech.add(ms.Revolute(crank, rod, at=b, name="A"))
@@ -233,3 +233,46 @@ def test_a_constraint_that_drops_derivatives_refuses_sensitivities():
     with pytest.raises(KinematicsError, match="'pair' depends on Parameters but does not carry"):
         mech.kinematics(0.5, 0.1, sensitivities=["a"])
     assert mech.kinematics(0.5, 0.1).success
+
+
+def test_motor_torque_and_multiplier_sensitivities_agree_with_finite_differences():
+    """The driver's torque and every multiplier of the offset slider-crank under gravity,
+    to a mass, a length and the offset (mass matrix, geometry and both at once), against
+    central differences (Richardson-extrapolated: error O(h⁴))."""
+    def build(r=0.15, e=0.05, m=0.8):
+        return offset_slider_crank(r=r, e=e, m_rod=m)      # m: the rod's mass and inertia
+
+    values = {"r": 0.15, "e": 0.05, "m": 0.8}
+    params = {k: ms.Parameter(k, v) for k, v in values.items()}
+    mech = build(**params)
+    kin = mech.kinematics(0.6, 0.05, sensitivities=list(values))
+    motor = mech.drivers[0]
+
+    def central(name, h):
+        up = build(**{**values, name: values[name] + h}).kinematics(0.6, 0.05)
+        down = build(**{**values, name: values[name] - h}).kinematics(0.6, 0.05)
+        return ((up.reactions.multipliers.lam - down.reactions.multipliers.lam) / (2 * h),
+                (up.driver_effort(up.mechanism.drivers[0])
+                 - down.driver_effort(down.mechanism.drivers[0])) / (2 * h))
+
+    for name, value in values.items():
+        h = 1e-3 * max(1.0, abs(value))
+        (l1, e1), (l2, e2) = central(name, h), central(name, h / 2)
+        lam_fd, effort_fd = (4 * l2 - l1) / 3, (4 * e2 - e1) / 3
+        assert relative(kin.sensitivity(name, of="lambda"), lam_fd) < 1e-6, name
+        assert relative(kin.sensitivity(name, of="driver_effort", driver=motor),
+                        effort_fd) < 1e-6, name
+
+
+def test_multiplier_sensitivities_under_loads_not_differentiated_are_refused():
+    """A spring on the slider: the motion's sensitivities stand (loads do not move a
+    driven mechanism), the multipliers' are refused naming the spring."""
+    e = ms.Parameter("e", 0.05)
+    mech = offset_slider_crank(e=e)
+    slider = mech.body("slider")
+    mech.add(ms.Spring(mech.ground, slider, at_a=(0.0, 0.0), at_b=tuple(slider.position),
+                       stiffness=100.0, rest_length=0.3, name="return spring"))
+    kin = mech.kinematics(0.3, 0.05, sensitivities=["e"])
+    assert np.any(kin.sensitivity("e") != 0.0)
+    with pytest.raises(ValueError, match="the spring 'return spring' loads the mechanism"):
+        kin.sensitivity("e", of="driver_effort", driver=mech.drivers[0])

@@ -18,7 +18,7 @@ LAYERS = [
     {"codegen"},
     {"flexible"},
     {"model"},
-    {"symbolic", "problem", "study"},
+    {"symbolic", "problem", "study", "design"},
     {"assembly", "formulations", "results"},
     {"build", "run", "linear"},
     {"engineering"},

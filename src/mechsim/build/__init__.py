@@ -98,6 +98,11 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
     # ∂p/∂(each Parameter the geometry depends on), exact (`mechsim.model.parameters`).
     named = parameter_names(exact)
     partials = dict(zip(named, gradient(exact, named).T))
+    masses = [x for b in mech.bodies for x in (
+        (b.exact_mass, b.exact_mass, b.exact_inertia) if isinstance(b, RigidBody)
+        else (0.0,) * len(b.coordinate_names))]
+    named = parameter_names(masses)
+    mass_partials = dict(zip(named, gradient(masses, named).T))
     names, owners, kinds = [], [], []
     for item in items:
         for label in item.equation_labels:
@@ -117,7 +122,7 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
                              gear_signs={g.name: 1.0 if getattr(g, "internal", False) else -1.0
                                          for g in mech.gears},
                              friction=_friction_model(mech, joints, owners),
-                             parameter_partials=partials)
+                             parameter_partials=partials, mass_partials=mass_partials)
     return problem, from_cache
 
 
@@ -133,7 +138,7 @@ def sensitivity_model(mech):
                          "function, which the derivatives cannot be generated through; give "
                          "its law as an expression")
     items = mech.constraint_items
-    structure = {"sensitivity": 1, **mech.structure()}
+    structure = {"sensitivity": 2, **mech.structure()}
 
     def source():
         from ..codegen.printer import sensitivity_source

@@ -101,7 +101,8 @@ class _ModuleWriter:
         if self.c_kernels is None or name in self.c_kernels:
             self._c_function(name, "_v" in args, layout, repl, reduced)
         lines = [f"def {name}({', '.join(args)}):", f'    """{doc}"""']
-        unpack = {"_q": sysm.q, "_v": sysm.v, "_a": getattr(sysm, "a", ()), "_p": sysm.p}
+        unpack = {"_q": sysm.q, "_v": sysm.v, "_a": getattr(sysm, "a", ()),
+                  "_l": getattr(sysm, "l", ()), "_p": sysm.p}
         for arg in args:
             syms = unpack.get(arg)
             if syms and any(s in used for s in syms):
@@ -223,11 +224,14 @@ def model_source(system, key: str) -> str:
 
 
 def sensitivity_source(system, key: str) -> str:
-    """The module text of a `mechsim.symbolic.sensitivity.SensitivitySystem`: one function
-    `sensitivity_terms(_q, _v, _a, t, _p)` returning its `outputs` (Python only: it runs
-    once per sample of an analysis, not inside the integration)."""
+    """The module text of a `mechsim.symbolic.sensitivity.SensitivitySystem`: functions
+    `sensitivity_terms(_q, _v, _a, t, _p)` returning its `outputs` and
+    `multiplier_terms(_q, _l, t, _p)` returning its `multiplier_outputs` (Python only:
+    they run once per sample of an analysis, not inside the integration)."""
     w = _ModuleWriter(system, c_kernels=())
     w.function("sensitivity_terms", ("_q", "_v", "_a", "t", "_p"), system.outputs(),
                "(R0_p, R1_q, R1_p, R2_q, R2_v, R2_p) of the constraints at the position, "
                "velocity and acceleration levels (mechsim.symbolic.sensitivity).")
+    w.function("multiplier_terms", ("_q", "_l", "t", "_p"), system.multiplier_outputs(),
+               "(R3_q, R3_p) of R3 = Φ_qᵀ λ (mechsim.symbolic.sensitivity).")
     return w.module(key)

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..build import sensitivity_model
 from ..linalg import dense
+from ..problem.sensitivity import Sensitivities
 from ..linalg.newton import newton
 from ..records import SingularPassage, Status
 from ..threads import in_run_threads
@@ -100,8 +101,8 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
     the times where the driver's law reaches each value, see `times_of`), as a
     `SimulationResult` (its `accelerations()`, `driver_effort`, `joint_force`,
     `cycle_figures()` answer as for a simulation). `sensitivities`: names of Parameters
-    (`mech.parameters`) whose exact sensitivities ∂q/∂k, ∂v/∂k, ∂q̈/∂k at every sample
-    the result keeps (`SimulationResult.sensitivity`; see `sensitivities_at`). Raises
+    (`mech.parameters`) whose exact sensitivities at every sample the result keeps
+    (`SimulationResult.sensitivity`; `mechsim.problem.sensitivity`). Raises
     KinematicsError where the mechanism has degrees of freedom left or the arguments do
     not describe the samples or name no parameter of it."""
     from ..results import SimulationResult
@@ -141,9 +142,10 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
         stats={"method": "kinematics", "samples": n,
                "wall_time": time.perf_counter() - started})
     if names:
-        module = sensitivity_model(mech)
-        result.sensitivities = sensitivities_at(problem, module, ts, result.q, result.v,
-                                                np.array(A), names)
+        result.sensitivities = Sensitivities(
+            problem, sensitivity_model(mech), ts, result.q, result.v,
+            np.asarray(A, float).reshape(len(ts), problem.n), names,
+            lam=lambda: result.reactions.multipliers.lam)
         if passages:
             result.message += ("; the sensitivities are not defined at the singular "
                                "configurations (Φ_q singular there: they grow without bound "
@@ -203,37 +205,6 @@ def _sensitivity_names(mech, sensitivities) -> list[str]:
             "derivatives (sensitivities are carried through revolute and prismatic joints and "
             "drivers); give the numbers it depends on as plain numbers")
     return list(dict.fromkeys(asked))
-
-
-def sensitivities_at(problem, module, ts, Q, V, A, names) -> dict:
-    """The exact sensitivities of the consistent states (ts[i], Q[i], V[i], A[i]) of a
-    driven mechanism to the Parameters `names`: {name: {"q": ∂q/∂k, "v": ∂v/∂k, "a":
-    ∂q̈/∂k}}, each (N, n), from the triangular system of the implicit function theorem
-    (`mechsim.symbolic.sensitivity`) with Φ_q factored once per sample. `module`: the
-    derivatives' module (`mechsim.build.sensitivity_model`). A parameter the constraints
-    do not depend on (a mass) has zero sensitivities."""
-    import scipy.linalg as sla
-    P = np.column_stack([problem.parameter_partials.get(k, np.zeros(len(problem.p)))
-                         for k in names])                                  # (np, K)
-    p = problem.p
-    N, n, K = len(ts), problem.n, len(names)
-    dq, dv, da = np.zeros((N, n, K)), np.zeros((N, n, K)), np.zeros((N, n, K))
-    for i, (t, q, v, a) in enumerate(zip(ts, Q, V, A)):
-        r0p, r1q, r1p, r2q, r2v, r2p = module.sensitivity_terms(q, v, a, t, p)
-        J = problem.phi_q(q, t)
-        if J.shape[0] == J.shape[1]:
-            lu = sla.lu_factor(J, check_finite=False)
-
-            def solve(b, lu=lu):
-                return sla.lu_solve(lu, b, check_finite=False)
-        else:
-            def solve(b, J=J):
-                return np.linalg.lstsq(J, b, rcond=None)[0]
-        dq[i] = solve(-(r0p @ P))
-        dv[i] = solve(-(r1q @ dq[i] + r1p @ P))
-        da[i] = solve(-(r2q @ dq[i] + r2v @ dv[i] + r2p @ P))
-    return {k: {"q": dq[:, :, j], "v": dv[:, :, j], "a": da[:, :, j]}
-            for j, k in enumerate(names)}
 
 
 def times_of(mech, driver, values, t_start=0.0, horizon=1e6) -> np.ndarray:

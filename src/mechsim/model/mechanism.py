@@ -269,6 +269,10 @@ class MechanismModel:
         geometry."""
         return sorted(leaves(self._exact_numbers()))
 
+    def parameter_values(self) -> dict[str, float]:
+        """name -> present value of each Parameter of `parameters`."""
+        return {name: p.value for name, p in sorted(leaves(self._exact_numbers()).items())}
+
     def set_parameters(self, **values) -> None:
         """Give the named Parameters new values and compute every number of the model
         that depends on them again (bodies' frames, masses and inertias, joints' points and

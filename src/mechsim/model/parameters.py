@@ -54,19 +54,19 @@ def _combine(a: dict, ca: float, b: dict, cb: float) -> dict:
 
 class Dual:
     """A number with its exact first derivatives: `value` and `partials` (parameter name →
-    ∂value/∂parameter). Arithmetic with plain numbers, other Duals and numpy arrays (as
+    ∂value/∂parameter), and how it was computed: `parents` (the Duals it came from) and
+    `recompute` (computes it again from them; None for a Parameter or a constant).
+    Arithmetic with plain numbers, other Duals and numpy arrays (as
     arrays of Duals) and numpy's ufuncs (sin, cos, tan, arctan2, hypot, sqrt, exp, log,
     square, absolute, power) carry the derivatives; comparisons compare values."""
 
-    __slots__ = ("value", "partials", "_parents", "_again")
+    __slots__ = ("value", "partials", "parents", "recompute")
 
     def __init__(self, value: float, partials: dict | None = None):
         self.value = float(value)
         self.partials = dict(partials or {})
-        # How it was computed, for `refresh`: the Duals it came from and a function that
-        # computes it again from them (None for a leaf: a Parameter or a constant).
-        self._parents: tuple = ()
-        self._again = None
+        self.parents: tuple = ()
+        self.recompute = None
 
     # --- what a Dual is not ------------------------------------------------------------------
     def __float__(self):
@@ -282,8 +282,8 @@ def _chain(x: Dual, value: float, slope: float, again) -> Dual:
 
 def _recorded(out: Dual, parents, again) -> Dual:
     """`out`, with what it was computed from (`refresh`)."""
-    out._parents = tuple(x for x in parents if isinstance(x, Dual))
-    out._again = again
+    out.parents = tuple(x for x in parents if isinstance(x, Dual))
+    out.recompute = again
     return out
 
 
@@ -299,18 +299,18 @@ def refresh(numbers) -> None:
             node, expanded = stack.pop()
             if id(node) in done:
                 continue
-            if expanded or not node._parents:
+            if expanded or not node.parents:
                 done.add(id(node))
                 order.append(node)
                 continue
             stack.append((node, True))
-            stack.extend((p, False) for p in node._parents if id(p) not in done)
+            stack.extend((p, False) for p in node.parents if id(p) not in done)
 
     for x in _flat(numbers):
         visit(x)
     for node in order:
-        if node._again is not None:
-            new = node._again()
+        if node.recompute is not None:
+            new = node.recompute()
             node.value, node.partials = new.value, new.partials
 
 
@@ -338,7 +338,7 @@ def leaves(numbers) -> dict:
         seen.add(id(node))
         if isinstance(node, Parameter):
             out.setdefault(node.name, node)
-        stack.extend(node._parents)
+        stack.extend(node.parents)
     return out
 
 

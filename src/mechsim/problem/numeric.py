@@ -64,12 +64,16 @@ class NumericProblem:
                  coordinate_names, constraint_names, constraint_owners,
                  springs=(), loads=(), title="mechanism", constraint_kinds=None,
                  flexible=(), drawing=(), driver_laws=(), joints=None, driver_joints=None,
-                 torsion=(), gear_signs=None, friction=None, parameter_partials=None):
+                 torsion=(), gear_signs=None, friction=None, parameter_partials=None,
+                 mass_partials=None):
         self.model = model
         self.p = tuple(float(x) for x in parameters)
         # name -> ∂p/∂(that design Parameter), (len(p),), for each Parameter the
         # mechanism's geometry depends on (`mechsim.model.parameters`).
         self.parameter_partials = dict(parameter_partials or {})
+        # name -> ∂(mass diagonal)/∂(that Parameter), (n,), for the Parameters the rigid
+        # bodies' masses and inertias depend on.
+        self.mass_partials = dict(mass_partials or {})
         self.mass_model = MassModel(mass_diagonal, flexible)
         self.mass_diagonal = self.mass_model.diagonal
         self.inverse_mass_diagonal = self.mass_model.inverse_diagonal

@@ -93,6 +93,11 @@ class ReactionTable:
     def _driver(self, driver) -> str:
         return self._named(driver, "driver", "computing the driver efforts")
 
+    def driver_name(self, driver) -> str:
+        """The name of a driver of this result (given as the object or its name); KeyError
+        listing the valid ones."""
+        return self._driver(driver)
+
     def _named(self, item, kind, what) -> str:
         """The name of a joint or driver (`kind`) of this result, given as the object or its
         name; KeyError listing the valid ones, RuntimeError where nothing was saved."""

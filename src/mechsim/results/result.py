@@ -94,9 +94,9 @@ class SimulationResult:
         self.event = None             # (t, index, q, v) where an event ended the run
         self.impacts = []             # the stops' impacts (`mechsim.engineering.impacts.Impact`)
         self.friction_switches = []   # stick and slip (`mechsim.engineering.friction.FrictionSwitch`)
-        # Parameter name -> {"q", "v", "a"}: exact sensitivities at the samples, where the
-        # analysis was asked for them (`sensitivity`).
-        self.sensitivities: dict = {}
+        # Exact sensitivities at the samples to the Parameters the analysis was asked for
+        # (`mechsim.problem.sensitivity.Sensitivities`; `sensitivity`), else None.
+        self.sensitivities = None
         if energy is not None:
             self.__dict__["energy"] = energy
         if constraint_violation is not None:
@@ -187,25 +187,37 @@ class SimulationResult:
                                         self._body_start(body), local,
                                         self._point_modes(body, local))
 
-    def sensitivity(self, name: str, of: str = "q", body=None, local=(0.0, 0.0)) -> np.ndarray:
+    def sensitivity(self, name: str, of: str = "q", body=None, local=(0.0, 0.0),
+                    driver=None) -> np.ndarray:
         """The exact sensitivity to the Parameter `name` of a quantity over time, with the
-        quantity's shape: of "q" (∂q/∂k, the shape of `q`), "v", "a" (of q̈), or "point"
+        quantity's shape: of "q" (∂q/∂k, the shape of `q`), "v", "a" (of q̈), "point"
         (∂r/∂k of the body-fixed point `local` of `body`, (n, 2): r's Jacobian in q
-        applied to ∂q/∂k). The analysis must have been asked for it
-        (`kinematics(..., sensitivities=[name])`)."""
-        got = self.sensitivities.get(name)
-        if got is None:
+        applied to ∂q/∂k), "lambda" (of the multipliers, (n, m)) or "driver_effort"
+        (of `driver_effort(driver)`, (n,)). The analysis must have been asked for it
+        (`kinematics(..., sensitivities=[name])`); the multipliers' are computed when
+        first asked, for mechanisms loaded by gravity alone."""
+        table = self.sensitivities
+        if table is None or name not in table:
             raise ValueError(f"sensitivity: no sensitivities to {name!r:.60} in this result; "
-                             f"it has {', '.join(self.sensitivities) or 'none'} (ask the "
-                             "analysis for them: sensitivities=[...])")
+                             f"it has {', '.join(table or []) or 'none'} (ask the analysis "
+                             "for them: sensitivities=[...])")
         if of in ("q", "v", "a"):
-            return got[of]
+            return table.state(name, of)
         if of == "point":
             if body is None:
                 raise ValueError("sensitivity(of='point') needs the `body` the point is on")
-            return frame_point_velocity(self.q, got["q"], self._body_start(body), local,
+            return frame_point_velocity(self.q, table.state(name, "q"),
+                                        self._body_start(body), local,
                                         self._point_modes(body, local))
-        raise ValueError(f"sensitivity: `of` must be 'q', 'v', 'a' or 'point', got {of!r:.40}")
+        if of == "lambda":
+            return table.multipliers(name)
+        if of == "driver_effort":
+            if driver is None:
+                raise ValueError("sensitivity(of='driver_effort') needs the `driver`")
+            row = self.problem.rows_of(self.reactions.driver_name(driver))[0]
+            return -table.multipliers(name)[:, row]
+        raise ValueError(f"sensitivity: `of` must be 'q', 'v', 'a', 'point', 'lambda' or "
+                         f"'driver_effort', got {of!r:.40}")
 
     def angular_velocity(self, body) -> np.ndarray:
         """The angular velocity [rad/s] of a body's frame over time, shape (n,) (0 for the

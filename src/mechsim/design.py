@@ -1,0 +1,182 @@
+"""Synthesis on exact gradients: `optimize` a mechanism's Parameters for an objective.
+
+A design is the values of some of a mechanism's Parameters (`mechsim.model.parameters`).
+`optimize` gives the mechanism each trial design (`set_parameters`: no new build, no new
+code), asks the objective for its value and, with ``gradient="exact"``, its exact gradient
+(the kinematic sensitivities of `mech.kinematics(..., sensitivities=...)`), and hands both
+to `scipy.optimize.minimize`. ``gradient="2-point"`` or ``"3-point"`` leaves the gradient
+to scipy's finite differences, for comparison.
+
+An objective is a callable ``objective(mech, names) -> (value, gradient)``: the value at
+the mechanism's present design and ∂value/∂(each of `names`) (an empty array where
+`names` is empty). A design where the objective cannot be evaluated (the mechanism does
+not assemble, its analysis fails) raises `DesignError` (or a ModelError) there; the
+optimizer is then given a value above every one it has seen, and the result counts such
+designs. Ready objectives: `PathPoints` (path generation with prescribed timing).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class DesignError(ValueError):
+    """An objective could not be evaluated at a design."""
+
+
+class PathPoints:
+    """Path generation with prescribed timing: the point `local` of `body` (a body of the
+    mechanism, or its name) should pass through `targets[i]` when `driver` (a driver, or
+    its name) has moved its joint by `values[i]` from where it starts. Its value is the
+    mean squared distance to the targets [m²]; its gradient is exact (the point's
+    kinematic sensitivities)."""
+
+    def __init__(self, body, local, targets, driver, values):
+        self.body, self.driver = body, driver
+        self.local = tuple(float(x) for x in np.asarray(local, float).ravel())
+        self.targets = np.asarray(targets, float)
+        self.values = np.asarray(values, float).ravel()
+        if len(self.local) != 2:
+            raise ValueError(f"PathPoints: `local` must be a 2-vector, got {local!r:.60}")
+        if self.targets.ndim != 2 or self.targets.shape[1] != 2 or \
+                len(self.targets) != len(self.values):
+            raise ValueError(f"PathPoints: `targets` must be {len(self.values)} points (one "
+                             f"per value), shape ({len(self.values)}, 2); got "
+                             f"{self.targets.shape}")
+
+    def __call__(self, mech, names):
+        body = mech.body(self.body) if isinstance(self.body, str) else self.body
+        kin = mech.kinematics(over=(self.driver, self.values),
+                              sensitivities=list(names) or None)
+        if not kin.success or len(kin.t) != len(self.values):
+            raise DesignError(f"the path's points could not be reached: {kin.message}")
+        d = kin.point(body, self.local) - self.targets
+        value = float(np.mean(np.sum(d * d, axis=1)))
+        grad = [2.0 * float(np.mean(np.sum(
+            d * kin.sensitivity(k, of="point", body=body, local=self.local), axis=1)))
+            for k in names]
+        return value, np.array(grad)
+
+
+@dataclass
+class Design:
+    """What `optimize` found: `parameters` (name -> value, the mechanism set to them),
+    `value` of the objective there, `success` and `message` (scipy's), `evaluations` of
+    the objective (with the finite differences' own, where scipy takes them),
+    `gradients` (exact ones asked for), `iterations`, `failures` (designs where the
+    objective could not be evaluated, with the first messages), `wall_time` [s], and
+    `scipy`, the `scipy.optimize.OptimizeResult`."""
+    parameters: dict
+    value: float
+    success: bool
+    message: str
+    evaluations: int
+    gradients: int
+    iterations: int
+    failures: int
+    wall_time: float
+    failure_messages: list = field(default_factory=list)
+    scipy: object = None
+
+
+def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
+             gradient: str = "exact", method: str | None = None, tol: float | None = None,
+             options: dict | None = None) -> Design:
+    """Minimise `objective(mech, names)` over the Parameters named in `parameters`, from
+    their present values, with `scipy.optimize.minimize`.
+
+    Parameters
+    ----------
+    mech : Mechanism
+        Built with those Parameters; it is left set to the best design found.
+    objective : callable
+        ``objective(mech, names) -> (value, gradient)`` (see the module docstring), e.g.
+        `PathPoints`.
+    parameters : list of str
+        The Parameters to vary (of `mech.parameters`).
+    bounds : dict or sequence, optional
+        ``{name: (low, high)}`` or one (low, high) per parameter; None for no bound.
+    constraints : sequence, optional
+        scipy's constraint dicts (``{"type": "ineq", "fun": f(x), ...}``), of the
+        parameters' values in the order of `parameters`.
+    gradient : {"exact", "2-point", "3-point"}
+        Exact gradients from the objective, or scipy's finite differences.
+    method : str, optional
+        scipy's method; default "L-BFGS-B", or "SLSQP" with constraints.
+    tol, options
+        As for `scipy.optimize.minimize`.
+
+    Raises ValueError, before any evaluation, naming what is wrong with the arguments.
+    """
+    from scipy.optimize import minimize
+    names = _names(mech, parameters)
+    lows_highs = _bounds(names, bounds)
+    if gradient not in ("exact", "2-point", "3-point"):
+        raise ValueError(f"optimize: `gradient` must be 'exact', '2-point' or '3-point', got "
+                         f"{gradient!r:.40}")
+    exact = gradient == "exact"
+    values = mech.parameter_values()
+    x0 = np.array([values[k] for k in names])
+    failures, messages, seen = [0], [], [None]
+    evaluated = {"value": 0, "gradient": 0}
+
+    def fun(x):
+        evaluated["value"] += 1
+        evaluated["gradient"] += exact
+        try:
+            mech.set_parameters(**dict(zip(names, x.tolist())))
+            value, grad = objective(mech, names if exact else [])
+        except (DesignError, ValueError) as exc:
+            failures[0] += 1
+            if len(messages) < 5:
+                messages.append(str(exc))
+            worst = 1.0 if seen[0] is None else seen[0]
+            value, grad = 10.0 * abs(worst) + 1.0, np.zeros(len(names))
+        else:
+            seen[0] = value if seen[0] is None else max(seen[0], value)
+        return (value, np.asarray(grad, float)) if exact else value
+
+    started = time.perf_counter()
+    chosen = method or ("SLSQP" if constraints else "L-BFGS-B")
+    res = minimize(fun, x0, jac=True if exact else gradient, method=chosen,
+                   bounds=lows_highs, constraints=constraints, tol=tol, options=options)
+    mech.set_parameters(**dict(zip(names, np.asarray(res.x, float).tolist())))
+    return Design(dict(zip(names, np.asarray(res.x, float).tolist())), float(res.fun),
+                  bool(res.success), str(res.message), evaluated["value"],
+                  evaluated["gradient"], int(getattr(res, "nit", 0)), failures[0],
+                  time.perf_counter() - started, messages, res)
+
+
+def _names(mech, parameters) -> list[str]:
+    if isinstance(parameters, str):
+        parameters = [parameters]
+    names = list(parameters)
+    known = mech.parameters
+    for name in names:
+        if name not in known:
+            raise ValueError(f"optimize: `parameters` names {name!r:.60}, which is no Parameter "
+                             f"of mechanism '{mech.name}'; its parameters: "
+                             f"{', '.join(known) or '(none)'}")
+    if not names or len(set(names)) != len(names):
+        raise ValueError(f"optimize: `parameters` must name distinct Parameters, got {names}")
+    return names
+
+
+def _bounds(names, bounds):
+    """scipy's bounds, one (low, high) per name (None: unbounded), checked."""
+    if bounds is None:
+        return None
+    pairs = [bounds.get(k, (None, None)) for k in names] if isinstance(bounds, dict) \
+        else list(bounds)
+    if len(pairs) != len(names):
+        raise ValueError(f"optimize: `bounds` needs one (low, high) per parameter "
+                         f"({len(names)}), got {len(pairs)}")
+    for name, pair in zip(names, pairs):
+        low, high = pair
+        if low is not None and high is not None and not low < high:
+            raise ValueError(f"optimize: the bounds of '{name}' must have low < high, got "
+                             f"{pair!r}")
+    return pairs
