@@ -12,7 +12,8 @@ the mechanism's present design and ∂value/∂(each of `names`) (an empty array
 `names` is empty). A design where the objective cannot be evaluated (the mechanism does
 not assemble, its analysis fails) raises `DesignError` (or a ModelError) there; the
 optimizer is then given a value above every one it has seen, and the result counts such
-designs. Ready objectives: `PathPoints` (path generation with prescribed timing).
+designs. Ready objectives: `PathPoints` (path generation with prescribed timing),
+`EffortNorm` (a driver's RMS effort, or a smooth stand-in for its peak).
 """
 
 from __future__ import annotations
@@ -58,6 +59,35 @@ class PathPoints:
         grad = [2.0 * float(np.mean(np.sum(
             d * kin.sensitivity(k, of="point", body=body, local=self.local), axis=1)))
             for k in names]
+        return value, np.array(grad)
+
+
+class EffortNorm:
+    """The p-norm mean of a driver's effort over a kinematic analysis, (mean |τ|^p)^(1/p)
+    [N·m or N]: p = 2 its RMS; a large p (16) a smooth stand-in for its peak, below it by
+    at most the factor N^(−1/p) over N samples. The analysis is `kinematics(t_end,
+    output_step)` or over a driver's range (`over`). The gradient is exact (the effort's
+    sensitivities): ∂/∂k = mean(|τ/value|^(p−1) sign(τ) ∂τ/∂k)."""
+
+    def __init__(self, driver, p: float = 2.0, t_end=None, output_step=None, over=None):
+        if not p >= 1.0:
+            raise ValueError(f"EffortNorm: `p` must be at least 1, got {p!r:.40}")
+        self.driver, self.p = driver, float(p)
+        self.t_end, self.output_step, self.over = t_end, output_step, over
+
+    def __call__(self, mech, names):
+        kin = mech.kinematics(self.t_end, self.output_step, over=self.over,
+                              sensitivities=list(names) or None)
+        if not kin.success:
+            raise DesignError(f"the analysis failed: {kin.message}")
+        tau = kin.driver_effort(self.driver)
+        value = float(np.mean(np.abs(tau) ** self.p) ** (1.0 / self.p))
+        if value == 0.0:
+            return 0.0, np.zeros(len(names))
+        weight = np.abs(tau / value) ** (self.p - 1.0) * np.sign(tau)
+        grad = [float(np.mean(weight * kin.sensitivity(k, of="driver_effort",
+                                                       driver=self.driver)))
+                for k in names]
         return value, np.array(grad)
 
 
