@@ -63,11 +63,11 @@ class PathPoints:
 
 
 class EffortNorm:
-    """The p-norm mean of a driver's effort over a kinematic analysis, (mean |τ|^p)^(1/p)
-    [N·m or N]: p = 2 its RMS; a large p (16) a smooth stand-in for its peak, below it by
+    """The p-norm mean of a driver's effort τ over a kinematic analysis,
+    (mean abs(τ)^p)^(1/p) [N·m or N]: p = 2 its RMS; a large p (16) a smooth stand-in for its peak, below it by
     at most the factor N^(−1/p) over N samples. The analysis is `kinematics(t_end,
     output_step)` or over a driver's range (`over`). The gradient is exact (the effort's
-    sensitivities): ∂/∂k = mean(|τ/value|^(p−1) sign(τ) ∂τ/∂k)."""
+    sensitivities): ∂/∂k = mean(abs(τ/value)^(p−1) sign(τ) ∂τ/∂k)."""
 
     def __init__(self, driver, p: float = 2.0, t_end=None, output_step=None, over=None):
         if not p >= 1.0:
