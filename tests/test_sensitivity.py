@@ -165,6 +165,11 @@ def test_dual_arithmetic_carries_exact_derivatives():
     assert [e.partials["x"] for e in w] == pytest.approx([1 / 2.3**2, 1 / 3.3**2], rel=1e-14)
     assert (2.0 ** x).partials["x"] == pytest.approx(2.0**0.7 * math.log(2.0), rel=1e-14)
     assert isinstance(np.cos(x), Dual)
+    # A pickled Dual (the background build, process pools) is its value and partials.
+    import pickle
+    copy = pickle.loads(pickle.dumps(f))
+    assert (copy.value, copy.partials) == (f.value, f.partials)
+    assert repr(pickle.loads(pickle.dumps(x))) == "Parameter('x', 0.7)"
 
 
 def test_what_would_drop_a_derivative_is_refused():

@@ -162,6 +162,11 @@ class Dual:
 
     __hash__ = None
 
+    def __reduce__(self):
+        # A copy (pickle: the background build, process pools) is a snapshot: its value and
+        # partials, not how it was computed (functions do not pickle).
+        return (Dual, (self.value, self.partials))
+
     def __format__(self, spec):
         return format(self.value, spec)
 
@@ -236,6 +241,9 @@ class Parameter(Dual):
         """Give it a new value (`MechanismModel.set_parameters` does, and computes the
         numbers that depend on it again)."""
         self.value = finite_value(value, self.name)
+
+    def __reduce__(self):
+        return (Parameter, (self.name, self.value))
 
     def __repr__(self):
         return f"Parameter({self.name!r}, {self.value!r})"
