@@ -375,8 +375,9 @@ class MechanismModel:
         in .json, else TOML): bodies, joints, drivers, springs, constant forces and torques,
         joint speeds, every number exact; `mechsim.load_mechanism(path)` builds it again. A
         ModelError names what a scene cannot hold (a load given as a function, a beam that
-        starts deformed). A state set by `set_state` is not part of the model. Returns the
-        path."""
+        starts deformed). A state set by `set_state` is not part of the model, and
+        Parameters are written as their present values (the scene holds numbers). Returns
+        the path."""
         from .scene_save import scene_data, write_scene
         return write_scene(scene_data(self), path)
 
