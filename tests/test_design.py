@@ -128,3 +128,70 @@ def test_a_counterweight_sized_on_exact_gradients_flattens_the_torque():
             assert abs(slope) * max(abs(x), 0.05) < 1e-5 * design.value, name
     assert counterweight.peak(counterweight.pump(**counterweight.START)) > 9.0
     assert counterweight.peak(mech) < 1.5
+
+
+# --- design files and `mechsim optimize` ----------------------------------------------------
+def _design_file(tmp_path, **changes):
+    """The pump's design file, copied beside a copy of its scene, with `changes` to its
+    tables (None removes one)."""
+    import shutil
+    import tomllib
+    scene = tmp_path / "pump.toml"
+    shutil.copy(ROOT / "mechanisms" / "pump.toml", scene)
+    with open(ROOT / "mechanisms" / "studies" / "pump_counterweight.toml", "rb") as fh:
+        data = tomllib.load(fh)
+    data["scene"] = "pump.toml"
+    data.update(changes)
+    data = {k: v for k, v in data.items() if v is not None}
+
+    def text(value):
+        if isinstance(value, dict):
+            return "{ " + ", ".join(f"{k} = {text(v)}" for k, v in value.items()) + " }"
+        if isinstance(value, list):
+            return "[" + ", ".join(text(v) for v in value) + "]"
+        return repr(value) if not isinstance(value, str) else f'"{value}"'
+
+    lines = [f"{k} = {text(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    for key, table in data.items():
+        if isinstance(table, dict):
+            lines += [f"[{key}]"] + [f"{k} = {text(v)}" for k, v in table.items()]
+    path = tmp_path / "design.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_mechsim_optimize_finds_the_design_the_python_interface_finds(tmp_path, monkeypatch):
+    """`mechsim optimize` on the pump scene (its numbers written as scene parameters and
+    expressions) and `ms.optimize` on the example's Python model (the same pump) reach
+    the same counterweight, and the design file written holds it."""
+    import tomllib
+    from mechsim.app.cli import main
+    monkeypatch.chdir(tmp_path)
+    assert main(["optimize", str(_design_file(tmp_path)), "--quiet"]) == 0
+    with open(tmp_path / "out" / "pump_counterweight.toml", "rb") as fh:
+        written = tomllib.load(fh)
+    design, _, _ = counterweight.size("exact")
+    assert written["parameters"]["m_cw"] == pytest.approx(design.parameters["m_cw"], rel=1e-5)
+    assert written["parameters"]["r_cw"] == pytest.approx(design.parameters["r_cw"], rel=1e-5)
+    assert abs(written["parameters"]["offset"] - design.parameters["e"]) < 1e-7
+    assert written["value"] == pytest.approx(design.value, rel=1e-8)
+
+
+@pytest.mark.parametrize("changes, message", [
+    (dict(parameters={"mass": [0.0, 1.0]}), "'mass' is not one of the scene's"),
+    (dict(parameters={"m_cw": [2.0, 1.0]}), "expected \\[low, high\\] with low < high"),
+    (dict(parameters={"m_arm": [0.0, 9.0]}), "a varied parameter must be a number there"),
+    (dict(objective={"peak_effort": "pump"}), "no driver 'pump'"),
+    (dict(objective={"fastest": "motor"}), "\\[objective\\] must give one of"),
+    (dict(analysis={"over": {"driver": "motor", "degrees": [0, 360, 0]}}), "a step > 0"),
+    (dict(analysis=None), "\\[analysis\\] must give"),
+    (dict(gradient="adjoint"), "`gradient` must be"),
+])
+def test_a_design_file_s_mistakes_are_named_before_any_evaluation(tmp_path, monkeypatch,
+                                                                   capsys, changes, message):
+    import re
+    from mechsim.app.cli import main
+    monkeypatch.chdir(tmp_path)
+    assert main(["optimize", str(_design_file(tmp_path, **changes))]) == 2
+    assert re.search(message, capsys.readouterr().err)
+    assert not (tmp_path / "out").exists()

@@ -1,4 +1,5 @@
-"""Command line: `mechsim run SCENE`, `mechsim sweep STUDY`, `mechsim bench [PROBLEM ...]`."""
+"""Command line: `mechsim run SCENE`, `mechsim sweep STUDY`, `mechsim optimize DESIGN`,
+`mechsim bench [PROBLEM ...]`."""
 
 from __future__ import annotations
 
@@ -390,6 +391,29 @@ def _bench(args) -> int:
     return 0
 
 
+def _optimize(args) -> int:
+    from ..model import ModelError
+    from .design_file import load_design, write_design
+
+    try:
+        spec = load_design(args.design)
+    except (ModelError, OSError) as exc:
+        print(f"mechsim: {exc}", file=sys.stderr)
+        return 2
+    if args.out:
+        spec.output = Path(args.out)
+    design, _ = spec.run()
+    path = write_design(spec, design)
+    if not args.quiet:
+        chosen = ", ".join(f"{k} = {v:.6g}" for k, v in design.parameters.items())
+        print(f"{spec.path.name}: {chosen}")
+        print(f"objective {design.value:.6g} after {design.evaluations} evaluations "
+              f"({design.failures} designs not evaluable), {design.wall_time:.2f} s: "
+              f"{design.message}")
+        print(f"wrote {path}")
+    return 0 if design.success else 1
+
+
 def _sweep(args) -> int:
     from ..model import ModelError
     from .study_file import load_study, summary, write_table
@@ -503,6 +527,13 @@ def main(argv=None) -> int:
     study.add_argument("--out", help="the CSV table (default: the file's `output`)")
     study.add_argument("--quiet", action="store_true", help="print errors only")
     study.set_defaults(func=_sweep)
+    design = sub.add_parser("optimize", help="choose some of a scene's parameters for an "
+                                             "objective on exact gradients (a TOML design "
+                                             "file, see mechanisms/studies/)")
+    design.add_argument("design", help="the design file")
+    design.add_argument("--out", help="where the design goes (default: the file's `output`)")
+    design.add_argument("--quiet", action="store_true", help="print errors only")
+    design.set_defaults(func=_optimize)
     args = parser.parse_args(argv)
     try:
         with _terminate_as_interrupt():

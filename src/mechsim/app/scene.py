@@ -68,6 +68,7 @@ from pathlib import Path, PurePath
 
 
 from ..facade import Mechanism
+from ..model.parameters import Dual, Parameter, value_of
 from ..model.expressions import FUNCTIONS, ExpressionError, parse
 from ..model.forces import TimeLaw
 from .scene_build import SceneError, body_named, build
@@ -82,13 +83,14 @@ MAX_ROWS = 100_000              # rows of a driver's table
 
 def evaluate(text, names: dict, where: str) -> float:
     """Value of a number or an arithmetic expression string over `names` (parsed by
-    `mechsim.model.expressions`, never by `eval`)."""
+    `mechsim.model.expressions`, never by `eval`): a Dual where it depends on a Parameter
+    among `names` (`load_scene(path, parameters={"r": ms.Parameter("r", 0.05)})`)."""
     if isinstance(text, bool) or not isinstance(text, (int, float, str)):
         raise SceneError(f"{where}: expected a number or an expression, got "
                          f"{_kind(text)} {_show(text)}")
     try:
         expression = parse(text, set(names), where)
-        return expression.value(**{k: names[k] for k in expression.names})
+        return expression.exact_value(**{k: names[k] for k in expression.names})
     except ExpressionError as exc:
         raise SceneError(str(exc)) from None
     except (ArithmeticError, ValueError) as exc:
@@ -260,6 +262,10 @@ class _Reader:
             law = parse(text, {"t", *self.names}, f"{self.file}: {where}")
         except ExpressionError as exc:
             raise SceneError(str(exc)) from None
+        exact = sorted(k for k in law.names if isinstance(self.names.get(k), Dual))
+        if exact:
+            raise self.error(where, f"depends on the Parameter(s) {', '.join(exact)}: a "
+                                    "driver's law or a load cannot depend on a Parameter yet")
         return law.bind(**{k: self.names[k] for k in law.names if k != "t"})
 
     def _load(self, many, value, where):
@@ -344,7 +350,9 @@ def scene_from(data: dict, path, parameters: dict | None = None, *, run: bool = 
         if key in RESERVED:
             raise SceneError(f"{f}: [parameters] {key!r} is a reserved name ({RESERVED[key]}); "
                              "choose another")
-        r.names[key] = evaluate(given.get(key, value), r.names, f"{f}: [parameters] {key}")
+        replaced = given.get(key, value)
+        r.names[key] = replaced if isinstance(replaced, Parameter) else \
+            evaluate(replaced, r.names, f"{f}: [parameters] {key}")
     name = r.value("name", data.get("name", path.stem), "name")
     gravity = r.value("vector", data.get("gravity", [0.0, -9.81]), "gravity")
     tables = {key: [] for key in _ARRAYS}
@@ -440,7 +448,9 @@ def _simulation(r, raw, mech) -> dict:
     for key, value in raw.items():
         kind, at = kinds[key].kind, f"{where} {key}"
         if kind in ("real", "integer"):
-            out[key] = r.value("number", value, at)
+            # A setting, not a design number: a Parameter's value (sample times are
+            # fixed where sensitivities are taken).
+            out[key] = value_of(r.value("number", value, at))
         elif kind == "pair":
             out[key] = r.value("vector", value, at)
         elif kind == "flag":

@@ -134,8 +134,11 @@ class RigidBody(Body):
         self.inertia, exact_inertia = scalar_exact(inertia, "inertia", owner, nonnegative=True)
         self.position, self._given_position = vector2_exact(position, "position", owner)
         self.angle, self._given_angle = scalar_exact(angle, "angle", owner)
-        self.velocity = vector2(velocity, "velocity", owner)
-        self.angular_velocity = scalar(angular_velocity, "angular_velocity", owner)
+        # The initial velocities take Parameters too (a scene's speeds written from its
+        # lengths); a run starts from their values.
+        self.velocity, self._given_velocity = vector2_exact(velocity, "velocity", owner)
+        self.angular_velocity, self._given_rate = scalar_exact(angular_velocity,
+                                                               "angular_velocity", owner)
         self.exact_mass, self.exact_inertia = exact_mass, exact_inertia
         # The body's boundary in its frame, closed, where a shape constructor knows it
         # (rectangle, disc, polygon): what drawings and exports show of it.
@@ -230,11 +233,15 @@ class RigidBody(Body):
         return body
 
     def exact_numbers(self) -> list:
-        return super().exact_numbers() + [self.exact_mass, self.exact_inertia]
+        return super().exact_numbers() + [self.exact_mass, self.exact_inertia,
+                                          self._given_velocity, self._given_rate]
 
     def refresh_numbers(self) -> None:
         super().refresh_numbers()
         owner = f"body '{self.name}'"
+        self.velocity = vector2(dual.values(self._given_velocity), "velocity", owner)
+        self.angular_velocity = scalar(dual.value_of(self._given_rate), "angular_velocity",
+                                       owner)
         self.mass = scalar(dual.value_of(self.exact_mass), "mass", owner, positive=True)
         self.inertia = scalar(dual.value_of(self.exact_inertia), "inertia", owner,
                               nonnegative=True)

@@ -36,8 +36,9 @@ def _no_parameter(value, what: str, owner: str):
     """A ModelError where an argument that does not take parameters is given one."""
     if is_exact(value):
         raise ModelError(f"{owner}: `{what}` cannot depend on a Parameter (sensitivities are "
-                         "carried through bodies' position, angle, mass and inertia and "
-                         "through revolute and prismatic joints' geometry); give a number")
+                         "carried through bodies' position, angle, mass, inertia and initial "
+                         "velocities and through revolute and prismatic joints' geometry); "
+                         "give a number")
 
 
 def scalar(value, what: str, owner: str, *, positive: bool = False,

@@ -22,6 +22,7 @@ import ast
 import math
 import numbers
 
+from . import parameters as dual
 from .checks import ModelError
 
 MAX_LENGTH = 2000
@@ -59,6 +60,11 @@ FUNCTIONS = {
     "degrees": (1, math.degrees, None), "step": (5, _step, None),
 }
 CONSTANTS = {"pi": math.pi, "e": math.e}
+# The functions that carry a Parameter's derivatives (`mechsim.model.parameters`).
+_DUALS = {"sin": dual.sin, "cos": dual.cos, "tan": lambda x: x.tan(), "sqrt": dual.sqrt,
+          "exp": lambda x: x.exp(), "log": lambda x: x.log(), "atan2": dual.atan2,
+          "hypot": dual.hypot, "abs": abs, "radians": lambda x: x * (math.pi / 180.0),
+          "degrees": lambda x: x * (180.0 / math.pi)}
 
 _BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**"}
 _HINTS = {ast.BitXor: "`^` is not a power here: write `**`",
@@ -89,6 +95,12 @@ class Expression:
         """The float value with the free names bound to `values`; ArithmeticError or
         ValueError where it is undefined (log of a negative number, overflow)."""
         return float(_evaluate(self.tree, values))
+
+    def exact_value(self, **values):
+        """`value`, with Parameters among `values` carried (`mechsim.model.parameters`):
+        a Dual where the result depends on one, else a float."""
+        out = _evaluate(self.tree, values)
+        return out if isinstance(out, dual.Dual) else float(out)
 
     def jet(self, name: str, value: float, **values) -> tuple[float, float, float]:
         """(f, df/dx, d²f/dx²) at `name` = `value` (the other free names bound to `values`),
@@ -414,6 +426,11 @@ def _evaluate(tree, values):
     args = [_evaluate(a, values) for a in tree[2:]]
     if any(isinstance(a, Jet) for a in args):
         return _JETS[tree[1]](*(Jet.of(a) for a in args))
+    if any(isinstance(a, dual.Dual) for a in args):
+        if tree[1] not in _DUALS:
+            raise ValueError(f"{tree[1]}() does not carry a Parameter's derivatives")
+        return _DUALS[tree[1]](*(dual.lift(a) if tree[1] in ("atan2", "hypot") else a
+                                 for a in args))
     return FUNCTIONS[tree[1]][1](*args)
 
 

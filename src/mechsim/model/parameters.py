@@ -14,7 +14,9 @@ A Dual is not a float: `float(x)`, `math.cos(x)` and friends raise TypeError, be
 would drop its derivatives silently; numpy's functions (`np.cos(x)`) carry them, and a
 model argument that does not take parameters yet refuses one with a ModelError naming it.
 Arguments that take parameters: a rigid body's `position`, `angle`, `mass` and `inertia`
-(and `RigidBody.rod`'s `start`, `end` and `mass`); a revolute joint's `at`, `local_a`,
+(and `RigidBody.rod`'s `start`, `end` and `mass`), and its initial `velocity` and
+`angular_velocity` (kept for the runs' sensitivities; a driven mechanism's analysis does
+not depend on them); a revolute joint's `at`, `local_a`,
 `local_b`; a prismatic joint's `axis` and `at` (a driver's offset, its joint's initial
 coordinate, follows its bodies' angles). A constraint that reads such numbers without
 carrying their derivatives (a gear, a point on a curve) refuses sensitivities, naming
