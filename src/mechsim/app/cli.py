@@ -459,6 +459,27 @@ def _sweep(args) -> int:
     return 0 if not len(study.failed) else 1
 
 
+def _study_commands(sub) -> None:
+    """The `sweep` and `optimize` subcommands."""
+    study = sub.add_parser("sweep", help="run a parameter study of a scene (a TOML study "
+                                         "file, see mechanisms/studies/)")
+    study.add_argument("study", help="the study file")
+    study.add_argument("--workers", type=int, help="local processes (default: the file's "
+                                                   "`workers`, else every core)")
+    study.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run on this dask.distributed scheduler instead")
+    study.add_argument("--out", help="the CSV table (default: the file's `output`)")
+    study.add_argument("--quiet", action="store_true", help="print errors only")
+    study.set_defaults(func=_sweep)
+    design = sub.add_parser("optimize", help="choose some of a scene's parameters for an "
+                                             "objective on exact gradients (a TOML design "
+                                             "file, see mechanisms/studies/)")
+    design.add_argument("design", help="the design file")
+    design.add_argument("--out", help="where the design goes (default: the file's `output`)")
+    design.add_argument("--quiet", action="store_true", help="print errors only")
+    design.set_defaults(func=_optimize)
+
+
 def main(argv=None) -> int:
     from .. import __version__
     parser = argparse.ArgumentParser(prog="mechsim", description="Planar mechanism simulator")
@@ -517,23 +538,7 @@ def main(argv=None) -> int:
                             "(default: 1e-4,1e-6,1e-8,1e-10)")
     bench.add_argument("--out", default="out/bench", help="where to write CSV and plots")
     bench.set_defaults(func=_bench)
-    study = sub.add_parser("sweep", help="run a parameter study of a scene (a TOML study "
-                                         "file, see mechanisms/studies/)")
-    study.add_argument("study", help="the study file")
-    study.add_argument("--workers", type=int, help="local processes (default: the file's "
-                                                   "`workers`, else every core)")
-    study.add_argument("--scheduler", metavar="ADDRESS",
-                       help="run on this dask.distributed scheduler instead")
-    study.add_argument("--out", help="the CSV table (default: the file's `output`)")
-    study.add_argument("--quiet", action="store_true", help="print errors only")
-    study.set_defaults(func=_sweep)
-    design = sub.add_parser("optimize", help="choose some of a scene's parameters for an "
-                                             "objective on exact gradients (a TOML design "
-                                             "file, see mechanisms/studies/)")
-    design.add_argument("design", help="the design file")
-    design.add_argument("--out", help="where the design goes (default: the file's `output`)")
-    design.add_argument("--quiet", action="store_true", help="print errors only")
-    design.set_defaults(func=_optimize)
+    _study_commands(sub)
     args = parser.parse_args(argv)
     try:
         with _terminate_as_interrupt():
