@@ -14,6 +14,11 @@ not assemble, its analysis fails) raises `DesignError` (or a ModelError) there; 
 optimizer is then given a value above every one it has seen, and the result counts such
 designs. Ready objectives: `PathPoints` (path generation with prescribed timing),
 `EffortNorm` (a driver's RMS effort, or a smooth stand-in for its peak).
+
+A constraint is a callable ``constraint(mech, names) -> (values, jacobian)``, feasible
+where every value is ≥ 0, its jacobian ∂values/∂(names), (m, len(names)) (scipy's
+constraint dicts over the parameters' values are taken as well). Ready:
+`TransmissionAngle` (a four-bar's transmission angle kept within bounds).
 """
 
 from __future__ import annotations
@@ -91,6 +96,37 @@ class EffortNorm:
         return value, np.array(grad)
 
 
+class TransmissionAngle:
+    """The angle μ between the x axes of two bodies (a four-bar's coupler and rocker,
+    their frames along the links as `RigidBody.rod` puts them) kept at least `minimum`
+    degrees from alignment at every sample of a kinematic analysis (`over`, or `t_end` and
+    `output_step`): one value per sample, abs(sin μ) − sin(minimum), feasible where ≥ 0,
+    with their exact jacobian (the angles' sensitivities)."""
+
+    def __init__(self, body_a, body_b, minimum: float, t_end=None, output_step=None,
+                 over=None):
+        if not 0.0 < minimum < 90.0:
+            raise ValueError(f"TransmissionAngle: `minimum` must be between 0 and 90 degrees, "
+                             f"got {minimum!r:.40}")
+        self.body_a, self.body_b = body_a, body_b
+        self.floor = float(np.sin(np.radians(minimum)))
+        self.t_end, self.output_step, self.over = t_end, output_step, over
+
+    def __call__(self, mech, names):
+        kin = mech.kinematics(self.t_end, self.output_step, over=self.over,
+                              sensitivities=list(names) or None)
+        if not kin.success:
+            raise DesignError(f"the analysis failed: {kin.message}")
+        a, b = (kin.coordinate_names.index(f"{getattr(x, 'name', x)}.angle")
+                for x in (self.body_a, self.body_b))
+        mu = kin.q[:, b] - kin.q[:, a]
+        values = np.abs(np.sin(mu)) - self.floor
+        slope = np.sign(np.sin(mu)) * np.cos(mu)
+        jac = np.column_stack([slope * (kin.sensitivity(k)[:, b] - kin.sensitivity(k)[:, a])
+                               for k in names]) if names else np.zeros((len(mu), 0))
+        return values, jac
+
+
 @dataclass
 class Design:
     """What `optimize` found: `parameters` (name -> value, the mechanism set to them),
@@ -130,7 +166,8 @@ def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
     bounds : dict or sequence, optional
         ``{name: (low, high)}`` or one (low, high) per parameter; None for no bound.
     constraints : sequence, optional
-        scipy's constraint dicts (``{"type": "ineq", "fun": f(x), ...}``), of the
+        mechsim constraints (``c(mech, names) -> (values, jacobian)``, values ≥ 0 where
+        feasible, e.g. `TransmissionAngle`) or scipy's constraint dicts over the
         parameters' values in the order of `parameters`.
     gradient : {"exact", "2-point", "3-point"}
         Exact gradients from the objective, or scipy's finite differences.
@@ -169,10 +206,31 @@ def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
             seen[0] = value if seen[0] is None else max(seen[0], value)
         return (value, np.asarray(grad, float)) if exact else value
 
+    def condition(c, x, part):
+        """A mechsim constraint's values (part 0) or jacobian (part 1) at x; a design that
+        cannot be evaluated counts as infeasible (values −1)."""
+        try:
+            mech.set_parameters(**dict(zip(names, x.tolist())))
+            return np.asarray(c(mech, names if part else [])[part], float)
+        except (DesignError, ValueError) as exc:
+            failures[0] += 1
+            if len(messages) < 5:
+                messages.append(str(exc))
+            return np.zeros((1, len(names))) if part else -np.ones(1)
+
+    scipy_constraints = []
+    for c in constraints:
+        if isinstance(c, dict):
+            scipy_constraints.append(c)
+            continue
+        entry = {"type": "ineq", "fun": lambda x, c=c: condition(c, x, 0)}
+        if exact:
+            entry["jac"] = lambda x, c=c: condition(c, x, 1)
+        scipy_constraints.append(entry)
     started = time.perf_counter()
     chosen = method or ("SLSQP" if constraints else "L-BFGS-B")
     res = minimize(fun, x0, jac=True if exact else gradient, method=chosen,
-                   bounds=lows_highs, constraints=constraints, tol=tol, options=options)
+                   bounds=lows_highs, constraints=scipy_constraints, tol=tol, options=options)
     mech.set_parameters(**dict(zip(names, np.asarray(res.x, float).tolist())))
     return Design(dict(zip(names, np.asarray(res.x, float).tolist())), float(res.fun),
                   bool(res.success), str(res.message), evaluated["value"],
