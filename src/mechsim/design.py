@@ -187,55 +187,71 @@ def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
     exact = gradient == "exact"
     values = mech.parameter_values()
     x0 = np.array([values[k] for k in names])
-    failures, messages, seen = [0], [], [None]
-    evaluated = {"value": 0, "gradient": 0}
-
-    def fun(x):
-        evaluated["value"] += 1
-        evaluated["gradient"] += exact
-        try:
-            mech.set_parameters(**dict(zip(names, x.tolist())))
-            value, grad = objective(mech, names if exact else [])
-        except (DesignError, ValueError) as exc:
-            failures[0] += 1
-            if len(messages) < 5:
-                messages.append(str(exc))
-            worst = 1.0 if seen[0] is None else seen[0]
-            value, grad = 10.0 * abs(worst) + 1.0, np.zeros(len(names))
-        else:
-            seen[0] = value if seen[0] is None else max(seen[0], value)
-        return (value, np.asarray(grad, float)) if exact else value
-
-    def condition(c, x, part):
-        """A mechsim constraint's values (part 0) or jacobian (part 1) at x; a design that
-        cannot be evaluated counts as infeasible (values −1)."""
-        try:
-            mech.set_parameters(**dict(zip(names, x.tolist())))
-            return np.asarray(c(mech, names if part else [])[part], float)
-        except (DesignError, ValueError) as exc:
-            failures[0] += 1
-            if len(messages) < 5:
-                messages.append(str(exc))
-            return np.zeros((1, len(names))) if part else -np.ones(1)
-
-    scipy_constraints = []
-    for c in constraints:
-        if isinstance(c, dict):
-            scipy_constraints.append(c)
-            continue
-        entry = {"type": "ineq", "fun": lambda x, c=c: condition(c, x, 0)}
-        if exact:
-            entry["jac"] = lambda x, c=c: condition(c, x, 1)
-        scipy_constraints.append(entry)
+    trials = _Trials(mech, names, exact)
+    scipy_constraints = [c if isinstance(c, dict) else trials.constraint(c, x0)
+                         for c in constraints]
     started = time.perf_counter()
     chosen = method or ("SLSQP" if constraints else "L-BFGS-B")
-    res = minimize(fun, x0, jac=True if exact else gradient, method=chosen,
-                   bounds=lows_highs, constraints=scipy_constraints, tol=tol, options=options)
-    mech.set_parameters(**dict(zip(names, np.asarray(res.x, float).tolist())))
-    return Design(dict(zip(names, np.asarray(res.x, float).tolist())), float(res.fun),
-                  bool(res.success), str(res.message), evaluated["value"],
-                  evaluated["gradient"], int(getattr(res, "nit", 0)), failures[0],
-                  time.perf_counter() - started, messages, res)
+    res = minimize(lambda x: trials.objective(objective, x), x0,
+                   jac=True if exact else gradient, method=chosen, bounds=lows_highs,
+                   constraints=scipy_constraints, tol=tol, options=options)
+    best = dict(zip(names, np.asarray(res.x, float).tolist()))
+    mech.set_parameters(**best)
+    return Design(best, float(res.fun), bool(res.success), str(res.message),
+                  trials.values, trials.gradients, int(getattr(res, "nit", 0)),
+                  trials.failures, time.perf_counter() - started, trials.messages, res)
+
+
+class _Trials:
+    """The trial designs of one search: each set on the mechanism, the objective and the
+    constraints evaluated there, what could not be evaluated counted (with the first
+    messages)."""
+
+    def __init__(self, mech, names, exact):
+        self.mech, self.names, self.exact = mech, names, exact
+        self.values = self.gradients = self.failures = 0
+        self.messages: list[str] = []
+        self.worst = None            # the largest objective value seen
+
+    def _failed(self, exc) -> None:
+        self.failures += 1
+        if len(self.messages) < 5:
+            self.messages.append(str(exc))
+
+    def objective(self, objective, x):
+        """(value, gradient) with exact gradients, else the value; a design that cannot be
+        evaluated gets a value above every one seen and a zero gradient."""
+        self.values += 1
+        self.gradients += self.exact
+        try:
+            self.mech.set_parameters(**dict(zip(self.names, x.tolist())))
+            value, grad = objective(self.mech, self.names if self.exact else [])
+        except (DesignError, ValueError) as exc:
+            self._failed(exc)
+            worst = 1.0 if self.worst is None else self.worst
+            value, grad = 10.0 * abs(worst) + 1.0, np.zeros(len(self.names))
+        else:
+            self.worst = value if self.worst is None else max(self.worst, value)
+        return (value, np.asarray(grad, float)) if self.exact else value
+
+    def constraint(self, c, x0) -> dict:
+        """scipy's dict of the mechsim constraint `c` (its size from the start design x0,
+        where it must evaluate): a design where it cannot be evaluated is infeasible."""
+        self.mech.set_parameters(**dict(zip(self.names, x0.tolist())))
+        size = len(np.atleast_1d(c(self.mech, [])[0]))
+
+        def part(x, which):
+            try:
+                self.mech.set_parameters(**dict(zip(self.names, x.tolist())))
+                return np.asarray(c(self.mech, self.names if which else [])[which], float)
+            except (DesignError, ValueError) as exc:
+                self._failed(exc)
+                return np.zeros((size, len(self.names))) if which else -np.ones(size)
+
+        entry = {"type": "ineq", "fun": lambda x: part(x, 0)}
+        if self.exact:
+            entry["jac"] = lambda x: part(x, 1)
+        return entry
 
 
 def _names(mech, parameters) -> list[str]:
