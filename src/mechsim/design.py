@@ -67,7 +67,21 @@ class PathPoints:
         return value, np.array(grad)
 
 
-class EffortNorm:
+class _OnAnalysis:
+    """An objective or constraint taken over a kinematic analysis: `over` (a driver's
+    range), or `t_end` and `output_step`."""
+
+    def _analysis(self, mech, names):
+        """The analysis at the mechanism's present design, with the sensitivities to
+        `names`; DesignError where it fails."""
+        kin = mech.kinematics(self.t_end, self.output_step, over=self.over,
+                              sensitivities=list(names) or None)
+        if not kin.success:
+            raise DesignError(f"the analysis failed: {kin.message}")
+        return kin
+
+
+class EffortNorm(_OnAnalysis):
     """The p-norm mean of a driver's effort τ over a kinematic analysis,
     (mean abs(τ)^p)^(1/p) [N·m or N]: p = 2 its RMS; a large p (16) a smooth stand-in for its peak, below it by
     at most the factor N^(−1/p) over N samples. The analysis is `kinematics(t_end,
@@ -81,10 +95,7 @@ class EffortNorm:
         self.t_end, self.output_step, self.over = t_end, output_step, over
 
     def __call__(self, mech, names):
-        kin = mech.kinematics(self.t_end, self.output_step, over=self.over,
-                              sensitivities=list(names) or None)
-        if not kin.success:
-            raise DesignError(f"the analysis failed: {kin.message}")
+        kin = self._analysis(mech, names)
         tau = kin.driver_effort(self.driver)
         value = float(np.mean(np.abs(tau) ** self.p) ** (1.0 / self.p))
         if value == 0.0:
@@ -96,7 +107,7 @@ class EffortNorm:
         return value, np.array(grad)
 
 
-class TransmissionAngle:
+class TransmissionAngle(_OnAnalysis):
     """The angle μ between the x axes of two bodies (a four-bar's coupler and rocker,
     their frames along the links as `RigidBody.rod` puts them) kept at least `minimum`
     degrees from alignment at every sample of a kinematic analysis (`over`, or `t_end` and
@@ -113,10 +124,7 @@ class TransmissionAngle:
         self.t_end, self.output_step, self.over = t_end, output_step, over
 
     def __call__(self, mech, names):
-        kin = mech.kinematics(self.t_end, self.output_step, over=self.over,
-                              sensitivities=list(names) or None)
-        if not kin.success:
-            raise DesignError(f"the analysis failed: {kin.message}")
+        kin = self._analysis(mech, names)
         a, b = (kin.coordinate_names.index(f"{getattr(x, 'name', x)}.angle")
                 for x in (self.body_a, self.body_b))
         mu = kin.q[:, b] - kin.q[:, a]

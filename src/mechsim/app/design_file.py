@@ -27,7 +27,6 @@ objective's value and the search's counts.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path, PurePath
 
@@ -37,7 +36,8 @@ from ..design import EffortNorm, PathPoints, optimize
 from ..model import ModelError
 from ..model.parameters import Parameter
 from ..options import unknown_names
-from .scene import SceneError, load_scene, read_toml
+from .scene import load_scene, read_toml
+from .study_file import read_with_scene
 
 _TOP = {"scene", "output", "gradient", "parameters", "objective", "analysis"}
 _OBJECTIVES = ("peak_effort", "rms_effort", "path")
@@ -84,19 +84,8 @@ def load_design(path) -> DesignFile:
     DesignFileError names the file, the table and the key."""
     path = Path(path)
     f = path.name
-    data = read_toml(path)
-    message = unknown_names(data, {k: None for k in _TOP}, "a design file")
-    if message:
-        raise DesignFileError(f"{f}: " + message.replace("a design file does not take",
-                                                         "unknown top-level key(s)"))
-    if not isinstance(data.get("scene"), str):
-        raise DesignFileError(f"{f}: `scene` must name the scene file (a string), got "
-                              f"{data.get('scene')!r:.60}")
-    scene = Path(os.path.normpath(path.parent / data["scene"]))
-    try:
-        base = load_scene(scene).mechanism
-    except SceneError as exc:
-        raise DesignFileError(f"{f}: `scene`: {exc}") from None
+    data, scene, loaded = read_with_scene(path, _TOP, "a design file", DesignFileError)
+    base = loaded.mechanism
     declared = read_toml(scene).get("parameters", {})
     bounds = _bounds(f, data.get("parameters"), declared)
     for name in bounds:

@@ -98,25 +98,33 @@ class StudyError(ModelError):
     """A study file is malformed; the message names the file, the table and the key."""
 
 
+def read_with_scene(path, top, kind: str, error):
+    """(the TOML file at `path`, the scene it names, that scene loaded with its own
+    parameters): its top-level keys checked against `top` and its `scene`, the error
+    class `error` naming the file (`kind`: "a study", "a design file")."""
+    f = path.name
+    data = read_toml(path)
+    message = unknown_names(data, {k: None for k in top}, kind)
+    if message:
+        raise error(f"{f}: " + message.replace(f"{kind} does not take",
+                                               "unknown top-level key(s)"))
+    if not isinstance(data.get("scene"), str):
+        raise error(f"{f}: `scene` must name the scene file (a string), got "
+                    f"{data.get('scene')!r:.60}")
+    scene_path = Path(os.path.normpath(path.parent / data["scene"]))
+    try:
+        return data, scene_path, load_scene(scene_path)
+    except SceneError as exc:
+        raise error(f"{f}: `scene`: {exc}") from None
+
+
 def load_study(path) -> StudyFile:
     """Read and check the study file at `path` and the scene it names (built once with its
     own parameters, so that measures naming a missing joint, driver or coordinate are
     errors here); a StudyError names the file, the table and the key."""
     path = Path(path)
     f = path.name
-    data = read_toml(path)
-    message = unknown_names(data, {k: None for k in _TOP}, "a study")
-    if message:
-        raise StudyError(f"{f}: " + message.replace("a study does not take",
-                                                    "unknown top-level key(s)"))
-    if not isinstance(data.get("scene"), str):
-        raise StudyError(f"{f}: `scene` must name the scene file studied (a string), got "
-                         f"{data.get('scene')!r:.60}")
-    scene_path = Path(os.path.normpath(path.parent / data["scene"]))
-    try:
-        base = load_scene(scene_path)
-    except SceneError as exc:
-        raise StudyError(f"{f}: `scene`: {exc}") from None
+    data, scene_path, base = read_with_scene(path, _TOP, "a study", StudyError)
     declared = {k for k in read_toml(scene_path).get("parameters", {})}
     grid = _grid(f, data.get("vary", {}), declared)
     measures = _measures(f, data.get("measure", []), base.mechanism)
