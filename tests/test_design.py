@@ -237,3 +237,27 @@ def test_path_synthesis_kept_off_poor_transmission():
     assert 1e-4 < np.sqrt(exact.value) < 1e-2
     differences, _ = run("2-point")
     assert exact.value == pytest.approx(differences.value, rel=1e-5)
+
+
+def test_a_multistart_spreads_its_searches_and_keeps_the_best():
+    """Two starts over ±20 % of the drawing linkage (a Latin hypercube), searched in two
+    processes: a row per start, every search converged, the best one the linkage that drew
+    the points, and no row better than the best."""
+    objective = ms.PathPoints("coupler", (0.0, 0.0), synthesis.targets(), "motor",
+                              synthesis.ANGLES)
+    bounds = {k: (0.8 * v, 1.2 * v) for k, v in synthesis.TRUE.items()}
+    found = ms.multistart(synthesis.path_four_bar, objective, bounds, starts=2, seed=1,
+                          workers=2, tol=1e-14)
+    table = found.study.table
+    assert len(found.study) == 2 and list(table["status"]) == ["success"] * 2
+    starts = np.column_stack([table[k] for k in bounds])
+    assert len({tuple(row) for row in starts.round(12)}) == 2
+    for j, (low, high) in enumerate(bounds.values()):
+        assert np.all((low <= starts[:, j]) & (starts[:, j] <= high))
+    assert found.best.value == table["value"].min() < 1e-12
+    for name, value in synthesis.TRUE.items():
+        assert found.best.parameters[name] == pytest.approx(value, rel=1e-4)
+    with pytest.raises(ValueError, match="every parameter needs finite bounds"):
+        ms.multistart(synthesis.path_four_bar, objective, {"a": (None, 1.0)})
+    with pytest.raises(ValueError, match="`starts` must be a count"):
+        ms.multistart(synthesis.path_four_bar, objective, bounds, starts=0)

@@ -19,6 +19,10 @@ A constraint is a callable ``constraint(mech, names) -> (values, jacobian)``, fe
 where every value is ≥ 0, its jacobian ∂values/∂(names), (m, len(names)) (scipy's
 constraint dicts over the parameters' values are taken as well). Ready:
 `TransmissionAngle` (a four-bar's transmission angle kept within bounds).
+
+`multistart` runs `optimize` from several starts spread over the bounds (a Latin
+hypercube) as a parameter study (`mechsim.study.sweep`: local processes or a dask
+cluster), for the global search a linkage's many local optima call for.
 """
 
 from __future__ import annotations
@@ -27,6 +31,8 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .model.parameters import Parameter
 
 
 class DesignError(ValueError):
@@ -155,6 +161,11 @@ class Design:
     failure_messages: list = field(default_factory=list)
     scipy: object = None
 
+    @property
+    def status(self) -> str:
+        """"success" where scipy's search converged, else "not converged"."""
+        return "success" if self.success else "not converged"
+
 
 def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
              gradient: str = "exact", method: str | None = None, tol: float | None = None,
@@ -260,6 +271,88 @@ class _Trials:
         if self.exact:
             entry["jac"] = lambda x: part(x, 1)
         return entry
+
+
+@dataclass
+class Multistart:
+    """What `multistart` found: `best` (the `Design` of lowest value among the searches
+    that ended, None if none did) and `study` (the `mechsim.study.Study`: one row per
+    start: the start's values under the parameters' names, the design's as "design
+    <name>", "value", "evaluations", "gradients", "iterations", "failures", status and
+    message)."""
+    best: Design | None
+    study: object
+
+
+def multistart(build, objective, bounds: dict, starts: int = 8, seed=None, *,
+               client=None, workers=None, progress=False, **options) -> Multistart:
+    """`optimize` from `starts` designs spread over `bounds` by a Latin hypercube
+    (`scipy.stats.qmc`, `seed`), each start's mechanism `build(**parameters)` with every
+    bounded parameter a `Parameter` of that name; run as a parameter study
+    (`mechsim.study.sweep`: `workers` local processes, or the dask `client`). `options`:
+    `optimize`'s keywords (constraints, gradient, method, tol, options). `build`,
+    `objective` and the constraints must pickle (module-level functions, the ready
+    objectives). ValueError before any search for bad arguments."""
+    from scipy.stats import qmc
+    from .study import sweep
+    if not isinstance(bounds, dict) or not bounds:
+        raise ValueError("multistart: `bounds` must map each parameter to (low, high)")
+    names = list(bounds)
+    _bounds(names, bounds)
+    if any(None in pair for pair in bounds.values()):
+        raise ValueError("multistart: every parameter needs finite bounds to spread starts")
+    if not isinstance(starts, int) or starts < 1:
+        raise ValueError(f"multistart: `starts` must be a count ≥ 1, got {starts!r:.40}")
+    low = np.array([bounds[k][0] for k in names], float)
+    high = np.array([bounds[k][1] for k in names], float)
+    points = qmc.scale(qmc.LatinHypercube(d=len(names), seed=seed).random(starts), low, high)
+    grid = [dict(zip(names, p.tolist())) for p in points]
+    study = sweep(_Parametrized(build), grid, client=client, workers=workers,
+                  progress=progress, analyse=_Search(objective, names, bounds, options),
+                  measure=_row)
+    table = study.table
+    ended = np.flatnonzero(table["status"] == "success")
+    best = None
+    if ended.size:
+        k = ended[np.argmin(table["value"][ended])]
+        best = Design({n: float(table[f"design {n}"][k]) for n in names},
+                      float(table["value"][k]), True, str(table["message"][k]),
+                      *(int(table[c][k]) for c in ("evaluations", "gradients", "iterations",
+                                                   "failures")),
+                      float(table["time"][k]))
+    return Multistart(best, study)
+
+
+class _Parametrized:
+    """`build` with each given value made a Parameter of its name (picklable)."""
+
+    def __init__(self, build):
+        self.build = build
+
+    def __call__(self, **values):
+        return self.build(**{k: Parameter(k, v) for k, v in values.items()})
+
+
+class _Search:
+    """One start's `optimize` (the study's `analyse`)."""
+
+    def __init__(self, objective, names, bounds, options):
+        self.objective, self.names, self.bounds, self.options = (objective, names, bounds,
+                                                                 options)
+
+    def __call__(self, mech):
+        design = optimize(mech, self.objective, self.names, bounds=self.bounds,
+                          **self.options)
+        design.scipy = None                    # (it goes back to the study's process)
+        return design
+
+
+def _row(design) -> dict:
+    """A start's measures: the design's values, its objective's value and evaluations."""
+    return {**{f"design {k}": v for k, v in design.parameters.items()},
+            "value": design.value, "evaluations": design.evaluations,
+            "gradients": design.gradients, "iterations": design.iterations,
+            "failures": design.failures}
 
 
 def _names(mech, parameters) -> list[str]:
