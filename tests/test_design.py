@@ -151,10 +151,14 @@ def _design_file(tmp_path, **changes):
             return "[" + ", ".join(text(v) for v in value) + "]"
         return repr(value) if not isinstance(value, str) else f'"{value}"'
 
-    lines = [f"{k} = {text(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    lines = [f"{k} = {text(v)}" for k, v in data.items()
+             if not isinstance(v, (dict, list))]
     for key, table in data.items():
         if isinstance(table, dict):
             lines += [f"[{key}]"] + [f"{k} = {text(v)}" for k, v in table.items()]
+        elif isinstance(table, list):
+            for entry in table:
+                lines += [f"[[{key}]]"] + [f"{k} = {text(v)}" for k, v in entry.items()]
     path = tmp_path / "design.toml"
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -186,6 +190,11 @@ def test_mechsim_optimize_finds_the_design_the_python_interface_finds(tmp_path, 
     (dict(analysis={"over": {"driver": "motor", "degrees": [0, 360, 0]}}), "a step > 0"),
     (dict(analysis=None), "\\[analysis\\] must give"),
     (dict(gradient="adjoint"), "`gradient` must be"),
+    (dict(constraint=[{"transmission_angle": {"bodies": ["rod", "arm"], "minimum": 60.0}}]),
+     "`bodies` must name two of the scene's bodies"),
+    (dict(constraint=[{"transmission_angle": {"bodies": ["rod", "plunger"], "minimum": 95}}]),
+     "`minimum` must be degrees between 0 and 90"),
+    (dict(constraint=[{"pressure_angle": 30.0}]), "expected transmission_angle"),
 ])
 def test_a_design_file_s_mistakes_are_named_before_any_evaluation(tmp_path, monkeypatch,
                                                                    capsys, changes, message):
@@ -261,3 +270,24 @@ def test_a_multistart_spreads_its_searches_and_keeps_the_best():
         ms.multistart(synthesis.path_four_bar, objective, {"a": (None, 1.0)})
     with pytest.raises(ValueError, match="`starts` must be a count"):
         ms.multistart(synthesis.path_four_bar, objective, bounds, starts=0)
+
+
+def test_a_design_file_s_constraint_holds_at_the_design(tmp_path, monkeypatch):
+    """[[constraint]] transmission_angle between the pump's rod and plunger (at least 65°:
+    the offset may not tilt the rod far): the design found keeps it at every sample of
+    the analysis, and reaches the unconstrained design's torque (the constraint does not
+    bind there)."""
+    import tomllib
+    from mechsim.app.cli import main
+    monkeypatch.chdir(tmp_path)
+    path = _design_file(tmp_path, constraint=[
+        {"transmission_angle": {"bodies": ["rod", "plunger"], "minimum": 65.0}}])
+    assert main(["optimize", str(path), "--quiet"]) == 0
+    with open(tmp_path / "out" / "pump_counterweight.toml", "rb") as fh:
+        written = tomllib.load(fh)
+    mech = ms.load_scene(tmp_path / "pump.toml", parameters=written["parameters"]).mechanism
+    kin = mech.kinematics(over=("motor", np.radians(np.arange(0.0, 361.0, 2.0))))
+    mu = kin.coordinate("plunger.angle") - kin.coordinate("rod.angle")
+    assert np.degrees(np.arcsin(np.abs(np.sin(mu)))).min() >= 65.0 - 1e-6
+    design, _, _ = counterweight.size("exact")
+    assert written["value"] == pytest.approx(design.value, rel=1e-6)

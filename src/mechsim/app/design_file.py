@@ -19,6 +19,9 @@
     # t_end = 1.0               # or times from 0 to t_end, output_step apart
     # output_step = 0.01
 
+    [[constraint]]              # any number of them, over the same analysis
+    transmission_angle = { bodies = ["coupler", "rocker"], minimum = 40.0 }   # degrees
+
 A path's targets are reached at the samples of `over`, one each (prescribed timing).
 Every key, name and number is checked before any evaluation; nothing in the file is
 executed. The design is written as a TOML table of the parameters' values with the
@@ -32,14 +35,14 @@ from pathlib import Path, PurePath
 
 import numpy as np
 
-from ..design import EffortNorm, PathPoints, optimize
+from ..design import EffortNorm, PathPoints, TransmissionAngle, optimize
 from ..model import ModelError
 from ..model.parameters import Parameter
 from ..options import unknown_names
 from .scene import load_scene, read_toml
 from .study_file import read_with_scene
 
-_TOP = {"scene", "output", "gradient", "parameters", "objective", "analysis"}
+_TOP = {"scene", "output", "gradient", "parameters", "objective", "analysis", "constraint"}
 _OBJECTIVES = ("peak_effort", "rms_effort", "path")
 PEAK_NORM = 16.0
 
@@ -58,6 +61,7 @@ class DesignFile:
     objective: object
     gradient: str
     output: Path
+    constraints: tuple = ()
 
     def run(self):
         """(the `mechsim.design.Design` found, the scene's mechanism set to it), from the
@@ -67,7 +71,7 @@ class DesignFile:
                                          for k in self.bounds})
         mech = loaded.mechanism
         design = optimize(mech, self.objective, list(self.bounds), bounds=self.bounds,
-                          gradient=self.gradient)
+                          constraints=self.constraints, gradient=self.gradient)
         return design, mech
 
 
@@ -101,7 +105,37 @@ def load_design(path) -> DesignFile:
             ".." in PurePath(output).parts or not output.endswith(".toml"):
         raise DesignFileError(f"{f}: `output` must be a relative path ending in .toml inside "
                               f"the working directory, got {output!r:.80}")
-    return DesignFile(path, scene, bounds, objective, gradient, Path(output))
+    constraints = _constraints(f, data.get("constraint", []), base, analysis)
+    return DesignFile(path, scene, bounds, objective, gradient, Path(output),
+                      tuple(constraints))
+
+
+def _constraints(f, tables, mech, analysis) -> list:
+    """The [[constraint]] tables as mechsim constraints over the analysis."""
+    if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
+        raise DesignFileError(f"{f}: `constraint` must be an array of tables [[constraint]]")
+    out = []
+    names = [b.name for b in mech.bodies]
+    for i, table in enumerate(tables):
+        where = f"{f}: [[constraint]] {i + 1}"
+        spec = table.get("transmission_angle")
+        if set(table) != {"transmission_angle"} or not isinstance(spec, dict) or \
+                set(spec) != {"bodies", "minimum"}:
+            raise DesignFileError(f"{where}: expected transmission_angle = {{ bodies = "
+                                  f"[\"a\", \"b\"], minimum = degrees }}, got {table!r:.80}")
+        bodies, minimum = spec["bodies"], spec["minimum"]
+        if not (isinstance(bodies, list) and len(bodies) == 2 and all(b in names for b in bodies)):
+            raise DesignFileError(f"{where}: `bodies` must name two of the scene's bodies "
+                                  f"({', '.join(names)}), got {bodies!r:.60}")
+        if isinstance(minimum, bool) or not isinstance(minimum, (int, float)) or \
+                not 0.0 < minimum < 90.0:
+            raise DesignFileError(f"{where}: `minimum` must be degrees between 0 and 90, got "
+                                  f"{minimum!r:.40}")
+        out.append(TransmissionAngle(bodies[0], bodies[1], float(minimum),
+                                     t_end=analysis.get("t_end"),
+                                     output_step=analysis.get("output_step"),
+                                     over=analysis.get("over")))
+    return out
 
 
 def _bounds(f, table, declared) -> dict:
