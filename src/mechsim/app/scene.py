@@ -213,6 +213,8 @@ class _Reader:
             return evaluate(value, self.names, f"{self.file}: {where}")
         if kind == "count":
             x = self.value("number", value, where)
+            if isinstance(x, Dual):
+                raise self.error(where, "a count cannot depend on a Parameter")
             if x != int(x) or x < 1:
                 raise self.error(where, f"must be a whole number ≥ 1, got {x:g}")
             return int(x)
