@@ -79,6 +79,16 @@ def test_kinematics_over_the_driver_s_range():
         wave.kinematics(1.0, 0.01, over=("motor", [0.0, 0.5]))
 
 
+def test_a_range_reached_by_no_configuration_fails_with_no_samples():
+    """A rocker driven over angles it cannot reach from where it starts: the analysis
+    fails naming the step, with no samples (none of the range was reached)."""
+    mech = general_four_bar(0.2, 0.6, 0.5, 0.7, theta=0.3)
+    mech.add(ms.Driver(mech.joint("O4"), "t", name="rocker motor"))
+    res = mech.kinematics(over=("rocker motor", [3.0, 3.5]))
+    assert res.status == "failed" and len(res.t) == 0 and res.q.shape == (0, 9)
+    assert res.message.startswith("no configuration followed from t = 0 to 3")
+
+
 def test_kinematic_analysis_needs_a_fully_driven_mechanism():
     with pytest.raises(KinematicsError, match="1 degree"):
         general_four_bar(0.2, 0.6, 0.5, 0.7, theta=0.3).kinematics(1.0, 0.01)

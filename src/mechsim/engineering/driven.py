@@ -130,14 +130,15 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
     ts, Q, V, A, shape, status, message = _march(_Kinematics(problem, tol), problem,
                                                  report.q, t_start, ts)
     n = len(Q)
-    passages = _passages(ts, np.array(shape))
+    passages = _passages(ts, np.array(shape).reshape(n, 2))
     if passages and status == Status.SUCCESS:
         message += (f"; it passed {len(passages)} singular configuration(s) (first at t = "
                     f"{passages[0].t_min:.6g}) where the drivers do not decide the branch: it "
                     "went on along the one it moved on, and reactions and efforts there are "
                     "not unique")
     result = SimulationResult(
-        ts, np.array(Q), np.array(V), problem.coordinate_names, problem=problem,
+        ts, np.array(Q).reshape(n, problem.n), np.array(V).reshape(n, problem.n),
+        problem.coordinate_names, problem=problem,
         status=status, message=message, singular_passages=passages,
         stats={"method": "kinematics", "samples": n,
                "wall_time": time.perf_counter() - started})
