@@ -70,6 +70,13 @@ class Joint:
             self.at = vector2(dual.values(self._exact_at), "at", f"{self.kind} joint '{self.name}'")
         self._attachments(*self.attachment_points())
 
+    def exact_relative_angle(self):
+        """body_b's angle less body_a's as built (at the joint's nodes on flexible bodies),
+        a Dual where the bodies' angles depend on Parameters."""
+        sa, sb = self.attachment_points()
+        return (self.body_b.exact_angle + self.body_b.initial_node_rotation(sb)
+                - self.body_a.exact_angle - self.body_a.initial_node_rotation(sa))
+
     def _rigid_where_exact(self, points):
         """A ModelError where a point that depends on a Parameter lies on a flexible body
         (its mode shapes, fixed at a node, would not follow the point)."""
@@ -202,14 +209,10 @@ class Revolute(Joint):
         return ctx.angle(self.body_b, p, "b") - ctx.angle(self.body_a, p, "a")
 
     def initial_coordinate(self):
-        sa, sb = self.attachment_points()
-        return (self.body_b.angle + self.body_b.initial_node_rotation(sb)
-                - self.body_a.angle - self.body_a.initial_node_rotation(sa))
+        return dual.value_of(self.exact_initial_coordinate())
 
     def exact_initial_coordinate(self):
-        sa, sb = self.attachment_points()
-        return (self.body_b.exact_angle + self.body_b.initial_node_rotation(sb)
-                - self.body_a.exact_angle - self.body_a.initial_node_rotation(sa))
+        return self.exact_relative_angle()
 
 
 class Prismatic(Joint):
@@ -252,9 +255,8 @@ class Prismatic(Joint):
         sa, sb = self.attachment_points()
         ea, eb = self.exact_attachment_points()
         u = self.body_a.exact_local_direction(self._exact_axis)
-        angle0 = (self.body_b.exact_angle + self.body_b.initial_node_rotation(sb)
-                  - self.body_a.exact_angle - self.body_a.initial_node_rotation(sa))
-        return (ea[0], ea[1], eb[0], eb[1], u[0], u[1], angle0) + self._attachments(sa, sb)
+        return (ea[0], ea[1], eb[0], eb[1], u[0], u[1], self.exact_relative_angle()) + \
+            self._attachments(sa, sb)
 
     def _separation(self, ctx, p):
         pa = ctx.point(self.body_a, p["ax"], p["ay"], p, "a")

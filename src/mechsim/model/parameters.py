@@ -135,7 +135,8 @@ class Dual:
         return self
 
     def __abs__(self):
-        return -self if self.value < 0 else self
+        # Recorded, so that a new value of the wrong sign takes the other branch (`refresh`).
+        return _chain(self, abs(self.value), math.copysign(1.0, self.value), self.__abs__)
 
     # --- comparisons (values) ---------------------------------------------------------------------
     def _v(self, other):
@@ -220,7 +221,7 @@ class Dual:
 
 class Parameter(Dual):
     """A named design parameter: a number of the model that sensitivities are taken to
-    (`simulate(..., sensitivities=[name])`, `kinematics(..., sensitivities=[name])`).
+    (`kinematics(..., sensitivities=[name])`; a simulation's are not yet carried).
 
     Parameters
     ----------
