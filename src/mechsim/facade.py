@@ -233,18 +233,51 @@ class Mechanism(MechanismModel):
 
 
     # --- simulation --------------------------------------------------------------------------
-    def simulate(self, t_end: float, method: str | None = None, **options):
+    def simulate(self, t_end: float, method: str | None = None, sensitivities=None,
+                 **options):
         """Simulate from the assembled initial state to `t_end`; see `mechsim.run.solver.simulate`
-        for the options. Returns a SimulationResult (partial, with a status, on failure)."""
+        for the options. Returns a SimulationResult (partial, with a status, on failure).
+
+        `sensitivities`: names of Parameters (`parameters`) whose exact sensitivities the
+        motion carries, integrated with it under the same error control
+        (`mechsim.formulations.tangent`; mechanisms of rigid bodies loaded by gravity);
+        `result.sensitivity(name, of=...)` gives them at the samples. They start from the
+        assembly linearised at the given configuration: exact where that configuration
+        satisfies the joints (the message says so where the assembly moved it)."""
         from .run.solver import check_simulate_arguments, run
         config = check_simulate_arguments(len(self.coordinate_names), t_end, method, options)
         self.check_tables(config.t_start, config.t_end)
+        tangent = self._tangent(sensitivities) if sensitivities is not None else None
         report = self._assembled or self.assemble(t=config.t_start)
         if self.stops or self.frictions:
             from .engineering.impacts import simulate_with_stops
             return simulate_with_stops(self, report, t_end, method, **options)
-        return run(self.problem(), report.q, report.v, config, stream=options.get("stream"),
-                   mechanism=self)
+        res = run(self.problem(), report.q, report.v, config, stream=options.get("stream"),
+                  mechanism=self, sensitivities=tangent)
+        if tangent is not None and self._state is None and report.position_change > 1e-9:
+            res.message += (f"; the initial sensitivities linearise the assembly, which moved "
+                            f"the given configuration by up to {report.position_change:.3g}: "
+                            "they are first-order accurate in that change (start from a "
+                            "configuration that satisfies the joints for exact ones)")
+        return res
+
+    def _tangent(self, sensitivities):
+        """(the sensitivity equations, ∂q0/∂k, ∂v0/∂k as given) for `simulate`, the names
+        checked and what cannot be differentiated refused before any work."""
+        from .build import sensitivity_model
+        from .engineering.driven import sensitivity_names
+        from .problem.sensitivity import MotionEquations
+        names = sensitivity_names(self, sensitivities, "simulate", ValueError)
+        if not names:
+            return None
+        if self.stops or self.frictions:
+            raise ValueError("simulate: sensitivities through stops and friction are not "
+                             "carried yet")
+        equations = MotionEquations(self.problem(), sensitivity_model(self), names)
+        dq, dv = self.initial_partials(names)
+        if self._state is not None:            # a state set by the user: held as given
+            dq, dv = np.zeros_like(dq), np.zeros_like(dv)
+        return equations, dq, dv
 
     def steady_state(self, period: float, guess=None, method: str = "newton",
                      tol: float = 1e-8, max_iter: int = 30, t_start: float = 0.0,

@@ -108,7 +108,7 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
     from ..results import SimulationResult
     from ..run.solver import output_times
     started = time.perf_counter()
-    names = _sensitivity_names(mech, sensitivities)
+    names = sensitivity_names(mech, sensitivities)
     problem = mech.problem()
     report = mech.assemble(t=t_start)
     dof = problem.degrees_of_freedom(report.q, t_start)
@@ -182,8 +182,10 @@ def _march(kin, problem, q0, t_start, ts):
     return (steps[skip:n], Q[skip:], V[skip:], A[skip:], shape[skip:], status, message)
 
 
-def _sensitivity_names(mech, sensitivities) -> list[str]:
-    """The Parameter names asked for, checked against `mech.parameters` before any work."""
+def sensitivity_names(mech, sensitivities, what="kinematics",
+                      error=KinematicsError) -> list[str]:
+    """The Parameter names asked for, checked against `mech.parameters` before any work
+    (else `error`, its message beginning with `what`)."""
     if sensitivities is None:
         return []
     if isinstance(sensitivities, str):
@@ -191,18 +193,18 @@ def _sensitivity_names(mech, sensitivities) -> list[str]:
     try:
         asked = list(sensitivities)
     except TypeError:
-        raise KinematicsError(f"kinematics: `sensitivities` must be a list of Parameter "
+        raise error(f"{what}: `sensitivities` must be a list of Parameter "
                               f"names, got {sensitivities!r:.60}") from None
     known = mech.parameters
     for name in asked:
         if not isinstance(name, str) or name not in known:
-            raise KinematicsError(
-                f"kinematics: `sensitivities` names {name!r:.60}, which is no Parameter of "
+            raise error(
+                f"{what}: `sensitivities` names {name!r:.60}, which is no Parameter of "
                 f"mechanism '{mech.name}'; its parameters: {', '.join(known) or '(none)'}")
     blind = mech.parameter_blind() if asked else []
     if blind:
-        raise KinematicsError(
-            f"kinematics: '{blind[0]}' depends on Parameters but does not carry their "
+        raise error(
+            f"{what}: '{blind[0]}' depends on Parameters but does not carry their "
             "derivatives (sensitivities are carried through revolute and prismatic joints and "
             "drivers); give the numbers it depends on as plain numbers")
     return list(dict.fromkeys(asked))

@@ -90,9 +90,15 @@ class Formulation:
         nothing the run reads back.
     derivative(t, q, v) -> y' : `rhs` at the y of a consistent (q, v), re-expressing a
         multistep history after a restart (NotImplementedError: history not carried over)
-    resume(t, q, v) -> y : the state of (q, v) in the present layout (after a bridge)
+    resume(t, q, v, extra=None) -> y : the state of (q, v) in the present layout (after a
+        bridge; `extra`: the numbers its `extension_of` gave, carried over by the bridge)
+    extension_of(y) -> array or None : the numbers y carries besides the motion (None:
+        none), which a bridge carries over a passage with it
     project_now : None or (t, y) -> projected y or None: projection inside an integrator's
         step where it can (Adams: P E C, project, E)
+    extras : None or (ts, Y) -> rows of `width` numbers: what the state carries besides
+        the motion (the sensitivities of `mechsim.formulations.tangent`), at the output
+        samples (ts, rows Y of the state); the run keeps them with its samples
 
     Given at construction
     ---------------------
@@ -116,6 +122,8 @@ class Formulation:
     bridge = None
     bridging = False
     project_now = None
+    extras = None
+    width = 0
 
     @classmethod
     def cannot_resolve(cls, problem: NumericProblem, q: np.ndarray, t: float, rtol: float,
@@ -130,9 +138,15 @@ class Formulation:
         re-express a multistep integrator's history after a switch or a new partition."""
         raise NotImplementedError
 
-    def resume(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """The state y for a consistent (q, v) at t in the present layout (after a bridge)."""
+    def resume(self, t: float, q: np.ndarray, v: np.ndarray, extra=None) -> np.ndarray:
+        """The state y for a consistent (q, v) at t in the present layout (after a bridge;
+        `extra`: what `extension_of` gave, carried over by it)."""
         return self.initial_state(t, q, v)
+
+    def extension_of(self, y: np.ndarray):
+        """The numbers the state y carries besides the motion, which a bridge carries
+        over a passage with it (None: nothing)."""
+        return None
 
     def __init__(self, problem: NumericProblem, rtol: float, atol: float, monitor=None,
                  **options):

@@ -63,11 +63,12 @@ class _OverBudget(Exception):
 
 
 class Crossing(NamedTuple):
-    """A bridge over a passage: the end state, the step's interpolant (t -> [q; v]), the
-    predicted singular instant and the states the step was built on, (t, q, v) oldest
-    first, up to the landing point (consistent, outside the band: an Adams solver started
-    at t_b can take them as its history), with the step's length and the order its
-    error estimate found reliable there."""
+    """A bridge over a passage: the end state, the step's interpolant (t -> [q; v] and
+    the extension's numbers), the predicted singular instant and the states the step was
+    built on, (t, q, v) oldest first, up to the landing point (consistent, outside the
+    band: an Adams solver started at t_b can take them as its history), with the step's
+    length and the order its error estimate found reliable there, and the extension's
+    numbers at the end (None without an extension)."""
     t_b: float
     q_b: np.ndarray
     v_b: np.ndarray
@@ -76,6 +77,7 @@ class Crossing(NamedTuple):
     history: list
     step: float
     order: int
+    extra: np.ndarray | None = None
 
 
 class PassageBridge:
@@ -84,11 +86,16 @@ class PassageBridge:
     `accelerations(t, q, v)` must be exact outside the band (the projection method's);
     `cut()` gives its truncation cut (relative to σ_max); `compiled`: states may be
     projected onto the constraints by the problem's algebra compiled (`project_state`),
-    where it has the engine.
+    where it has the engine. `extension`: more numbers carried over with the motion
+    (the sensitivities of `mechsim.formulations.tangent`), an object with `width`,
+    `rates(t, q, v, a, x)` (their derivative at a consistent state with accelerations a)
+    and `consistent(t, q, v, x)`; the states are then [q; v; x].
     """
 
-    def __init__(self, problem, accelerations, cut, rtol, atol, order=10, compiled=False):
+    def __init__(self, problem, accelerations, cut, rtol, atol, order=10, compiled=False,
+                 extension=None):
         self.problem = problem
+        self.extension = extension
         self.accelerations = accelerations
         self.compiled = compiled
         self._cut = cut
@@ -106,6 +113,11 @@ class PassageBridge:
         self._declined = None                   # (estimate, crossing) of the best declined
         self.evaluations = 0                    # right-hand sides evaluated by the bridge
         self.over_tolerance = 0                 # bridges taken at the floor with estimate > 1
+
+    def extended(self, extension) -> "PassageBridge":
+        """A new bridge with this one's settings that carries `extension` over too."""
+        return PassageBridge(self.problem, self.accelerations, self._cut, self.rtol,
+                             self.atol, self.order, self.compiled, extension)
 
     def note_step(self, h_next, max_step_bound=False):
         """Keep the longest step proposed since the last passage (also while another
@@ -175,17 +187,30 @@ class PassageBridge:
         q, _, _ = prob.project_positions(q, t, tol=0.0, max_iter=1)
         return q, prob.project_velocities(q, v, t)
 
-    def _f(self, t, q, v):
+    def _f(self, t, y):
+        """The rate of the state y = [q; v] (and the extension's numbers)."""
         self.problem.counters.rhs += 1
         self.evaluations += 1
-        return np.concatenate([v, self.accelerations(t, q, v)])
-
-    def _history(self, t_n, q_n, v_n, ts):
-        """Consistent states at the times `ts` before t_n on the trajectory through
-        (q_n, v_n): integrated backwards, away from the configuration, at a hundredth of
-        the run's tolerances; None if that integration fails."""
-        from scipy.integrate import solve_ivp
         n = self.problem.n
+        q, v = y[:n], y[n:2 * n]
+        a = self.accelerations(t, q, v)
+        if self.extension is None:
+            return np.concatenate([v, a])
+        return np.concatenate([v, a, self.extension.rates(t, q, v, a, y[2 * n:])])
+
+    def _settled(self, y, t):
+        """The state y put on the constraints (and the extension's numbers with it)."""
+        n = self.problem.n
+        q, v = self._consistent(y[:n], y[n:2 * n], t)
+        if self.extension is None:
+            return np.concatenate([q, v])
+        return np.concatenate([q, v, self.extension.consistent(t, q, v, y[2 * n:])])
+
+    def _history(self, t_n, y_n, ts):
+        """Consistent states at the times `ts` before t_n on the trajectory through
+        y_n: integrated backwards, away from the configuration, at a hundredth of the
+        run's tolerances; None if that integration fails."""
+        from scipy.integrate import solve_ivp
         inner = self.tol.inner()
         budget = [HISTORY_BUDGET * len(ts)]
 
@@ -193,16 +218,16 @@ class PassageBridge:
             budget[0] -= 1
             if budget[0] < 0:              # grinding: a configuration it cannot resolve
                 raise _OverBudget
-            return self._f(t, y[:n], y[n:])
+            return self._f(t, y)
 
         try:
-            sol = solve_ivp(f, (t_n, ts[-1]), np.concatenate([q_n, v_n]), method="DOP853",
+            sol = solve_ivp(f, (t_n, ts[-1]), y_n, method="DOP853",
                             t_eval=ts, rtol=inner.rtol, atol=inner.atol)
         except _OverBudget:
             return None
         if sol.status != 0:
             return None
-        return [self._consistent(y[:n], y[n:], tk) for tk, y in zip(ts, sol.y.T)]
+        return [self._settled(y, tk) for tk, y in zip(ts, sol.y.T)]
 
     @property
     def edge(self) -> float:
@@ -217,16 +242,18 @@ class PassageBridge:
     def _norm(self, e, a, b):
         return error_norm(e, a, b, self.rtol, self.atol)
 
-    def cross(self, t_n, q_n, v_n, t_star, measure, iterations=4, t_floor=-np.inf):
+    def cross(self, t_n, q_n, v_n, t_star, measure, iterations=4, t_floor=-np.inf,
+              extra=None):
         """One Adams step from (q_n, v_n) at t_n over t*; `measure(q, t)` gives σ_min/σ_max.
         Its history reaches back no further than `t_floor` (the end of the previous
         passage, or the start of the run): integrated backwards through an earlier passage
-        it would grind through that configuration. Returns the `Crossing`, or None: then
-        the approach goes on with a shorter landing distance, or the bridge stands down
-        for this passage."""
+        it would grind through that configuration. `extra`: the extension's numbers at t_n.
+        Returns the `Crossing`, or None: then the approach goes on with a shorter landing
+        distance, or the bridge stands down for this passage."""
         n = self.problem.n
         H = SPAN * (t_star - t_n)
-        start = self._start(t_n, q_n, v_n, 0.5 * H, t_floor)
+        y_n = np.concatenate([q_n, v_n] + ([] if extra is None else [extra]))
+        start = self._start(t_n, y_n, 0.5 * H, t_floor)
         if start is None:
             return None
         ts, F, y_n, history = start
@@ -276,26 +303,26 @@ class PassageBridge:
         self.landing = self._declined = None
         return self._finish(n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history)
 
-    def _start(self, t_n, q_n, v_n, D, t_floor):
-        """The history of the step from (q_n, v_n) at t_n: times ts (newest first, D apart,
-        back no further than t_floor), the rates F there, y_n, and the states in time
-        order; None where it is too short or cannot be integrated (the bridge declines or
-        stands down)."""
+    def _start(self, t_n, y_n, D, t_floor):
+        """The history of the step from y_n at t_n: times ts (newest first, D apart,
+        back no further than t_floor), the rates F there, y_n, and the states (t, q, v)
+        in time order; None where it is too short or cannot be integrated (the bridge
+        declines or stands down)."""
+        n = self.problem.n
         span = t_n - t_floor
         points = self.order if not span < np.inf else min(self.order, int(span / D) + 1)
         if points < MIN_HISTORY:
             self._decline(np.inf)
             return None
         ts = t_n - D * np.arange(points)
-        q_n, v_n = self._consistent(q_n, v_n, t_n)
-        F = [self._f(t_n, q_n, v_n)]
-        states = self._history(t_n, q_n, v_n, ts[1:])
+        y_n = self._settled(y_n, t_n)
+        states = self._history(t_n, y_n, ts[1:])
         if states is None:
             self.landing, self.standing_down = None, True
             return None
-        F = np.array(F + [self._f(tk, q, v) for tk, (q, v) in zip(ts[1:], states)])
-        history = [(tk, q, v) for tk, (q, v) in zip(ts[:0:-1], states[::-1])] + [(t_n, q_n, v_n)]
-        return ts, F, np.concatenate([q_n, v_n]), history
+        F = np.array([self._f(tk, y) for tk, y in zip(ts, [y_n] + states)])
+        history = [(tk, y[:n], y[n:2 * n]) for tk, y in zip(ts[::-1], states[::-1] + [y_n])]
+        return ts, F, y_n, history
 
     def _out_of_band(self, y_n, F, ts, t_n, H, measure):
         """The step's length, from H lengthened up to six times by 1.3 until the predicted
@@ -312,12 +339,10 @@ class PassageBridge:
     def _corrected_end(self, y_n, F, nodes, t_b, H, iterations):
         """The rate at the step's end t_b, from corrector iterations of the full order
         started at the prediction, until they settle (1 % of the tolerance)."""
-        n = self.problem.n
         y_c = y_n + H * (step_weights(nodes[1:]) @ F)
         w = step_weights(nodes)
         for _ in range(iterations):
-            q, v = self._consistent(y_c[:n], y_c[n:], t_b)
-            f_b = self._f(t_b, q, v)
+            f_b = self._f(t_b, self._settled(y_c, t_b))
             y_new = y_n + H * (w @ np.vstack([f_b, F]))
             settled = self._norm(y_new - y_c, y_c, y_new) < 1e-2
             y_c = y_new
@@ -328,8 +353,8 @@ class PassageBridge:
     def _finish(self, n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history):
         """The `Crossing` with the corrector of order `best`."""
         k = best + 4                            # nodes of the kept corrector
-        q_b, v_b = self._consistent(ys[best + 1][:n], ys[best + 1][n:], t_b)
-        Fc = np.vstack([self._f(t_b, q_b, v_b), F[:k - 1]])
+        y_b = self._settled(ys[best + 1], t_b)
+        Fc = np.vstack([self._f(t_b, y_b), F[:k - 1]])
         nodes = nodes[:k]
 
         def interpolant(tk):
@@ -337,7 +362,8 @@ class PassageBridge:
             y = y_n[None, :] + H * (integration_weights(nodes, s) @ Fc)
             return y[0] if np.ndim(tk) == 0 else y.T
 
-        return Crossing(t_b, q_b, v_b, interpolant, t_star, history, H, k - 1)
+        return Crossing(t_b, y_b[:n], y_b[n:2 * n], interpolant, t_star, history, H, k - 1,
+                        None if self.extension is None else y_b[2 * n:])
 
     def _floor(self):
         """The closest landing distance: σ_min/σ_max of 1.2 `EDGE` cuts at the present rate."""
@@ -358,11 +384,12 @@ class PassageBridge:
         return None
 
 
-def bridge_passage(form, bridge, monitor, solver, bound, t, q, v, t_end):
+def bridge_passage(form, bridge, monitor, solver, bound, t, q, v, t_end, extra=None):
     """Approach and cross a singular passage ahead with the formulation's bridge
     (`mechsim.formulations.bridge`): its `Crossing` when crossed, else None, with the next
     step limited to the landing point (`StepBound.land`) while approaching. A crossing
-    that would end after t_end is not taken: the formulation steps to the end on its own."""
+    that would end after t_end is not taken: the formulation steps to the end on its own.
+    `extra`: the numbers the bridge's extension carries, at t."""
     s, rate = monitor.last * monitor.peak, monitor.rate * monitor.peak
     h_free = proposed_step(solver)
     if not h_free:                   # a restarted integrator that has not stepped yet
@@ -375,7 +402,7 @@ def bridge_passage(form, bridge, monitor, solver, bound, t, q, v, t_end):
             bridge.stand_down()
             return None
         crossed = bridge.cross(t, q, v, plan[1], lambda qk, tk: monitor.measure(qk, tk)[0],
-                               t_floor=monitor.clear_since)
+                               t_floor=monitor.clear_since, extra=extra)
         if crossed is not None and crossed.t_b >= t_end:
             bridge.stand_down()
             return None

@@ -158,8 +158,8 @@ class Hybrid(Formulation):
     def bridging(self):
         return self.active is self.proj and self.proj.bridging
 
-    def resume(self, t, q, v):
-        return self.active.resume(t, q, v)
+    def resume(self, t, q, v, extra=None):
+        return self.active.resume(t, q, v, extra)
 
     def keeps_branch(self, t, y):
         return self.active.keeps_branch(t, y)

@@ -49,13 +49,22 @@ _CLUSTER = 10.0
 _MAX_CLUSTER = 4
 # The smallest σ_min/σ_max of J̃ that unequal masses may give (`cannot_resolve`).
 RESOLUTION = 1e-7
+# The default truncation of J̃'s singular values in the accelerations (`rcond`).
+RCOND = 1e-4
+
+
+def truncation_cut(rcond, monitor, algebra) -> float:
+    """`Projection.cut` for the truncation `rcond`, the run's `monitor` (or None) and the
+    problem's `algebra`."""
+    peak = monitor.peak if monitor is not None and monitor.peak > 0.0 else 1.0
+    return rcond * min(1.0, max(peak, 1e-12) / algebra.cut_reference)
 
 
 class Projection(FullCoordinates):
     name = "projection"
     resolves_passages = True
     default_integrator = "DOP853"
-    options = {**FullCoordinates.options, "rcond": Option.positive(1e-4, high=0.5),
+    options = {**FullCoordinates.options, "rcond": Option.positive(RCOND, high=0.5),
                "exact_projection": Option.flag(True),
                "regularization": Option.choice("truncate", ("truncate", "damp")),
                "bridge_passages": Option.flag(True),
@@ -129,9 +138,7 @@ class Projection(FullCoordinates):
         tolerances (docs/benchmarks.md, long chains). There the
         cut is `rcond` relative to the chain's own level (the banded algebra's reference,
         0.1), which keeps the band as short as a short chain's."""
-        mon = self.monitor
-        peak = mon.peak if mon is not None and mon.peak > 0.0 else 1.0
-        return self.rcond * min(1.0, max(peak, 1e-12) / self.problem.algebra.cut_reference)
+        return truncation_cut(self.rcond, self.monitor, self.problem.algebra)
 
     @property
     def _min_rcond(self) -> float:
@@ -281,40 +288,12 @@ class Projection(FullCoordinates):
         cluster's subspace is well defined even where its singular vectors are not (on the
         singular configuration itself), so the SVD of this evaluation serves."""
         prob = self.problem
-        speed = float(np.max(np.abs(v)))
-        if speed == 0.0:
+        crossing = crossing_cluster(prob, t, q, v, Jt, f, r, U, sig, Vt, self.cut)
+        if crossing is None:
             return x
-        # dσ_k/dt = u_kᵀ (dJ̃/dt) w_k, with dJ̃/dt from one Φ_q a hair along the motion.
-        eps = 1e-7 / speed
-        J1 = f.cols(prob.phi_q(q + eps * v, t + eps))
-        dJ = (J1 - Jt) / eps
-        if sig[-1] <= 1e-12 * sig[0]:
-            # On the singular configuration itself the SVD's choice of vectors within the
-            # null space is arbitrary (it may mix in the motion's own direction); a hair
-            # along the motion they are the directions being lost.
-            U, sig, Vt = dense.svd(J1)
-        cut = self.cut * sig[0]
-        zero = 1e-12 * sig[0]
-        # δ takes every σ of the cluster at least 2 cuts out of the band. A σ that does not
-        # move (a redundant constraint's stays at zero) is no crossing and stays dropped,
-        # as does one too slow to leave the band within a short distance.
-        delta, cluster, redundant = 0.0, [], 0
-        for k in range(min(Jt.shape)):
-            if k < r and sig[k] > _CLUSTER * cut:
-                continue
-            slope = abs(U[:, k] @ dJ @ Vt[k])
-            if sig[k] <= zero and slope <= 1e-6 * sig[0]:
-                redundant += 1
-                continue
-            step = 3.0 * cut / slope if slope > 0.0 else np.inf
-            if step * speed > 1e-2:
-                continue
-            cluster.append(k)
-            delta = max(delta, step)
-        self._redundant = redundant
-        if not cluster or len(cluster) > _MAX_CLUSTER:
+        W, delta, self._redundant = crossing
+        if W is None:
             return x
-        W = Vt[cluster].T
         # The states δ before and after follow q̈ itself, whose W-components are what is
         # sought (the accelerations there are sensitive to the velocity this close to the
         # singularity): two passes of the fixed point. The first changes q̈ by ~1 (the
@@ -395,3 +374,48 @@ class Projection(FullCoordinates):
         Jt = f.cols(J)
         V, Ui, _ = self._pinv_exact(Jt) if self.exact_projection else self._pinv(Jt)
         return v - f.right(V @ (Ui @ (J @ v + prob.phi_t(q, t))))
+
+
+def crossing_cluster(prob, t, q, v, Jt, f, r, U, sig, Vt, cut, reach=1e-2):
+    """The singular directions crossing the truncation band at (t, q, v) (`Projection`'s
+    `_across`): (W, δ, redundant) with W the right singular vectors of the mass-scaled
+    Jacobian Jt = U diag(sig) Vt of its cluster of small, moving singular values (None
+    where there is none, or more than `_MAX_CLUSTER`), δ the time that takes each of them
+    at least 2 cuts out of the band, and the number of singular values at round-off that
+    do not move (redundant constraints); None where the mechanism stands still. `r`:
+    the singular values kept by the truncation at `cut` (relative to the largest); `f`
+    the mass factor; `reach`: the largest distance (δ times the fastest speed) a
+    crossing may take (slower ones stay truncated)."""
+    speed = float(np.max(np.abs(v)))
+    if speed == 0.0:
+        return None
+    # dσ_k/dt = u_kᵀ (dJ̃/dt) w_k, with dJ̃/dt from one Φ_q a hair along the motion.
+    eps = 1e-7 / speed
+    J1 = f.cols(prob.phi_q(q + eps * v, t + eps))
+    dJ = (J1 - Jt) / eps
+    if sig[-1] <= 1e-12 * sig[0]:
+        # On the singular configuration itself the SVD's choice of vectors within the
+        # null space is arbitrary (it may mix in the motion's own direction); a hair
+        # along the motion they are the directions being lost.
+        U, sig, Vt = dense.svd(J1)
+    cut = cut * sig[0]
+    zero = 1e-12 * sig[0]
+    # δ takes every σ of the cluster at least 2 cuts out of the band. A σ that does not
+    # move (a redundant constraint's stays at zero) is no crossing and stays dropped,
+    # as does one too slow to leave the band within a short distance.
+    delta, cluster, redundant = 0.0, [], 0
+    for k in range(min(Jt.shape)):
+        if k < r and sig[k] > _CLUSTER * cut:
+            continue
+        slope = abs(U[:, k] @ dJ @ Vt[k])
+        if sig[k] <= zero and slope <= 1e-6 * sig[0]:
+            redundant += 1
+            continue
+        step = 3.0 * cut / slope if slope > 0.0 else np.inf
+        if step * speed > reach:
+            continue
+        cluster.append(k)
+        delta = max(delta, step)
+    if not cluster or len(cluster) > _MAX_CLUSTER:
+        return None, delta, redundant
+    return Vt[cluster].T, delta, redundant

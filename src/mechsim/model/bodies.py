@@ -71,6 +71,11 @@ class Body:
         """The numbers as given that may be Parameters or computed from them."""
         return [self._given_position, self._given_angle]
 
+    def exact_initial_state(self) -> tuple[list, list]:
+        """(initial coordinates, initial velocities) as given, as lists whose entries are
+        Duals where they depend on Parameters (floats here; a rigid body's take them)."""
+        return list(self.initial_coordinates), list(self.initial_velocities)
+
     def refresh_numbers(self) -> None:
         """Take the numbers computed from Parameters again (after
         `mechsim.model.parameters.refresh`), checked as when built."""
@@ -249,6 +254,11 @@ class RigidBody(Body):
     @property
     def initial_coordinates(self) -> np.ndarray:
         return np.array([self.position[0], self.position[1], self.angle])
+
+    def exact_initial_state(self) -> tuple[list, list]:
+        position, velocity = self.exact_position, self._given_velocity
+        return ([position[0], position[1], self.exact_angle],
+                [velocity[0], velocity[1], self._given_rate])
 
     @property
     def initial_velocities(self) -> np.ndarray:

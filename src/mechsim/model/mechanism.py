@@ -17,7 +17,7 @@ from .gears import Gear
 from .friction import Friction
 from .stops import Stop
 from .joints import Joint
-from .parameters import finite_value, leaves, refresh
+from .parameters import finite_value, gradient, leaves, refresh
 
 
 class AssemblyError(ModelError):
@@ -227,6 +227,13 @@ class MechanismModel:
     def initial_velocities(self) -> np.ndarray:
         return np.concatenate([b.initial_velocities for b in self.bodies]) if self.bodies \
             else np.zeros(0)
+
+    def initial_partials(self, names) -> tuple[np.ndarray, np.ndarray]:
+        """(∂q/∂k, ∂v/∂k), each (n, K), of the initial coordinates and velocities as given
+        (before assembly) to the Parameters `names`."""
+        states = [b.exact_initial_state() for b in self.bodies]
+        return (gradient([x for q, _ in states for x in q], names),
+                gradient([x for _, v in states for x in v], names))
 
     # --- the numeric problem -----------------------------------------------------------------
     def structure(self) -> dict:

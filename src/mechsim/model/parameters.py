@@ -15,8 +15,8 @@ would drop its derivatives silently; numpy's functions (`np.cos(x)`) carry them,
 model argument that does not take parameters yet refuses one with a ModelError naming it.
 Arguments that take parameters: a rigid body's `position`, `angle`, `mass` and `inertia`
 (and `RigidBody.rod`'s `start`, `end` and `mass`), and its initial `velocity` and
-`angular_velocity` (kept for the runs' sensitivities; a driven mechanism's analysis does
-not depend on them); a revolute joint's `at`, `local_a`,
+`angular_velocity` (a simulation's sensitivities start from them; a driven mechanism's
+analysis does not depend on them); a revolute joint's `at`, `local_a`,
 `local_b`; a prismatic joint's `axis` and `at` (a driver's offset, its joint's initial
 coordinate, follows its bodies' angles). A constraint that reads such numbers without
 carrying their derivatives (a gear, a point on a curve) refuses sensitivities, naming
@@ -201,6 +201,15 @@ class Dual:
         t = math.tan(self.value)
         return _chain(self, t, 1.0 + t * t, self.tan)
 
+    def arcsin(self):
+        return _chain(self, math.asin(self.value), _inverse_root(self.value), self.arcsin)
+
+    def arccos(self):
+        return _chain(self, math.acos(self.value), -_inverse_root(self.value), self.arccos)
+
+    def arctan(self):
+        return _chain(self, math.atan(self.value), 1.0 / (1.0 + self.value**2), self.arctan)
+
     def sqrt(self):
         r = math.sqrt(self.value)
         return _chain(self, r, 0.5 / r if r > 0 else math.inf, self.sqrt)
@@ -221,7 +230,7 @@ class Dual:
 
 class Parameter(Dual):
     """A named design parameter: a number of the model that sensitivities are taken to
-    (`kinematics(..., sensitivities=[name])`; a simulation's are not yet carried).
+    (`kinematics(..., sensitivities=[name])`, `simulate(..., sensitivities=[name])`).
 
     Parameters
     ----------
@@ -284,6 +293,12 @@ def _pow(x, a, y, b):
     da = y * x ** (y - 1.0) if a else 0.0
     db = value * math.log(x) if b else 0.0
     return Dual(value, _combine(a, da, b, db))
+
+
+def _inverse_root(x: float) -> float:
+    """1/√(1 − x²), the slope of arcsin (infinite at ±1)."""
+    root = math.sqrt(1.0 - x * x)
+    return 1.0 / root if root > 0.0 else math.inf
 
 
 def _chain(x: Dual, value: float, slope: float, again) -> Dual:
@@ -424,6 +439,8 @@ def hypot(x, y):
 _UFUNCS = {
     np.sin: sin, np.cos: cos, np.sqrt: sqrt,
     np.tan: lambda x: x.tan(), np.exp: lambda x: x.exp(), np.log: lambda x: x.log(),
+    np.arcsin: lambda x: x.arcsin(), np.arccos: lambda x: x.arccos(),
+    np.arctan: lambda x: x.arctan(),
     np.arctan2: atan2, np.hypot: hypot,
     np.square: lambda x: x * x, np.absolute: abs, np.negative: lambda x: -x,
     np.positive: lambda x: x,

@@ -173,7 +173,8 @@ class Run:
                       + problem.strain_energy(q0))
             self.work = WorkIntegral(channels, problem.work_rates, form.tol.work,
                                      float(energy), settings.t_end - settings.t_start)
-        self.out = Recorder(problem, settings.ts, channels, settings.stream)
+        self.out = Recorder(problem, settings.ts, channels, settings.stream, form.extras,
+                            form.width)
         if settings.stream is not None:
             begin_stream(settings.stream, problem.coordinate_names, channels)
         self.bound = StepBound(settings.max_step, bound_read_at_start(solver_cls))
@@ -199,7 +200,7 @@ class Run:
         self.y0 = form.initial_state(settings.t_start, q0, v0)
         self.monitor.observe(settings.t_start, q0, v0)
         if settings.ts is None or settings.ts[0] == settings.t_start:
-            self.out.record_due(settings.t_start, q0, v0)
+            self.out.record_due(settings.t_start, q0, v0, self.y0)
             self.out.work.append(np.zeros(len(channels)))
 
     # --- the loop ------------------------------------------------------------------------------
@@ -345,7 +346,7 @@ class Run:
         if self.keep_past:
             self.past.append((t_new, np.array(q_new), np.array(v_new)))
         if due:
-            out.record_due(t_new, *form.state(t_new, y_here))
+            out.record_due(t_new, *form.state(t_new, y_here), y_here)
         if corrected is not None and solver.status == "running":
             self._correct(t_new, y_new, correction)
         return y_here
@@ -375,7 +376,7 @@ class Run:
                                  h_free >= self.bound.max_step)
             return
         crossed = bridge_passage(form, bridge, self.monitor, solver, self.bound, t,
-                                 *form.state(t, y), self.s.t_end)
+                                 *form.state(t, y), self.s.t_end, form.extension_of(y))
         if crossed is None:
             return
         t_b, q_b, v_b, interp, t_star, history = crossed[:6]
@@ -385,11 +386,11 @@ class Run:
         if self.out.ts is not None:
             self.out.within(t, t_b, True, interp, self._bridge_samples)
         else:
-            self.out.record(t_b, q_b, v_b)
+            self.out.record(t_b, q_b, v_b, interp(t_b))
         self._add_work(t, t_b, lambda tk: _split(interp(tk).T, n), recorded, [])
         self.monitor.crossed(t, t_b, t_star, interp(t_star)[:n])
         self.monitor.observe(t_b, q_b, v_b)
-        y_b = form.resume(t_b, q_b, v_b)
+        y_b = form.resume(t_b, q_b, v_b, crossed.extra)
         after = form.after_step(t_b, y_b, t_b - t).y
         y_b = y_b if after is None else after
         self.t_reached = t_b
@@ -575,9 +576,9 @@ class Run:
 
 
 def _split(Y, n):
-    """(Q, V) from rows [q, v]."""
+    """(Q, V) from rows [q, v, …] (a bridge's extension's numbers after them)."""
     Y = np.atleast_2d(Y)
-    return Y[:, :n], Y[:, n:]
+    return Y[:, :n], Y[:, n:2 * n]
 
 
 def crossing(g, t_old, t_new, g_old) -> float:

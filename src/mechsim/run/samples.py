@@ -191,14 +191,19 @@ class Recorder:
     grid (None: a sample at every accepted step), which sizes the arrays at once; `next`
     the index of its next sample. Samples pass `check_finite` as they are recorded."""
 
-    def __init__(self, problem, ts, channels=(), stream=None):
+    def __init__(self, problem, ts, channels=(), stream=None, extras=None, width=0):
         self.problem, self.ts, self.next = problem, ts, 0
         self.n = problem.n
+        capacity = len(ts) if ts is not None else 256
+        # What the formulation carries besides the motion (its sensitivities), `width`
+        # numbers per sample from `extras(times, Y)` (rows of the integrator's state), in
+        # memory also where the samples are streamed.
+        self.extras = extras
+        self.extra = Rows(width, capacity if extras is not None else 0)
         if stream is not None:       # an OutputDirectory: samples.bin, work.bin
             self.samples = DiskRows(1 + 2 * problem.n, stream, "samples.bin")
             self.work = DiskRows(len(channels), stream, "work.bin")
             return
-        capacity = len(ts) if ts is not None else 256
         self.samples = Rows(1 + 2 * problem.n, capacity)     # [t, q, v] per sample
         self.work = Rows(len(channels), capacity if channels else 0)
 
@@ -222,21 +227,35 @@ class Recorder:
         """The times of the samples from global index k on (recorded in this step)."""
         return self.samples.since(k)[:, 0]
 
-    def record(self, t, q, v) -> None:
+    def _extra(self, ts, Y) -> None:
+        """The formulation's extras at the samples (ts, rows Y) being recorded (NaN where
+        the state is not at hand)."""
+        if self.extras is None:
+            return
+        if Y is None:
+            self.extra.extend(np.full((len(ts), self.extra.data.shape[1]), np.nan))
+        else:
+            self.extra.extend(self.extras(np.asarray(ts, float), np.atleast_2d(Y)))
+
+    def record(self, t, q, v, y=None) -> None:
+        """One sample (t, q, v); `y`: the integrator's state there (for `extras`)."""
         check_finite(self.problem, t, q, v)
+        self._extra([t], y)
         s = self.samples
         s.room()
         row = s.data[s.held]
         row[0], row[1:1 + self.n], row[1 + self.n:] = t, q, v
         s.held += 1
 
-    def record_many(self, ts, Q, V) -> None:
-        """`record` of the samples (ts[k], Q[k], V[k]) as one block (a sample that is not
-        finite is found one by one: the ones before it are kept, and it raises)."""
+    def record_many(self, ts, Q, V, Y=None) -> None:
+        """`record` of the samples (ts[k], Q[k], V[k]) (states Y[k]) as one block (a sample
+        that is not finite is found one by one: the ones before it are kept, and it
+        raises)."""
         if not (np.isfinite(Q).all() and np.isfinite(V).all()):
-            for tk, q, v in zip(ts, Q, V):
-                self.record(tk, q, v)
+            for k, (tk, q, v) in enumerate(zip(ts, Q, V)):
+                self.record(tk, q, v, None if Y is None else Y[k])
             return
+        self._extra(ts, Y)
         s, k, n = self.samples, len(ts), self.n
         s.room(k)
         block = s.data[s.held:s.held + k]
@@ -263,9 +282,9 @@ class Recorder:
         ts = self.ts
         return ts is None or (self.next < len(ts) and ts[self.next] == t)
 
-    def record_due(self, t, q, v) -> None:
-        """The sample at a step's end (`due`)."""
-        self.record(t, q, v)
+    def record_due(self, t, q, v, y=None) -> None:
+        """The sample at a step's end (`due`; `y` the state there)."""
+        self.record(t, q, v, y)
         self.next += 1
 
     def within(self, t_lo, t_hi, through, values, states) -> None:
@@ -289,6 +308,6 @@ class Recorder:
             # cannot go on returns them).
             for k in range(inside.size):
                 q, v = states(inside[k:k + 1], Y[k:k + 1])
-                self.record(inside[k], q[0], v[0])
+                self.record(inside[k], q[0], v[0], Y[k])
             return
-        self.record_many(inside, Q, V)
+        self.record_many(inside, Q, V, Y)

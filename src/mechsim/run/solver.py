@@ -15,9 +15,11 @@ import numpy as np
 from ..linalg import sparse
 from ..formulations import METHODS, formulation_class
 from ..formulations.monitor import SingularityMonitor
+from ..formulations.tangent import Tangent
 from ..integrators import integrator_class
 from ..options import Option, check_all, check_memory, unknown_names
 from ..problem import NumericProblem
+from ..problem.sensitivity import MotionSensitivities
 from ..results import SimulationResult, Switch
 from .loop import Run, Settings
 from ..threads import run_threads
@@ -232,9 +234,11 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
 
 
 def run(problem: NumericProblem, q0, v0, config: RunConfig, *, stream=None, mechanism=None,
-        events=None, output_grid=None) -> SimulationResult:
+        events=None, output_grid=None, sensitivities=None) -> SimulationResult:
     """`simulate` with its settings checked already (`RunConfig`): the formulation chosen,
-    the run executed, the result given its settings and continuation."""
+    the run executed, the result given its settings and continuation. `sensitivities`:
+    (a `MotionEquations`, ∂q0/∂k, ∂v0/∂k) to carry the sensitivities with the motion
+    (`mechsim.formulations.tangent`); the result's `sensitivities` then holds them."""
     c = config
     q0, v0 = check_initial_state(problem, q0, v0, c.t_start)
     stream = stream_directory(stream)
@@ -247,13 +251,18 @@ def run(problem: NumericProblem, q0, v0, config: RunConfig, *, stream=None, mech
     monitor = SingularityMonitor(problem, *c.singular_thresholds, redundant=redundant)
     form = _formulation(c.method, problem, q0, c.t_start, c.rtol, c.atol, c.options,
                         redundant, fully_driven, monitor)
+    if sensitivities is not None:
+        form = Tangent(form, *sensitivities)
     grid = output_times(c.t_start, c.t_end, c.output_step) if output_grid is None else \
         np.asarray(output_grid, float)
     settings = Settings(c.t_start, c.t_end, c.rtol, c.atol, c.max_step, c.first_step, c.h,
                         c.max_steps, grid, c.work, c.progress, stream, events)
     with run_threads():
-        res = Run(problem, form, c.integrator, settings, q0, v0, method=c.method.name,
-                  fully_driven=fully_driven).execute()
+        runner = Run(problem, form, c.integrator, settings, q0, v0, method=c.method.name,
+                     fully_driven=fully_driven)
+        res = runner.execute()
+    if sensitivities is not None:
+        _keep_sensitivities(res, sensitivities[0], runner.out.extra.take())
     res.settings = c.settings()
     res.mechanism = mechanism
     res.continuation = continue_run
@@ -261,6 +270,17 @@ def run(problem: NumericProblem, q0, v0, config: RunConfig, *, stream=None, mech
         from ..results.stream import finish_stream
         finish_stream(res, stream)
     return res
+
+
+def _keep_sensitivities(res, equations, rows) -> None:
+    """The sensitivities the run carried, as the result's table (and what its message
+    says of them at singular passages)."""
+    res.sensitivities = MotionSensitivities(
+        equations, res.t, res.q, res.v, rows, lam=lambda: res.reactions.multipliers.lam,
+        accelerations=res.accelerations)
+    if res.singular_passages:
+        res.message += ("; the sensitivities were carried through the singular passages "
+                        "along the branch the motion followed (one-sided there)")
 
 
 def continue_run(result, t_end: float, overrides: dict):

@@ -1,0 +1,201 @@
+"""Exact sensitivities of a free motion (`simulate(..., sensitivities=...)`): integrated with
+the motion and carried over singular passages by the bridge. Checked against the exact
+variational equation of the double four-bar's parallelogram branch (through its passages),
+against central finite differences of rebuilt mechanisms, and for what cannot be
+differentiated yet being refused before any work."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import mechsim as ms
+
+G = 9.81
+
+
+def chain(length=1.0, crank_mass=1.0, mass=1.0, speed=-1.0):
+    """The double four-bar (IFToMM A02): three vertical cranks of `length`, the first of
+    `crank_mass`, two couplers, all uniform rods (the others of `mass`); cranks turning
+    at `speed`. Numbers or Parameters."""
+    mech = ms.Mechanism("double four-bar", gravity=(0.0, -G))
+    cranks = []
+    for i in range(3):
+        x = i * length
+        m = crank_mass if i == 0 else mass
+        crank = mech.add(ms.RigidBody.rod(f"crank{i + 1}", (x, 0.0), (x, length), m,
+                                          velocity=(-speed * length / 2, 0.0),
+                                          angular_velocity=speed))
+        mech.add(ms.Revolute(mech.ground, crank, at=(x, 0.0), name=f"A{i + 1}"))
+        cranks.append(crank)
+    for i in range(2):
+        x = i * length
+        coupler = mech.add(ms.RigidBody.rod(f"coupler{i + 1}", (x, length),
+                                            (x + length, length), mass,
+                                            velocity=(-speed * length, 0.0)))
+        mech.add(ms.Revolute(cranks[i], coupler, at=(x, length), name=f"B{i + 1}"))
+        mech.add(ms.Revolute(coupler, cranks[i + 1], at=(x + length, length),
+                             name=f"C{i + 1}"))
+    return mech
+
+
+def branch_rate(length, crank_mass, mass=1.0):
+    """K/M_eff of the parallelogram branch M_eff θ̈ = −K cos θ (every crank at θ)."""
+    m_eff = (crank_mass + 2 * mass) * length**2 / 3 + 2 * mass * length**2
+    k = G * ((crank_mass + 2 * mass) * length / 2 + 2 * mass * length)
+    return k / m_eff
+
+
+def exact_sensitivity(t, dc, c):
+    """θ(t) and ∂θ/∂k on the branch θ̈ = −c cos θ from θ = π/2, θ̇ = −1, where c depends on
+    k at the rate dc: the variational equation integrated by scipy at 1e-13."""
+    def f(_, y):
+        th, w, s, sw = y
+        return [w, -c * math.cos(th), sw, c * math.sin(th) * s - dc * math.cos(th)]
+    sol = solve_ivp(f, (0.0, t[-1]), [math.pi / 2, -1.0, 0.0, 0.0], method="DOP853",
+                    rtol=1e-13, atol=1e-14, t_eval=t)
+    return sol.y[0], sol.y[2]
+
+
+@pytest.mark.parametrize("method", ["hybrid", "projection"])
+@pytest.mark.parametrize("which", ["length", "crank_mass"])
+def test_the_double_four_bar_through_its_passages_matches_the_exact_variational_solution(
+        method, which):
+    """Three singular passages in 3 s: the sensitivity of the crank angle to the links'
+    length and to one crank's mass against the 1-DOF branch's own variational equation,
+    at every sample (the length enters the positions, the velocities and the equations;
+    the mass only the equations)."""
+    values = {"length": 1.0, "crank_mass": 1.0}
+    k = ms.Parameter(which, values[which])
+    res = chain(**{**values, which: k}).simulate(3.0, method=method, output_step=0.01,
+                                                 rtol=1e-10, sensitivities=[which])
+    assert res.success, res.message
+    assert len(res.singular_passages) == 3
+    assert "sensitivities were carried through the singular passages" in res.message
+    h = 1e-6
+    plus, minus = ({**values, which: values[which] + d} for d in (h, -h))
+    dc = (branch_rate(**plus) - branch_rate(**minus)) / (2 * h)
+    theta, exact = exact_sensitivity(res.t, dc, branch_rate(**values))
+    col = res.coordinate_names.index("crank1.angle")
+    assert np.max(np.abs(res.q[:, col] - theta)) < 1e-7
+    got = res.sensitivity(which)[:, col]
+    assert np.max(np.abs(got - exact)) < 1e-6 * np.max(np.abs(exact))
+    # Every crank turns with the first on the branch, and so do their sensitivities.
+    for name in ("crank2.angle", "crank3.angle"):
+        other = res.sensitivity(which)[:, res.coordinate_names.index(name)]
+        assert np.max(np.abs(other - got)) < 1e-6 * np.max(np.abs(exact))
+
+
+def offset_slider_crank(r=0.12, l=0.30, e=0.03, rod_mass=0.5, speed=20.0):
+    """A free slider-crank (crank r from the origin, rod l, slider on y = e) started at
+    θ = 0.4 rad turning at `speed`, its velocities given consistent (np functions carry
+    the Parameters)."""
+    th = 0.4
+    mech = ms.Mechanism("offset slider-crank", gravity=(0.0, -G))
+    b = np.array([r * np.cos(th), r * np.sin(th)])
+    phi = np.arcsin((e - b[1]) / l)
+    c = b + l * np.array([np.cos(phi), np.sin(phi)])
+    phid = -r * np.cos(th) * speed / (l * np.cos(phi))
+    vb = speed * r * np.array([-np.sin(th), np.cos(th)])
+    e_rod = np.array([-np.sin(phi), np.cos(phi)])
+    crank = mech.add(ms.RigidBody.rod("crank", (0.0, 0.0), b, 0.4, velocity=vb / 2,
+                                      angular_velocity=speed))
+    rod = mech.add(ms.RigidBody.rod("rod", b, c, rod_mass, velocity=vb + phid * l / 2 * e_rod,
+                                    angular_velocity=phid))
+    vc = vb + phid * l * e_rod
+    slider = mech.add(ms.RigidBody("slider", mass=0.3, inertia=1e-4, position=c,
+                                   velocity=(vc[0], 0.0)))
+    mech.add(ms.Revolute(mech.ground, crank, at=(0.0, 0.0), name="O"))
+    mech.add(ms.Revolute(crank, rod, at=b, name="A"))
+    mech.add(ms.Revolute(rod, slider, at=c, name="B"))
+    mech.add(ms.Prismatic(mech.ground, slider, axis=(1.0, 0.0), at=c, name="guide"))
+    return mech
+
+
+def central_difference(build, value, quantity, t_end, rtol=1e-12):
+    """(quantity(+h) − quantity(−h)) / 2h of `build(value ± h)` simulated to t_end; h from
+    the error balance of a central difference on runs accurate to ~rtol, relative to the
+    parameter's own size (a length of 3 cm)."""
+    h = (3 * rtol) ** (1 / 3) * abs(value)
+    out = [quantity(build(value + s * h).simulate(t_end, output_step=0.01, rtol=rtol,
+                                                  atol=1e-12))
+           for s in (1.0, -1.0)]
+    return (out[0] - out[1]) / (2 * h)
+
+
+@pytest.mark.parametrize("method", ["hybrid", "lu", "projection"])
+@pytest.mark.parametrize("which", ["r", "e", "rod_mass"])
+def test_a_free_slider_crank_agrees_with_finite_differences(method, which):
+    """Through two dead centres in 0.4 s: ∂q/∂k and ∂v/∂k of every coordinate against
+    central differences of rebuilt mechanisms, for the crank's length (positions and
+    velocities as given move with it), the guide's offset and the rod's mass."""
+    values = {"r": 0.12, "e": 0.03, "rod_mass": 0.5}
+
+    def build(x):
+        return offset_slider_crank(**{**values, which: x})
+    res = offset_slider_crank(**{**values, which: ms.Parameter(which, values[which])}) \
+        .simulate(0.4, method=method, output_step=0.01, rtol=1e-10, atol=1e-12,
+                  sensitivities=[which])
+    assert res.success, res.message
+    for of, quantity in (("q", lambda r: r.q), ("v", lambda r: r.v)):
+        reference = central_difference(build, values[which], quantity, 0.4)
+        got = res.sensitivity(which, of=of)
+        assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference)), of
+
+
+def test_accelerations_and_multipliers_of_a_free_motion_agree_with_finite_differences():
+    """∂q̈/∂k and ∂λ/∂k at the samples (computed when asked, from the carried q_k and v_k)
+    against central differences of the rebuilt runs' accelerations and multipliers."""
+    value = 0.12
+
+    def build(x):
+        return offset_slider_crank(r=x)
+    res = build(ms.Parameter("r", value)).simulate(0.3, output_step=0.01, rtol=1e-10,
+                                                   atol=1e-12, sensitivities=["r"])
+    assert res.success
+    for of, quantity in (("a", lambda r: r.accelerations()),
+                         ("lambda", lambda r: r.reactions.multipliers.lam)):
+        reference = central_difference(build, value, quantity, 0.3)
+        got = res.sensitivity("r", of=of)
+        assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference)), of
+
+
+def test_a_coupler_point_sensitivity_follows_from_the_coordinates():
+    """of="point" of a free motion: r's Jacobian applied to ∂q/∂k, against differences."""
+    value = 0.03
+
+    def build(x):
+        return offset_slider_crank(e=x)
+    res = build(ms.Parameter("e", value)).simulate(0.3, output_step=0.01, rtol=1e-10,
+                                                   atol=1e-12, sensitivities=["e"])
+    middle = (0.0, 0.0)
+    reference = central_difference(build, value, lambda r: r.point("rod", middle),
+                                   0.3)
+    got = res.sensitivity("e", of="point", body="rod", local=middle)
+    assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference))
+
+
+def test_a_state_the_user_set_is_held_and_its_sensitivity_starts_on_the_tangent():
+    """After `set_state` the start does not move with the parameter: ∂q0/∂k is the
+    smallest change that keeps the joints closed, zero where the geometry holds."""
+    mech = offset_slider_crank(rod_mass=ms.Parameter("m", 0.5))
+    report = mech.assemble()
+    mech.set_state(report.q, report.v)
+    res = mech.simulate(0.05, output_step=0.01, sensitivities=["m"])
+    assert res.success
+    assert np.max(np.abs(res.sensitivity("m")[0])) == 0.0
+    assert np.max(np.abs(res.sensitivity("m")[-1])) > 1e-6
+
+
+def test_what_cannot_be_differentiated_is_refused_before_any_work():
+    mech = offset_slider_crank(r=ms.Parameter("r", 0.12))
+    with pytest.raises(ValueError, match="simulate: `sensitivities` names 'R'.*parameters: r"):
+        mech.simulate(0.1, sensitivities=["R"])
+    with pytest.raises(ValueError, match="list of Parameter names"):
+        mech.simulate(0.1, sensitivities=3)
+    mech.add(ms.Spring(mech.ground, mech.body("slider"), at_a=(0.5, 0.03),
+                       at_b=mech.body("slider").position, stiffness=100.0, name="return"))
+    with pytest.raises(ValueError, match="spring 'return'"):
+        mech.simulate(0.1, sensitivities=["r"])
+    assert mech.simulate(0.01).success          # without sensitivities it runs
