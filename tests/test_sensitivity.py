@@ -276,9 +276,10 @@ def test_motor_torque_and_multiplier_sensitivities_agree_with_finite_differences
                         effort_fd) < 1e-6, name
 
 
-def test_multiplier_sensitivities_under_loads_not_differentiated_are_refused():
-    """A spring on the slider: the motion's sensitivities stand (loads do not move a
-    driven mechanism), the multipliers' are refused naming the spring."""
+def test_multiplier_sensitivities_under_a_load_moved_by_a_parameter_are_refused():
+    """A spring on the slider, whose frame moves with the offset: the motion's
+    sensitivities stand (loads do not move a driven mechanism), the multipliers' are
+    refused naming the spring (its body-fixed point does not carry the derivatives)."""
     e = ms.Parameter("e", 0.05)
     mech = offset_slider_crank(e=e)
     slider = mech.body("slider")
@@ -286,5 +287,46 @@ def test_multiplier_sensitivities_under_loads_not_differentiated_are_refused():
                        stiffness=100.0, rest_length=0.3, name="return spring"))
     kin = mech.kinematics(0.3, 0.05, sensitivities=["e"])
     assert np.any(kin.sensitivity("e") != 0.0)
-    with pytest.raises(ValueError, match="the spring 'return spring' loads the mechanism"):
+    with pytest.raises(ValueError, match="the load 'return spring' depends on Parameters"):
         kin.sensitivity("e", of="driver_effort", driver=mech.drivers[0])
+
+
+def test_multiplier_sensitivities_under_springs_and_forces_agree_with_finite_differences():
+    """Q_q q_k of a spring–damper from the ground to the rod and of a force on the slider
+    enter the multipliers' sensitivities: the motor torque to the crank's length against
+    Richardson-extrapolated central differences. The rod and slider frames are given as
+    plain numbers (the nominal design's), so the loads' body-fixed points stand; the rod's
+    crank-end point follows the crank's tip."""
+    theta, l, e = THETA0, 0.40, 0.05
+    b0 = 0.15 * np.array([np.cos(theta), np.sin(theta)])
+    c0 = np.array([b0[0] + np.sqrt(l * l - (b0[1] - e) ** 2), e])
+
+    def build(r):
+        mech = ms.Mechanism("sprung slider-crank", gravity=(0.0, -9.81))
+        b = np.array([r * np.cos(theta), r * np.sin(theta)])
+        crank = mech.add(ms.RigidBody.rod("crank", (0.0, 0.0), b, mass=0.4))
+        rod = mech.add(ms.RigidBody("rod", mass=0.8, inertia=0.8 * l * l / 12,
+                                    position=(b0 + c0) / 2,
+                                    angle=float(np.arctan2(*(c0 - b0)[::-1]))))
+        slider = mech.add(ms.RigidBody("slider", mass=0.3, inertia=1e-4, position=c0))
+        pin = mech.add(ms.Revolute(mech.ground, crank, at=(0.0, 0.0), name="O"))
+        mech.add(ms.Revolute(crank, rod, at=b, name="A"))
+        mech.add(ms.Revolute(rod, slider, at=c0, name="B"))
+        mech.add(ms.Prismatic(mech.ground, slider, axis=(1.0, 0.0), at=c0, name="guide"))
+        mech.add(ms.Driver(pin, f"{SPEED}*t"))
+        mech.add(ms.Spring(mech.ground, rod, at_a=(0.0, 0.3), at_b=(0.2, 0.1),
+                           stiffness=300.0, damping=3.0, name="lift"))
+        mech.add(ms.Force(slider, (-40.0, 0.0), name="load"))
+        return mech
+
+    mech = build(ms.Parameter("r", 0.15))
+    kin = mech.kinematics(0.6, 0.05, sensitivities=["r"])
+    motor = mech.drivers[0]
+
+    def central(h):
+        up, down = (build(0.15 + s).kinematics(0.6, 0.05) for s in (h, -h))
+        return (up.driver_effort(up.mechanism.drivers[0])
+                - down.driver_effort(down.mechanism.drivers[0])) / (2 * h)
+
+    reference = (4 * central(5e-4) - central(1e-3)) / 3
+    assert relative(kin.sensitivity("r", of="driver_effort", driver=motor), reference) < 1e-6

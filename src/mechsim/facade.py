@@ -240,7 +240,8 @@ class Mechanism(MechanismModel):
 
         `sensitivities`: names of Parameters (`parameters`) whose exact sensitivities the
         motion carries, integrated with it under the same error control
-        (`mechsim.formulations.tangent`; mechanisms of rigid bodies loaded by gravity);
+        (`mechsim.formulations.tangent`; rigid bodies under gravity, springs, dampers,
+        forces and torques of time; flexible bodies, friction and stops are refused);
         `result.sensitivity(name, of=...)` gives them at the samples. They start from the
         assembly linearised at the given configuration: exact where that configuration
         satisfies the joints (the message says so where the assembly moved it)."""
@@ -266,10 +267,13 @@ class Mechanism(MechanismModel):
         checked and what cannot be differentiated refused before any work."""
         from .build import sensitivity_model
         from .engineering.driven import sensitivity_names
-        from .problem.sensitivity import MotionEquations
+        from .problem.sensitivity import MotionEquations, load_blindness
         names = sensitivity_names(self, sensitivities, "simulate", ValueError)
         if not names:
             return None
+        blind = self.parameter_blind_loads()
+        if blind:
+            raise ValueError(f"simulate: {load_blindness(blind[0])}")
         if self.stops or self.frictions:
             raise ValueError("simulate: sensitivities through stops and friction are not "
                              "carried yet")

@@ -236,11 +236,13 @@ def _load_data(mech, starts, joints):
             loads.append(PointLoad(ld.name, starts[ld.body.name], tuple(s),
                                    _checked(ld, ld.force, f"force '{ld.name}'", _as_force,
                                             "two finite numbers", joints),
-                                   False, ld.body.point_modes(s)))
+                                   False, ld.body.point_modes(s),
+                                   callable(ld.force) and ld.inputs != "t"))
         else:
             loads.append(PointLoad(ld.name, starts[ld.body.name], None,
                                    _checked(ld, ld.torque, f"torque '{ld.name}'", _as_torque,
-                                            "a finite number", joints), True))
+                                            "a finite number", joints), True,
+                                   reads_state=callable(ld.torque) and ld.inputs != "t"))
     return springs, loads, torsion
 
 

@@ -146,7 +146,8 @@ def kinematic_analysis(mech, t_end: float | None = None, output_step: float | No
         result.sensitivities = Sensitivities(
             problem, sensitivity_model(mech), ts, result.q, result.v,
             np.asarray(A, float).reshape(len(ts), problem.n), names,
-            lam=lambda: result.reactions.multipliers.lam)
+            lam=lambda: result.reactions.multipliers.lam,
+            blind_loads=mech.parameter_blind_loads())
         if passages:
             result.message += ("; the sensitivities are not defined at the singular "
                                "configurations (Φ_q singular there: they grow without bound "

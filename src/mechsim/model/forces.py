@@ -171,6 +171,7 @@ class RotationalSpring:
         self.damping = scalar(damping, "damping", owner, nonnegative=True)
         self.rest_angle = (float(body_b.angle - body_a.angle) if rest_angle is None
                            else scalar(rest_angle, "rest_angle", owner))
+        self.rest_from_bodies = rest_angle is None
 
     @property
     def bodies(self):

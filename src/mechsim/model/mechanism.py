@@ -17,7 +17,7 @@ from .gears import Gear
 from .friction import Friction
 from .stops import Stop
 from .joints import Joint
-from .parameters import finite_value, gradient, leaves, refresh
+from .parameters import finite_value, gradient, leaves, parameter_names, refresh
 
 
 class AssemblyError(ModelError):
@@ -250,6 +250,14 @@ class MechanismModel:
         them (`mechsim.model.parameters`)."""
         return [x for owner in self.bodies + self.joints for x in owner.exact_numbers()]
 
+    def parameter_blind_loads(self) -> list[str]:
+        """The loads that depend on Parameters but do not carry their derivatives (a
+        spring's or force's point on a body whose frame moves with a Parameter, a torsion
+        spring relaxed at such bodies' angles): what depends on the loads (a simulation,
+        the multipliers of a driven motion) refuses sensitivities through them, naming
+        them."""
+        return [ld.name for ld in self.loads if _blind_load(ld)]
+
     def parameter_blind(self) -> list[str]:
         """The constraints that depend on Parameters but do not carry their derivatives
         into the equations (a gear, a point on a curve on a body whose frame is a
@@ -405,3 +413,16 @@ class MechanismModel:
     def __repr__(self):
         return (f"Mechanism({self.name!r}: {len(self.bodies)} bodies, {len(self.joints)} joints, "
                 f"{len(self.drivers)} drivers, {len(self.loads)} loads)")
+
+
+def _blind_load(ld) -> bool:
+    """Does the load `ld` read numbers of the model that depend on Parameters (a body-fixed
+    point, computed from its global point and a body frame that is a Parameter's, or a
+    rest angle taken from such frames)?"""
+    def moves(numbers) -> bool:
+        flat = list(np.ravel(np.asarray(numbers, dtype=object)))
+        return bool(np.any(gradient(flat, parameter_names(flat))))
+    if any(moves(body.exact_local_point(at)) for body, at in load_points(ld)):
+        return True
+    return isinstance(ld, RotationalSpring) and ld.rest_from_bodies and \
+        moves([b.exact_angle for b in ld.bodies])

@@ -55,6 +55,7 @@ class PointLoad:
     value: object          # ndarray (2,), float, or callable of (t, q, v)
     is_torque: bool
     modal: np.ndarray | None = None
+    reads_state: bool = False     # its function reads a joint's coordinate or the state
 
 
 class FlexibleData:
@@ -158,6 +159,54 @@ class Loads:
                 fx, fy = value
                 add_point_force(Q, q, load.body, load.s, fx, fy, load.modal)
 
+    # --- derivatives ---------------------------------------------------------------------
+    def not_differentiated(self) -> str:
+        """What keeps `derivative` from differentiating Q ("" where nothing does): a
+        flexible body, or a load whose function reads the state."""
+        if self.flexible:
+            return f"the flexible body '{self.flexible[0].name}'"
+        for load in self.loads:
+            if load.reads_state:
+                return (f"the {'torque' if load.is_torque else 'force'} '{load.name}', "
+                        "whose function reads the motion")
+        return ""
+
+    def derivative(self, t, q, v, dq, dv) -> np.ndarray:
+        """∂Q/∂q dq + ∂Q/∂v dv at (t, q, v) for the directions dq, dv (n, K): exact, for
+        rigid bodies and loads whose values depend on t alone (`not_differentiated`).
+        Gravity's force is constant; a spring's tension and direction, a torsion spring's
+        torque and every load's moment arm move with the state."""
+        out = np.zeros_like(dq)
+        for sp in self.springs:
+            pa, va, dpa, dva, ra, dra = _point_jet(q, v, dq, dv, sp.a, sp.sa)
+            pb, vb, dpb, dvb, rb, drb = _point_jet(q, v, dq, dv, sp.b, sp.sb)
+            d, dd = pb - pa, dpb - dpa                    # (2,), (2, K)
+            length = math.hypot(d[0], d[1])
+            if length == 0.0:
+                continue
+            e = d / length
+            dl = e @ dd
+            de = (dd - np.outer(e, dl)) / length
+            rel, drel = vb - va, dvb - dva
+            tension = sp.stiffness * (length - sp.rest_length) + sp.damping * (rel @ e)
+            dtension = sp.stiffness * dl + sp.damping * (e @ drel + rel @ de)
+            dF = np.outer(e, dtension) + tension * de
+            _add_force_derivative(out, sp.a, ra, dra, tension * e, dF)
+            _add_force_derivative(out, sp.b, rb, drb, -tension * e, -dF)
+        for rs in self.torsion:
+            dtorque = -rs.stiffness * _relative(rs, dq) - rs.damping * _relative(rs, dv)
+            if rs.b is not None:
+                out[rs.b + 2] += dtorque
+            if rs.a is not None:
+                out[rs.a + 2] -= dtorque
+        for load in self.loads:
+            if load.is_torque or load.body is None:
+                continue
+            value = load.value(t, q, v) if callable(load.value) else load.value
+            _, _, _, _, r, dr = _point_jet(q, v, dq, dv, load.body, load.s)
+            out[load.body + 2] += dr[0] * value[1] - dr[1] * value[0]
+        return out
+
     # --- work ------------------------------------------------------------------------------
     @property
     def work_channels(self) -> list[str]:
@@ -229,3 +278,38 @@ class Loads:
         for fb in self.flexible:
             U = U + fb.invariants.strain(q[..., fb.slice])
         return U
+
+
+def _point_jet(q, v, dq, dv, start, s):
+    """A rigid body's point `s` (body-fixed) and its velocity, their changes along the
+    directions dq, dv (2, K), its arm r = R s from the frame origin and r's change: for
+    `Loads.derivative` (the ground: fixed)."""
+    K = dq.shape[1]
+    if start is None:
+        zero, none = np.zeros((2, K)), np.zeros(2)
+        return np.asarray(s, float), none, zero, zero, np.asarray(s, float), zero
+    c, sn = math.cos(q[start + 2]), math.sin(q[start + 2])
+    r = np.array([c * s[0] - sn * s[1], sn * s[0] + c * s[1]])
+    turn = np.array([-r[1], r[0]])                        # ∂r/∂θ
+    dth, w, dw = dq[start + 2], v[start + 2], dv[start + 2]
+    dr = np.outer(turn, dth)
+    p = q[start:start + 2] + r
+    vel = v[start:start + 2] + w * turn
+    dp = dq[start:start + 2] + dr
+    dvel = dv[start:start + 2] + np.outer(turn, dw) + w * np.outer(-r, dth)
+    return p, vel, dp, dvel, r, dr
+
+
+def _add_force_derivative(out, start, r, dr, F, dF) -> None:
+    """The change of a point force F's generalized force (`add_point_force`) for a change
+    dF of the force and dr of its arm (rigid bodies)."""
+    if start is None:
+        return
+    out[start:start + 2] += dF
+    out[start + 2] += dr[0] * F[1] + r[0] * dF[1] - dr[1] * F[0] - r[1] * dF[0]
+
+
+def _relative(rs, x):
+    """θ_b − θ_a of rows x (n, K) of a torsion spring (`RotationalSpringData.angles`)."""
+    b = x[rs.b + 2] if rs.b is not None else 0.0
+    return b - x[rs.a + 2] if rs.a is not None else b

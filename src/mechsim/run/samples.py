@@ -230,8 +230,6 @@ class Recorder:
     def _extra(self, ts, Y) -> None:
         """The formulation's extras at the samples (ts, rows Y) being recorded (NaN where
         the state is not at hand)."""
-        if self.extras is None:
-            return
         if Y is None:
             self.extra.extend(np.full((len(ts), self.extra.data.shape[1]), np.nan))
         else:
@@ -240,7 +238,8 @@ class Recorder:
     def record(self, t, q, v, y=None) -> None:
         """One sample (t, q, v); `y`: the integrator's state there (for `extras`)."""
         check_finite(self.problem, t, q, v)
-        self._extra([t], y)
+        if self.extras is not None:
+            self._extra([t], y)
         s = self.samples
         s.room()
         row = s.data[s.held]
@@ -255,7 +254,8 @@ class Recorder:
             for k, (tk, q, v) in enumerate(zip(ts, Q, V)):
                 self.record(tk, q, v, None if Y is None else Y[k])
             return
-        self._extra(ts, Y)
+        if self.extras is not None:
+            self._extra(ts, Y)
         s, k, n = self.samples, len(ts), self.n
         s.room(k)
         block = s.data[s.held:s.held + k]
