@@ -26,33 +26,9 @@ TRUE = dict(a=0.10, b=0.30, c=0.25, d=0.30, px=0.10, py=0.05, theta0=0.40)
 ANGLES = np.radians(np.arange(0.0, 331.0, 30.0))       # crank turned from the first point
 
 
-def path_four_bar(a, b, c, d, px, py, theta0):
-    """The linkage with ground pivots (0, 0) and (d, 0), assembled on the branch with the
-    coupler–rocker pin above the line from the crank pin to (d, 0); the coupler body's
-    frame is its tracing point (its mass does not enter a kinematic analysis). Each
-    argument a number or a Parameter (numpy's functions carry them)."""
-    mech = ms.Mechanism("path generator")
-    ground = mech.ground
-    A = np.array([a * np.cos(theta0), a * np.sin(theta0)])
-    O4 = np.array([d, 0.0])
-    AO = O4 - A
-    span = np.hypot(AO[0], AO[1])
-    along = (b * b - c * c + span * span) / (2 * span)
-    u = AO / span
-    B = A + along * u + np.sqrt(b * b - along * along) * np.array([-u[1], u[0]])
-    th3 = np.arctan2(B[1] - A[1], B[0] - A[0])
-    P = A + px * np.array([np.cos(th3), np.sin(th3)]) + py * np.array([-np.sin(th3),
-                                                                      np.cos(th3)])
-    crank = mech.add(ms.RigidBody.rod("crank", (0.0, 0.0), A, mass=1.0))
-    coupler = mech.add(ms.RigidBody("coupler", mass=1.0, inertia=0.01, position=P,
-                                    angle=th3))
-    rocker = mech.add(ms.RigidBody.rod("rocker", O4, B, mass=1.0))
-    pin = mech.add(ms.Revolute(ground, crank, at=(0.0, 0.0)))
-    mech.add(ms.Revolute(crank, coupler, at=A))
-    mech.add(ms.Revolute(coupler, rocker, at=B))
-    mech.add(ms.Revolute(rocker, ground, at=O4))
-    mech.add(ms.Driver(pin, "t", name="motor"))
-    return mech
+# The linkage (`mechsim.examples.coupler_four_bar`): ground pivots (0, 0) and (d, 0), the
+# coupler body's frame at its tracing point.
+path_four_bar = ms.examples.coupler_four_bar
 
 
 def targets():

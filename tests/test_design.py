@@ -291,3 +291,56 @@ def test_a_design_file_s_constraint_holds_at_the_design(tmp_path, monkeypatch):
     assert np.degrees(np.arcsin(np.abs(np.sin(mu)))).min() >= 65.0 - 1e-6
     design, _, _ = counterweight.size("exact")
     assert written["value"] == pytest.approx(design.value, rel=1e-6)
+
+
+def test_free_timing_s_gradient_is_exact():
+    """With free timing the driver's advances between the points are the objective's own
+    variables: their derivatives (the point's velocity over the driver's rate, summed
+    over the later points) against central differences of the objective."""
+    values = synthesis.start()
+    targets = synthesis.targets()[:6]
+    angles = synthesis.ANGLES[:6] * 1.1
+    mech = synthesis.path_four_bar(**{k: ms.Parameter(k, v) for k, v in values.items()})
+    names = list(values)
+    objective = ms.PathPoints("coupler", (0.0, 0.0), targets, "motor", angles,
+                              free_timing=True)
+    assert objective.variables == [f"advance {i}" for i in range(1, 6)]
+    advances = objective.variable_values()
+    value, grad = objective(mech, names)
+    assert len(grad) == len(names) + 5
+
+    def at(x):
+        objective.set_variables(x)
+        return objective(mech, [])[0]
+
+    for j in range(5):
+        h = 1e-5
+        up, down = advances.copy(), advances.copy()
+        up[j] += h
+        down[j] -= h
+        fd = (at(up) - at(down)) / (2 * h)
+        assert grad[len(names) + j] == pytest.approx(fd, rel=1e-6, abs=1e-9 * value), j
+    objective.set_variables(advances)
+    with pytest.raises(ValueError, match="increasing or decreasing"):
+        ms.PathPoints("coupler", (0.0, 0.0), targets[:3], "motor", [0.0, 0.5, 0.2],
+                      free_timing=True)
+
+
+def test_path_synthesis_without_prescribed_timing_finds_the_points():
+    """Six points of the known linkage's path, the timing not given (the search starts
+    from equal advances 10 % longer than the known ones, and the coupler's numbers 7–8 %
+    off): the design found passes through them, and `Design.variables` holds the
+    advances."""
+    targets = synthesis.targets()[:6]
+    known = np.diff(synthesis.ANGLES[:6])
+    guess = np.concatenate([[0.0], np.cumsum(known * 1.1)])
+    start = {**synthesis.TRUE, **{k: v for k, v in synthesis.start().items()
+                                  if k in ("b", "px", "py")}}
+    mech = synthesis.path_four_bar(**{k: ms.Parameter(k, v) for k, v in start.items()})
+    objective = ms.PathPoints("coupler", (0.0, 0.0), targets, "motor", guess,
+                              free_timing=True)
+    design = ms.optimize(mech, objective, ["b", "px", "py"], tol=1e-16)
+    assert np.sqrt(design.value) < 1e-6, design.message
+    assert sorted(design.variables) == [f"advance {i}" for i in range(1, 6)]
+    got = mech.kinematics(over=("motor", objective.values)).point("coupler", (0.0, 0.0))
+    assert np.max(np.hypot(*(got - targets).T)) < 1e-5

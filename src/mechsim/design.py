@@ -12,8 +12,14 @@ the mechanism's present design and ∂value/∂(each of `names`) (an empty array
 `names` is empty). A design where the objective cannot be evaluated (the mechanism does
 not assemble, its analysis fails) raises `DesignError` (or a ModelError) there; the
 optimizer is then given a value above every one it has seen, and the result counts such
-designs. Ready objectives: `PathPoints` (path generation with prescribed timing),
+designs. Ready objectives: `PathPoints` (path generation with prescribed or free timing),
 `EffortNorm` (a driver's RMS effort, or a smooth stand-in for its peak).
+
+An objective may carry variables of its own besides the mechanism's Parameters (a path's
+free timing): it then has `variables` (their names), `variable_values()`,
+`variable_bounds()` and `set_variables(values)`, and its gradient has one more entry per
+variable after the Parameters'. `optimize` searches them with the Parameters and reports
+them in `Design.variables`.
 
 A constraint is a callable ``constraint(mech, names) -> (values, jacobian)``, feasible
 where every value is ≥ 0, its jacobian ∂values/∂(names), (m, len(names)) (scipy's
@@ -40,17 +46,32 @@ class DesignError(ValueError):
 
 
 class PathPoints:
-    """Path generation with prescribed timing: the point `local` of `body` (a body of the
-    mechanism, or its name) should pass through `targets[i]` when `driver` (a driver, or
-    its name) has moved its joint by `values[i]` from where it starts. Its value is the
-    mean squared distance to the targets [m²]; its gradient is exact (the point's
-    kinematic sensitivities)."""
+    """Path generation: the point `local` of `body` (a body of the mechanism, or its name)
+    should pass through `targets[i]` when `driver` (a driver, or its name) has moved its
+    joint by `values[i]` from where it starts. Its value is the mean squared distance to
+    the targets [m²]; its gradient is exact (the point's kinematic sensitivities).
 
-    def __init__(self, body, local, targets, driver, values):
+    With `free_timing`, the timing is not prescribed: the driver's advances between
+    successive points, values[i] − values[i − 1] (the first value stays), are the
+    objective's own variables ("advance 1", …), each of the sign the given values advance
+    by and of size between `min_advance` and 2π, with exact derivatives too (the point's
+    velocity over the driver's rate)."""
+
+    def __init__(self, body, local, targets, driver, values, free_timing=False,
+                 min_advance=1e-3):
         self.body, self.driver = body, driver
         self.local = tuple(float(x) for x in np.asarray(local, float).ravel())
         self.targets = np.asarray(targets, float)
         self.values = np.asarray(values, float).ravel()
+        self.free_timing = bool(free_timing)
+        self.min_advance = float(min_advance)
+        steps = np.diff(self.values)
+        self.sign = 1.0 if steps.size and steps[0] > 0 else -1.0
+        if self.free_timing and not (steps.size and
+                                     np.all(self.sign * steps >= self.min_advance)):
+            raise ValueError("PathPoints: free timing needs `values` increasing or "
+                             "decreasing, each at least `min_advance` "
+                             f"({self.min_advance:g}) past the one before")
         if len(self.local) != 2:
             raise ValueError(f"PathPoints: `local` must be a 2-vector, got {local!r:.60}")
         if self.targets.ndim != 2 or self.targets.shape[1] != 2 or \
@@ -58,6 +79,28 @@ class PathPoints:
             raise ValueError(f"PathPoints: `targets` must be {len(self.values)} points (one "
                              f"per value), shape ({len(self.values)}, 2); got "
                              f"{self.targets.shape}")
+
+    @property
+    def variables(self) -> list[str]:
+        """The objective's own variables: the driver's advances with free timing."""
+        return [f"advance {i}" for i in range(1, len(self.values))] if self.free_timing \
+            else []
+
+    def variable_values(self) -> np.ndarray:
+        return np.diff(self.values) if self.free_timing else np.zeros(0)
+
+    def variable_bounds(self) -> list:
+        low, high = sorted((self.sign * self.min_advance, self.sign * 2.0 * np.pi))
+        return [(low, high)] * len(self.variables)
+
+    def set_variables(self, advances) -> None:
+        """The driver's advances between successive points (free timing)."""
+        advances = np.asarray(advances, float).ravel()
+        if len(advances) != len(self.variables):
+            raise ValueError(f"PathPoints: {len(self.variables)} advances expected, got "
+                             f"{len(advances)}")
+        if len(advances):
+            self.values = self.values[0] + np.concatenate([[0.0], np.cumsum(advances)])
 
     def __call__(self, mech, names):
         body = mech.body(self.body) if isinstance(self.body, str) else self.body
@@ -70,7 +113,20 @@ class PathPoints:
         grad = [2.0 * float(np.mean(np.sum(
             d * kin.sensitivity(k, of="point", body=body, local=self.local), axis=1)))
             for k in names]
+        if self.free_timing and names:
+            grad += list(self._timing_gradient(mech, kin, body, d))
         return value, np.array(grad)
+
+    def _timing_gradient(self, mech, kin, body, d) -> np.ndarray:
+        """∂value/∂(advance j) = Σ_{i ≥ j} ∂value/∂values[i], ∂r_i/∂values[i] being the
+        point's velocity over the driver's rate at sample i."""
+        driver = next(x for x in mech.drivers
+                      if x is self.driver or x.name == getattr(self.driver, "name",
+                                                               self.driver))
+        rates = np.array([driver.law.jet("t", float(t))[1] for t in kin.t])
+        along = kin.point_velocity(body, self.local) / rates[:, None]
+        per_value = 2.0 * np.sum(d * along, axis=1) / len(self.values)
+        return np.cumsum(per_value[::-1])[::-1][1:]
 
 
 class _OnAnalysis:
@@ -147,8 +203,9 @@ class Design:
     `value` of the objective there, `success` and `message` (scipy's), `evaluations` of
     the objective (with the finite differences' own, where scipy takes them),
     `gradients` (exact ones asked for), `iterations`, `failures` (designs where the
-    objective could not be evaluated, with the first messages), `wall_time` [s], and
-    `scipy`, the `scipy.optimize.OptimizeResult`."""
+    objective could not be evaluated, with the first messages), `wall_time` [s],
+    `scipy`, the `scipy.optimize.OptimizeResult`, and `variables`, the objective's own
+    variables at the design (a path's free timing; module docstring)."""
     parameters: dict
     value: float
     success: bool
@@ -160,6 +217,7 @@ class Design:
     wall_time: float
     failure_messages: list = field(default_factory=list)
     scipy: object = None
+    variables: dict = field(default_factory=dict)     # the objective's own, at the design
 
     @property
     def status(self) -> str:
@@ -205,8 +263,13 @@ def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
                          f"{gradient!r:.40}")
     exact = gradient == "exact"
     values = mech.parameter_values()
-    x0 = np.array([values[k] for k in names])
-    trials = _Trials(mech, names, exact)
+    own = list(getattr(objective, "variables", []))
+    x0 = np.concatenate([[values[k] for k in names],
+                         objective.variable_values() if own else []])
+    if own:
+        lows_highs = (lows_highs or [(None, None)] * len(names)) + \
+            list(objective.variable_bounds())
+    trials = _Trials(mech, names, exact, objective if own else None)
     scipy_constraints = [c if isinstance(c, dict) else trials.constraint(c, x0)
                          for c in constraints]
     started = time.perf_counter()
@@ -214,11 +277,13 @@ def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
     res = minimize(lambda x: trials.objective(objective, x), x0,
                    jac=True if exact else gradient, method=chosen, bounds=lows_highs,
                    constraints=scipy_constraints, tol=tol, options=options)
-    best = dict(zip(names, np.asarray(res.x, float).tolist()))
-    mech.set_parameters(**best)
+    x = np.asarray(res.x, float)
+    best = dict(zip(names, x[:len(names)].tolist()))
+    trials.set(x)
     return Design(best, float(res.fun), bool(res.success), str(res.message),
                   trials.values, trials.gradients, int(getattr(res, "nit", 0)),
-                  trials.failures, time.perf_counter() - started, trials.messages, res)
+                  trials.failures, time.perf_counter() - started, trials.messages, res,
+                  dict(zip(own, x[len(names):].tolist())))
 
 
 class _Trials:
@@ -226,8 +291,11 @@ class _Trials:
     constraints evaluated there, what could not be evaluated counted (with the first
     messages)."""
 
-    def __init__(self, mech, names, exact):
+    def __init__(self, mech, names, exact, carrier=None):
         self.mech, self.names, self.exact = mech, names, exact
+        # The objective whose own variables follow the Parameters in x (None: none).
+        self.carrier = carrier
+        self.size = len(names) + (len(carrier.variables) if carrier is not None else 0)
         self.values = self.gradients = self.failures = 0
         self.messages: list[str] = []
         self.worst = None            # the largest objective value seen
@@ -237,18 +305,24 @@ class _Trials:
         if len(self.messages) < 5:
             self.messages.append(str(exc))
 
+    def set(self, x) -> None:
+        """The design x: the Parameters on the mechanism, the rest on the objective."""
+        self.mech.set_parameters(**dict(zip(self.names, x[:len(self.names)].tolist())))
+        if self.carrier is not None:
+            self.carrier.set_variables(x[len(self.names):])
+
     def objective(self, objective, x):
         """(value, gradient) with exact gradients, else the value; a design that cannot be
         evaluated gets a value above every one seen and a zero gradient."""
         self.values += 1
         self.gradients += self.exact
         try:
-            self.mech.set_parameters(**dict(zip(self.names, x.tolist())))
+            self.set(x)
             value, grad = objective(self.mech, self.names if self.exact else [])
         except (DesignError, ValueError) as exc:
             self._failed(exc)
             worst = 1.0 if self.worst is None else self.worst
-            value, grad = 10.0 * abs(worst) + 1.0, np.zeros(len(self.names))
+            value, grad = 10.0 * abs(worst) + 1.0, np.zeros(self.size)
         else:
             self.worst = value if self.worst is None else max(self.worst, value)
         return (value, np.asarray(grad, float)) if self.exact else value
@@ -256,16 +330,20 @@ class _Trials:
     def constraint(self, c, x0) -> dict:
         """scipy's dict of the mechsim constraint `c` (its size from the start design x0,
         where it must evaluate): a design where it cannot be evaluated is infeasible."""
-        self.mech.set_parameters(**dict(zip(self.names, x0.tolist())))
+        self.set(x0)
         size = len(np.atleast_1d(c(self.mech, [])[0]))
+        extra = self.size - len(self.names)
 
         def part(x, which):
             try:
-                self.mech.set_parameters(**dict(zip(self.names, x.tolist())))
-                return np.asarray(c(self.mech, self.names if which else [])[which], float)
+                self.set(x)
+                out = np.asarray(c(self.mech, self.names if which else [])[which], float)
             except (DesignError, ValueError) as exc:
                 self._failed(exc)
-                return np.zeros((size, len(self.names))) if which else -np.ones(size)
+                return np.zeros((size, self.size)) if which else -np.ones(size)
+            # (A mechsim constraint does not depend on the objective's own variables.)
+            return np.hstack([out.reshape(size, -1), np.zeros((size, extra))]) \
+                if which and extra else out
 
         entry = {"type": "ineq", "fun": lambda x: part(x, 0)}
         if self.exact:
