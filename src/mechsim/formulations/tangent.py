@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Correction, Formulation
+from ..problem.sensitivity import ROUND_OFF
 from .projection import RCOND, crossing_cluster, truncation_cut
 
 
@@ -30,8 +31,6 @@ from .projection import RCOND, crossing_cluster, truncation_cut
 # motion.
 BAND = 1.0
 REACH = 1e-2
-# Out of the band q̈_k is solved without truncation (round-off only).
-EXACT = 1e-12
 
 
 class Tangent(Formulation):
@@ -102,7 +101,7 @@ class Tangent(Formulation):
     def rates(self, t, q, v, a, x):
         """(v_k, q̈_k) of the sensitivities x at a consistent state out of the band."""
         Sq, Sv = self.eq.split(x)
-        ak = self.eq.accelerations(t, q, v, Sq, Sv, EXACT, a)[0]
+        ak = self.eq.accelerations(t, q, v, Sq, Sv, self.cut, a)[0]
         return np.concatenate([Sv.ravel(), ak.ravel()])
 
     def consistent(self, t, q, v, x):
@@ -147,7 +146,7 @@ class Tangent(Formulation):
                 Js, gs = prob.dynamics_terms(qs, vs, ts)
                 acc, _ = prob.accelerations(Js, prob.forces(ts, qs, vs), gs, qs)
                 Sqs, Svs = eq.project(ts, qs, vs, Sq + h * Sv + 0.5 * h * h * ak, Sv + h * ak)
-                mean += 0.5 * eq.accelerations(ts, qs, vs, Sqs, Svs, 1e-12, acc)[0]
+                mean += 0.5 * eq.accelerations(ts, qs, vs, Sqs, Svs, ROUND_OFF, acc)[0]
             x = x + W @ (W.T @ (mean / s - x))
         return s * x
 

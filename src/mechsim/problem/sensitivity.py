@@ -215,28 +215,50 @@ class MotionEquations:
 
     def accelerations(self, t, q, v, Sq, Sv, cut, a=None):
         """(q̈_k (n, K), q̈, truncation) at the state (t, q, v) with sensitivities
-        (Sq, Sv); q̈ is the motion's (computed here by the same pseudo-inverse where not
-        given). `cut`: the truncation of Φ_q's small singular values relative to the
-        largest; `truncation`: a `Truncation` where it dropped one above round-off (inside
-        a passage's band: q̈_k lacks its components along those directions), else None."""
+        (Sq, Sv); q̈ is the motion's (computed here where not given). `cut`: the
+        truncation of Φ_q's small singular values relative to the largest; `truncation`:
+        a `Truncation` where it dropped one above round-off (inside a passage's band: q̈_k
+        lacks its components along those directions), else None. Where every singular
+        value is clear of the projection method's band, one Cholesky factor of
+        Φ_q M⁻¹ Φ_qᵀ solves for λ and λ_k (the problem's algebra); else the SVD."""
         prob = self.problem
         J, gamma = prob.dynamics_terms(q, v, t)
         J = sparse.dense(J)
+        Q = prob.forces(t, q, v)
+        solve = None
+        if J.shape[0]:
+            # (LAPACK's 1/κ₁ errs towards ill-conditioning: above cut², every σ/σ_max is
+            # above the cut.)
+            solve = prob.algebra.clear_solver(J, prob.mass_factor(q), cut, cut ** 2)
+        if solve is not None:
+            w = self.s[:, 0] ** 2                                  # M⁻¹
+            if a is None:
+                lam = solve(J @ (w * Q) - gamma)
+                a = w * (Q - J.T @ lam)
+            else:
+                lam = solve(J @ (w * Q) - J @ a)
+            F, g = self._sides(t, q, v, a, lam, Sq, Sv)
+            return self.s * self.s * (F - J.T @ solve(J @ (self.s * self.s * F) - g)), a, None
         V, Ui, dropped = self._svd(J, cut) if J.shape[0] else \
             (np.zeros((prob.n, 0)), np.zeros((0, 0)), None)
         s = self.s[:, 0]
-        xQ = s * prob.forces(t, q, v)
+        xQ = s * Q
         if a is None:
             a = s * (xQ - V @ (V.T @ xQ) + V @ (Ui @ gamma))
         lam = Ui.T @ (V.T @ (xQ - a / s))
-        p = prob.p
-        _, _, _, r2q, r2v, r2p = self.module.sensitivity_terms(q, v, a, t, p)
-        r3q, r3p = self.module.multiplier_terms(q, lam, t, p)
+        F, g = self._sides(t, q, v, a, lam, Sq, Sv)
+        X = self.s * F
+        return self.s * (X - V @ (V.T @ X) + V @ (Ui @ g)), a, dropped
+
+    def _sides(self, t, q, v, a, lam, Sq, Sv):
+        """The right sides (F (n, K), g (m, K)) of M q̈_k + Φ_qᵀ λ_k = F, Φ_q q̈_k = g."""
+        prob = self.problem
+        _, _, _, r2q, r2v, r2p = self.module.sensitivity_terms(q, v, a, t, prob.p)
+        r3q, r3p = self.module.multiplier_terms(q, lam, t, prob.p)
         F = self.Qk - self.Mk * a[:, None] - r3q @ Sq - r3p @ self.P \
             + prob.load_model.derivative(t, q, v, Sq, Sv)
         g = -(r2q @ Sq + r2v @ Sv + r2p @ self.P)
-        X = self.s * F
-        return self.s * (X - V @ (V.T @ X) + V @ (Ui @ g)), a, dropped
+        return F, g
 
     def residual(self, t, q, v, Sq, Sv) -> float:
         """The largest violation of the sensitivities' position and velocity levels."""
