@@ -244,3 +244,17 @@ def test_a_load_on_a_body_moved_by_a_parameter_is_refused_naming_it():
         mech.add(ms.Torque(mech.body("crank"), lambda t, q, v: -0.1 * v[2], state=True,
                            name="brake"))
         mech.simulate(0.1, sensitivities=["m"])
+
+
+def test_joint_force_sensitivity_of_a_free_motion():
+    """of="joint_force" of a simulation: the crank pin's force to the rod's mass against
+    central differences."""
+    value = 0.5
+
+    def build(x):
+        return offset_slider_crank(rod_mass=x)
+    res = build(ms.Parameter("m", value)).simulate(0.3, output_step=0.01, rtol=1e-10,
+                                                   atol=1e-12, sensitivities=["m"])
+    reference = central_difference(build, value, lambda r: r.joint_force("A"), 0.3)
+    got = res.sensitivity("m", of="joint_force", joint="A")
+    assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference))

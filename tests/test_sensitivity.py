@@ -330,3 +330,70 @@ def test_multiplier_sensitivities_under_springs_and_forces_agree_with_finite_dif
 
     reference = (4 * central(5e-4) - central(1e-3)) / 3
     assert relative(kin.sensitivity("r", of="driver_effort", driver=motor), reference) < 1e-6
+
+
+def test_joint_force_sensitivities_agree_with_finite_differences():
+    """of="joint_force": the pin forces of a revolute between two moving bodies, of the
+    crank's ground pivot and of the slider's guide (a prismatic joint, whose force turns
+    with its axis) to the offset and a mass, against Richardson-extrapolated differences."""
+    values = {"e": 0.05, "m": 0.8}
+
+    def build(e=0.05, m=0.8):
+        return offset_slider_crank(e=e, m_rod=m, tilt=0.2)
+
+    kin = build(**{k: ms.Parameter(k, v) for k, v in values.items()}).kinematics(
+        0.6, 0.05, sensitivities=list(values))
+    for name, value in values.items():
+        def central(h):
+            up = build(**{**values, name: value + h}).kinematics(0.6, 0.05)
+            down = build(**{**values, name: value - h}).kinematics(0.6, 0.05)
+            return {j: (up.joint_force(j) - down.joint_force(j)) / (2 * h)
+                    for j in ("O", "B", "guide")}
+        h = 1e-3 * max(1.0, abs(value))
+        coarse, fine = central(h), central(h / 2)
+        for joint in ("O", "B", "guide"):
+            reference = (4 * fine[joint] - coarse[joint]) / 3
+            assert relative(kin.sensitivity(name, of="joint_force", joint=joint),
+                            reference) < 1e-6, (name, joint)
+    with pytest.raises(ValueError, match="needs the `joint`"):
+        kin.sensitivity("e", of="joint_force")
+
+
+def quick_return(r=0.1, d=0.25):
+    """A crank (r, from the origin, driven) whose tip pin carries a block sliding along a
+    rocker pivoted at (0, −d): the slide is a prismatic joint between two moving bodies,
+    its force turning with the rocker."""
+    mech = ms.Mechanism("quick return", gravity=(0.0, -9.81))
+    b = np.array([r * np.cos(THETA0), r * np.sin(THETA0)])
+    g = np.array([0.0, -d])
+    u = (b - g) / np.hypot(*(b - g))
+    crank = mech.add(ms.RigidBody.rod("crank", (0.0, 0.0), b, mass=0.4))
+    rocker = mech.add(ms.RigidBody.rod("rocker", g, g + 0.6 * u, mass=1.2))
+    block = mech.add(ms.RigidBody("block", mass=0.3, inertia=1e-3, position=b,
+                                  angle=np.arctan2(u[1], u[0])))
+    pin = mech.add(ms.Revolute(mech.ground, crank, at=(0.0, 0.0), name="O"))
+    mech.add(ms.Revolute(crank, block, at=b, name="tip"))
+    mech.add(ms.Prismatic(rocker, block, axis=u, at=b, name="slide"))
+    mech.add(ms.Revolute(mech.ground, rocker, at=g, name="G"))
+    mech.add(ms.Driver(pin, f"{SPEED}*t"))
+    return mech
+
+
+def test_the_force_of_a_slide_that_turns_has_its_sensitivity():
+    """The slide's force (normal to a turning rocker) and the rocker pivot's, to the crank
+    length and the pivot's offset, against Richardson-extrapolated differences: the
+    joint's Jacobian turning with the motion enters (R3_q q_k)."""
+    values = {"r": 0.1, "d": 0.25}
+    kin = quick_return(**{k: ms.Parameter(k, v) for k, v in values.items()}).kinematics(
+        0.8, 0.05, sensitivities=list(values))
+    for name, value in values.items():
+        def central(h):
+            up = quick_return(**{**values, name: value + h}).kinematics(0.8, 0.05)
+            down = quick_return(**{**values, name: value - h}).kinematics(0.8, 0.05)
+            return {j: (up.joint_force(j) - down.joint_force(j)) / (2 * h)
+                    for j in ("slide", "G")}
+        coarse, fine = central(1e-3), central(5e-4)
+        for joint in ("slide", "G"):
+            reference = (4 * fine[joint] - coarse[joint]) / 3
+            assert relative(kin.sensitivity(name, of="joint_force", joint=joint),
+                            reference) < 1e-6, (name, joint)

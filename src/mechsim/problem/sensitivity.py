@@ -109,6 +109,28 @@ class Sensitivities:
             self._multipliers = self._compute_multipliers()
         return self._multipliers[:, :, self.names.index(name)]
 
+    def joint_force(self, name, geometry, rows) -> np.ndarray:
+        """∂F/∂k (N, 2) of the force a joint applies to its body_b in global axes
+        (`mechsim.problem.geometry.joint_wrench`: F from −Φ_qᵀ λ over the joint's `rows`
+        on the body's x, y), for the Parameter `name`: −(Φ_qᵀ λ_k + R3_q q_k + R3_p p_k)
+        with R3 = Φ_qᵀ λ of the joint's multipliers alone. `geometry`: the joint's
+        `JointGeometry`."""
+        prob = self.problem
+        lam_k = self.multipliers(name)
+        lam = np.asarray(self._lam(), float)
+        j = self.names.index(name)
+        on_b = geometry.start_b is not None
+        start = geometry.start_b if on_b else geometry.start_a
+        out = np.zeros((len(self.t), 2))
+        for i, (t, q) in enumerate(zip(self.t, self.Q)):
+            own = np.zeros(prob.m)
+            own[rows] = lam[i, rows]
+            r3q, r3p = self.module.multiplier_terms(q, own, t, prob.p)
+            J = sparse.dense(prob.phi_q(q, t))[rows]
+            generalized = -(J.T @ lam_k[i, rows] + r3q @ self.q[i][:, j] + r3p @ self.P[:, j])
+            out[i] = generalized[start:start + 2]
+        return out if on_b else -out
+
     def _compute_multipliers(self):
         prob = self.problem
         _loads_differentiated(prob)

@@ -93,6 +93,11 @@ class ReactionTable:
     def _driver(self, driver) -> str:
         return self._named(driver, "driver", "computing the driver efforts")
 
+    def joint_name(self, joint) -> str:
+        """The name of a joint of this result (given as the object or its name); KeyError
+        listing the valid ones."""
+        return self._joint(joint)
+
     def driver_name(self, driver) -> str:
         """The name of a driver of this result (given as the object or its name); KeyError
         listing the valid ones."""

@@ -188,14 +188,16 @@ class SimulationResult:
                                         self._point_modes(body, local))
 
     def sensitivity(self, name: str, of: str = "q", body=None, local=(0.0, 0.0),
-                    driver=None) -> np.ndarray:
+                    driver=None, joint=None) -> np.ndarray:
         """The exact sensitivity to the Parameter `name` of a quantity over time, with the
         quantity's shape: of "q" (∂q/∂k, the shape of `q`), "v", "a" (of q̈), "point"
         (∂r/∂k of the body-fixed point `local` of `body`, (n, 2): r's Jacobian in q
-        applied to ∂q/∂k), "lambda" (of the multipliers, (n, m)) or "driver_effort"
-        (of `driver_effort(driver)`, (n,)). The analysis must have been asked for it
-        (`kinematics(..., sensitivities=[name])`); the multipliers' are computed when
-        first asked, for mechanisms loaded by gravity alone."""
+        applied to ∂q/∂k), "lambda" (of the multipliers, (n, m)), "driver_effort"
+        (of `driver_effort(driver)`, (n,)) or "joint_force" (of `joint_force(joint)`,
+        global axes, (n, 2)). The analysis must have been asked for it
+        (`kinematics(..., sensitivities=[name])`, `simulate(..., sensitivities=[name])`);
+        the multipliers' (and what follows from them) are computed when first asked, for
+        the loads that are differentiated (`mechsim.problem.sensitivity`)."""
         table = self.sensitivities
         if table is None or name not in table:
             raise ValueError(f"sensitivity: no sensitivities to {name!r:.60} in this result; "
@@ -216,8 +218,14 @@ class SimulationResult:
                 raise ValueError("sensitivity(of='driver_effort') needs the `driver`")
             row = self.problem.rows_of(self.reactions.driver_name(driver))[0]
             return -table.multipliers(name)[:, row]
-        raise ValueError(f"sensitivity: `of` must be 'q', 'v', 'a', 'point', 'lambda' or "
-                         f"'driver_effort', got {of!r:.40}")
+        if of == "joint_force":
+            if joint is None:
+                raise ValueError("sensitivity(of='joint_force') needs the `joint`")
+            owner = self.reactions.joint_name(joint)
+            return table.joint_force(name, self.problem.joints[owner],
+                                     self.problem.rows_of(owner))
+        raise ValueError(f"sensitivity: `of` must be 'q', 'v', 'a', 'point', 'lambda', "
+                         f"'driver_effort' or 'joint_force', got {of!r:.40}")
 
     def angular_velocity(self, body) -> np.ndarray:
         """The angular velocity [rad/s] of a body's frame over time, shape (n,) (0 for the
