@@ -258,3 +258,65 @@ def test_joint_force_sensitivity_of_a_free_motion():
     reference = central_difference(build, value, lambda r: r.joint_force("A"), 0.3)
     got = res.sensitivity("m", of="joint_force", joint="A")
     assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference))
+
+
+def sprung_slider_crank(k=400.0, c=2.0, rest=0.3, kt=3.0, rest_angle=0.2):
+    """The free offset slider-crank with a spring–damper on the slider (stiffness k,
+    damping c, rest length `rest`) and a torsion spring at the crank's pivot (kt,
+    `rest_angle`): numbers or Parameters."""
+    mech = offset_slider_crank()
+    slider, crank = mech.body("slider"), mech.body("crank")
+    mech.add(ms.Spring(mech.ground, slider, at_a=(0.6, 0.03), at_b=slider.position,
+                       stiffness=k, rest_length=rest, damping=c, name="return"))
+    mech.add(ms.RotationalSpring(mech.ground, crank, stiffness=kt, damping=0.05,
+                                 rest_angle=rest_angle, name="coil"))
+    return mech
+
+
+@pytest.mark.parametrize("which", ["k", "c", "rest", "kt", "rest_angle"])
+def test_spring_constants_as_parameters(which):
+    """A spring's stiffness, damping and rest length and a torsion spring's stiffness and
+    rest angle as Parameters: the motion's sensitivities against central differences, and
+    a new value set without a new build runs as a mechanism built with it."""
+    values = {"k": 400.0, "c": 2.0, "rest": 0.3, "kt": 3.0, "rest_angle": 0.2}
+    mech = sprung_slider_crank(**{which: ms.Parameter(which, values[which])})
+    assert mech.parameters == [which]
+    res = mech.simulate(0.3, output_step=0.01, rtol=1e-10, atol=1e-12,
+                        sensitivities=[which])
+    assert res.success, res.message
+    reference = central_difference(lambda x: sprung_slider_crank(**{which: x}),
+                                   values[which], lambda r: r.q, 0.3)
+    got = res.sensitivity(which)
+    assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference))
+    mech.set_parameters(**{which: 1.2 * values[which]})
+    again = mech.simulate(0.3, output_step=0.01, rtol=1e-10, atol=1e-12)
+    fresh = sprung_slider_crank(**{which: 1.2 * values[which]}).simulate(
+        0.3, output_step=0.01, rtol=1e-10, atol=1e-12)
+    assert np.max(np.abs(again.q - fresh.q)) < 1e-12
+
+
+def test_a_driven_mechanism_s_simulated_sensitivities_are_its_kinematic_ones():
+    """A fully driven offset slider-crank simulated with sensitivities (the projection
+    method follows the drivers) against the implicit function theorem at every sample
+    (`kinematics`): the positions' and the motor torque's, two independent paths."""
+    e = ms.Parameter("e", 0.02)
+    r, l = 0.15, 0.40
+    mech = ms.Mechanism("offset slider-crank", gravity=(0.0, -G))
+    b = np.array([r, 0.0])
+    c = np.array([r + np.sqrt(l * l - e * e), e])
+    crank = mech.add(ms.RigidBody.rod("crank", (0.0, 0.0), b, mass=0.4))
+    rod = mech.add(ms.RigidBody.rod("rod", b, c, mass=0.8))
+    slider = mech.add(ms.RigidBody("slider", mass=0.3, inertia=1e-4, position=c))
+    pin = mech.add(ms.Revolute(mech.ground, crank, at=(0.0, 0.0)))
+    mech.add(ms.Revolute(crank, rod, at=b))
+    mech.add(ms.Revolute(rod, slider, at=c))
+    mech.add(ms.Prismatic(mech.ground, slider, axis=(1.0, 0.0), at=c))
+    motor = mech.add(ms.Driver(pin, "5*t"))
+    res = mech.simulate(2.0, output_step=0.01, sensitivities=["e"])
+    kin = mech.kinematics(2.0, 0.01, sensitivities=["e"])
+    assert res.success
+    scale = np.max(np.abs(kin.sensitivity("e")))
+    assert np.max(np.abs(res.sensitivity("e") - kin.sensitivity("e"))) < 1e-9 * scale
+    torque = kin.sensitivity("e", of="driver_effort", driver=motor)
+    assert np.max(np.abs(res.sensitivity("e", of="driver_effort", driver=motor) - torque)) \
+        < 1e-8 * np.max(np.abs(torque))

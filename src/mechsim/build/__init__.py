@@ -224,11 +224,13 @@ def _load_data(mech, starts, joints):
             springs.append(SpringData(
                 ld.name, starts[ld.body_a.name], starts[ld.body_b.name],
                 tuple(sa), tuple(sb), ld.stiffness, ld.damping, ld.rest_length,
-                ld.body_a.point_modes(sa), ld.body_b.point_modes(sb)))
+                ld.body_a.point_modes(sa), ld.body_b.point_modes(sb),
+                _constant_partials(ld)))
         elif isinstance(ld, RotationalSpring):
             torsion.append(RotationalSpringData(ld.name, starts[ld.body_a.name],
                                                 starts[ld.body_b.name], ld.stiffness,
-                                                ld.damping, ld.rest_angle))
+                                                ld.damping, ld.rest_angle,
+                                                _constant_partials(ld)))
         elif starts[ld.body.name] is None:
             continue
         elif isinstance(ld, Force):
@@ -244,6 +246,14 @@ def _load_data(mech, starts, joints):
                                             "a finite number", joints), True,
                                    reads_state=callable(ld.torque) and ld.inputs != "t"))
     return springs, loads, torsion
+
+
+def _constant_partials(spring) -> tuple:
+    """((Parameter name, (∂stiffness, ∂damping, ∂rest)/∂it), …) of a spring's constants."""
+    numbers = spring.exact_numbers()
+    named = parameter_names(numbers)
+    return tuple((name, tuple(column)) for name, column in
+                 zip(named, gradient(numbers, named).T.tolist()))
 
 
 def _flexible_data(mech, starts) -> list[FlexibleData]:

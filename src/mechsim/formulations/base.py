@@ -71,8 +71,8 @@ class Formulation:
     options : dict of `mechsim.options.Option`: the `simulate` keywords it takes (checked
         before any work, set as attributes)
     needs_freedom : bool, it integrates independent coordinates (0 DOF: projection instead)
-    resolves_passages : bool, it follows the assembly branch through singular configurations
-        (else a run meeting one says it may have left its branch; `keeps_branch` may not retake)
+    resolves_passages : bool, it follows the assembly branch through singular
+        configurations (else a run meeting one says it may have left its branch)
 
     Called by the run
     -----------------
@@ -82,23 +82,17 @@ class Formulation:
     integrand : the callable the integrator about to start gets (default: `rhs`)
     state(t, y) -> (q, v) : the full coordinates and velocities
     states(ts, Y) -> (Q, V) : the same for the output samples inside a step (rows)
-    keeps_branch(t, y) -> bool : the step just taken stayed on its assembly branch (else
-        one that resolves passages gets it again, shorter)
-    after_step(t, y, step) -> Correction : after each accepted step of length `step` (or a
-        bridge's crossing) to (t, y): the state to go on from, what it means, and the
-        largest next step (see `Correction`). The run applies it; the formulation writes
-        nothing the run reads back.
+    keeps_branch(t, y) -> bool : the step just taken stayed on its assembly branch
+    after_step(t, y, step) -> Correction : after each accepted step (or a bridge's
+        crossing) to (t, y): the state to go on from, what it means, the largest next step
     derivative(t, q, v) -> y' : `rhs` at the y of a consistent (q, v), re-expressing a
         multistep history after a restart (NotImplementedError: history not carried over)
-    resume(t, q, v, extra=None) -> y : the state of (q, v) in the present layout (after a
-        bridge; `extra`: the numbers its `extension_of` gave, carried over by the bridge)
-    extension_of(y) -> array or None : the numbers y carries besides the motion (None:
-        none), which a bridge carries over a passage with it
+    resume(t, q, v, extra=None) -> y : the state of (q, v) in the present layout after a
+        bridge (`extra`: what `extension_of(y)` gave before it, carried over)
+    extension_of(y), extras(ts, Y) : what y carries besides the motion (None: nothing),
+        and its `width` numbers at the output samples (rows Y), which the run keeps
     project_now : None or (t, y) -> projected y or None: projection inside an integrator's
         step where it can (Adams: P E C, project, E)
-    extras : None or (ts, Y) -> rows of `width` numbers: what the state carries besides
-        the motion (the sensitivities of `mechsim.formulations.tangent`), at the output
-        samples (ts, rows Y of the state); the run keeps them with its samples
 
     Given at construction
     ---------------------

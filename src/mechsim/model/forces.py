@@ -19,7 +19,9 @@ import inspect
 
 import numpy as np
 
-from .checks import ModelError, name_or_default, scalar, scalar_or_function, vector2
+from . import parameters as dual
+from .checks import (ModelError, name_or_default, scalar, scalar_exact, scalar_or_function,
+                     vector2)
 from .bodies import Body
 from .joints import Joint
 
@@ -67,11 +69,28 @@ class Spring:
         self.body_b = _check_body(body_b, "body_b", owner)
         self.at_a = vector2(at_a, "at_a", owner)
         self.at_b = vector2(at_b, "at_b", owner)
-        self.stiffness = scalar(stiffness, "stiffness", owner, nonnegative=True)
-        self.damping = scalar(damping, "damping", owner, nonnegative=True)
+        # Stiffness, damping and rest length take Parameters (their floats for the runs).
+        self.stiffness, self.exact_stiffness = scalar_exact(stiffness, "stiffness", owner,
+                                                            nonnegative=True)
+        self.damping, self.exact_damping = scalar_exact(damping, "damping", owner,
+                                                        nonnegative=True)
         initial = float(np.hypot(*(self.at_b - self.at_a)))
-        self.rest_length = (initial if rest_length is None
-                            else scalar(rest_length, "rest_length", owner, nonnegative=True))
+        self.rest_length, self.exact_rest = (initial, initial) if rest_length is None else \
+            scalar_exact(rest_length, "rest_length", owner, nonnegative=True)
+
+    def exact_numbers(self) -> list:
+        """Stiffness, damping and rest length as given (Parameters kept)."""
+        return [self.exact_stiffness, self.exact_damping, self.exact_rest]
+
+    def refresh_numbers(self) -> None:
+        """Their values again, after the Parameters took new ones."""
+        owner = f"spring '{self.name}'"
+        self.stiffness = scalar(dual.value_of(self.exact_stiffness), "stiffness", owner,
+                                nonnegative=True)
+        self.damping = scalar(dual.value_of(self.exact_damping), "damping", owner,
+                              nonnegative=True)
+        self.rest_length = scalar(dual.value_of(self.exact_rest), "rest_length", owner,
+                                  nonnegative=True)
 
     @property
     def bodies(self):
@@ -167,11 +186,27 @@ class RotationalSpring:
         self.body_b = _check_body(body_b, "body_b", owner)
         if body_a is body_b:
             raise ModelError(f"{owner}: connects body '{body_a.name}' to itself")
-        self.stiffness = scalar(stiffness, "stiffness", owner, nonnegative=True)
-        self.damping = scalar(damping, "damping", owner, nonnegative=True)
-        self.rest_angle = (float(body_b.angle - body_a.angle) if rest_angle is None
-                           else scalar(rest_angle, "rest_angle", owner))
+        self.stiffness, self.exact_stiffness = scalar_exact(stiffness, "stiffness", owner,
+                                                            nonnegative=True)
+        self.damping, self.exact_damping = scalar_exact(damping, "damping", owner,
+                                                        nonnegative=True)
+        initial = float(body_b.angle - body_a.angle)
+        self.rest_angle, self.exact_rest = (initial, initial) if rest_angle is None else \
+            scalar_exact(rest_angle, "rest_angle", owner)
         self.rest_from_bodies = rest_angle is None
+
+    def exact_numbers(self) -> list:
+        """Stiffness, damping and rest angle as given (Parameters kept)."""
+        return [self.exact_stiffness, self.exact_damping, self.exact_rest]
+
+    def refresh_numbers(self) -> None:
+        """Their values again, after the Parameters took new ones."""
+        owner = f"rotational spring '{self.name}'"
+        self.stiffness = scalar(dual.value_of(self.exact_stiffness), "stiffness", owner,
+                                nonnegative=True)
+        self.damping = scalar(dual.value_of(self.exact_damping), "damping", owner,
+                              nonnegative=True)
+        self.rest_angle = scalar(dual.value_of(self.exact_rest), "rest_angle", owner)
 
     @property
     def bodies(self):

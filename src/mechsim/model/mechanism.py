@@ -248,7 +248,9 @@ class MechanismModel:
     def _exact_numbers(self) -> list:
         """Every number of the bodies and joints that may be a Parameter or computed from
         them (`mechsim.model.parameters`)."""
-        return [x for owner in self.bodies + self.joints for x in owner.exact_numbers()]
+        springs = [ld for ld in self.loads if hasattr(ld, "exact_numbers")]
+        return [x for owner in self.bodies + self.joints + springs
+                for x in owner.exact_numbers()]
 
     def parameter_blind_loads(self) -> list[str]:
         """The loads that depend on Parameters but do not carry their derivatives (a
@@ -317,7 +319,8 @@ class MechanismModel:
         for name, value in values.items():
             found[name].set(value)
         refresh(numbers)
-        for owner in self.bodies + self.joints:
+        for owner in self.bodies + self.joints + \
+                [ld for ld in self.loads if hasattr(ld, "refresh_numbers")]:
             owner.refresh_numbers()
         self._problem = None
         self._assembled = None

@@ -25,6 +25,8 @@ class SpringData:
     rest_length: float
     modal_a: np.ndarray | None = None     # (2, k) modal displacement of a point on a beam
     modal_b: np.ndarray | None = None
+    # ∂(stiffness, damping, rest length)/∂k of the Parameters k they depend on: (k, triple).
+    partials: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,7 @@ class RotationalSpringData:
     stiffness: float
     damping: float
     rest: float
+    partials: tuple = ()          # ∂(stiffness, damping, rest)/∂k: (k, triple)
 
     def angles(self, x):
         """θ_b − θ_a (or ω_b − ω_a from velocities) over leading dimensions of x (at most
@@ -205,6 +208,43 @@ class Loads:
             value = load.value(t, q, v) if callable(load.value) else load.value
             _, _, _, _, r, dr = _point_jet(q, v, dq, dv, load.body, load.s)
             out[load.body + 2] += dr[0] * value[1] - dr[1] * value[0]
+        return out
+
+    def parameter_derivative(self, t, q, v, names) -> np.ndarray:
+        """∂Q/∂k (n, K) at (t, q, v) of the springs' and torsion springs' stiffness,
+        damping and rest length or angle, to the Parameters `names` (rigid bodies)."""
+        out = np.zeros((self.n, len(names)))
+        column = {name: j for j, name in enumerate(names)}
+        for sp in self.springs:
+            wanted = [(column[k], d) for k, d in sp.partials if k in column]
+            if not wanted:
+                continue
+            pa, va, _, _, ra, _ = _point_jet(q, v, np.zeros((self.n, 1)), np.zeros((self.n, 1)),
+                                             sp.a, sp.sa)
+            pb, vb, _, _, rb, _ = _point_jet(q, v, np.zeros((self.n, 1)), np.zeros((self.n, 1)),
+                                             sp.b, sp.sb)
+            d = pb - pa
+            length = math.hypot(d[0], d[1])
+            if length == 0.0:
+                continue
+            e = d / length
+            rate = (vb - va) @ e
+            for j, (dk, dc, dl) in wanted:
+                dtension = dk * (length - sp.rest_length) - sp.stiffness * dl + dc * rate
+                col = out[:, j:j + 1]
+                zero = np.zeros((2, 1))
+                _add_force_derivative(col, sp.a, ra, zero, np.zeros(2), dtension * e[:, None])
+                _add_force_derivative(col, sp.b, rb, zero, np.zeros(2), -dtension * e[:, None])
+        for rs in self.torsion:
+            for k, (dk, dc, drest) in rs.partials:
+                if k not in column:
+                    continue
+                dtorque = -dk * (rs.angles(q) - rs.rest) + rs.stiffness * drest \
+                    - dc * rs.angles(v)
+                if rs.b is not None:
+                    out[rs.b + 2, column[k]] += dtorque
+                if rs.a is not None:
+                    out[rs.a + 2, column[k]] -= dtorque
         return out
 
     # --- work ------------------------------------------------------------------------------

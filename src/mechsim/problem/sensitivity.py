@@ -148,7 +148,8 @@ class Sensitivities:
             r3q, r3p = self.module.multiplier_terms(q, l, t, prob.p)
             rhs = per_mass[:, None] * Mk - Mk * a[:, None] - M[:, None] * self.a[i] \
                 - r3q @ self.q[i] - r3p @ self.P \
-                + prob.load_model.derivative(t, q, self.V[i], self.q[i], self.v[i])
+                + prob.load_model.derivative(t, q, self.V[i], self.q[i], self.v[i]) \
+                + prob.load_model.parameter_derivative(t, q, self.V[i], self.names)
             out[i] = self._factors[i](rhs, transposed=True)
         return out
 
@@ -278,7 +279,8 @@ class MotionEquations:
         _, _, _, r2q, r2v, r2p = self.module.sensitivity_terms(q, v, a, t, prob.p)
         r3q, r3p = self.module.multiplier_terms(q, lam, t, prob.p)
         F = self.Qk - self.Mk * a[:, None] - r3q @ Sq - r3p @ self.P \
-            + prob.load_model.derivative(t, q, v, Sq, Sv)
+            + prob.load_model.derivative(t, q, v, Sq, Sv) \
+            + prob.load_model.parameter_derivative(t, q, v, self.names)
         g = -(r2q @ Sq + r2v @ Sv + r2p @ self.P)
         return F, g
 
