@@ -180,3 +180,18 @@ def test_a_pin_typed_far_off_and_a_body_joined_to_nothing_are_warned_of():
     assert not any("joint 'A'" in t or "joint 'B'" in t for t in texts)
     good = ms.examples.four_bar()
     assert good.placement_warnings() == []
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("stiffness", "abc", "`stiffness` must be a number"),
+    ("damping", -1.0, "`damping` must be non-negative"),
+    ("rest_length", float("nan"), "`rest_length` must be finite"),
+])
+def test_a_spring_s_constants_are_checked_naming_the_spring(field, value, message):
+    """Stiffness, damping and rest length take Parameters, and anything else than a
+    number is still refused naming the spring and the argument."""
+    mech = ms.examples.pendulum()
+    arguments = {"stiffness": 10.0, **{field: value}}
+    with pytest.raises(ms.ModelError, match=f"spring 'pull': {message}"):
+        ms.Spring(mech.ground, mech.body("rod"), (0.0, 0.0), (1.0, 0.0), name="pull",
+                  **arguments)

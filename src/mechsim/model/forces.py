@@ -52,7 +52,41 @@ def _check_body(body, role: str, owner: str) -> Body:
     return body
 
 
-class Spring:
+class _Constants:
+    """Stiffness, damping and a rest value (`rest_name`: a length, or an angle) that take
+    Parameters: their floats for the runs, the numbers as given kept (`exact_numbers`)
+    and taken again after the Parameters took new values (`refresh_numbers`)."""
+    rest_name = "rest_length"
+    owner_kind = "spring"
+
+    def _take_constants(self, owner, stiffness, damping, rest, initial) -> None:
+        """Checked (a ModelError naming `owner` and the argument); `rest` None: `initial`
+        (the rest value as built)."""
+        self.exact_stiffness = scalar_exact(stiffness, "stiffness", owner, nonnegative=True)[1]
+        self.exact_damping = scalar_exact(damping, "damping", owner, nonnegative=True)[1]
+        self.exact_rest = initial if rest is None else scalar_exact(
+            rest, self.rest_name, owner, nonnegative=self.rest_name == "rest_length")[1]
+        self._floats(owner)
+
+    def _floats(self, owner) -> None:
+        self.stiffness = scalar(dual.value_of(self.exact_stiffness), "stiffness", owner,
+                                nonnegative=True)
+        self.damping = scalar(dual.value_of(self.exact_damping), "damping", owner,
+                              nonnegative=True)
+        setattr(self, self.rest_name,
+                scalar(dual.value_of(self.exact_rest), self.rest_name, owner,
+                       nonnegative=self.rest_name == "rest_length"))
+
+    def exact_numbers(self) -> list:
+        """Stiffness, damping and rest value as given (Parameters kept)."""
+        return [self.exact_stiffness, self.exact_damping, self.exact_rest]
+
+    def refresh_numbers(self) -> None:
+        """Their values again, after the Parameters took new ones."""
+        self._floats(f"{self.owner_kind} '{self.name}'")
+
+
+class Spring(_Constants):
     """A linear spring–damper between point `at_a` of body_a and `at_b` of body_b.
 
     Points are global in the initial configuration. Tension f = k (l − l₀) + c l̇ acts along
@@ -69,28 +103,9 @@ class Spring:
         self.body_b = _check_body(body_b, "body_b", owner)
         self.at_a = vector2(at_a, "at_a", owner)
         self.at_b = vector2(at_b, "at_b", owner)
-        # Stiffness, damping and rest length take Parameters (their floats for the runs).
-        self.stiffness, self.exact_stiffness = scalar_exact(stiffness, "stiffness", owner,
-                                                            nonnegative=True)
-        self.damping, self.exact_damping = scalar_exact(damping, "damping", owner,
-                                                        nonnegative=True)
-        initial = float(np.hypot(*(self.at_b - self.at_a)))
-        self.rest_length, self.exact_rest = (initial, initial) if rest_length is None else \
-            scalar_exact(rest_length, "rest_length", owner, nonnegative=True)
-
-    def exact_numbers(self) -> list:
-        """Stiffness, damping and rest length as given (Parameters kept)."""
-        return [self.exact_stiffness, self.exact_damping, self.exact_rest]
-
-    def refresh_numbers(self) -> None:
-        """Their values again, after the Parameters took new ones."""
-        owner = f"spring '{self.name}'"
-        self.stiffness = scalar(dual.value_of(self.exact_stiffness), "stiffness", owner,
-                                nonnegative=True)
-        self.damping = scalar(dual.value_of(self.exact_damping), "damping", owner,
-                              nonnegative=True)
-        self.rest_length = scalar(dual.value_of(self.exact_rest), "rest_length", owner,
-                                  nonnegative=True)
+        self.rest_from_bodies = False
+        self._take_constants(owner, stiffness, damping, rest_length,
+                             float(np.hypot(*(self.at_b - self.at_a))))
 
     @property
     def bodies(self):
@@ -168,13 +183,15 @@ class Torque:
         return (self.body,)
 
 
-class RotationalSpring:
+class RotationalSpring(_Constants):
     """A torsion spring–damper between body_a and body_b (either may be the ground).
 
     The torque on body_b is −k (θ_b − θ_a − rest_angle) − c (ω_b − ω_a), the opposite on
     body_a; θ is a body's frame angle (a beam's floating frame). `rest_angle` defaults to
     the relative angle as built, so the spring is relaxed in the initial configuration.
     """
+    rest_name = "rest_angle"
+    owner_kind = "rotational spring"
 
     def __init__(self, body_a: Body, body_b: Body, stiffness: float, damping: float = 0.0,
                  rest_angle: float | None = None, name: str | None = None):
@@ -186,27 +203,9 @@ class RotationalSpring:
         self.body_b = _check_body(body_b, "body_b", owner)
         if body_a is body_b:
             raise ModelError(f"{owner}: connects body '{body_a.name}' to itself")
-        self.stiffness, self.exact_stiffness = scalar_exact(stiffness, "stiffness", owner,
-                                                            nonnegative=True)
-        self.damping, self.exact_damping = scalar_exact(damping, "damping", owner,
-                                                        nonnegative=True)
-        initial = float(body_b.angle - body_a.angle)
-        self.rest_angle, self.exact_rest = (initial, initial) if rest_angle is None else \
-            scalar_exact(rest_angle, "rest_angle", owner)
         self.rest_from_bodies = rest_angle is None
-
-    def exact_numbers(self) -> list:
-        """Stiffness, damping and rest angle as given (Parameters kept)."""
-        return [self.exact_stiffness, self.exact_damping, self.exact_rest]
-
-    def refresh_numbers(self) -> None:
-        """Their values again, after the Parameters took new ones."""
-        owner = f"rotational spring '{self.name}'"
-        self.stiffness = scalar(dual.value_of(self.exact_stiffness), "stiffness", owner,
-                                nonnegative=True)
-        self.damping = scalar(dual.value_of(self.exact_damping), "damping", owner,
-                              nonnegative=True)
-        self.rest_angle = scalar(dual.value_of(self.exact_rest), "rest_angle", owner)
+        self._take_constants(owner, stiffness, damping, rest_angle,
+                             float(body_b.angle - body_a.angle))
 
     @property
     def bodies(self):
