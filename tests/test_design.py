@@ -344,3 +344,74 @@ def test_path_synthesis_without_prescribed_timing_finds_the_points():
     assert sorted(design.variables) == [f"advance {i}" for i in range(1, 6)]
     got = mech.kinematics(over=("motor", objective.values)).point("coupler", (0.0, 0.0))
     assert np.max(np.hypot(*(got - targets).T)) < 1e-5
+
+
+def rocker_turns(values, angles):
+    """The rocker's turns from the first point at the crank's `angles`."""
+    kin = synthesis.path_four_bar(**values).kinematics(over=("motor", angles))
+    psi = kin.q[:, kin.coordinate_names.index("rocker.angle")]
+    return psi - psi[0]
+
+
+def test_function_generation_s_gradient_is_exact_and_it_finds_the_linkage():
+    """FunctionPoints: the rocker's turns against the crank's. Its gradient against
+    Richardson-extrapolated central differences, and the crank-rocker whose turns they
+    are found again from links 5–8 % off (the ground link fixed: angles do not scale)."""
+    angles = synthesis.ANGLES[:7]
+    targets = rocker_turns(synthesis.TRUE, angles)
+    objective = ms.FunctionPoints("ground", "rocker", targets, "motor", angles)
+    values = {**synthesis.TRUE, "a": 0.106, "b": 0.28, "c": 0.27}
+    mech = synthesis.path_four_bar(**{k: ms.Parameter(k, v) for k, v in values.items()})
+    names = ["a", "b", "c"]
+    value, grad = objective(mech, names)
+    assert value > 1e-4
+
+    def central(name, h):
+        up = objective(synthesis.path_four_bar(**{**values, name: values[name] + h}), [])[0]
+        down = objective(synthesis.path_four_bar(**{**values, name: values[name] - h}), [])[0]
+        return (up - down) / (2 * h)
+
+    for j, name in enumerate(names):
+        fd = (4 * central(name, 5e-5) - central(name, 1e-4)) / 3
+        assert grad[j] == pytest.approx(fd, rel=1e-6), name
+    design = ms.optimize(mech, objective, names, tol=1e-16)
+    assert np.sqrt(design.value) < 1e-7                     # rad
+    for name in names:
+        assert design.parameters[name] == pytest.approx(synthesis.TRUE[name], rel=1e-5)
+
+
+def test_motion_generation_adds_the_body_s_angle_with_exact_derivatives():
+    """PathPoints with `angles`: the coupler's angle errors weigh in (one radian as
+    `length` metres); the gradient against central differences, timing free too."""
+    angles = synthesis.ANGLES[:5]
+    known = synthesis.path_four_bar(**synthesis.TRUE).kinematics(over=("motor", angles))
+    poses = known.q[:, known.coordinate_names.index("coupler.angle")]
+    values = synthesis.start()
+    objective = ms.PathPoints("coupler", (0.0, 0.0), synthesis.targets()[:5], "motor",
+                              angles * 1.05, free_timing=True, angles=poses, length=0.2)
+    mech = synthesis.path_four_bar(**{k: ms.Parameter(k, v) for k, v in values.items()})
+    names = list(values)
+    value, grad = objective(mech, names)
+    plain = ms.PathPoints("coupler", (0.0, 0.0), synthesis.targets()[:5], "motor",
+                          angles * 1.05)(mech, [])[0]
+    assert value > plain
+
+    def at(name=None, h=0.0, advance=None):
+        if advance is not None:
+            x = objective.variable_values().copy()
+            x[advance] += h
+            objective.set_variables(x)
+            out = objective(mech, [])[0]
+            x[advance] -= h
+            objective.set_variables(x)
+            return out
+        return objective(synthesis.path_four_bar(**{**values, name: values[name] + h}),
+                         [])[0]
+
+    for j, name in enumerate(names):
+        h = 1e-5 * max(1.0, abs(values[name]))
+        fd = (at(name, h) - at(name, -h)) / (2 * h)
+        assert grad[j] == pytest.approx(fd, rel=1e-5, abs=1e-9 * value), name
+    for j in range(4):
+        fd = (at(h=1e-6, advance=j) - at(h=-1e-6, advance=j)) / 2e-6
+        assert grad[len(names) + j] == pytest.approx(fd, rel=1e-5, abs=1e-9 * value), j

@@ -27,6 +27,7 @@ _LAZY_NAMES = {"SimulationResult": "results", "load_result": "app.loading",
                "load_scene": "app.scene", "load_mechanism": "app.scene", "LinearSystem": "linear",
                "sweep": "study",
                "Study": "study", "optimize": "design", "PathPoints": "design",
+               "FunctionPoints": "design",
                "EffortNorm": "design", "TransmissionAngle": "design",
                "multistart": "design"}
 _ALIASES = {"solver": "run.solver", "scene": "app.scene", "bench": "app.bench",
@@ -51,5 +52,5 @@ def __dir__():
 
 __all__ = ["AssemblyError", "Body", "Channel", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Friction", "Gear", "Ground", "Joint",
            "LinearSystem", "Mechanism", "ModelError", "Parameter", "PointOnCurve", "Prismatic", "Revolute", "RigidBody",
-           "RotationalSpring", "SimulationResult", "Spring", "Stop", "Study", "Torque", "load_mechanism", "optimize", "PathPoints", "EffortNorm", "TransmissionAngle", "multistart",
+           "RotationalSpring", "SimulationResult", "Spring", "Stop", "Study", "Torque", "load_mechanism", "optimize", "PathPoints", "FunctionPoints", "EffortNorm", "TransmissionAngle", "multistart",
            "load_result", "load_scene", "sweep"]

@@ -12,8 +12,10 @@ the mechanism's present design and ∂value/∂(each of `names`) (an empty array
 `names` is empty). A design where the objective cannot be evaluated (the mechanism does
 not assemble, its analysis fails) raises `DesignError` (or a ModelError) there; the
 optimizer is then given a value above every one it has seen, and the result counts such
-designs. Ready objectives: `PathPoints` (path generation with prescribed or free timing),
-`EffortNorm` (a driver's RMS effort, or a smooth stand-in for its peak).
+designs. Ready objectives: `PathPoints` (path generation with prescribed or free timing,
+and motion generation: the body's angle too), `FunctionPoints` (function generation: an
+output angle against the driver's), `EffortNorm` (a driver's RMS effort, or a smooth
+stand-in for its peak).
 
 An objective may carry variables of its own besides the mechanism's Parameters (a path's
 free timing): it then has `variables` (their names), `variable_values()`,
@@ -51,6 +53,10 @@ class PathPoints:
     joint by `values[i]` from where it starts. Its value is the mean squared distance to
     the targets [m²]; its gradient is exact (the point's kinematic sensitivities).
 
+    Motion generation: with `angles` (one per target [rad]) the body's angle should take
+    them too, each radian weighing as `length` metres (the value adds the mean squared
+    angle error times length²).
+
     With `free_timing`, the timing is not prescribed: the driver's advances between
     successive points, values[i] − values[i − 1] (the first value stays), are the
     objective's own variables ("advance 1", …), each of the sign the given values advance
@@ -58,8 +64,13 @@ class PathPoints:
     velocity over the driver's rate)."""
 
     def __init__(self, body, local, targets, driver, values, free_timing=False,
-                 min_advance=1e-3):
+                 min_advance=1e-3, angles=None, length=1.0):
         self.body, self.driver = body, driver
+        self.angles = None if angles is None else np.asarray(angles, float).ravel()
+        self.length = float(length)
+        if self.angles is not None and self.angles.shape != np.shape(values):
+            raise ValueError(f"PathPoints: `angles` must be one per value "
+                             f"({np.size(values)}), got {self.angles.size}")
         self.local = tuple(float(x) for x in np.asarray(local, float).ravel())
         self.targets = np.asarray(targets, float)
         self.values = np.asarray(values, float).ravel()
@@ -113,20 +124,70 @@ class PathPoints:
         grad = [2.0 * float(np.mean(np.sum(
             d * kin.sensitivity(k, of="point", body=body, local=self.local), axis=1)))
             for k in names]
+        e = None
+        if self.angles is not None:
+            column = kin.coordinate_names.index(f"{body.name}.angle")
+            e = kin.q[:, column] - self.angles
+            value += self.length ** 2 * float(np.mean(e * e))
+            grad = [g + 2.0 * self.length ** 2 * float(np.mean(e * kin.sensitivity(k)[:, column]))
+                    for g, k in zip(grad, names)]
         if self.free_timing and names:
-            grad += list(self._timing_gradient(mech, kin, body, d))
+            grad += list(self._timing_gradient(mech, kin, body, d, e))
         return value, np.array(grad)
 
-    def _timing_gradient(self, mech, kin, body, d) -> np.ndarray:
+    def _timing_gradient(self, mech, kin, body, d, e) -> np.ndarray:
         """∂value/∂(advance j) = Σ_{i ≥ j} ∂value/∂values[i], ∂r_i/∂values[i] being the
-        point's velocity over the driver's rate at sample i."""
+        point's velocity over the driver's rate at sample i (and the body's angular
+        velocity over it for the angle errors `e`, None without)."""
         driver = next(x for x in mech.drivers
                       if x is self.driver or x.name == getattr(self.driver, "name",
                                                                self.driver))
         rates = np.array([driver.law.jet("t", float(t))[1] for t in kin.t])
         along = kin.point_velocity(body, self.local) / rates[:, None]
         per_value = 2.0 * np.sum(d * along, axis=1) / len(self.values)
+        if e is not None:
+            per_value += 2.0 * self.length ** 2 * e * kin.angular_velocity(body) / rates \
+                / len(self.values)
         return np.cumsum(per_value[::-1])[::-1][1:]
+
+
+class FunctionPoints:
+    """Function generation: the angle of `body_b` relative to `body_a` (bodies or names;
+    the ground's angle is 0) should have turned by `targets[i]` [rad] from its value at the
+    first point when `driver` has moved its joint by `values[i]` (targets[0] is 0). Its
+    value is the mean squared error of those turns [rad²], its gradient exact (the
+    angles' kinematic sensitivities)."""
+
+    def __init__(self, body_a, body_b, targets, driver, values):
+        self.body_a, self.body_b, self.driver = body_a, body_b, driver
+        self.targets = np.asarray(targets, float).ravel()
+        self.values = np.asarray(values, float).ravel()
+        if self.targets.shape != self.values.shape or self.values.size < 2:
+            raise ValueError(f"FunctionPoints: `targets` must be one turn per value (at "
+                             f"least two), got {self.targets.size} for {self.values.size}")
+
+    def _angle(self, kin, body, of):
+        """Body's angle (or its sensitivity `of`) over the samples; 0 for the ground."""
+        name = getattr(body, "name", body)
+        key = f"{name}.angle"
+        if key not in kin.coordinate_names:
+            return np.zeros(len(kin.t))
+        column = kin.coordinate_names.index(key)
+        return (kin.q if of is None else kin.sensitivity(of))[:, column]
+
+    def __call__(self, mech, names):
+        kin = mech.kinematics(over=(self.driver, self.values),
+                              sensitivities=list(names) or None)
+        if not kin.success or len(kin.t) != len(self.values):
+            raise DesignError(f"the function's points could not be reached: {kin.message}")
+
+        def turn(of=None):
+            psi = self._angle(kin, self.body_b, of) - self._angle(kin, self.body_a, of)
+            return psi - psi[0]
+        error = turn() - self.targets
+        value = float(np.mean(error * error))
+        grad = [2.0 * float(np.mean(error * turn(k))) for k in names]
+        return value, np.array(grad)
 
 
 class _OnAnalysis:
