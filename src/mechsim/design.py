@@ -139,9 +139,7 @@ class PathPoints:
         """∂value/∂(advance j) = Σ_{i ≥ j} ∂value/∂values[i], ∂r_i/∂values[i] being the
         point's velocity over the driver's rate at sample i (and the body's angular
         velocity over it for the angle errors `e`, None without)."""
-        driver = next(x for x in mech.drivers
-                      if x is self.driver or x.name == getattr(self.driver, "name",
-                                                               self.driver))
+        driver = mech.driver(self.driver)
         rates = np.array([driver.law.jet("t", float(t))[1] for t in kin.t])
         along = kin.point_velocity(body, self.local) / rates[:, None]
         per_value = 2.0 * np.sum(d * along, axis=1) / len(self.values)

@@ -278,10 +278,10 @@ class Mechanism(MechanismModel):
             raise ValueError("simulate: sensitivities through stops and friction are not "
                              "carried yet")
         equations = MotionEquations(self.problem(), sensitivity_model(self), names)
-        dq, dv = self.initial_partials(names)
         if self._state is not None:            # a state set by the user: held as given
-            dq, dv = np.zeros_like(dq), np.zeros_like(dv)
-        return equations, dq, dv
+            held = np.zeros((len(self.coordinate_names), len(names)))
+            return equations, held, held
+        return (equations, *self.initial_partials(names))
 
     def steady_state(self, period: float, guess=None, method: str = "newton",
                      tol: float = 1e-8, max_iter: int = 30, t_start: float = 0.0,

@@ -217,12 +217,12 @@ def times_of(mech, driver, values, t_start=0.0, horizon=1e6) -> np.ndarray:
     up to `horizon` s) until it covers them, must be monotonic there, and is inverted by
     Brent's method. KinematicsError where it is not monotonic or does not reach them."""
     from scipy.optimize import brentq
-    if not any(d is driver or d.name == getattr(driver, "name", driver) for d in mech.drivers):
+    try:
+        driver = mech.driver(driver)
+    except KeyError:
         raise KinematicsError(f"kinematics: `over` names no driver of mechanism "
                               f"'{mech.name}'; drivers: "
-                              f"{', '.join(d.name for d in mech.drivers) or '(none)'}")
-    driver = next(d for d in mech.drivers
-                  if d is driver or d.name == getattr(driver, "name", driver))
+                              f"{', '.join(d.name for d in mech.drivers) or '(none)'}") from None
     values = np.asarray(values, float).ravel()
     if values.size < 2 or not np.all(np.isfinite(values)) or \
             not (np.all(np.diff(values) > 0) or np.all(np.diff(values) < 0)):

@@ -89,8 +89,8 @@ class Formulation:
         multistep history after a restart (NotImplementedError: history not carried over)
     resume(t, q, v, extra=None) -> y : the state of (q, v) in the present layout after a
         bridge (`extra`: what `extension_of(y)` gave before it, carried over)
-    extension_of(y), extras(ts, Y) : what y carries besides the motion (None: nothing),
-        and its `width` numbers at the output samples (rows Y), which the run keeps
+    extension_of(y), extras(ts, Y, Q, V) : what y carries besides the motion (None:
+        nothing), and its `width` numbers at the output samples, which the run keeps
     project_now : None or (t, y) -> projected y or None: projection inside an integrator's
         step where it can (Adams: P E C, project, E)
 

@@ -307,14 +307,8 @@ class Projection(FullCoordinates):
         for _ in range(2):
             a = f.right(x)
             mean = np.zeros_like(a)
-            for sign in (1.0, -1.0):
-                h = sign * delta
-                ts = t + h
-                qs, _, _ = prob.project_positions(q + h * v + 0.5 * h * h * a, ts, tol=1e-13)
-                vs = prob.project_velocities(qs, v + h * a, ts)
-                Js, gs = prob.solver_dynamics_terms(qs, vs, ts)
-                acc, _ = prob.accelerations(Js, prob.forces(ts, qs, vs), gs, qs)
-                mean += 0.5 * acc
+            for h in (delta, -delta):
+                mean += 0.5 * end_state(prob, t, q, v, a, h)[3]
             x = x + W @ (W.T @ (f.unright(mean) - x))
         return x
 
@@ -376,7 +370,18 @@ class Projection(FullCoordinates):
         return v - f.right(V @ (Ui @ (J @ v + prob.phi_t(q, t))))
 
 
-def crossing_cluster(prob, t, q, v, Jt, f, r, U, sig, Vt, cut, reach=1e-2):
+def end_state(prob, t, q, v, a, h):
+    """(t + h, q, v, q̈) at the consistent state a time h from (t, q, v) with
+    accelerations a (`Projection._across`): the Taylor positions projected to 1e-13, the
+    velocities projected, q̈ by the exact Schur complement (out of the band)."""
+    ts = t + h
+    qs, _, _ = prob.project_positions(q + h * v + 0.5 * h * h * a, ts, tol=1e-13)
+    vs = prob.project_velocities(qs, v + h * a, ts)
+    Js, gs = prob.solver_dynamics_terms(qs, vs, ts)
+    return ts, qs, vs, prob.accelerations(Js, prob.forces(ts, qs, vs), gs, qs)[0]
+
+
+def crossing_cluster(prob, t, q, v, Jt, f, r, U, sig, Vt, cut):
     """The singular directions crossing the truncation band at (t, q, v) (`Projection`'s
     `_across`): (W, δ, redundant) with W the right singular vectors of the mass-scaled
     Jacobian Jt = U diag(sig) Vt of its cluster of small, moving singular values (None
@@ -384,8 +389,7 @@ def crossing_cluster(prob, t, q, v, Jt, f, r, U, sig, Vt, cut, reach=1e-2):
     at least 2 cuts out of the band, and the number of singular values at round-off that
     do not move (redundant constraints); None where the mechanism stands still. `r`:
     the singular values kept by the truncation at `cut` (relative to the largest); `f`
-    the mass factor; `reach`: the largest distance (δ times the fastest speed) a
-    crossing may take (slower ones stay truncated)."""
+    the mass factor."""
     speed = float(np.max(np.abs(v)))
     if speed == 0.0:
         return None
@@ -412,7 +416,7 @@ def crossing_cluster(prob, t, q, v, Jt, f, r, U, sig, Vt, cut, reach=1e-2):
             redundant += 1
             continue
         step = 3.0 * cut / slope if slope > 0.0 else np.inf
-        if step * speed > reach:
+        if step * speed > 1e-2:
             continue
         cluster.append(k)
         delta = max(delta, step)

@@ -23,14 +23,7 @@ import numpy as np
 
 from .base import Correction, Formulation
 from ..problem.sensitivity import ROUND_OFF
-from .projection import RCOND, crossing_cluster, truncation_cut
-
-
-# q̈_k's band: singular values of the mass-scaled Φ_q below this many of the projection
-# method's cuts are interpolated across (see `Tangent._across`), over at most REACH of
-# motion.
-BAND = 1.0
-REACH = 1e-2
+from .projection import RCOND, crossing_cluster, end_state, truncation_cut
 
 
 class Tangent(Formulation):
@@ -77,7 +70,7 @@ class Tangent(Formulation):
     def cut(self) -> float:
         """The truncation of Φ_q's small singular values in q̈_k (the projection method's
         default)."""
-        return BAND * truncation_cut(RCOND, self.monitor, self.problem.algebra)
+        return truncation_cut(RCOND, self.monitor, self.problem.algebra)
 
     def _split(self, y):
         nb = len(y) - self.width
@@ -130,21 +123,18 @@ class Tangent(Formulation):
         prob, eq = self.problem, self.eq
         f = prob.mass_factor(q)
         crossing = crossing_cluster(prob, t, q, v, dropped.Jt, f, dropped.r, dropped.U,
-                                    dropped.sig, dropped.Vt, self.cut, REACH)
+                                    dropped.sig, dropped.Vt, self.cut)
         if crossing is None or crossing[0] is None:
             return ak
         W, delta, _ = crossing
+        # The motion's end states depend on q̈ alone, not on the passes over q̈_k.
+        ends = [(h, end_state(prob, t, q, v, a, h)) for h in (delta, -delta)]
         s = eq.s
         x = ak / s
         for _ in range(2):
             ak = s * x
             mean = np.zeros_like(ak)
-            for h in (delta, -delta):
-                ts = t + h
-                qs, _, _ = prob.project_positions(q + h * v + 0.5 * h * h * a, ts, tol=1e-13)
-                vs = prob.project_velocities(qs, v + h * a, ts)
-                Js, gs = prob.dynamics_terms(qs, vs, ts)
-                acc, _ = prob.accelerations(Js, prob.forces(ts, qs, vs), gs, qs)
+            for h, (ts, qs, vs, acc) in ends:
                 Sqs, Svs = eq.project(ts, qs, vs, Sq + h * Sv + 0.5 * h * h * ak, Sv + h * ak)
                 mean += 0.5 * eq.accelerations(ts, qs, vs, Sqs, Svs, ROUND_OFF, acc)[0]
             x = x + W @ (W.T @ (mean / s - x))
@@ -164,11 +154,10 @@ class Tangent(Formulation):
     def keeps_branch(self, t, y):
         return self.base.keeps_branch(t, y[:len(y) - self.width])
 
-    def extras(self, ts, Y):
-        """The sensitivities at the output samples (ts, rows Y), each put on the tangent
-        at its sample's state."""
+    def extras(self, ts, Y, Q, V):
+        """The sensitivities at the output samples (ts, rows Y of the state, the samples'
+        (Q, V) as recorded), each put on the tangent at its sample's state."""
         Y = np.atleast_2d(Y)
-        Q, V = self.states(ts, Y)
         out = np.empty((len(ts), self.width))
         for k, (t, q, v, y) in enumerate(zip(ts, Q, V, Y)):
             _, Sq, Sv = self._split(y)
@@ -189,7 +178,8 @@ class Tangent(Formulation):
         q, v = self.base.state(t, yb_new)
         scale = max(self._scale, float(np.max(np.abs(Sq), initial=0.0)),
                     float(np.max(np.abs(Sv), initial=0.0)))
-        if c.y is None and self.eq.residual(t, q, v, Sq, Sv) <= self.tol.manifold * scale:
+        moved = self.eq.project(t, q, v, Sq, Sv,
+                                None if c.y is not None else self.tol.manifold * scale)
+        if moved is None:
             return c
-        return Correction(self._join(yb_new, *self.eq.project(t, q, v, Sq, Sv)),
-                          c.layout_changed, False, c.step_limit)
+        return Correction(self._join(yb_new, *moved), c.layout_changed, False, c.step_limit)

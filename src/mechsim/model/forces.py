@@ -103,7 +103,6 @@ class Spring(_Constants):
         self.body_b = _check_body(body_b, "body_b", owner)
         self.at_a = vector2(at_a, "at_a", owner)
         self.at_b = vector2(at_b, "at_b", owner)
-        self.rest_from_bodies = False
         self._take_constants(owner, stiffness, damping, rest_length,
                              float(np.hypot(*(self.at_b - self.at_a))))
 

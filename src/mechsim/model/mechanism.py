@@ -208,6 +208,14 @@ class MechanismModel:
         raise KeyError(f"mechanism '{self.name}' has no body '{name}'; bodies: "
                        f"{', '.join(b.name for b in self._all_bodies())}")
 
+    def driver(self, driver) -> Driver:
+        """The driver given as itself or by name; KeyError listing the drivers."""
+        for d in self.drivers:
+            if d is driver or d.name == getattr(driver, "name", driver):
+                return d
+        raise KeyError(f"mechanism '{self.name}' has no driver {driver!r:.60}; drivers: "
+                       f"{', '.join(d.name for d in self.drivers) or '(none)'}")
+
     def joint(self, name: str) -> Joint:
         for j in self.joints:
             if j.name == name:
@@ -248,9 +256,12 @@ class MechanismModel:
     def _exact_numbers(self) -> list:
         """Every number of the bodies and joints that may be a Parameter or computed from
         them (`mechsim.model.parameters`)."""
-        springs = [ld for ld in self.loads if hasattr(ld, "exact_numbers")]
-        return [x for owner in self.bodies + self.joints + springs
-                for x in owner.exact_numbers()]
+        return [x for owner in self._parametrized() for x in owner.exact_numbers()]
+
+    def _parametrized(self) -> list:
+        """Bodies, joints and springs: what holds numbers that may be Parameters."""
+        return self.bodies + self.joints + [ld for ld in self.loads
+                                            if hasattr(ld, "exact_numbers")]
 
     def parameter_blind_loads(self) -> list[str]:
         """The loads that depend on Parameters but do not carry their derivatives (a
@@ -319,8 +330,7 @@ class MechanismModel:
         for name, value in values.items():
             found[name].set(value)
         refresh(numbers)
-        for owner in self.bodies + self.joints + \
-                [ld for ld in self.loads if hasattr(ld, "refresh_numbers")]:
+        for owner in self._parametrized():
             owner.refresh_numbers()
         self._problem = None
         self._assembled = None

@@ -197,13 +197,13 @@ class Loads:
             _add_force_derivative(out, sp.a, ra, dra, tension * e, dF)
             _add_force_derivative(out, sp.b, rb, drb, -tension * e, -dF)
         for rs in self.torsion:
-            dtorque = -rs.stiffness * _relative(rs, dq) - rs.damping * _relative(rs, dv)
+            dtorque = -rs.stiffness * rs.angles(dq.T) - rs.damping * rs.angles(dv.T)
             if rs.b is not None:
                 out[rs.b + 2] += dtorque
             if rs.a is not None:
                 out[rs.a + 2] -= dtorque
         for load in self.loads:
-            if load.is_torque or load.body is None:
+            if load.is_torque:
                 continue
             value = load.value(t, q, v) if callable(load.value) else load.value
             _, _, _, _, r, dr = _point_jet(q, v, dq, dv, load.body, load.s)
@@ -212,29 +212,26 @@ class Loads:
 
     def parameter_derivative(self, t, q, v, names) -> np.ndarray:
         """∂Q/∂k (n, K) at (t, q, v) of the springs' and torsion springs' stiffness,
-        damping and rest length or angle, to the Parameters `names` (rigid bodies)."""
+        damping and rest length or angle, to the Parameters `names` (rigid bodies): the
+        tension's (torque's) change along the spring's present line."""
         out = np.zeros((self.n, len(names)))
         column = {name: j for j, name in enumerate(names)}
         for sp in self.springs:
             wanted = [(column[k], d) for k, d in sp.partials if k in column]
             if not wanted:
                 continue
-            pa, va, _, _, ra, _ = _point_jet(q, v, np.zeros((self.n, 1)), np.zeros((self.n, 1)),
-                                             sp.a, sp.sa)
-            pb, vb, _, _, rb, _ = _point_jet(q, v, np.zeros((self.n, 1)), np.zeros((self.n, 1)),
-                                             sp.b, sp.sb)
-            d = pb - pa
+            d = np.subtract(point(q, sp.b, sp.sb), point(q, sp.a, sp.sa))
             length = math.hypot(d[0], d[1])
             if length == 0.0:
                 continue
             e = d / length
-            rate = (vb - va) @ e
+            rate = np.subtract(point_velocity(q, v, sp.b, sp.sb),
+                               point_velocity(q, v, sp.a, sp.sa)) @ e
             for j, (dk, dc, dl) in wanted:
-                dtension = dk * (length - sp.rest_length) - sp.stiffness * dl + dc * rate
-                col = out[:, j:j + 1]
-                zero = np.zeros((2, 1))
-                _add_force_derivative(col, sp.a, ra, zero, np.zeros(2), dtension * e[:, None])
-                _add_force_derivative(col, sp.b, rb, zero, np.zeros(2), -dtension * e[:, None])
+                f = (dk * (length - sp.rest_length) - sp.stiffness * dl + dc * rate) * e
+                col = out[:, j]
+                add_point_force(col, q, sp.a, sp.sa, f[0], f[1])
+                add_point_force(col, q, sp.b, sp.sb, -f[0], -f[1])
         for rs in self.torsion:
             for k, (dk, dc, drest) in rs.partials:
                 if k not in column:
@@ -347,9 +344,3 @@ def _add_force_derivative(out, start, r, dr, F, dF) -> None:
         return
     out[start:start + 2] += dF
     out[start + 2] += dr[0] * F[1] + r[0] * dF[1] - dr[1] * F[0] - r[1] * dF[0]
-
-
-def _relative(rs, x):
-    """θ_b − θ_a of rows x (n, K) of a torsion spring (`RotationalSpringData.angles`)."""
-    b = x[rs.b + 2] if rs.b is not None else 0.0
-    return b - x[rs.a + 2] if rs.a is not None else b

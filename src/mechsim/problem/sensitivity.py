@@ -73,9 +73,7 @@ class Sensitivities:
         self.names = list(names)
         self._lam = lam
         self._factors = [_factor(problem.phi_q(q, tk)) for tk, q in zip(self.t, self.Q)]
-        self.P = np.column_stack([problem.parameter_partials.get(k, np.zeros(len(problem.p)))
-                                  for k in self.names]) if self.names else \
-            np.zeros((len(problem.p), 0))
+        self.P = parameter_partials(problem, self.names)
         self.q, self.v, self.a = self._states()
         self._multipliers = None
 
@@ -139,17 +137,12 @@ class Sensitivities:
                              + load_blindness(self.blind_loads[0]))
         lam = np.asarray(self._lam(), float)
         M = prob.mass_diagonal
-        per_mass = np.divide(prob.load_model.gravity_force, M, out=np.zeros(prob.n),
-                             where=M > 0)                       # g on rigid x, y
-        Mk = np.column_stack([prob.mass_partials.get(k, np.zeros(prob.n))
-                              for k in self.names])            # (n, K)
+        forces = ForceSensitivity(prob, self.names)
         out = np.zeros((len(self.t), prob.m, len(self.names)))
-        for i, (t, q, a, l) in enumerate(zip(self.t, self.Q, self.A, lam)):
+        for i, (t, q, v, a, l) in enumerate(zip(self.t, self.Q, self.V, self.A, lam)):
             r3q, r3p = self.module.multiplier_terms(q, l, t, prob.p)
-            rhs = per_mass[:, None] * Mk - Mk * a[:, None] - M[:, None] * self.a[i] \
-                - r3q @ self.q[i] - r3p @ self.P \
-                + prob.load_model.derivative(t, q, self.V[i], self.q[i], self.v[i]) \
-                + prob.load_model.parameter_derivative(t, q, self.V[i], self.names)
+            rhs = forces(t, q, v, a, self.q[i], self.v[i]) - M[:, None] * self.a[i] \
+                - r3q @ self.q[i] - r3p @ self.P
             out[i] = self._factors[i](rhs, transposed=True)
         return out
 
@@ -175,6 +168,27 @@ def _loads_differentiated(problem, what="sensitivities of the multipliers") -> N
         why = "friction"
     if why:
         raise ValueError(f"{what}: {why} is not differentiated yet")
+
+
+class ForceSensitivity:
+    """Q_k − M_k q̈ of M q̈ + Φ_qᵀ λ = Q differentiated in the Parameters `names`, at a
+    state with sensitivities (q_k, v_k): gravity's through the masses, the loads' through
+    the state (`Loads.derivative`) and their own constants (`Loads.parameter_derivative`),
+    less M_k q̈ (n, K)."""
+
+    def __init__(self, problem, names):
+        self.problem, self.names = problem, list(names)
+        M = problem.mass_diagonal
+        self.Mk = np.column_stack([problem.mass_partials.get(k, np.zeros(problem.n))
+                                   for k in self.names])
+        per_mass = np.divide(problem.load_model.gravity_force, M, out=np.zeros(problem.n),
+                             where=M > 0)                       # g on rigid x, y
+        self.gravity = per_mass[:, None] * self.Mk
+
+    def __call__(self, t, q, v, a, Sq, Sv) -> np.ndarray:
+        loads = self.problem.load_model
+        return self.gravity - self.Mk * a[:, None] + loads.derivative(t, q, v, Sq, Sv) \
+            + loads.parameter_derivative(t, q, v, self.names)
 
 
 def parameter_partials(problem, names) -> np.ndarray:
@@ -205,12 +219,7 @@ class MotionEquations:
         _loads_differentiated(problem, "sensitivities of a simulation")
         self.problem, self.module, self.names = problem, module, list(names)
         self.P = parameter_partials(problem, self.names)
-        M = problem.mass_diagonal
-        self.Mk = np.column_stack([problem.mass_partials.get(k, np.zeros(problem.n))
-                                   for k in self.names])
-        per_mass = np.divide(problem.load_model.gravity_force, M, out=np.zeros(problem.n),
-                             where=M > 0)
-        self.Qk = per_mass[:, None] * self.Mk                 # gravity's ∂Q/∂k
+        self.forces = ForceSensitivity(problem, self.names)
         self.s = problem.mass_factor(None).s[:, None]          # M^{-1/2} (rigid: constant)
 
     @property
@@ -232,9 +241,6 @@ class MotionEquations:
         dropped = Truncation(Jt, U, sig, Vt, r) if r < sig.size and \
             sig[r] > ROUND_OFF * sig[0] else None
         return Vt[:r].T, (U[:, :r] / sig[:r]).T, dropped
-
-    def _pinv(self, J, cut):
-        return self._svd(J, cut)[:2]
 
     def accelerations(self, t, q, v, Sq, Sv, cut, a=None):
         """(q̈_k (n, K), q̈, truncation) at the state (t, q, v) with sensitivities
@@ -278,32 +284,26 @@ class MotionEquations:
         prob = self.problem
         _, _, _, r2q, r2v, r2p = self.module.sensitivity_terms(q, v, a, t, prob.p)
         r3q, r3p = self.module.multiplier_terms(q, lam, t, prob.p)
-        F = self.Qk - self.Mk * a[:, None] - r3q @ Sq - r3p @ self.P \
-            + prob.load_model.derivative(t, q, v, Sq, Sv) \
-            + prob.load_model.parameter_derivative(t, q, v, self.names)
+        F = self.forces(t, q, v, a, Sq, Sv) - r3q @ Sq - r3p @ self.P
         g = -(r2q @ Sq + r2v @ Sv + r2p @ self.P)
         return F, g
 
-    def residual(self, t, q, v, Sq, Sv) -> float:
-        """The largest violation of the sensitivities' position and velocity levels."""
-        J, r0p, r1q, r1p = self._levels(t, q, v)
-        return max(np.max(np.abs(J @ Sq + r0p @ self.P), initial=0.0),
-                   np.max(np.abs(J @ Sv + r1q @ Sq + r1p @ self.P), initial=0.0))
-
-    def _levels(self, t, q, v):
-        prob = self.problem
-        r0p, r1q, r1p = self.module.sensitivity_terms(q, v, np.zeros(prob.n), t, prob.p)[:3]
-        return sparse.dense(prob.phi_q(q, t)), r0p, r1q, r1p
-
-    def project(self, t, q, v, Sq, Sv):
+    def project(self, t, q, v, Sq, Sv, tol=None):
         """(Sq, Sv) moved onto the constraints' tangent at the consistent (t, q, v): the
         smallest change in the mass metric (Φ_q's pseudo-inverse truncated only at
-        round-off), the linearisation of the assembly's own correction."""
-        J, r0p, r1q, r1p = self._levels(t, q, v)
+        round-off), the linearisation of the assembly's own correction. With `tol`: None
+        where the position and velocity levels are violated by `tol` at most already."""
+        prob = self.problem
+        r0p, r1q, r1p = self.module.sensitivity_terms(q, v, np.zeros(prob.n), t, prob.p)[:3]
+        J = sparse.dense(prob.phi_q(q, t))
+        r0, r1 = J @ Sq + r0p @ self.P, J @ Sv + r1q @ Sq + r1p @ self.P
+        if tol is not None and max(np.max(np.abs(r0), initial=0.0),
+                                   np.max(np.abs(r1), initial=0.0)) <= tol:
+            return None
         if not J.shape[0]:
             return Sq, Sv
-        V, Ui = self._pinv(J, ROUND_OFF)
-        Sq = Sq - self.s * (V @ (Ui @ (J @ Sq + r0p @ self.P)))
+        V, Ui = self._svd(J, ROUND_OFF)[:2]
+        Sq = Sq - self.s * (V @ (Ui @ r0))
         Sv = Sv - self.s * (V @ (Ui @ (J @ Sv + r1q @ Sq + r1p @ self.P)))
         return Sq, Sv
 

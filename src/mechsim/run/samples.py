@@ -196,8 +196,8 @@ class Recorder:
         self.n = problem.n
         capacity = len(ts) if ts is not None else 256
         # What the formulation carries besides the motion (its sensitivities), `width`
-        # numbers per sample from `extras(times, Y)` (rows of the integrator's state), in
-        # memory also where the samples are streamed.
+        # numbers per sample from `extras(times, Y, Q, V)` (rows of the integrator's state
+        # and the samples as recorded), in memory also where the samples are streamed.
         self.extras = extras
         self.extra = Rows(width, capacity if extras is not None else 0)
         if stream is not None:       # an OutputDirectory: samples.bin, work.bin
@@ -227,19 +227,20 @@ class Recorder:
         """The times of the samples from global index k on (recorded in this step)."""
         return self.samples.since(k)[:, 0]
 
-    def _extra(self, ts, Y) -> None:
-        """The formulation's extras at the samples (ts, rows Y) being recorded (NaN where
-        the state is not at hand)."""
+    def _extra(self, ts, Y, Q, V) -> None:
+        """The formulation's extras at the samples (ts, Q, V; rows Y of the state) being
+        recorded (NaN where the state is not at hand)."""
         if Y is None:
             self.extra.extend(np.full((len(ts), self.extra.data.shape[1]), np.nan))
         else:
-            self.extra.extend(self.extras(np.asarray(ts, float), np.atleast_2d(Y)))
+            self.extra.extend(self.extras(np.asarray(ts, float), np.atleast_2d(Y),
+                                          np.atleast_2d(Q), np.atleast_2d(V)))
 
     def record(self, t, q, v, y=None) -> None:
         """One sample (t, q, v); `y`: the integrator's state there (for `extras`)."""
         check_finite(self.problem, t, q, v)
         if self.extras is not None:
-            self._extra([t], y)
+            self._extra([t], y, q, v)
         s = self.samples
         s.room()
         row = s.data[s.held]
@@ -255,7 +256,7 @@ class Recorder:
                 self.record(tk, q, v, None if Y is None else Y[k])
             return
         if self.extras is not None:
-            self._extra(ts, Y)
+            self._extra(ts, Y, Q, V)
         s, k, n = self.samples, len(ts), self.n
         s.room(k)
         block = s.data[s.held:s.held + k]
