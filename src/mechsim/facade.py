@@ -240,8 +240,9 @@ class Mechanism(MechanismModel):
 
         `sensitivities`: names of Parameters (`parameters`) whose exact sensitivities the
         motion carries, integrated with it under the same error control
-        (`mechsim.formulations.tangent`; rigid bodies under gravity, springs, dampers,
-        forces and torques of time; flexible bodies, friction and stops are refused);
+        (`mechsim.formulations.tangent`; rigid bodies and flexible beams under gravity,
+        springs, dampers, forces and torques of time on rigid bodies; loads on a beam,
+        friction and stops are refused);
         `result.sensitivity(name, of=...)` gives them at the samples. They start from the
         assembly linearised at the given configuration: exact where that configuration
         satisfies the joints (the message says so where the assembly moved it)."""

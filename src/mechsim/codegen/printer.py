@@ -188,12 +188,14 @@ class _ModuleWriter:
                          ["\n\n".join(self.functions), ""])
 
 
-def kernel_source(q, v, p, functions, key: str) -> str:
-    """A module of free-standing kernels over block arguments `_q`, `_v`, `_p` (symbol lists
-    `q`, `v`, `p`): `functions` is a list of (name, args, outputs, doc) as for
-    `_ModuleWriter.function`. Used for the flexible-beam mass matrix and forces."""
+def kernel_source(q, v, p, functions, key: str, a=()) -> str:
+    """A module of free-standing kernels over block arguments `_q`, `_v`, `_p` and `_a`
+    (symbol lists `q`, `v`, `p`, `a`): `functions` is a list of (name, args, outputs, doc)
+    as for `_ModuleWriter.function`. Used for the flexible-beam mass matrix and forces and
+    their derivatives."""
     from types import SimpleNamespace
-    w = _ModuleWriter(SimpleNamespace(q=list(q), v=list(v), p=list(p), phi=sp.zeros(0, 1)))
+    w = _ModuleWriter(SimpleNamespace(q=list(q), v=list(v), p=list(p), a=list(a),
+                                      phi=sp.zeros(0, 1)))
     for name, args, outputs, doc in functions:
         w.function(name, args, outputs, doc)
     return w.module(key)

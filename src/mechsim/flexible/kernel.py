@@ -10,11 +10,16 @@ Kernel functions, with `_q`, `_v` the beam's block of coordinates and velocities
 
     mass_block(_q, _p)          -> (3 + k, 3 + k)
     forces(_q, _v, _p)          -> (3 + k,)  quadratic-velocity, gravity, elastic, damping
+    mass_action_q(_q, _a, _p)   -> (3 + k, 3 + k)  ∂(M(q) a)/∂q
+    force_jacobians(_q, _v, _p) -> (∂Q/∂q, ∂Q/∂v), each (3 + k, 3 + k)
+
+The last two are what a simulation's sensitivities differentiate the beam's equations of
+motion with (`mechsim.problem.sensitivity.MotionEquations`).
 """
 
 from __future__ import annotations
 
-KERNEL_VERSION = 1
+KERNEL_VERSION = 2
 
 
 def parameter_count(k: int) -> int:
@@ -29,6 +34,7 @@ def _source(k: int, key: str) -> str:
 
     q = sp.symbols(f"x y th eta1:{k + 1}", real=True)
     v = sp.symbols(f"xd yd w e1:{k + 1}", real=True)
+    acc = sp.symbols(f"xdd ydd wd ed1:{k + 1}", real=True)
     th, eta = q[2], sp.Matrix(q[3:])
     w, e = v[2], sp.Matrix(v[3:])
     p = list(sp.symbols(f"p0:{parameter_count(k)}", real=True))
@@ -71,7 +77,11 @@ def _source(k: int, key: str) -> str:
         ("mass_block", ("_q", "_p"), [M], "Mass matrix of the beam's block."),
         ("forces", ("_q", "_v", "_p"), [Q],
          "Quadratic-velocity, gravity, elastic and modal damping forces of the block."),
-    ], key)
+        ("mass_action_q", ("_q", "_a", "_p"), [(M * sp.Matrix(acc)).jacobian(q)],
+         "∂(M(q) a)/∂q of the block."),
+        ("force_jacobians", ("_q", "_v", "_p"), [Q.jacobian(q), Q.jacobian(v)],
+         "(∂Q/∂q, ∂Q/∂v) of the block's forces."),
+    ], key, a=acc)
 
 
 def load_kernel(k: int):

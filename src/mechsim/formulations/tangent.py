@@ -129,16 +129,15 @@ class Tangent(Formulation):
         W, delta, _ = crossing
         # The motion's end states depend on q̈ alone, not on the passes over q̈_k.
         ends = [(h, end_state(prob, t, q, v, a, h)) for h in (delta, -delta)]
-        s = eq.s
-        x = ak / s
+        x = f.unright(ak)
         for _ in range(2):
-            ak = s * x
+            ak = f.right(x)
             mean = np.zeros_like(ak)
             for h, (ts, qs, vs, acc) in ends:
                 Sqs, Svs = eq.project(ts, qs, vs, Sq + h * Sv + 0.5 * h * h * ak, Sv + h * ak)
                 mean += 0.5 * eq.accelerations(ts, qs, vs, Sqs, Svs, ROUND_OFF, acc)[0]
-            x = x + W @ (W.T @ (mean / s - x))
-        return s * x
+            x = x + W @ (W.T @ (f.unright(mean) - x))
+        return f.right(x)
 
     def state(self, t, y):
         return self.base.state(t, y[:len(y) - self.width])

@@ -165,9 +165,13 @@ class Loads:
     # --- derivatives ---------------------------------------------------------------------
     def not_differentiated(self) -> str:
         """What keeps `derivative` from differentiating Q ("" where nothing does): a
-        flexible body, or a load whose function reads the state."""
-        if self.flexible:
-            return f"the flexible body '{self.flexible[0].name}'"
+        spring or load on a flexible body, or a load whose function reads the state."""
+        for sp in self.springs:
+            if sp.modal_a is not None or sp.modal_b is not None:
+                return f"the spring '{sp.name}' on a flexible body"
+        for load in self.loads:
+            if load.modal is not None:
+                return f"the load '{load.name}' on a flexible body"
         for load in self.loads:
             if load.reads_state:
                 return (f"the {'torque' if load.is_torque else 'force'} '{load.name}', "
@@ -178,8 +182,12 @@ class Loads:
         """∂Q/∂q dq + ∂Q/∂v dv at (t, q, v) for the directions dq, dv (n, K): exact, for
         rigid bodies and loads whose values depend on t alone (`not_differentiated`).
         Gravity's force is constant; a spring's tension and direction, a torsion spring's
-        torque and every load's moment arm move with the state."""
+        torque and every load's moment arm move with the state; a flexible beam's forces
+        (quadratic-velocity, gravity, elastic, damping) by its kernel's Jacobians."""
         out = np.zeros_like(dq)
+        for fb in self.flexible:
+            Qq, Qv = fb.kernel.force_jacobians(q[fb.slice], v[fb.slice], fb.parameters)
+            out[fb.slice] += Qq @ dq[fb.slice] + Qv @ dv[fb.slice]
         for sp in self.springs:
             pa, va, dpa, dva, ra, dra = _point_jet(q, v, dq, dv, sp.a, sp.sa)
             pb, vb, dpb, dvb, rb, drb = _point_jet(q, v, dq, dv, sp.b, sp.sb)

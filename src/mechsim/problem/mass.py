@@ -31,16 +31,16 @@ class MassFactor:
         return J @ self.Linv.T
 
     def left(self, x):
-        """L⁻¹ x."""
-        return self.s * x if self.Linv is None else self.Linv @ x
+        """L⁻¹ x (x of shape (n,) or (n, K))."""
+        return (x.T * self.s).T if self.Linv is None else self.Linv @ x
 
     def right(self, x):
-        """L⁻ᵀ x."""
-        return self.s * x if self.Linv is None else self.Linv.T @ x
+        """L⁻ᵀ x (x of shape (n,) or (n, K))."""
+        return (x.T * self.s).T if self.Linv is None else self.Linv.T @ x
 
     def unright(self, x):
         """Lᵀ x, the inverse of `right`: accelerations q̈ into the scaled x = Lᵀ q̈."""
-        return x / self.s if self.Linv is None else np.linalg.solve(self.Linv.T, x)
+        return (x.T / self.s).T if self.Linv is None else np.linalg.solve(self.Linv.T, x)
 
 
 class MassModel:
@@ -86,6 +86,15 @@ class MassModel:
         f = MassFactor(Linv=Linv)
         self._last_factor = (key, f)
         return f
+
+    def action_derivative(self, q, a, dq) -> np.ndarray:
+        """∂(M(q) a)/∂q dq for the directions dq (n, K): zero but on the flexible blocks,
+        from their kernels (the rigid bodies' M is constant)."""
+        out = np.zeros_like(dq)
+        for fb in self.flexible:
+            out[fb.slice] = fb.kernel.mass_action_q(q[fb.slice], a[fb.slice],
+                                                    fb.parameters) @ dq[fb.slice]
+        return out
 
     def kinetic_energy(self, q, v) -> np.ndarray:
         """½ vᵀ M(q) v over leading dimensions of q and v."""
