@@ -195,6 +195,13 @@ def test_mechsim_optimize_finds_the_design_the_python_interface_finds(tmp_path, 
     (dict(constraint=[{"transmission_angle": {"bodies": ["rod", "plunger"], "minimum": 95}}]),
      "`minimum` must be degrees between 0 and 90"),
     (dict(constraint=[{"pressure_angle": 30.0}]), "expected transmission_angle"),
+    (dict(objective={"peak_joint_force": "bearing"}), "no joint 'bearing'; joints: main"),
+    (dict(constraint=[{"grashof_crank": {"links": ["r_cw", 0.3, 0.2]}}]),
+     "expected grashof_crank = { links"),
+    (dict(constraint=[{"grashof_crank": {"links": ["crank", 0.3, 0.2, 0.4]}}]),
+     "'crank' is not one of the scene's \\[parameters\\]"),
+    (dict(constraint=[{"grashof_crank": {"links": [0.1, 0.3, 0.2, 0.4], "margin": -1}}]),
+     "`margin` must be a length"),
 ])
 def test_a_design_file_s_mistakes_are_named_before_any_evaluation(tmp_path, monkeypatch,
                                                                    capsys, changes, message):
@@ -415,3 +422,78 @@ def test_motion_generation_adds_the_body_s_angle_with_exact_derivatives():
     for j in range(4):
         fd = (at(h=1e-6, advance=j) - at(h=-1e-6, advance=j)) / 2e-6
         assert grad[len(names) + j] == pytest.approx(fd, rel=1e-5, abs=1e-9 * value), j
+
+
+@pytest.mark.parametrize("joint, p", [("O", 16.0), ("A", 2.0), ("guide", 16.0)])
+def test_the_joint_force_norm_s_gradient_is_exact(joint, p):
+    """JointForceNorm's gradient (the pin loads' sensitivities to the counterweight's mass
+    and radius and the guide's offset) against extrapolated central differences: the
+    crank's bearing, the crank pin and the plunger's guide."""
+    objective = ms.JointForceNorm(joint, p=p, over=("motor", np.radians(
+        np.arange(0.0, 361.0, 4.0))))
+    values = {"m_cw": 1.0, "r_cw": 0.05, "e": 0.01}
+    mech = counterweight.pump(**{k: ms.Parameter(k, v) for k, v in values.items()})
+    value, grad = objective(mech, list(values))
+    force = mech.kinematics(over=objective.over).joint_force(joint)
+    size = np.hypot(force[:, 0], force[:, 1])
+    assert value == pytest.approx(np.mean(size ** p) ** (1 / p), rel=1e-12)
+    for j, name in enumerate(values):
+        fd = _richardson(lambda x: objective(counterweight.pump(**{**values, name: x}), [])[0],
+                         values[name], 1e-3)
+        assert grad[j] == pytest.approx(fd, rel=1e-6, abs=1e-9 * value), name
+
+
+def test_the_grashof_crank_constraint_is_the_grashof_class_and_exact():
+    """Feasible exactly where `grashof_class` calls the four-bar a crank-rocker (600
+    random sets of lengths, an independent classification), linear in the lengths with
+    the jacobian on the named Parameters; a name that is no Parameter is refused by
+    optimize before any evaluation."""
+    class Lengths:                 # what the constraint reads of a mechanism (most of
+        name = "lengths"           # these lengths assemble no four-bar)
+        parameters = ["a", "b", "d"]
+
+        def parameter_values(self):
+            return self.values
+
+    rng = np.random.default_rng(7)
+    lengths = Lengths()
+    for a, b, c, d in rng.uniform(0.05, 1.0, size=(600, 4)):
+        lengths.values = {"a": a, "b": b, "d": d}
+        values, jac = ms.GrashofCrank("a", "b", c, "d")(lengths, ["d", "a"])
+        assert bool(np.all(values >= 0.0)) == \
+            (ms.examples.grashof_class(a, b, c, d) == "crank-rocker")
+        np.testing.assert_array_equal(jac, [[-1.0, -1.0], [1.0, -1.0], [1.0, -1.0]])
+    mech = ms.examples.coupler_four_bar(ms.Parameter("a", 0.1), ms.Parameter("b", 0.3),
+                                        0.25, ms.Parameter("d", 0.3), 0.1, 0.05, 0.4)
+    constraint = ms.GrashofCrank("a", "b", 0.25, "d")
+    values, _ = ms.GrashofCrank("a", "b", 0.25, "d", margin=0.01)(mech, [])
+    np.testing.assert_allclose(values, [0.14, 0.24, 0.14], atol=1e-15)
+    objective = ms.PathPoints("coupler", (0.0, 0.0), synthesis.targets(), "motor",
+                              synthesis.ANGLES)
+    with pytest.raises(ValueError, match="GrashofCrank: 'c' is no Parameter"):
+        ms.optimize(mech, objective, ["a"], constraints=[ms.GrashofCrank("a", "b", "c", "d")])
+    with pytest.raises(ValueError, match="the rocker must be a Parameter's name or a length"):
+        ms.GrashofCrank("a", "b", None, "d")
+    assert constraint(mech, ["a"])[1].shape == (3, 1)
+
+
+def test_a_design_file_s_pin_load_objective_is_the_python_one(tmp_path, monkeypatch):
+    """[objective] peak_joint_force on the pump's main bearing (its 16-norm mean over a
+    turn) through `mechsim optimize` and `ms.JointForceNorm` on the example's Python model
+    reach the same counterweight; the bearing's peak load falls from the start's."""
+    import tomllib
+    from mechsim.app.cli import main
+    monkeypatch.chdir(tmp_path)
+    path = _design_file(tmp_path, objective={"peak_joint_force": "main bearing"})
+    assert main(["optimize", str(path), "--quiet"]) == 0
+    with open(tmp_path / "out" / "pump_counterweight.toml", "rb") as fh:
+        written = tomllib.load(fh)
+    objective = ms.JointForceNorm("O", p=16.0, over=("motor", np.radians(
+        np.arange(0.0, 361.0, 2.0))))
+    start = counterweight.START
+    mech = counterweight.pump(**{k: ms.Parameter(k, v) for k, v in start.items()})
+    before = objective(mech, [])[0]
+    design = ms.optimize(mech, objective, list(start), bounds=counterweight.BOUNDS)
+    assert written["value"] == pytest.approx(design.value, rel=1e-6)
+    assert written["parameters"]["m_cw"] == pytest.approx(design.parameters["m_cw"], rel=1e-4)
+    assert design.value < 0.9 * before

@@ -29,6 +29,7 @@ _LAZY_NAMES = {"SimulationResult": "results", "load_result": "app.loading",
                "Study": "study", "optimize": "design", "PathPoints": "design",
                "FunctionPoints": "design",
                "EffortNorm": "design", "TransmissionAngle": "design",
+               "JointForceNorm": "design", "GrashofCrank": "design",
                "multistart": "design"}
 _ALIASES = {"solver": "run.solver", "scene": "app.scene", "bench": "app.bench",
             "rotor": "linear.rotor", "analysis": "linear.analysis",
@@ -52,5 +53,5 @@ def __dir__():
 
 __all__ = ["AssemblyError", "Body", "Channel", "LoadError", "DofReport", "Driver", "FlexibleBeam", "Force", "Friction", "Gear", "Ground", "Joint",
            "LinearSystem", "Mechanism", "ModelError", "Parameter", "PointOnCurve", "Prismatic", "Revolute", "RigidBody",
-           "RotationalSpring", "SimulationResult", "Spring", "Stop", "Study", "Torque", "load_mechanism", "optimize", "PathPoints", "FunctionPoints", "EffortNorm", "TransmissionAngle", "multistart",
+           "RotationalSpring", "SimulationResult", "Spring", "Stop", "Study", "Torque", "load_mechanism", "optimize", "PathPoints", "FunctionPoints", "EffortNorm", "TransmissionAngle", "multistart", "JointForceNorm", "GrashofCrank",
            "load_result", "load_scene", "sweep"]

@@ -15,7 +15,8 @@ optimizer is then given a value above every one it has seen, and the result coun
 designs. Ready objectives: `PathPoints` (path generation with prescribed or free timing,
 and motion generation: the body's angle too), `FunctionPoints` (function generation: an
 output angle against the driver's), `EffortNorm` (a driver's RMS effort, or a smooth
-stand-in for its peak).
+stand-in for its peak), `JointForceNorm` (the same of a joint's transmitted force: the
+peak pin load).
 
 An objective may carry variables of its own besides the mechanism's Parameters (a path's
 free timing): it then has `variables` (their names), `variable_values()`,
@@ -26,7 +27,9 @@ them in `Design.variables`.
 A constraint is a callable ``constraint(mech, names) -> (values, jacobian)``, feasible
 where every value is ≥ 0, its jacobian ∂values/∂(names), (m, len(names)) (scipy's
 constraint dicts over the parameters' values are taken as well). Ready:
-`TransmissionAngle` (a four-bar's transmission angle kept within bounds).
+`TransmissionAngle` (a four-bar's transmission angle kept within bounds) and
+`GrashofCrank` (its crank kept turning fully). An objective or constraint with a
+`check(mech)` method has it called before the search, to refuse what it cannot evaluate.
 
 `multistart` runs `optimize` from several starts spread over the bounds (a Latin
 hypercube) as a parameter study (`mechsim.study.sweep`: local processes or a dask
@@ -228,6 +231,76 @@ class EffortNorm(_OnAnalysis):
         return value, np.array(grad)
 
 
+class JointForceNorm(_OnAnalysis):
+    """The p-norm mean of the magnitude of the force a joint transmits, |F| [N] of
+    `joint_force(joint)`, over a kinematic analysis: (mean |F|^p)^(1/p); p = 2 its RMS, a
+    large p (16) a smooth stand-in for the peak pin load (below it by at most N^(−1/p)
+    over N samples). The analysis as for `EffortNorm`. The gradient is exact (the joint
+    force's sensitivities): ∂/∂k = mean((|F|/value)^(p−1) F·∂F/∂k / |F|)."""
+
+    def __init__(self, joint, p: float = 2.0, t_end=None, output_step=None, over=None):
+        if not p >= 1.0:
+            raise ValueError(f"JointForceNorm: `p` must be at least 1, got {p!r:.40}")
+        self.joint, self.p = joint, float(p)
+        self.t_end, self.output_step, self.over = t_end, output_step, over
+
+    def __call__(self, mech, names):
+        kin = self._analysis(mech, names)
+        force = kin.joint_force(self.joint)
+        size = np.hypot(force[:, 0], force[:, 1])
+        value = float(np.mean(size ** self.p) ** (1.0 / self.p))
+        if value == 0.0:
+            return 0.0, np.zeros(len(names))
+        along = np.divide(force, size[:, None], out=np.zeros_like(force),
+                          where=size[:, None] > 0.0)
+        weight = (size / value) ** (self.p - 1.0)
+        grad = [float(np.mean(weight * np.sum(along * kin.sensitivity(
+            k, of="joint_force", joint=self.joint), axis=1))) for k in names]
+        return value, np.array(grad)
+
+
+class GrashofCrank:
+    """A four-bar's crank kept turning fully: with crank a, coupler b, rocker c and ground
+    d, the crank the shortest link and s + l ≤ p + q (Grashof), i.e. the three linear
+    conditions b + c − a − d, b + d − a − c, c + d − a − b ≥ `margin` (each link's length
+    either the name of a Parameter or a number [m]; `margin` > 0 keeps the design away
+    from the change point, where the linkage can fold). Values ≥ 0 where feasible, with
+    their exact jacobian (±1 on the links' Parameters)."""
+
+    def __init__(self, crank, coupler, rocker, ground, margin: float = 0.0):
+        self.links = (crank, coupler, rocker, ground)
+        for role, link in zip(("crank", "coupler", "rocker", "ground"), self.links):
+            if isinstance(link, bool) or not isinstance(link, (str, int, float)):
+                raise ValueError(f"GrashofCrank: the {role} must be a Parameter's name or a "
+                                 f"length, got {link!r:.60}")
+        if isinstance(margin, bool) or not isinstance(margin, (int, float)) or margin < 0:
+            raise ValueError(f"GrashofCrank: `margin` must be a length ≥ 0, got {margin!r:.40}")
+        self.margin = float(margin)
+
+    # Rows: b + c − a − d, b + d − a − c, c + d − a − b over (a, b, c, d).
+    SIGNS = np.array([[-1.0, 1.0, 1.0, -1.0], [-1.0, 1.0, -1.0, 1.0],
+                      [-1.0, -1.0, 1.0, 1.0]])
+
+    def check(self, mech):
+        """ValueError naming a link that names no Parameter of `mech`."""
+        known = mech.parameters
+        for link in self.links:
+            if isinstance(link, str) and link not in known:
+                raise ValueError(f"GrashofCrank: {link!r:.60} is no Parameter of mechanism "
+                                 f"'{mech.name}'; its parameters: {', '.join(known) or '(none)'}")
+
+    def __call__(self, mech, names):
+        self.check(mech)
+        values = mech.parameter_values()
+        lengths = np.array([values[x] if isinstance(x, str) else float(x)
+                            for x in self.links])
+        jac = np.zeros((3, len(names)))
+        for j, link in enumerate(self.links):
+            if isinstance(link, str) and link in names:
+                jac[:, names.index(link)] += self.SIGNS[:, j]
+        return self.SIGNS @ lengths - self.margin, jac
+
+
 class TransmissionAngle(_OnAnalysis):
     """The angle μ between the x axes of two bodies (a four-bar's coupler and rocker,
     their frames along the links as `RigidBody.rod` puts them) kept at least `minimum`
@@ -328,6 +401,9 @@ def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
     if own:
         lows_highs = (lows_highs or [(None, None)] * len(names)) + \
             list(objective.variable_bounds())
+    for item in (objective, *constraints):
+        if hasattr(item, "check"):
+            item.check(mech)
     trials = _Trials(mech, names, exact, objective if own else None)
     scipy_constraints = [c if isinstance(c, dict) else trials.constraint(c, x0)
                          for c in constraints]

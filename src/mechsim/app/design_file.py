@@ -12,6 +12,8 @@
     [objective]                 # one of
     peak_effort = "motor"       # a driver's torque: its 16-norm mean, a smooth peak
     # rms_effort = "motor"      # its RMS
+    # peak_joint_force = "O"    # a joint's transmitted force: the same of its magnitude
+    # rms_joint_force = "O"
     # path = { body = "coupler", point = [0, 0], targets = [[x, y], ...] }
 
     [analysis]                  # the kinematic analysis the objective is taken over: a
@@ -21,6 +23,9 @@
 
     [[constraint]]              # any number of them, over the same analysis
     transmission_angle = { bodies = ["coupler", "rocker"], minimum = 40.0 }   # degrees
+    # grashof_crank = { links = ["a", "b", 0.25, "d"], margin = 0.005 }
+    #   crank, coupler, rocker, ground: a parameter's name or a length [m]; the crank
+    #   kept the shortest link of a Grashof four-bar (it turns fully)
 
 A path's targets are reached at the samples of `over`, one each (prescribed timing).
 Every key, name and number is checked before any evaluation; nothing in the file is
@@ -35,7 +40,8 @@ from pathlib import Path, PurePath
 
 import numpy as np
 
-from ..design import EffortNorm, PathPoints, TransmissionAngle, optimize
+from ..design import (EffortNorm, GrashofCrank, JointForceNorm, PathPoints,
+                      TransmissionAngle, optimize)
 from ..model import ModelError
 from ..model.parameters import Parameter
 from ..options import unknown_names
@@ -43,7 +49,7 @@ from .scene import load_scene, read_toml
 from .study_file import read_with_scene
 
 _TOP = {"scene", "output", "gradient", "parameters", "objective", "analysis", "constraint"}
-_OBJECTIVES = ("peak_effort", "rms_effort", "path")
+_OBJECTIVES = ("peak_effort", "rms_effort", "peak_joint_force", "rms_joint_force", "path")
 PEAK_NORM = 16.0
 
 
@@ -118,6 +124,9 @@ def _constraints(f, tables, mech, analysis) -> list:
     names = [b.name for b in mech.bodies]
     for i, table in enumerate(tables):
         where = f"{f}: [[constraint]] {i + 1}"
+        if set(table) == {"grashof_crank"}:
+            out.append(_grashof(where, table["grashof_crank"], mech))
+            continue
         spec = table.get("transmission_angle")
         if set(table) != {"transmission_angle"} or not isinstance(spec, dict) or \
                 set(spec) != {"bodies", "minimum"}:
@@ -136,6 +145,23 @@ def _constraints(f, tables, mech, analysis) -> list:
                                      output_step=analysis.get("output_step"),
                                      over=analysis.get("over")))
     return out
+
+
+def _grashof(where, spec, mech) -> GrashofCrank:
+    """A grashof_crank constraint: links (crank, coupler, rocker, ground), each a scene
+    parameter's name or a length, and an optional margin."""
+    if not (isinstance(spec, dict) and "links" in spec and set(spec) <= {"links", "margin"}
+            and isinstance(spec["links"], list) and len(spec["links"]) == 4):
+        raise DesignFileError(f"{where}: expected grashof_crank = {{ links = [crank, coupler, "
+                              f"rocker, ground], margin = length }}, got {spec!r:.80}")
+    for link in spec["links"]:
+        if isinstance(link, str) and link not in mech.parameters:
+            raise DesignFileError(f"{where}: grashof_crank: {link!r:.40} is not one of the "
+                                  f"scene's [parameters]: {', '.join(mech.parameters)}")
+    try:
+        return GrashofCrank(*spec["links"], margin=spec.get("margin", 0.0))
+    except ValueError as exc:
+        raise DesignFileError(f"{where}: {exc}") from None
 
 
 def _bounds(f, table, declared) -> dict:
@@ -200,6 +226,15 @@ def _objective(f, table, mech, analysis):
         return EffortNorm(subject, PEAK_NORM if kind == "peak_effort" else 2.0,
                           t_end=analysis.get("t_end"), output_step=analysis.get("output_step"),
                           over=analysis.get("over"))
+    if kind in ("peak_joint_force", "rms_joint_force"):
+        joints = [j.name for j in mech.joints]
+        if subject not in joints:
+            raise DesignFileError(f"{f}: [objective] {kind}: no joint {subject!r:.40}; joints: "
+                                  f"{', '.join(joints)}")
+        return JointForceNorm(subject, PEAK_NORM if kind == "peak_joint_force" else 2.0,
+                              t_end=analysis.get("t_end"),
+                              output_step=analysis.get("output_step"),
+                              over=analysis.get("over"))
     if "over" not in analysis:
         raise DesignFileError(f"{f}: [objective] path: its targets are timed by [analysis] "
                               "over (one target per sample)")
