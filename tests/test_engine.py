@@ -70,6 +70,11 @@ def test_compiled_evaluation_agrees_with_the_python_path(build, rng):
     assert np.abs(res.problem.phi(q, ts[0])).max() <= fast.newton_tol
     for x, z in zip(fast.states(np.array(ts), np.array(ys)), slow.states(np.array(ts), np.array(ys))):
         np.testing.assert_allclose(x, z, rtol=0, atol=1e-12 * (1.0 + np.abs(z).max()))
+    # The signs of det(Φ_q D) the engine takes from its LU factors (which branch each
+    # sample is on, `Partitioned.states`) are numpy's determinant's.
+    Q, _, signs = fast.engine.states(np.array(ts), np.array(ys))
+    J = np.array([res.problem.phi_q(q, tk) for q, tk in zip(Q, ts)])
+    np.testing.assert_array_equal(signs, np.linalg.slogdet(fast.basis.JD(J))[0])
 
 
 @needs_compiler

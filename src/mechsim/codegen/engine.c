@@ -49,10 +49,11 @@ static double max_abs(int64_t m, const double *x) {
 /* ---- the partitioned evaluation (Partitioned.full_state and its accelerations) ---- */
 
 /* Positions by the chord Newton from the prediction, Phi_q there and the velocities, into
-   q, v, J. 0: done; 1: Newton failed or contracted too slowly (Python decides); 2: Phi_q D
-   singular. */
+   q, v, J, and (where sign is not NULL) the sign of det(Phi_q D) from the LU the velocities
+   are solved with. 0: done; 1: Newton failed or contracted too slowly (Python decides); 2:
+   Phi_q D singular. */
 static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double *v,
-                    double *J) {
+                    double *J, double *sign) {
   const int64_t n = c->n, m = c->m, f = c->f, r = n - f, cols = 3 + f;
   const double *z = y, *zd = y + f;
   double *w = c->w, *phi = c->phi, *A = c->A, *b = c->b, *phit = c->phit;
@@ -97,21 +98,31 @@ static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double 
   int N = (int)r, nrhs = 1, info = 0;
   mechsim_dgesv(&N, &nrhs, A, &N, c->ipiv, b, &N, &info);
   if (info != 0) return 2;
+  if (sign) {                          /* P A = L U: det A = (-1)^swaps prod U_ii */
+    double s = 1.0;
+    for (int64_t i = 0; i < r; i++) {
+      if (A[i + i * r] < 0.0) s = -s;
+      if (c->ipiv[i] != (int)(i + 1)) s = -s;
+    }
+    *sign = s;
+  }
   for (int64_t k = 0; k < f; k++) v[c->ind[k]] = zd[k];
   for (int64_t i = 0; i < r; i++) v[c->dep[i]] = b[i];
   return 0;
 }
 
 int mechsim_lu_state(mechsim_lu *c, double t) {
-  return lu_state(c, t, c->y, c->q, c->v, c->J);
+  return lu_state(c, t, c->y, c->q, c->v, c->J, NULL);
 }
 
-/* k output samples (rows of Y) into the rows of Qo and Vo; the first failure's status. */
+/* k output samples (rows of Y) into the rows of Qo and Vo, the signs of det(Phi_q D) there
+   into signs; the first failure's status. */
 int mechsim_lu_states(mechsim_lu *c, int64_t k, const double *ts, const double *Y,
-                      double *Qo, double *Vo, double *Jwork) {
+                      double *Qo, double *Vo, double *Jwork, double *signs) {
   const int64_t n = c->n, f = c->f;
   for (int64_t s = 0; s < k; s++) {
-    const int status = lu_state(c, ts[s], Y + s * 2 * f, Qo + s * n, Vo + s * n, Jwork);
+    const int status = lu_state(c, ts[s], Y + s * 2 * f, Qo + s * n, Vo + s * n, Jwork,
+                                signs + s);
     if (status) return status;
   }
   return 0;

@@ -140,7 +140,7 @@ def library(model):
         for name in ("mechsim_lu_state", "mechsim_lu_accelerations"):
             fn = getattr(lib, name)
             fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_double], ctypes.c_int
-        lib.mechsim_lu_states.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 5
+        lib.mechsim_lu_states.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 6
         lib.mechsim_lu_states.restype = ctypes.c_int
         fn = lib.mechsim_projection_accelerations
         fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_double]
@@ -250,15 +250,16 @@ class PartitionedEngine:
         return self.out.copy()
 
     def states(self, ts, Y):
-        """(Q, V) of the output samples (rows of Y at the times ts), or None."""
+        """(Q, V, signs) of the output samples (rows of Y at the times ts), signs those of
+        det(Φ_q D) there (the partition's dependent columns in its order), or None."""
         ts = np.ascontiguousarray(ts, dtype=float)
         Y = np.ascontiguousarray(Y, dtype=float)
         k, n = len(ts), self.q.size
-        Qs, Vs = np.empty((k, n)), np.empty((k, n))
+        Qs, Vs, signs = np.empty((k, n)), np.empty((k, n)), np.empty(k)
         if self._states(self._ptr, k, ts.ctypes.data, Y.ctypes.data, Qs.ctypes.data,
-                        Vs.ctypes.data, self.J_samples.ctypes.data):
+                        Vs.ctypes.data, self.J_samples.ctypes.data, signs.ctypes.data):
             return None
-        return Qs, Vs
+        return Qs, Vs, signs
 
 
 class ProjectionEngine:

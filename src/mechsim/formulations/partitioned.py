@@ -275,13 +275,14 @@ class Partitioned(Formulation):
         started from the step's prediction, landed on the other branch (a long step) is
         solved again by following the path from the last accepted state. Dense blocks
         only; a long chain's samples are not checked."""
-        Q, V = self._solve_samples(ts, Y)
+        Q, V, signs = self._solve_samples(ts, Y)
         bs = self.basis
         if not self._square or not self._sign or self._end_sign != self._sign or bs.sparse:
             return Q, V           # (a step that crossed a passage: its samples stand)
-        prob = self.problem
-        J = np.array([prob.phi_q(q, t) for q, t in zip(Q, ts)])
-        signs = np.linalg.slogdet(bs.JD(J))[0]
+        if signs is None:
+            prob = self.problem
+            J = np.array([prob.phi_q(q, t) for q, t in zip(Q, ts)])
+            signs = np.linalg.slogdet(bs.JD(J))[0]
         for k in np.flatnonzero((signs != 0) & (signs != self._sign)):
             try:
                 Q[k], V[k] = self._followed_state(ts[k], Y[k])
@@ -309,7 +310,10 @@ class Partitioned(Formulation):
         return self._solve_samples(ts, Y, alone=self._alone)[0]
 
     def _alone(self, ts, Y):
-        return super().positions(ts, Y), None
+        return super().positions(ts, Y), None, None
+
+    def _one_by_one(self, ts, Y):
+        return *super().states(ts, Y), None
 
     def _solve_samples(self, ts, Y, alone=None):
         """The output samples of a step, solved for together: the chord Newton on all
@@ -319,10 +323,12 @@ class Partitioned(Formulation):
         ufuncs over all of them cost twice as much as the scalar kernels one by one. A
         chord that stalls on any sample, a non-square Φ_q D (redundant constraints), a
         singular or a sparse one (long chains) leaves the samples to `alone(ts, Y)` (by
-        default `state`, one by one)."""
+        default `state`, one by one). Returns (Q, V, signs): signs those of det(Φ_q D) at
+        the samples where the solve gave them, else None."""
         prob, bs = self.problem, self.basis
+        alone = alone or self._one_by_one
         if len(ts) < 2 or not self._square or bs.sparse:
-            return (alone or super().states)(ts, Y)
+            return alone(ts, Y)
         if self.engine is not None and self.engine.ready:
             done = self.engine.states(ts, Y)
             if done is not None:
@@ -344,17 +350,18 @@ class Partitioned(Formulation):
                       stall=self.stall, round_off=ROUND_OFF,
                       contraction=CHORD_CONTRACTION)
         if not done.converged:
-            return (alone or super().states)(ts, Y)
+            return alone(ts, Y)
         Q = done.aux
         J = np.array([prob.phi_q(q, t) for q, t in zip(Q, ts)])       # (k, m, n)
         r = -(bs.JB(J) @ Zd[:, :, None])[:, :, 0]
         if self._rheonomic:
             r -= np.array([prob.phi_t(q, t) for q, t in zip(Q, ts)])
+        A = bs.JD(J)
         try:
-            Wd = np.linalg.solve(bs.JD(J), r[:, :, None])[:, :, 0]
+            Wd = np.linalg.solve(A, r[:, :, None])[:, :, 0]
         except np.linalg.LinAlgError:
-            return (alone or super().states)(ts, Y)
-        return Q, bs.assemble(Zd.T, Wd.T).T
+            return alone(ts, Y)
+        return Q, bs.assemble(Zd.T, Wd.T).T, np.linalg.slogdet(A)[0]
 
     def rhs(self, t, y):
         prob = self.problem
