@@ -376,3 +376,47 @@ def test_the_flexible_slider_crank_agrees_with_finite_differences():
         assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference)), of
         assert np.max(np.abs(got[:, eta] - reference[:, eta])) < \
             1e-5 * np.max(np.abs(reference[:, eta])), of
+
+
+def test_an_extended_run_carries_its_sensitivities_on():
+    """`extend` goes on from the last sample's sensitivities: the double four-bar's
+    ∂θ/∂L over 1.5 s and then to 3 s (three passages in all, one after the join) agrees
+    with the branch's exact variational solution as an uninterrupted run does."""
+    res = chain(length=ms.Parameter("length", 1.0)).simulate(
+        1.5, output_step=0.01, rtol=1e-10, sensitivities=["length"])
+    longer = res.extend(3.0)
+    assert longer.success, longer.message
+    assert len(longer.singular_passages) == 3 and longer.t[-1] == pytest.approx(3.0)
+    assert longer.sensitivity("length").shape == longer.q.shape
+    h = 1e-6
+    dc = (branch_rate(1.0 + h, 1.0) - branch_rate(1.0 - h, 1.0)) / (2 * h)
+    _, exact = exact_sensitivity(longer.t, dc, branch_rate(1.0, 1.0))
+    got = longer.sensitivity("length")[:, longer.coordinate_names.index("crank1.angle")]
+    assert np.max(np.abs(got - exact)) < 1e-6 * np.max(np.abs(exact))
+    np.testing.assert_array_equal(longer.sensitivity("length")[:len(res.t)],
+                                  res.sensitivity("length"))
+
+
+def test_a_saved_result_keeps_its_sensitivities(tmp_path):
+    """`save` keeps the states' sensitivities (a simulation's ∂q/∂k and ∂v/∂k, a kinematic
+    analysis's also ∂q̈/∂k): the loaded result gives them bit for bit, and points' from
+    them; what needs the model's Parameters (the multipliers') is refused, saying why."""
+    res = chain(length=ms.Parameter("length", 1.0)).simulate(
+        0.5, output_step=0.05, sensitivities=["length"])
+    back = ms.load_result(res.save(tmp_path / "motion.npz"))
+    for of in ("q", "v"):
+        np.testing.assert_array_equal(back.sensitivity("length", of=of),
+                                      res.sensitivity("length", of=of))
+    np.testing.assert_array_equal(
+        back.sensitivity("length", of="point", body="coupler1", local=(0.5, 0.0)),
+        res.sensitivity("length", of="point", body="coupler1", local=(0.5, 0.0)))
+    with pytest.raises(ValueError, match="not kept by a saved result"):
+        back.sensitivity("length", of="lambda")
+    with pytest.raises(ValueError, match="not saved with this result"):
+        back.sensitivity("length", of="a")
+    kin = offset_slider_crank(e=ms.Parameter("e", 0.03))
+    kin.add(ms.Driver(kin.joint("O"), "20*t", name="motor"))
+    analysis = kin.kinematics(0.2, 0.01, sensitivities=["e"])
+    again = ms.load_result(analysis.save(tmp_path / "kinematics.npz"))
+    np.testing.assert_array_equal(again.sensitivity("e", of="a"),
+                                  analysis.sensitivity("e", of="a"))

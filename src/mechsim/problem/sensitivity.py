@@ -100,6 +100,11 @@ class Sensitivities:
         j = self.names.index(name)
         return getattr(self, of)[:, :, j]
 
+    def stored(self) -> dict:
+        """What a saved result keeps of them (`SimulationResult.save`): the states'
+        sensitivities, each (N, n, K)."""
+        return {"q": self.q, "v": self.v, "a": self.a}
+
     def multipliers(self, name) -> np.ndarray:
         """∂λ/∂k of the Parameter `name`, (N, m); ValueError naming a load whose
         derivatives are not generated."""
@@ -338,6 +343,26 @@ class MotionSensitivities(Sensitivities):
         self.P = equations.P
         self._multipliers = self._A = self._a = self._solvers = None
 
+    def stored(self) -> dict:
+        """The carried q_k and v_k (q̈_k is computed from them when asked, with the model's
+        equations)."""
+        return {"q": self.q, "v": self.v}
+
+    @property
+    def rows(self) -> np.ndarray:
+        """The carried numbers per sample, (N, 2 n K): q_k then v_k, each (n, K)
+        row-major (what the run recorded; `joined`, saving)."""
+        N = len(self.t)
+        return np.hstack([self.q.reshape(N, -1), self.v.reshape(N, -1)])
+
+    def joined(self, rest, result) -> "MotionSensitivities":
+        """These sensitivities followed by `rest`'s (a run continued from this one's last
+        sample, which `rest` repeats) for the joined `result`."""
+        return MotionSensitivities(self.equations, result.t, result.q, result.v,
+                                   np.vstack([self.rows, rest.rows[1:]]),
+                                   lam=lambda: result.reactions.multipliers.lam,
+                                   accelerations=result.accelerations)
+
     @property
     def A(self) -> np.ndarray:
         if self._A is None:
@@ -359,3 +384,33 @@ class MotionSensitivities(Sensitivities):
         if self._solvers is None:
             self._solvers = [_factor(self.problem.phi_q(q, t)) for t, q in zip(self.t, self.Q)]
         return self._solvers
+
+
+class StoredSensitivities:
+    """Sensitivities read back from a saved result (`mechsim.load_result`): the states' as
+    saved, ∂q/∂k, ∂v/∂k and (from a kinematic analysis) ∂q̈/∂k, (N, n, K) each under
+    `arrays`. The multipliers' need the model's Parameters, which a result saved with its
+    mechanism as a scene does not keep: asking for them says so."""
+
+    def __init__(self, names, arrays):
+        self.names = list(names)
+        self.arrays = {k: np.asarray(a, float) for k, a in arrays.items()}
+
+    def __contains__(self, name) -> bool:
+        return name in self.names
+
+    def __iter__(self):
+        return iter(self.names)
+
+    def state(self, name, of="q") -> np.ndarray:
+        if of not in self.arrays:
+            raise ValueError(f"sensitivity(of={of!r}): not saved with this result (a "
+                             "simulation keeps ∂q/∂k and ∂v/∂k; ∂q̈/∂k needs its model)")
+        return self.arrays[of][:, :, self.names.index(name)]
+
+    def _unsaved(self, *_):
+        raise ValueError("sensitivities of the multipliers, efforts and joint forces are "
+                         "not kept by a saved result: they need the model's Parameters; "
+                         "run the analysis again with sensitivities=[...]")
+
+    multipliers = joint_force = _unsaved

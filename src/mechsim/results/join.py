@@ -30,4 +30,6 @@ def join(first: SimulationResult, rest: SimulationResult) -> SimulationResult:
     out.settings = dict(rest.settings)
     out.continuation = rest.continuation
     out.mechanism = first.mechanism
+    if hasattr(first.sensitivities, "joined") and rest.sensitivities is not None:
+        out.sensitivities = first.sensitivities.joined(rest.sensitivities, out)
     return out

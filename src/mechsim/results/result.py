@@ -524,7 +524,8 @@ class SimulationResult:
     def save(self, path, reactions: bool | None = None) -> Path:
         """Write the result (with its energy log and constraint violation) to an .npz file.
         `reactions`: also the joint reactions, driver efforts and joint coordinates, so a
-        loaded result answers for them (None: where they have been computed already)."""
+        loaded result answers for them (None: where they have been computed already). The
+        sensitivities the analysis carried are kept (the states'; `StoredSensitivities`)."""
         path = Path(path)
         meta = metadata(self)
         extra = {}
@@ -542,6 +543,11 @@ class SimulationResult:
         if reactions or (reactions is None and "reactions" in self.__dict__
                          and self.reactions.computed):
             table = self.reactions
+        if self.sensitivities is not None:
+            stored = self.sensitivities.stored()
+            meta["sensitivities"] = {"names": list(self.sensitivities.names),
+                                     "keys": list(stored)}
+            extra.update({f"sensitivity_{k}": a for k, a in stored.items()})
         if table is not None:
             arrays = table.to_arrays()
             meta["reactions"] = {"keys": list(arrays), "joints": table.joint_names,

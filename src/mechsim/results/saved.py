@@ -46,6 +46,12 @@ def read_saved(path) -> tuple[SimulationResult, dict]:
             saved = {key: data[f"reaction_{k}"] for k, key in enumerate(r["keys"])}
             saved.update(joints=r["joints"], drivers=r["drivers"], kinds=r.get("kinds", {}),
                          driver_kinds=r.get("driver_kinds", {}))
+        sensitivities = None
+        if "sensitivities" in meta:
+            from ..problem.sensitivity import StoredSensitivities
+            spec = meta["sensitivities"]
+            sensitivities = StoredSensitivities(
+                spec["names"], {k: data[f"sensitivity_{k}"] for k in spec["keys"]})
         res = SimulationResult(
             data["t"], data["q"], data["v"], meta["coordinate_names"], status=meta["status"],
             message=meta["message"], stats=meta["stats"],
@@ -54,4 +60,5 @@ def read_saved(path) -> tuple[SimulationResult, dict]:
             switches=[Switch(**s) for s in meta["switches"]], energy=energy,
             constraint_violation=violation, saved_reactions=saved)
     res.settings = meta.get("settings", {})
+    res.sensitivities = sensitivities
     return res, meta

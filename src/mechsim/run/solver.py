@@ -192,7 +192,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
              singular_thresholds: tuple[float, float] = (0.07, 0.14),
              max_steps: int | None = None, h: float | None = None, work: bool = True,
              progress: bool = False, stream=None, mechanism=None, events=None,
-             output_grid=None, **options) -> SimulationResult:
+             output_grid=None, sensitivities=None, **options) -> SimulationResult:
     """Integrate the constrained equations of motion from a consistent (q0, v0) at t_start.
 
     Parameters
@@ -222,6 +222,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         `values(t, q, v)` (an array, each ≥ 0 while the run may go on) and `describe(i)`;
         the result's `event` is then (t, i, q, v) of the first crossing, else None
     output_grid : the output times (from t_start to t_end), instead of `output_step`'s
+    sensitivities : (a `MotionEquations`, ∂q0/∂k, ∂v0/∂k) to carry with the motion (`run`)
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
     """
     config = RunConfig.from_keywords(
@@ -230,7 +231,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         first_step=first_step, singular_thresholds=singular_thresholds,
         max_steps=max_steps, h=h, work=work, progress=progress, **options)
     return run(problem, q0, v0, config, stream=stream, mechanism=mechanism, events=events,
-               output_grid=output_grid)
+               output_grid=output_grid, sensitivities=sensitivities)
 
 
 def run(problem: NumericProblem, q0, v0, config: RunConfig, *, stream=None, mechanism=None,
@@ -285,10 +286,14 @@ def _keep_sensitivities(res, equations, rows) -> None:
 
 def continue_run(result, t_end: float, overrides: dict):
     """`SimulationResult.extend` of a run made by `simulate`: the run goes on from the
-    result's last sample with its settings (and `overrides` of them), joined to it."""
+    result's last sample with its settings (and `overrides` of them), joined to it; the
+    sensitivities the run carried go on from their values there."""
     from ..results.join import join
+    table = result.sensitivities
+    carried = None if not isinstance(table, MotionSensitivities) else \
+        (table.equations, table.q[-1], table.v[-1])
     rest = simulate(result.problem, result.q[-1], result.v[-1], t_start=float(result.t[-1]),
-                    t_end=t_end, **{**result.settings, **overrides})
+                    t_end=t_end, sensitivities=carried, **{**result.settings, **overrides})
     return join(result, rest)
 
 
