@@ -420,3 +420,20 @@ def test_a_saved_result_keeps_its_sensitivities(tmp_path):
     again = ms.load_result(analysis.save(tmp_path / "kinematics.npz"))
     np.testing.assert_array_equal(again.sensitivity("e", of="a"),
                                   analysis.sensitivity("e", of="a"))
+
+
+def test_the_masses_sensitivities_sum_to_zero_as_scaling_all_masses_changes_nothing():
+    """Under gravity alone, scaling every mass leaves the motion as it is: the
+    sensitivities to the five link masses of the double four-bar (all carried at once,
+    through three passages) sum to zero at every sample, each of them far from zero."""
+    names = [f"m{i}" for i in range(5)]
+    mech = ms.examples.double_four_bar(2, mass=[ms.Parameter(k, 1.0 + 0.1 * i)
+                                                for i, k in enumerate(names)])
+    res = mech.simulate(3.0, output_step=0.01, rtol=1e-10, sensitivities=names)
+    assert res.success and len(res.singular_passages) == 3
+    each = np.array([res.sensitivity(k) * (1.0 + 0.1 * i) for i, k in enumerate(names)])
+    size = np.max(np.abs(each))
+    assert min(np.max(np.abs(e)) for e in each) > 1e-3 * size
+    assert np.max(np.abs(each.sum(axis=0))) < 1e-7 * size
+    with pytest.raises(ValueError, match="2n \\+ 1 = 5 of them"):
+        ms.examples.double_four_bar(2, mass=[1.0] * 4)

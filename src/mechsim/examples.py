@@ -74,22 +74,27 @@ def double_four_bar(n: int = 2, length: float = 1.0, mass: float = 1.0,
     """IFToMM benchmark A02 (N four-bars in a row): N+1 vertical cranks at x = 0, L, …, NL and
     N horizontal couplers, all uniform rods of `mass`; cranks turn at `crank_speed` rad/s
     (−1: tips moving at +1 m/s). On the parallelogram branch every crank has the same angle
-    θ with M_eff θ̈ = −K cos θ (see `parallelogram_exact`)."""
+    θ with M_eff θ̈ = −K cos θ (see `parallelogram_exact`). `mass` may also be a sequence
+    of 2N + 1 masses, the cranks' first, then the couplers' (numbers or Parameters)."""
     if n < 1:
         raise ValueError(f"`n` must be at least 1, got {n}")
+    masses = list(mass) if isinstance(mass, (list, tuple)) else [mass] * (2 * n + 1)
+    if len(masses) != 2 * n + 1:
+        raise ValueError(f"`mass`: one number, or 2n + 1 = {2 * n + 1} of them (cranks, then "
+                         f"couplers), got {len(masses)}")
     mech = Mechanism(f"{n}-window four-bar" if n != 2 else "double four-bar", gravity=gravity)
     w = crank_speed
     cranks = []
     for i in range(n + 1):
         x = i * length
-        crank = mech.add(RigidBody.rod(f"crank{i + 1}", (x, 0.0), (x, length), mass,
+        crank = mech.add(RigidBody.rod(f"crank{i + 1}", (x, 0.0), (x, length), masses[i],
                                        velocity=(-w * length / 2, 0.0), angular_velocity=w))
         mech.add(Revolute(mech.ground, crank, at=(x, 0.0), name=f"A{i + 1}"))
         cranks.append(crank)
     for i in range(n):
         x = i * length
         coupler = mech.add(RigidBody.rod(f"coupler{i + 1}", (x, length), (x + length, length),
-                                         mass, velocity=(-w * length, 0.0)))
+                                         masses[n + 1 + i], velocity=(-w * length, 0.0)))
         mech.add(Revolute(cranks[i], coupler, at=(x, length), name=f"B{i + 1}"))
         mech.add(Revolute(coupler, cranks[i + 1], at=(x + length, length), name=f"C{i + 1}"))
     return mech
