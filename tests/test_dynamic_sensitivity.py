@@ -437,3 +437,50 @@ def test_the_masses_sensitivities_sum_to_zero_as_scaling_all_masses_changes_noth
     assert np.max(np.abs(each.sum(axis=0))) < 1e-7 * size
     with pytest.raises(ValueError, match="2n \\+ 1 = 5 of them"):
         ms.examples.double_four_bar(2, mass=[1.0] * 4)
+
+
+def pushed_slider_crank(push=40.0, drive=1.5):
+    """The free offset slider-crank with a constant force pushing its slider back along
+    the guide (`push` [N]) and a constant torque on its crank (`drive` [N·m]): numbers or
+    Parameters."""
+    mech = offset_slider_crank()
+    slider, crank = mech.body("slider"), mech.body("crank")
+    mech.add(ms.Force(slider, (-push, 0.0), name="load"))
+    mech.add(ms.Torque(crank, drive, name="motor torque"))
+    return mech
+
+
+@pytest.mark.parametrize("which", ["push", "drive"])
+def test_constant_forces_and_torques_as_parameters(which):
+    """A constant force's component and a constant torque as Parameters: the motion's
+    sensitivities against central differences of rebuilt mechanisms, a kinematic
+    analysis's motor torque exactly linear in them, and a new value set without a new
+    build running as a mechanism built with it."""
+    values = {"push": 40.0, "drive": 1.5}
+    mech = pushed_slider_crank(**{which: ms.Parameter(which, values[which])})
+    assert mech.parameters == [which]
+    res = mech.simulate(0.3, output_step=0.01, rtol=1e-10, atol=1e-12,
+                        sensitivities=[which])
+    assert res.success, res.message
+    reference = central_difference(lambda x: pushed_slider_crank(**{which: x}),
+                                   values[which], lambda r: r.q, 0.3)
+    got = res.sensitivity(which)
+    assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference))
+    mech.set_parameters(**{which: 1.2 * values[which]})
+    again = mech.simulate(0.3, output_step=0.01, rtol=1e-10, atol=1e-12)
+    fresh = pushed_slider_crank(**{which: 1.2 * values[which]}).simulate(
+        0.3, output_step=0.01, rtol=1e-10, atol=1e-12)
+    assert np.max(np.abs(again.q - fresh.q)) < 1e-12
+
+    def driven(x):
+        m = pushed_slider_crank(**{which: x})
+        m.add(ms.Driver(m.joint("O"), "20*t", name="motor"))
+        return m
+    kin = driven(ms.Parameter(which, values[which])).kinematics(0.2, 0.01,
+                                                                 sensitivities=[which])
+    effort = kin.sensitivity(which, of="driver_effort", driver="motor")
+    h = 0.1 * values[which]
+    exact = (driven(values[which] + h).kinematics(0.2, 0.01).driver_effort("motor") -
+             driven(values[which] - h).kinematics(0.2, 0.01).driver_effort("motor")) / (2 * h)
+    assert np.max(np.abs(effort - exact)) < 1e-8 * np.max(np.abs(exact))
+    assert np.max(np.abs(exact)) > 1e-3

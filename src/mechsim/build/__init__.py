@@ -239,18 +239,21 @@ def _load_data(mech, starts, joints):
                                    _checked(ld, ld.force, f"force '{ld.name}'", _as_force,
                                             "two finite numbers", joints),
                                    False, ld.body.point_modes(s),
-                                   callable(ld.force) and ld.inputs != "t"))
+                                   callable(ld.force) and ld.inputs != "t",
+                                   _constant_partials(ld)))
         else:
             loads.append(PointLoad(ld.name, starts[ld.body.name], None,
                                    _checked(ld, ld.torque, f"torque '{ld.name}'", _as_torque,
                                             "a finite number", joints), True,
-                                   reads_state=callable(ld.torque) and ld.inputs != "t"))
+                                   reads_state=callable(ld.torque) and ld.inputs != "t",
+                                   partials=_constant_partials(ld)))
     return springs, loads, torsion
 
 
-def _constant_partials(spring) -> tuple:
-    """((Parameter name, (∂stiffness, ∂damping, ∂rest)/∂it), …) of a spring's constants."""
-    numbers = spring.exact_numbers()
+def _constant_partials(load) -> tuple:
+    """((Parameter name, ∂numbers/∂it), …) of a load's numbers as given (a spring's
+    stiffness, damping and rest value; a constant force's components or torque)."""
+    numbers = load.exact_numbers()
     named = parameter_names(numbers)
     return tuple((name, tuple(column)) for name, column in
                  zip(named, gradient(numbers, named).T.tolist()))

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import parameters as dual
 from .checks import (ModelError, name_or_default, scalar, scalar_exact, scalar_or_function,
-                     vector2)
+                     vector2, vector2_exact)
 from .bodies import Body
 from .joints import Joint
 
@@ -143,6 +143,8 @@ class Force:
     body's frame origin, its centre of mass). `force` is a 2-vector or a function giving one:
     of t, of (t, s, ṡ) of a `joint`, or of (t, q, v) with `state=True` (module docstring);
     or two expressions in t (`["0", "50*sin(10*t)"]`, a `TimeLaw`: saved with the model).
+    A constant force's components may be Parameters (a payload, a preload: the
+    sensitivities differentiate through them).
     """
 
     def __init__(self, body: Body, force, at=None, name: str | None = None, *,
@@ -153,7 +155,12 @@ class Force:
         if isinstance(force, (list, tuple)) and len(force) == 2 and \
                 any(isinstance(x, str) for x in force):
             force = TimeLaw([x if isinstance(x, str) else float(x) for x in force], owner)
-        self.force = force if callable(force) else vector2(force, "force", owner)
+        self.exact_force = ()
+        if callable(force):
+            self.force = force
+        else:
+            self.force, exact = vector2_exact(force, "force", owner)
+            self.exact_force = tuple(exact)
         self.at = body.position.copy() if at is None else vector2(at, "at", owner)
         self.inputs, self.joint = _inputs(force, joint, state, owner)
 
@@ -161,11 +168,22 @@ class Force:
     def bodies(self):
         return (self.body,)
 
+    def exact_numbers(self) -> list:
+        """A constant force's components as given (Parameters kept); none for a function."""
+        return list(self.exact_force)
+
+    def refresh_numbers(self) -> None:
+        """A constant force's components again, after the Parameters took new values."""
+        if self.exact_force:
+            self.force = vector2(dual.values(self.exact_force), "force",
+                                 f"force '{self.name}'")
+
 
 class Torque:
     """A torque on `body` (N·m, counter-clockwise positive): a constant or a function of t,
     of (t, s, ṡ) of a `joint`, or of (t, q, v) with `state=True` (module docstring); or an
-    expression in t (`"2*sin(3*t)"`, a `TimeLaw`: saved with the model)."""
+    expression in t (`"2*sin(3*t)"`, a `TimeLaw`: saved with the model). A constant
+    torque may be a Parameter."""
 
     def __init__(self, body: Body, torque, name: str | None = None, *,
                  joint: Joint | None = None, state: bool = False):
@@ -174,12 +192,27 @@ class Torque:
         self.body = _check_body(body, "body", owner)
         if isinstance(torque, str):
             torque = TimeLaw([torque], owner)
-        self.torque = scalar_or_function(torque, "torque", owner)
+        self.exact_torque = ()
+        if callable(torque):
+            self.torque = scalar_or_function(torque, "torque", owner)
+        else:
+            self.torque, exact = scalar_exact(torque, "torque", owner)
+            self.exact_torque = (exact,)
         self.inputs, self.joint = _inputs(torque, joint, state, owner)
 
     @property
     def bodies(self):
         return (self.body,)
+
+    def exact_numbers(self) -> list:
+        """A constant torque as given (a Parameter kept); none for a function."""
+        return list(self.exact_torque)
+
+    def refresh_numbers(self) -> None:
+        """A constant torque again, after the Parameters took new values."""
+        if self.exact_torque:
+            self.torque = scalar(dual.value_of(self.exact_torque[0]), "torque",
+                                 f"torque '{self.name}'")
 
 
 class RotationalSpring(_Constants):

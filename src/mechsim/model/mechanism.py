@@ -259,7 +259,7 @@ class MechanismModel:
         return [x for owner in self._parametrized() for x in owner.exact_numbers()]
 
     def _parametrized(self) -> list:
-        """Bodies, joints and springs: what holds numbers that may be Parameters."""
+        """Bodies, joints, springs and loads: what holds numbers that may be Parameters."""
         return self.bodies + self.joints + [ld for ld in self.loads
                                             if hasattr(ld, "exact_numbers")]
 

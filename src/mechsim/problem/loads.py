@@ -59,6 +59,7 @@ class PointLoad:
     is_torque: bool
     modal: np.ndarray | None = None
     reads_state: bool = False     # its function reads a joint's coordinate or the state
+    partials: tuple = ()          # a constant value's ∂/∂k: (k, (∂fx, ∂fy) or (∂τ,))
 
 
 class FlexibleData:
@@ -220,10 +221,19 @@ class Loads:
 
     def parameter_derivative(self, t, q, v, names) -> np.ndarray:
         """∂Q/∂k (n, K) at (t, q, v) of the springs' and torsion springs' stiffness,
-        damping and rest length or angle, to the Parameters `names` (rigid bodies): the
-        tension's (torque's) change along the spring's present line."""
+        damping and rest length or angle, and of constant forces and torques, to the
+        Parameters `names` (rigid bodies): the tension's (torque's) change along the
+        spring's present line, a force's change at its point."""
         out = np.zeros((self.n, len(names)))
         column = {name: j for j, name in enumerate(names)}
+        for load in self.loads:
+            for k, d in load.partials:
+                if k not in column:
+                    continue
+                if load.is_torque:
+                    out[load.body + 2, column[k]] += d[0]
+                else:
+                    add_point_force(out[:, column[k]], q, load.body, load.s, d[0], d[1])
         for sp in self.springs:
             wanted = [(column[k], d) for k, d in sp.partials if k in column]
             if not wanted:
