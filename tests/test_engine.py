@@ -248,6 +248,20 @@ def test_compiled_singularity_measure_agrees_with_the_python_path():
         if b[0] > 1e-6:                      # the vector is defined away from the passage
             assert abs(abs(a[2] @ b[2]) - 1.0) < 1e-8
         np.testing.assert_allclose(a[5], b[5], rtol=0, atol=1e-14)
+    # The passage search's grid: chords of J̃ between consecutive states and the extreme
+    # singular values, compiled and in numpy; each chord bounds the spectral norm of the
+    # difference (its largest singular value).
+    T, Q = res.t[::20], res.q[::20]
+    chords = prob.algebra.chords(T, Q)
+    np.testing.assert_allclose(chords, python_only(prob).algebra.chords(T, Q), rtol=1e-12)
+    J = np.array([prob.algebra.scaled_jacobian(q, t) for t, q in zip(T, Q)])
+    spectral = np.linalg.svd(np.diff(J, axis=0), compute_uv=False)[:, 0]
+    assert np.all(chords >= spectral * (1 - 1e-12))
+    assert np.all(chords <= np.sqrt(np.sum(np.diff(J, axis=0) ** 2, axis=(1, 2))) * (1 + 1e-12))
+    k = prob.m - 1
+    np.testing.assert_allclose(prob.algebra.singular_extremes(T, Q, k),
+                               python_only(prob).algebra.singular_extremes(T, Q, k),
+                               rtol=1e-10, atol=1e-14)
 
 
 @needs_compiler

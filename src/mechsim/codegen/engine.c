@@ -494,6 +494,62 @@ int mechsim_measure(mechsim_projection *c, double t, double eps, double *out, do
   return 0;
 }
 
+/* An upper bound of the spectral norm of the m x n difference A - B: the smaller of its
+   Frobenius norm and sqrt(||.||_1 ||.||_inf). */
+static double difference_norm(int64_t m, int64_t n, const double *A, const double *B,
+                              double *cols) {
+  double frob = 0.0, rows = 0.0, colmax = 0.0;
+  memset(cols, 0, n * sizeof(double));
+  for (int64_t i = 0; i < m; i++) {
+    double r = 0.0;
+    for (int64_t j = 0; j < n; j++) {
+      const double d = A[i * n + j] - B[i * n + j], a = fabs(d);
+      frob += d * d;
+      r += a;
+      cols[j] += a;
+    }
+    if (r > rows) rows = r;
+  }
+  for (int64_t j = 0; j < n; j++)
+    if (cols[j] > colmax) colmax = cols[j];
+  const double holder = sqrt(rows * colmax);
+  frob = sqrt(frob);
+  return holder < frob ? holder : frob;
+}
+
+/* The passage search's grid inside a step (SingularityMonitor._anchored): out[i] bounds
+   ||J~(T[i+1], Q[i+1]) - J~(T[i], Q[i])||_2 for i < k - 1, no SVD. */
+void mechsim_chords(mechsim_projection *c, int64_t k, const double *T, const double *Q,
+                    double *out) {
+  const int64_t n = c->n, m = c->m;
+  double *prev = c->J1, *next = c->A;
+  for (int64_t i = 0; i < k; i++) {
+    scaled_jacobian(c, Q + i * n, T[i], next);
+    if (i > 0) out[i - 1] = difference_norm(m, n, next, prev, c->x);
+    double *swap = prev;
+    prev = next;
+    next = swap;
+  }
+}
+
+/* sigma_kk and sigma_max of J~ at each of the k states (T[i], Q[i, :]) into out[2 i],
+   out[2 i + 1] (dgesdd without vectors). 1 where an SVD fails. */
+int mechsim_extremes(mechsim_projection *c, int64_t k, int64_t kk, const double *T,
+                     const double *Q, double *out) {
+  const int64_t n = c->n, m = c->m;
+  char jobz = 'N';
+  int N = (int)n, M = (int)m, LW = (int)c->lwork, info = 0;
+  for (int64_t i = 0; i < k; i++) {
+    scaled_jacobian(c, Q + i * n, T[i], c->A);
+    mechsim_dgesdd(&jobz, &N, &M, c->A, &N, c->sig, c->U, &N, c->VT, &M, c->svd_work, &LW,
+                   c->iwork, &info);
+    if (info != 0) return 1;
+    out[2 * i] = c->sig[kk];
+    out[2 * i + 1] = c->sig[0];
+  }
+  return 0;
+}
+
 /* sigma_min / sigma_max of J~ = Phi_q W^(1/2) at each of the k states (T[i], Q[i, :])
    into out[i] (0 where sigma_max is 0): the monitor's search for a passage inside a step,
    the singular values alone (dgesdd without vectors). 1 where an SVD fails. */

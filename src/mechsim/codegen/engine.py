@@ -161,6 +161,13 @@ def library(model):
         fn = lib.mechsim_ratios
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 3
         fn.restype = ctypes.c_int
+        fn = lib.mechsim_chords
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 3
+        fn.restype = None
+        fn = lib.mechsim_extremes
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64] + \
+            [ctypes.c_void_p] * 3
+        fn.restype = ctypes.c_int
         fn = lib.mechsim_multipliers
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 4 + \
             [ctypes.c_double] * 2 + [ctypes.c_void_p] * 2
@@ -289,6 +296,8 @@ class ProjectionEngine:
         self._project = lib.mechsim_project_state
         self._measure = lib.mechsim_measure
         self._ratios = lib.mechsim_ratios
+        self._chords = lib.mechsim_chords
+        self._extremes = lib.mechsim_extremes
         self._project_many = lib.mechsim_project_states
         self._lu_condition = lib.mechsim_lu_condition
         self._multipliers = lib.mechsim_multipliers
@@ -355,6 +364,26 @@ class ProjectionEngine:
                            tols.ctypes.data, max_iter, status.ctypes.data)
         self.counters.projections += int(np.count_nonzero(status == 0))
         return status
+
+    def chords(self, T, Q):
+        """Bounds of ‖J̃ᵢ₊₁ − J̃ᵢ‖₂ between consecutive states (T[i], Q[i]), shape (k − 1,)
+        (`mechsim.problem.algebra.chord_bound`)."""
+        T = np.ascontiguousarray(T, dtype=float)
+        Q = np.ascontiguousarray(Q, dtype=float)
+        out = np.empty(max(len(T) - 1, 0))
+        self._chords(self._ptr, len(T), T.ctypes.data, Q.ctypes.data, out.ctypes.data)
+        return out
+
+    def extremes(self, T, Q, k):
+        """(σ_k, σ_max) of J̃ at each state (T[i], Q[i]), shape (len(T), 2); None where an
+        SVD fails."""
+        T = np.ascontiguousarray(T, dtype=float)
+        Q = np.ascontiguousarray(Q, dtype=float)
+        out = np.empty((len(T), 2))
+        if self._extremes(self._ptr, len(T), k, T.ctypes.data, Q.ctypes.data,
+                          out.ctypes.data):
+            return None
+        return out
 
     def ratios(self, T, Q):
         """σ_min/σ_max of J̃ = Φ_q M^{-1/2} at each state (T[i], Q[i]), shape (k,) (0 where

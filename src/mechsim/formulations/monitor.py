@@ -52,6 +52,10 @@ PLAIN_OK = 1e-6
 # The passage search's bound on |d(σ_min/σ_max)/dt| inside a step: Weyl's, but at most this
 # many times the fastest rate seen (`SingularityMonitor._hidden_passages`).
 WEYL_SPAN = 100.0
+# The passage search inside a step (`SingularityMonitor._anchored`): the intervals of its
+# first grid, and the margin of J̃'s path between two grid nodes over their chord.
+GRID = 8
+CHORD = 0.25
 
 
 @dataclass
@@ -101,6 +105,7 @@ class SingularityMonitor:
         self._floor = None           # (t, lower bound of σ_min/σ_max) at the latest skip
         self.peak_rate = 0.0         # fastest |ṡ|/peak seen
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
+        self._known = {}             # time -> (σ_min, σ_max) measured at the latest step's ends
         self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
         self.t_first = -np.inf       # the first observation's time
         # Whether σ_min/σ_max of J̃ is below round-off for the masses' sake (`BLIND`): then
@@ -185,6 +190,8 @@ class SingularityMonitor:
             return self.last
         raw, rate, u, smin, smax, J = self._measure(q, t, v, J)
         self._measured = (J, smin, smax) if smax > 0.0 else None
+        self._known = {tk: x for tk, x in self._known.items() if tk == t_old}
+        self._known[t] = (smin, smax)
         speed_before, self._ratio_speed = self._ratio_speed, self._speed(q, v, t, J, smax)
         self.peak = max(self.peak, raw)
         if self.peak < BLIND and self._masses_hide(q, t):
@@ -314,8 +321,12 @@ class SingularityMonitor:
         budget = int(min(4000, 16 + 4 * rate_bound * h / max((s0 + s1) * peak, enter)))
         if not self.problem.algebra.small:
             budget = min(budget, 64)
-        seen = self._bisect((t0, s0 * peak, t1, s1 * peak), s_many, rate_bound, budget,
-                            2.0 * (leave - enter) / rate_bound)
+        apart = 2.0 * (leave - enter) / rate_bound
+        if positions_at is not None and self._batched and self.problem.algebra.small:
+            seen = self._anchored((t0, t1), positions_at, budget, apart, self._known)
+        else:
+            seen = self._bisect((t0, s0 * peak, t1, s1 * peak), s_many, rate_bound, budget,
+                                apart)
         times = sorted(seen)
         values = [seen[tk] for tk in times]
         last = len(times) - 1
@@ -334,6 +345,57 @@ class SingularityMonitor:
                             t0 if at_start else max(t0, tm - width),
                             t1 if at_end else min(t1, tm + width), at_start, at_end))
         return dips
+
+    def _anchored(self, ends, positions_at, budget, apart, known=None) -> dict:
+        """{t: s} over the step `ends` = (t0, t1) (not normalized), measured where the
+        changes of J̃ along the step cannot keep s above `enter`. Weyl's inequality bounds
+        every singular value at t by its value at a measured state a (an anchor: one SVD)
+        within ‖J̃(t) − J̃ₐ‖₂, at most the length of J̃'s path from a to t, which a grid of
+        the step bounds by the sum of its chords (J̃ at the nodes, no SVD: the problem's
+        algebra's `chords`), each enlarged by `CHORD` for the arc. An interval that neither
+        neighbouring anchor keeps above `enter` has its nodes measured, then is halved;
+        near a value under `enter` the search stops as `_bisect`'s does (`apart`). At most
+        `budget` SVDs; `known`: time -> (σ_k, σ_max) measured already (the step's ends)."""
+        t0, t1 = ends
+        algebra, k = self.problem.algebra, self.problem.m - 1 - self.redundant
+        times = np.linspace(t0, t1, GRID + 1).tolist()
+        Q = list(positions_at(np.array(times)))
+        chords = ((1.0 + CHORD) * algebra.chords(times, Q)).tolist()
+        anchors = {}                                    # node time -> (σ_k, σ_max)
+
+        def measure(nodes):
+            if not nodes:
+                return
+            got = algebra.singular_extremes([times[i] for i in nodes], [Q[i] for i in nodes], k)
+            for i, (smin, smax) in zip(nodes, got.tolist()):
+                anchors[times[i]] = (smin, smax)
+
+        for i in (0, GRID):
+            if known and times[i] in known:
+                anchors[times[i]] = known[times[i]]
+        measure([i for i in (0, GRID) if times[i] not in anchors])
+        spent = 2
+        while spent < budget:
+            todo = _uncleared(times, chords, anchors, self.enter * self.peak, apart, t1 - t0)
+            if not todo:
+                break
+            fresh = sorted({i for j in todo for i in (j, j + 1) if times[i] not in anchors})
+            if fresh:
+                fresh = fresh[:budget - spent]
+                measure(fresh)
+                spent += len(fresh)
+                continue
+            mids = [0.5 * (times[j] + times[j + 1]) for j in todo]
+            middle = positions_at(np.array(mids))
+            triples = [x for j, qm in zip(todo, middle) for x in (Q[j], qm, Q[j + 1])]
+            at = [x for j, tm in zip(todo, mids) for x in (times[j], tm, times[j + 1])]
+            pieces = ((1.0 + CHORD) * algebra.chords(at, triples)).tolist()
+            for n, (j, tm, qm) in enumerate(reversed(list(zip(todo, mids, middle)))):
+                c = 3 * (len(todo) - 1 - n)
+                times.insert(j + 1, tm)
+                Q.insert(j + 1, qm)
+                chords[j:j + 1] = [pieces[c], pieces[c + 1]]
+        return {tk: (sm / sx if sx > 0.0 else 0.0) for tk, (sm, sx) in anchors.items()}
 
     def _bisect(self, ends, s_many, rate_bound, budget, apart) -> dict:
         """{t: s} over the step `ends` = (t0, s0, t1, s1) (not normalized), halving every
@@ -384,6 +446,30 @@ class SingularityMonitor:
             self.passages.append(SingularPassage(here.t_start, t, here.s_min, here.joints,
                                                  here.t_min, here.bridged))
             self.open_passage = None
+
+
+def _uncleared(times, chords, anchors, enter, apart, h) -> list:
+    """The grid intervals (indices j of [times[j], times[j+1]]) that neither the nearest
+    anchor before nor the one after keeps above `enter` (its σ_k less, its σ_max plus, the
+    path length `chords` from it to the interval's far end), and that lie farther than
+    `apart` from a value under `enter`."""
+    count = len(times) - 1
+    lows = [tk for tk, (smin, smax) in anchors.items() if smin < enter * smax]
+    low = [-np.inf] * count
+    for order in (range(count), range(count - 1, -1, -1)):
+        forward = order.step == 1
+        anchor, reach = None, 0.0
+        for j in order:
+            near = times[j] if forward else times[j + 1]
+            if near in anchors:
+                anchor, reach = anchors[near], 0.0
+            reach += chords[j]
+            if anchor is not None:
+                smin, smax = anchor
+                low[j] = max(low[j], (smin - reach) / (smax + reach))
+    return [j for j in range(count) if low[j] < enter and
+            times[j + 1] - times[j] >= 1e-9 * h and
+            not _covered(times[j], times[j + 1], lows, apart)]
 
 
 def _covered(ta, tb, lows, reach) -> bool:

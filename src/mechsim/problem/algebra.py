@@ -66,6 +66,10 @@ class ConstraintAlgebra:
       if the caller has it); σ_max = 0 where J̃ has lost that rank
     - ``ratios(times, Q, k)``: σ_k/σ_max at every configuration Q[i] at times[i] measured
       together, or None where they are measured one by one (`measure`)
+    - ``chords(times, Q)``: bounds of ‖J̃(Q[i+1]) − J̃(Q[i])‖₂ between consecutive
+      configurations (`chord_bound`), and ``singular_extremes(times, Q, k)``: (σ_k, σ_max)
+      of J̃ at each, (len, 2): the passage search's grid inside a step
+      (`SingularityMonitor._anchored`; compiled where the engine serves)
     - ``compiled_accelerations(t, q, v, Q, cut, bound, far)``: q̈ at (t, q, v) under the
       applied forces Q by the compiled engine where it takes the state, else None (then
       `clear_accelerations` on the terms the caller evaluates once)
@@ -149,6 +153,16 @@ class ConstraintAlgebra:
             d_min = u_min @ (dJ @ v_min)
             d_max = u_max @ (dJ @ v_max)
         return smin, smax, d_min, d_max, u_min, J
+
+    def chords(self, times, Q):
+        J = np.array([sparse.dense(self.scaled_jacobian(q, tk)) for tk, q in zip(times, Q)])
+        return chord_bound(np.diff(J, axis=0))
+
+    def singular_extremes(self, times, Q, k):
+        J = np.array([sparse.dense(self.scaled_jacobian(q, tk)) for tk, q in zip(times, Q)])
+        sig = np.linalg.svd(J, compute_uv=False)
+        low = sig[:, k] if 0 <= k < sig.shape[1] else np.zeros(len(sig))
+        return np.column_stack([low, sig[:, 0]])
 
     def ratios(self, times, Q, k):
         if not self.batched:
@@ -234,6 +248,19 @@ class DenseAlgebra(ConstraintAlgebra):
             if got is not None:
                 return got
         return super().measure(q, t, v, eps, k, J)
+
+    def chords(self, times, Q):
+        if self.engine is not None:
+            return self.engine.chords(times, Q)
+        return super().chords(times, Q)
+
+    def singular_extremes(self, times, Q, k):
+        engine = self._compiled(k)
+        if engine is not None:
+            got = engine.extremes(times, Q, k)
+            if got is not None:
+                return got
+        return super().singular_extremes(times, Q, k)
 
     def ratios(self, times, Q, k):
         engine = self._compiled(k)
@@ -369,6 +396,15 @@ class BandedAlgebra(DenseAlgebra):
         if c is None:
             return None
         return self.problem.accelerations(J, Q, gamma, factor=c)[0]
+
+
+def chord_bound(D) -> np.ndarray:
+    """Upper bounds of the spectral norms of the matrices D[..., :, :]: the smaller of the
+    Frobenius norm and √(‖D‖₁ ‖D‖∞) (as the compiled engine's `chords`)."""
+    a = np.abs(D)
+    frobenius = np.sqrt(np.sum(a * a, axis=(-2, -1)))
+    holder = np.sqrt(np.max(np.sum(a, axis=-2), axis=-1) * np.max(np.sum(a, axis=-1), axis=-1))
+    return np.minimum(frobenius, holder)
 
 
 def choose(problem) -> ConstraintAlgebra:
