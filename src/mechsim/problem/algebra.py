@@ -48,8 +48,7 @@ class ConstraintAlgebra:
     - ``jacobian(q, t)``: Φ_q in the form the solvers take (dense, or CSR)
     - ``pivots(J)``: a permutation of the coordinates whose first rank(J) are dependent
       (LU pivoting of Φ_qᵀ), the rest independent
-    - ``rank(J)``: the numerical rank of Φ_q = J (singular values above
-      1e3 ε max(m, n) σ_max)
+    - ``rank(J)``: the numerical rank of Φ_q = J (singular values > 1e3 ε max(m, n) σ_max)
     - ``extremes(J̃, k)``: (σ_k, u_k, v_k, σ_max, u_max, v_max), the k-th largest singular
       value of J̃ (k = m − 1 − redundant rows) with its singular vectors, and the largest;
       σ_max = 0 where J̃ has lost that rank (u_k then a left singular vector of the
@@ -66,10 +65,8 @@ class ConstraintAlgebra:
       if the caller has it); σ_max = 0 where J̃ has lost that rank
     - ``ratios(times, Q, k)``: σ_k/σ_max at every configuration Q[i] at times[i] measured
       together, or None where they are measured one by one (`measure`)
-    - ``chords(times, Q)``: bounds of ‖J̃(Q[i+1]) − J̃(Q[i])‖₂ between consecutive
-      configurations (`chord_bound`), and ``singular_extremes(times, Q, k)``: (σ_k, σ_max)
-      of J̃ at each, (len, 2): the passage search's grid inside a step
-      (`SingularityMonitor._anchored`; compiled where the engine serves)
+    - ``chords(times, Q)``, ``singular_extremes(times, Q, k)``: bounds of ‖J̃ᵢ₊₁ − J̃ᵢ‖₂
+      (`chord_bound`), (σ_k, σ_max) at each configuration: the passage search's grid
     - ``compiled_accelerations(t, q, v, Q, cut, bound, far)``: q̈ at (t, q, v) under the
       applied forces Q by the compiled engine where it takes the state, else None (then
       `clear_accelerations` on the terms the caller evaluates once)

@@ -524,8 +524,8 @@ class SimulationResult:
     def save(self, path, reactions: bool | None = None) -> Path:
         """Write the result (with its energy log and constraint violation) to an .npz file.
         `reactions`: also the joint reactions, driver efforts and joint coordinates, so a
-        loaded result answers for them (None: where they have been computed already). The
-        sensitivities the analysis carried are kept (the states'; `StoredSensitivities`)."""
+        loaded result answers for them (None: where computed already); and the states'
+        sensitivities the analysis carried (`StoredSensitivities`)."""
         path = Path(path)
         meta = metadata(self)
         extra = {}
@@ -545,8 +545,7 @@ class SimulationResult:
             table = self.reactions
         if self.sensitivities is not None:
             stored = self.sensitivities.stored()
-            meta["sensitivities"] = {"names": list(self.sensitivities.names),
-                                     "keys": list(stored)}
+            meta["sensitivities"] = {"names": list(self.sensitivities.names), "keys": list(stored)}
             extra.update({f"sensitivity_{k}": a for k, a in stored.items()})
         if table is not None:
             arrays = table.to_arrays()
