@@ -292,7 +292,9 @@ class SingularityMonitor:
         dips (runs not parted by a value above `leave`), each refined to its minimum.
         A step that crosses several passages (a partitioned method striding through a
         uniformly turning parallelogram) reports every one, wherever its midpoints fall.
-        Steps clear of any passage cost nothing: their ends already exclude it."""
+        Steps clear of any passage cost nothing: their ends already exclude it. On a small
+        mechanism measured together the values come from `_anchored` (Weyl's inequality
+        along J̃'s path), elsewhere from `_bisect` on the rate bound."""
         t0, s0, d0 = a
         t1, s1, d1 = b
         h = t1 - t0
