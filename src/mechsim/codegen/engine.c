@@ -50,13 +50,16 @@ static double max_abs(int64_t m, const double *x) {
 
 /* Positions by the chord Newton from the prediction, Phi_q there and the velocities, into
    q, v, J, and (where sign is not NULL) the sign of det(Phi_q D) from the LU the velocities
-   are solved with. 0: done; 1: Newton failed or contracted too slowly (Python decides); 2:
-   Phi_q D singular. */
+   are solved with. Where the chord contracts too slowly, every later iteration takes a
+   fresh Phi_q D (as Partitioned._newton), counted in c->fresh. 0: done; 1: Newton failed
+   (Python decides); 2: Phi_q D singular. */
 static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double *v,
                     double *J, double *sign) {
   const int64_t n = c->n, m = c->m, f = c->f, r = n - f, cols = 3 + f;
   const double *z = y, *zd = y + f;
   double *w = c->w, *phi = c->phi, *A = c->A, *b = c->b, *phit = c->phit;
+  int fresh = 0;
+  c->fresh = 0;
   const double d = t - c->t_last;
   for (int64_t i = 0; i < r; i++) {
     const double *Pi = c->P + i * cols;
@@ -74,9 +77,22 @@ static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double 
     if (isnan(err)) return 1;
     if (err <= c->newton_tol ||
         (err > c->stall_ratio * err_prev && err <= c->stall_span * c->newton_tol)) break;
-    if (it == c->max_newton || !isfinite(err) || !(err <= c->chord_contraction * err_prev))
-      return 1;
+    if (it == c->max_newton || !isfinite(err)) return 1;
+    if (!(err <= c->chord_contraction * err_prev)) fresh = 1;
     err_prev = err;
+    if (fresh) {                       /* w -= (Phi_q D)^-1 Phi at this q */
+      int N = (int)r, nrhs = 1, info = 0;
+      memset(J, 0, m * n * sizeof(double));
+      mechsim_phi_q(q, t, c->p, J);
+      for (int64_t i = 0; i < r; i++)
+        for (int64_t j = 0; j < r; j++) A[i + j * r] = J[i * n + c->dep[j]];
+      memcpy(b, phi, r * sizeof(double));
+      mechsim_dgesv(&N, &nrhs, A, &N, c->ipiv, b, &N, &info);
+      if (info != 0) return 1;
+      for (int64_t i = 0; i < r; i++) w[i] -= b[i];
+      c->fresh++;
+      continue;
+    }
     for (int64_t i = 0; i < r; i++) {
       const double *Ci = c->C + i * m;
       double s = 0.0;

@@ -220,7 +220,7 @@ class PartitionedEngine:
         arrays = {**self.buffers, **{name: getattr(self, name) for name in (
             "p", "q_ref", "P", "C", "winv", "ind", "dep", "y", "q", "v", "J", "Q", "out")}}
         self.ctx = PARTITION.make(dict(
-            n=n, m=m, f=f, max_newton=max_newton, rheonomic=int(rheonomic),
+            n=n, m=m, f=f, max_newton=max_newton, rheonomic=int(rheonomic), fresh=0,
             newton_tol=newton_tol, chord_contraction=CHORD_CONTRACTION, t_last=0.0,
             stall_ratio=STALL_RATIO,
             stall_span=0.0 if round_off is None else round_off / newton_tol), arrays)
@@ -242,11 +242,13 @@ class PartitionedEngine:
         self.ready = True
 
     def state(self, t, y):
-        """(q, v, Φ_q) of y = [z; ż], or None where the Python path must decide."""
+        """(q, v, Φ_q, n_fresh) of y = [z; ż] (n_fresh: the Newton iterations that took a
+        fresh Φ_q D, as `Partitioned.full_state` counts them), or None where the Python
+        path must decide."""
         self.y[:] = y
         if self._state(self._ptr, t):
             return None
-        return self.q.copy(), self.v.copy(), self.J.copy()
+        return self.q.copy(), self.v.copy(), self.J.copy(), int(self.ctx.fresh)
 
     def accelerations(self, t, Q):
         """[ż; z̈] at the state the last successful `state` left in the buffers, with the

@@ -79,7 +79,7 @@ class Dims:
 
 # The partitioned evaluation: the partition and the last accepted step.
 PARTITION = Layout("mechsim_lu", [
-    *(Field(name, "int64") for name in ("n", "m", "f", "max_newton", "rheonomic")),
+    *(Field(name, "int64") for name in ("n", "m", "f", "max_newton", "rheonomic", "fresh")),
     *(Field(name, "double") for name in ("newton_tol", "chord_contraction", "t_last",
                                           "stall_ratio", "stall_span")),
     Field("p", "const double*"), Field("q_ref", "const double*"),

@@ -245,9 +245,8 @@ class Partitioned(Formulation):
             return c.out
         engine = self.engine
         if engine is not None and engine.ready:
-            done = engine.state(t, y)
-            if done is not None:
-                out = done + (0,)
+            out = engine.state(t, y)
+            if out is not None:
                 self._cache = SolvedState(t, key, out, compiled=True)
                 return out
         bs = self.basis
