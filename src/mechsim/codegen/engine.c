@@ -131,6 +131,17 @@ int mechsim_lu_state(mechsim_lu *c, double t) {
   return lu_state(c, t, c->y, c->q, c->v, c->J, NULL);
 }
 
+int mechsim_lu_accelerations(mechsim_lu *c, double t);
+
+/* [zd; zdd] at c->y under the applied forces c->Q in one call (mechsim_lu_state, then
+   mechsim_lu_accelerations): 0 done; else the state's status, or 3 where the reduced
+   accelerations fail (Python decides). */
+int mechsim_lu_rhs(mechsim_lu *c, double t) {
+  const int status = lu_state(c, t, c->y, c->q, c->v, c->J, NULL);
+  if (status) return status;
+  return mechsim_lu_accelerations(c, t) ? 3 : 0;
+}
+
 /* k output samples (rows of Y) into the rows of Qo and Vo, the signs of det(Phi_q D) there
    into signs; the first failure's status. */
 int mechsim_lu_states(mechsim_lu *c, int64_t k, const double *ts, const double *Y,

@@ -137,7 +137,7 @@ def library(model):
         lib.mechsim_engine_init.argtypes = [ctypes.c_void_p] * len(routines)
         lib.mechsim_engine_init.restype = None
         lib.mechsim_engine_init(*map(_lapack, routines))
-        for name in ("mechsim_lu_state", "mechsim_lu_accelerations"):
+        for name in ("mechsim_lu_state", "mechsim_lu_accelerations", "mechsim_lu_rhs"):
             fn = getattr(lib, name)
             fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_double], ctypes.c_int
         lib.mechsim_lu_states.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 6
@@ -226,6 +226,7 @@ class PartitionedEngine:
             stall_span=0.0 if round_off is None else round_off / newton_tol), arrays)
         self._ptr = ctypes.addressof(self.ctx)
         self._state, self._acc = lib.mechsim_lu_state, lib.mechsim_lu_accelerations
+        self._rhs = lib.mechsim_lu_rhs
         self._states = lib.mechsim_lu_states
         self.ready = False
 
@@ -249,6 +250,16 @@ class PartitionedEngine:
         if self._state(self._ptr, t):
             return None
         return self.q.copy(), self.v.copy(), self.J.copy(), int(self.ctx.fresh)
+
+    def rhs(self, t, y, Q):
+        """[ż; z̈] of y = [z; ż] under the applied forces Q in one call (`state`, then
+        `accelerations`), or None where the Python path must decide. It leaves its state
+        in the buffers, as `state` does."""
+        self.y[:] = y
+        self.Q[:] = Q
+        if self._rhs(self._ptr, t):
+            return None
+        return self.out.copy()
 
     def accelerations(self, t, Q):
         """[ż; z̈] at the state the last successful `state` left in the buffers, with the

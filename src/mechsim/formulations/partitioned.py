@@ -365,6 +365,14 @@ class Partitioned(Formulation):
     def rhs(self, t, y):
         prob = self.problem
         prob.counters.rhs += 1
+        engine, Q = self.engine, prob.constant_forces()
+        if Q is not None and engine is not None and engine.ready:
+            # Forces that do not depend on the state: one compiled call for the whole rate.
+            out = engine.rhs(t, y, Q)
+            self._cache = None                 # (the engine's buffers hold another state)
+            if out is not None:
+                prob.counters.factorizations += 1
+                return out
         try:
             q, v, J, _ = self.full_state(t, y)
         except ConstraintSolveError:

@@ -108,11 +108,16 @@ class Loads:
         self._add(t, q, v, Q, elastic=True)
         return Q
 
+    @property
+    def gravity_only(self) -> bool:
+        """Is Q gravity's constant force alone (no beam, spring or load)?"""
+        return not (self.flexible or self.springs or self.loads or self.torsion)
+
     def forces_at(self, T, Q, V) -> np.ndarray:
         """`forces` at many states (rows), shape (N, n): gravity's constant share at once,
         the rest state by state."""
         T = np.asarray(T, float)
-        if not (self.flexible or self.springs or self.loads or self.torsion):
+        if self.gravity_only:
             return np.broadcast_to(self.gravity_force, (len(T), self.n)).copy()
         return np.array([self.forces(t, q, v) for t, q, v in zip(T, Q, V)]).reshape(
             len(T), self.n)

@@ -241,6 +241,13 @@ class NumericProblem:
             return Q
         return Q + self.friction.solve(self, t, q, v, Q).generalized()
 
+    def constant_forces(self):
+        """Q where it is the same at every state (gravity alone, no friction at work), else
+        None."""
+        if self.load_model.gravity_only and (self.friction is None or self.friction.idle):
+            return self.load_model.gravity_force
+        return None
+
     def forces_at(self, T, Q, V) -> np.ndarray:
         """`forces` at many states (rows), shape (N, n)."""
         if self.friction is None or self.friction.idle:
