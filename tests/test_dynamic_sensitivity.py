@@ -281,19 +281,25 @@ def test_spring_constants_as_parameters(which):
     rest angle as Parameters: the motion's sensitivities against central differences, and
     a new value set without a new build runs as a mechanism built with it."""
     values = {"k": 400.0, "c": 2.0, "rest": 0.3, "kt": 3.0, "rest_angle": 0.2}
-    mech = sprung_slider_crank(**{which: ms.Parameter(which, values[which])})
+    check_parameter(sprung_slider_crank, which, values[which])
+
+
+def check_parameter(build, which, value):
+    """`build(**{which: x})` with x a Parameter: its simulation's sensitivity against
+    central differences of rebuilt mechanisms (< 1e-5), and a new value set without a new
+    build running as a mechanism built with it (to 1e-12)."""
+    mech = build(**{which: ms.Parameter(which, value)})
     assert mech.parameters == [which]
     res = mech.simulate(0.3, output_step=0.01, rtol=1e-10, atol=1e-12,
                         sensitivities=[which])
     assert res.success, res.message
-    reference = central_difference(lambda x: sprung_slider_crank(**{which: x}),
-                                   values[which], lambda r: r.q, 0.3)
+    reference = central_difference(lambda x: build(**{which: x}), value, lambda r: r.q, 0.3)
     got = res.sensitivity(which)
     assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference))
-    mech.set_parameters(**{which: 1.2 * values[which]})
+    mech.set_parameters(**{which: 1.2 * value})
     again = mech.simulate(0.3, output_step=0.01, rtol=1e-10, atol=1e-12)
-    fresh = sprung_slider_crank(**{which: 1.2 * values[which]}).simulate(
-        0.3, output_step=0.01, rtol=1e-10, atol=1e-12)
+    fresh = build(**{which: 1.2 * value}).simulate(0.3, output_step=0.01, rtol=1e-10,
+                                                   atol=1e-12)
     assert np.max(np.abs(again.q - fresh.q)) < 1e-12
 
 
@@ -457,20 +463,7 @@ def test_constant_forces_and_torques_as_parameters(which):
     analysis's motor torque exactly linear in them, and a new value set without a new
     build running as a mechanism built with it."""
     values = {"push": 40.0, "drive": 1.5}
-    mech = pushed_slider_crank(**{which: ms.Parameter(which, values[which])})
-    assert mech.parameters == [which]
-    res = mech.simulate(0.3, output_step=0.01, rtol=1e-10, atol=1e-12,
-                        sensitivities=[which])
-    assert res.success, res.message
-    reference = central_difference(lambda x: pushed_slider_crank(**{which: x}),
-                                   values[which], lambda r: r.q, 0.3)
-    got = res.sensitivity(which)
-    assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference))
-    mech.set_parameters(**{which: 1.2 * values[which]})
-    again = mech.simulate(0.3, output_step=0.01, rtol=1e-10, atol=1e-12)
-    fresh = pushed_slider_crank(**{which: 1.2 * values[which]}).simulate(
-        0.3, output_step=0.01, rtol=1e-10, atol=1e-12)
-    assert np.max(np.abs(again.q - fresh.q)) < 1e-12
+    check_parameter(pushed_slider_crank, which, values[which])
 
     def driven(x):
         m = pushed_slider_crank(**{which: x})

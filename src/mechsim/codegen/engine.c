@@ -577,24 +577,6 @@ int mechsim_extremes(mechsim_projection *c, int64_t k, int64_t kk, const double 
   return 0;
 }
 
-/* sigma_min / sigma_max of J~ = Phi_q W^(1/2) at each of the k states (T[i], Q[i, :])
-   into out[i] (0 where sigma_max is 0): the monitor's search for a passage inside a step,
-   the singular values alone (dgesdd without vectors). 1 where an SVD fails. */
-int mechsim_ratios(mechsim_projection *c, int64_t k, const double *T, const double *Q,
-                   double *out) {
-  const int64_t n = c->n, m = c->m;
-  char jobz = 'N';
-  int N = (int)n, M = (int)m, LW = (int)c->lwork, info = 0;
-  for (int64_t i = 0; i < k; i++) {
-    scaled_jacobian(c, Q + i * n, T[i], c->A);
-    mechsim_dgesdd(&jobz, &N, &M, c->A, &N, c->sig, c->U, &N, c->VT, &M, c->svd_work, &LW,
-                   c->iwork, &info);
-    if (info != 0) return 1;
-    out[i] = c->sig[0] > 0.0 ? c->sig[m - 1] / c->sig[0] : 0.0;
-  }
-  return 0;
-}
-
 /* ||A||_1 ||A^-1||_1 of the block A = Phi_q D that Partitioned.choose picks at (c->q, t)
    for a Phi_q of full row rank (m <= n): the dependent coordinates are the first m of
    the row permutation of LU with partial pivoting of Phi_q^T. INFINITY where the

@@ -20,7 +20,9 @@ It is the dense constraint algebra's implementation of its state-level operation
   of J̃ where no singular value is under the truncation cut;
 - the projection of a state onto the constraints (`project_state`), one Cholesky factor
   for the positions' chord Newton and the velocities;
-- the singularity monitor's σ_min, σ_max and their rates (`measure`);
+- the singularity monitor's σ_min, σ_max and their rates (`measure`), and its passage
+  search's grid: J̃'s chords between states and the extreme singular values at many
+  (`chords`, `extremes`);
 - the hybrid's test for a return to LU, cond₁ of the block LU pivoting picks
   (`lu_condition`);
 - the multipliers of many states (`multipliers`).
@@ -158,9 +160,6 @@ def library(model):
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 4 + \
             [ctypes.c_int64, ctypes.c_void_p]
         fn.restype = None
-        fn = lib.mechsim_ratios
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 3
-        fn.restype = ctypes.c_int
         fn = lib.mechsim_chords
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 3
         fn.restype = None
@@ -308,7 +307,6 @@ class ProjectionEngine:
         self._fn = lib.mechsim_projection_accelerations
         self._project = lib.mechsim_project_state
         self._measure = lib.mechsim_measure
-        self._ratios = lib.mechsim_ratios
         self._chords = lib.mechsim_chords
         self._extremes = lib.mechsim_extremes
         self._project_many = lib.mechsim_project_states
@@ -395,16 +393,6 @@ class ProjectionEngine:
         out = np.empty((len(T), 2))
         if self._extremes(self._ptr, len(T), k, T.ctypes.data, Q.ctypes.data,
                           out.ctypes.data):
-            return None
-        return out
-
-    def ratios(self, T, Q):
-        """σ_min/σ_max of J̃ = Φ_q M^{-1/2} at each state (T[i], Q[i]), shape (k,) (0 where
-        σ_max is 0); None where an SVD fails. Needs m ≤ n."""
-        T = np.ascontiguousarray(T, dtype=float)
-        Q = np.ascontiguousarray(Q, dtype=float)
-        out = np.empty(len(T))
-        if self._ratios(self._ptr, len(T), T.ctypes.data, Q.ctypes.data, out.ctypes.data):
             return None
         return out
 

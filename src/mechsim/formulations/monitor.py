@@ -261,21 +261,6 @@ class SingularityMonitor:
         dJ = sparse.difference(self._jacobian(q + eps * v, t + eps), J, 1.0 / eps)
         return 2.0 * sparse.frobenius(dJ) / smax
 
-    @property
-    def _batched(self) -> bool:
-        """Are many states measured together (`ratios`): by the compiled engine, or by a
-        stacked SVD of a small dense J̃ (not a long chain's banded one)?"""
-        return self.problem.algebra.measures_together(self.problem.m - 1 - self.redundant)
-
-    def ratios(self, times, Q) -> np.ndarray:
-        """σ_min/σ_max of J̃ (not normalized) at each configuration Q[i] at times[i], shape
-        (k,): in one call of the compiled engine, or by one stacked SVD of the dense J̃ of a
-        small mechanism, else one `measure` each."""
-        got = self.problem.algebra.ratios(times, Q, self.problem.m - 1 - self.redundant)
-        if got is None:
-            return np.array([self.measure(q, tk)[0] for tk, q in zip(times, Q)])
-        return got
-
     def _hidden_passages(self, a, b, state_at, ratio_speed=0.0,
                          positions_at=None) -> list[Dip]:
         """The dips of s inside the step from a = (t0, s0/peak, rate) to b, in time order
@@ -292,9 +277,10 @@ class SingularityMonitor:
         dips (runs not parted by a value above `leave`), each refined to its minimum.
         A step that crosses several passages (a partitioned method striding through a
         uniformly turning parallelogram) reports every one, wherever its midpoints fall.
-        Steps clear of any passage cost nothing: their ends already exclude it. On a small
-        mechanism measured together the values come from `_anchored` (Weyl's inequality
-        along J̃'s path), elsewhere from `_bisect` on the rate bound."""
+        Steps clear of any passage cost nothing: their ends already exclude it. Where the
+        algebra measures many states together (a small mechanism) the values come from
+        `_anchored` (Weyl's inequality along J̃'s path), elsewhere from `_bisect` on the
+        rate bound, one `measure` each."""
         t0, s0, d0 = a
         t1, s1, d1 = b
         h = t1 - t0
@@ -314,9 +300,7 @@ class SingularityMonitor:
             return self.measure(state_at(tk)[0], tk)[0]
 
         def s_many(times):
-            if positions_at is None or len(times) < 2 or not self._batched:
-                return [s_at(tk) for tk in times]
-            return self.ratios(times, positions_at(np.array(times))).tolist()
+            return [s_at(tk) for tk in times]
 
         # Enough evaluations to cover the step with intervals the bound can clear (a
         # large mechanism's SVD costs milliseconds: there the rates seen bound the search).
@@ -324,7 +308,7 @@ class SingularityMonitor:
         if not self.problem.algebra.small:
             budget = min(budget, 64)
         apart = 2.0 * (leave - enter) / rate_bound
-        if positions_at is not None and self._batched and self.problem.algebra.small:
+        if positions_at is not None and self.problem.algebra.batched:
             seen = self._anchored((t0, t1), positions_at, budget, apart, self._known)
         else:
             seen = self._bisect((t0, s0 * peak, t1, s1 * peak), s_many, rate_bound, budget,

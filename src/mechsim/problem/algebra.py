@@ -63,8 +63,6 @@ class ConstraintAlgebra:
     - ``measure(q, t, v, eps, k, J=None)``: (σ_k, σ_max, σ̇_k, σ̇_max, u_k, J̃) at (q, t),
       the rates along v from J̃ at (q + eps v, t + eps) (0 where eps is 0; `J`: J̃ at q
       if the caller has it); σ_max = 0 where J̃ has lost that rank
-    - ``ratios(times, Q, k)``: σ_k/σ_max at every configuration Q[i] at times[i] measured
-      together, or None where they are measured one by one (`measure`)
     - ``chords(times, Q)``, ``singular_extremes(times, Q, k)``: bounds of ‖J̃ᵢ₊₁ − J̃ᵢ‖₂
       (`chord_bound`), (σ_k, σ_max) at each configuration: the passage search's grid
     - ``compiled_accelerations(t, q, v, Q, cut, bound, far)``: q̈ at (t, q, v) under the
@@ -161,20 +159,6 @@ class ConstraintAlgebra:
         low = sig[:, k] if 0 <= k < sig.shape[1] else np.zeros(len(sig))
         return np.column_stack([low, sig[:, 0]])
 
-    def ratios(self, times, Q, k):
-        if not self.batched:
-            return None
-        J = np.array([sparse.dense(self.scaled_jacobian(q, tk)) for tk, q in zip(times, Q)])
-        sig = np.linalg.svd(J, compute_uv=False)
-        if k < 0 or k >= sig.shape[1]:
-            return np.zeros(len(times))
-        top = sig[:, 0]
-        return np.where(top > 0.0, sig[:, k] / np.where(top > 0.0, top, 1.0), 0.0)
-
-    def measures_together(self, k) -> bool:
-        """Does `ratios` measure many states together (compiled, or stacked)?"""
-        return self.batched
-
     def compiled_accelerations(self, t, q, v, Q, cut, bound, far):
         return None
 
@@ -258,17 +242,6 @@ class DenseAlgebra(ConstraintAlgebra):
             if got is not None:
                 return got
         return super().singular_extremes(times, Q, k)
-
-    def ratios(self, times, Q, k):
-        engine = self._compiled(k)
-        if engine is not None:
-            got = engine.ratios(times, Q)
-            if got is not None:
-                return got
-        return super().ratios(times, Q, k)
-
-    def measures_together(self, k) -> bool:
-        return self._compiled(k) is not None or self.batched
 
     def compiled_accelerations(self, t, q, v, Q, cut, bound, far):
         if self.engine is None:
