@@ -18,7 +18,7 @@ LAYERS = [
     {"codegen"},
     {"flexible"},
     {"model"},
-    {"symbolic", "problem", "study"},
+    {"symbolic", "problem", "study", "objectives"},
     {"assembly", "formulations", "results", "design"},
     {"build", "run", "linear"},
     {"engineering"},

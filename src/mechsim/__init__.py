@@ -22,14 +22,14 @@ __version__ = "0.1.0"
 
 _LAZY_MODULES = {"examples", "codegen", "formulations", "integrators", "run", "app",
                  "results", "linear", "shooting", "engineering", "study",
-                 "assembly", "design"}
+                 "assembly", "design", "objectives"}
 _LAZY_NAMES = {"SimulationResult": "results", "load_result": "app.loading",
                "load_scene": "app.scene", "load_mechanism": "app.scene", "LinearSystem": "linear",
                "sweep": "study",
-               "Study": "study", "optimize": "design", "PathPoints": "design",
-               "FunctionPoints": "design",
-               "EffortNorm": "design", "TransmissionAngle": "design",
-               "JointForceNorm": "design", "GrashofCrank": "design",
+               "Study": "study", "optimize": "design", "PathPoints": "objectives",
+               "FunctionPoints": "objectives",
+               "EffortNorm": "objectives", "TransmissionAngle": "objectives",
+               "JointForceNorm": "objectives", "GrashofCrank": "objectives",
                "multistart": "design"}
 _ALIASES = {"solver": "run.solver", "scene": "app.scene", "bench": "app.bench",
             "rotor": "linear.rotor", "analysis": "linear.analysis",

@@ -40,8 +40,9 @@ from pathlib import Path, PurePath
 
 import numpy as np
 
-from ..design import (EffortNorm, GrashofCrank, JointForceNorm, PathPoints,
-                      TransmissionAngle, optimize)
+from ..design import optimize
+from ..objectives import (EffortNorm, GrashofCrank, JointForceNorm, PathPoints,
+                          TransmissionAngle)
 from ..model import ModelError
 from ..model.parameters import Parameter
 from ..options import unknown_names

@@ -299,9 +299,6 @@ class SingularityMonitor:
         def s_at(tk):
             return self.measure(state_at(tk)[0], tk)[0]
 
-        def s_many(times):
-            return [s_at(tk) for tk in times]
-
         # Enough evaluations to cover the step with intervals the bound can clear (a
         # large mechanism's SVD costs milliseconds: there the rates seen bound the search).
         budget = int(min(4000, 16 + 4 * rate_bound * h / max((s0 + s1) * peak, enter)))
@@ -311,7 +308,7 @@ class SingularityMonitor:
         if positions_at is not None and self.problem.algebra.batched:
             seen = self._anchored((t0, t1), positions_at, budget, apart, self._known)
         else:
-            seen = self._bisect((t0, s0 * peak, t1, s1 * peak), s_many, rate_bound, budget,
+            seen = self._bisect((t0, s0 * peak, t1, s1 * peak), s_at, rate_bound, budget,
                                 apart)
         times = sorted(seen)
         values = [seen[tk] for tk in times]
@@ -383,11 +380,11 @@ class SingularityMonitor:
                 chords[j:j + 1] = [pieces[c], pieces[c + 1]]
         return {tk: (sm / sx if sx > 0.0 else 0.0) for tk, (sm, sx) in anchors.items()}
 
-    def _bisect(self, ends, s_many, rate_bound, budget, apart) -> dict:
+    def _bisect(self, ends, s_at, rate_bound, budget, apart) -> dict:
         """{t: s} over the step `ends` = (t0, s0, t1, s1) (not normalized), halving every
         interval the bound `rate_bound` does not keep above `enter` and that lies farther
-        than `apart` from a value under it, breadth first: a level's midpoints measured
-        together by `s_many`, at most `budget` of them in all."""
+        than `apart` from a value under it, breadth first, each midpoint measured by
+        `s_at(t)`, at most `budget` of them in all."""
         t0, s0, t1, s1 = ends
         enter, h = self.enter * self.peak, t1 - t0
         seen = {t0: s0, t1: s1}
@@ -400,7 +397,7 @@ class SingularityMonitor:
             mids = [0.5 * (ta + tb) for ta, _, tb, _ in todo]
             budget -= len(mids)
             level = []
-            for (ta, sa, tb, sb), tm, sm in zip(todo, mids, s_many(mids)):
+            for (ta, sa, tb, sb), tm, sm in zip(todo, mids, map(s_at, mids)):
                 seen[tm] = sm
                 if sm < enter:
                     lows.append(tm)

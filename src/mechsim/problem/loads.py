@@ -178,7 +178,6 @@ class Loads:
         for load in self.loads:
             if load.modal is not None:
                 return f"the load '{load.name}' on a flexible body"
-        for load in self.loads:
             if load.reads_state:
                 return (f"the {'torque' if load.is_torque else 'force'} '{load.name}', "
                         "whose function reads the motion")

@@ -38,6 +38,11 @@ class MassFactor:
         """L⁻ᵀ x (x of shape (n,) or (n, K))."""
         return (x.T * self.s).T if self.Linv is None else self.Linv.T @ x
 
+    def inverse(self, x):
+        """M⁻¹ x = L⁻ᵀ L⁻¹ x (x of shape (n,) or (n, K))."""
+        return (x.T * (self.s * self.s)).T if self.Linv is None else \
+            self.Linv.T @ (self.Linv @ x)
+
     def unright(self, x):
         """Lᵀ x, the inverse of `right`: accelerations q̈ into the scaled x = Lᵀ q̈."""
         return (x.T / self.s).T if self.Linv is None else np.linalg.solve(self.Linv.T, x)

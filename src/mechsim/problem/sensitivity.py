@@ -273,17 +273,15 @@ class MotionEquations:
             # above the cut.)
             solve = prob.algebra.clear_solver(J, f, cut, cut ** 2)
         if solve is not None:
-            def inverse_mass(x):                                   # M⁻¹ x
-                return f.right(f.left(x))
             if a is None:
-                wQ = inverse_mass(Q)
+                wQ = f.inverse(Q)
                 lam = solve(J @ wQ - gamma)
-                a = wQ - inverse_mass(J.T @ lam)
+                a = wQ - f.inverse(J.T @ lam)
             else:
-                lam = solve(J @ inverse_mass(Q) - J @ a)
+                lam = solve(J @ f.inverse(Q) - J @ a)
             F, g = self._sides(t, q, v, a, lam, Sq, Sv)
-            wF = inverse_mass(F)
-            return wF - inverse_mass(J.T @ solve(J @ wF - g)), a, None
+            wF = f.inverse(F)
+            return wF - f.inverse(J.T @ solve(J @ wF - g)), a, None
         V, Ui, dropped = self._svd(J, f, cut) if J.shape[0] else \
             (np.zeros((prob.n, 0)), np.zeros((0, 0)), None)
         xQ = f.left(Q)
