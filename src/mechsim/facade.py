@@ -241,8 +241,10 @@ class Mechanism(MechanismModel):
         `sensitivities`: names of Parameters (`parameters`) whose exact sensitivities the
         motion carries, integrated with it under the same error control
         (`mechsim.formulations.tangent`; rigid bodies and flexible beams under gravity,
-        springs, dampers, forces and torques of time on rigid bodies; loads on a beam,
-        friction and stops are refused);
+        springs, dampers, forces and torques of time on rigid bodies, impacts on stops of
+        rigid mechanisms (`mechsim.engineering.impact_sensitivity`: each impact's time
+        sensitivity on `Impact.time_sensitivity`; they end where a joint comes to rest on a
+        stop, and the message says so); loads on a beam and friction are refused);
         `result.sensitivity(name, of=...)` gives them at the samples. They start from the
         assembly linearised at the given configuration: exact where that configuration
         satisfies the joints (the message says so where the assembly moved it)."""
@@ -253,9 +255,11 @@ class Mechanism(MechanismModel):
         report = self._assembled or self.assemble(t=config.t_start)
         if self.stops or self.frictions:
             from .engineering.impacts import simulate_with_stops
-            return simulate_with_stops(self, report, t_end, method, **options)
-        res = run(self.problem(), report.q, report.v, config, stream=options.get("stream"),
-                  mechanism=self, sensitivities=tangent)
+            res = simulate_with_stops(self, report, t_end, method, sensitivities=tangent,
+                                      **options)
+        else:
+            res = run(self.problem(), report.q, report.v, config,
+                      stream=options.get("stream"), mechanism=self, sensitivities=tangent)
         if tangent is not None and self._state is None and report.position_change > 1e-9:
             res.message += (f"; the initial sensitivities linearise the assembly, which moved "
                             f"the given configuration by up to {report.position_change:.3g}: "
@@ -275,14 +279,44 @@ class Mechanism(MechanismModel):
         blind = self.parameter_blind_loads()
         if blind:
             raise ValueError(f"simulate: {load_blindness(blind[0])}")
-        if self.stops or self.frictions:
-            raise ValueError("simulate: sensitivities through stops and friction are not "
-                             "carried yet")
+        if self.frictions:
+            raise ValueError("simulate: sensitivities through friction are not carried yet "
+                             f"(friction '{self.frictions[0].name}')")
+        self._check_stops_differentiable(names)
         equations = MotionEquations(self.problem(), sensitivity_model(self), names)
         if self._state is not None:            # a state set by the user: held as given
             held = np.zeros((len(self.coordinate_names), len(names)))
             return equations, held, held
         return (equations, *self.initial_partials(names))
+
+    def _check_stops_differentiable(self, names) -> None:
+        """ValueError naming the stop where its impacts' sensitivities cannot be carried:
+        on a flexible mechanism, or where its joint's coordinate moves with a Parameter
+        differentiated."""
+        if not self.stops:
+            return
+        problem = self.problem()
+        if problem.flexible:
+            raise ValueError(f"simulate: sensitivities across the impacts on stop "
+                             f"'{self.stops[0].name}' are carried for rigid bodies only")
+        offset, where = 0, {}
+        for item in self.constraint_items:
+            size = len(item.parameter_values())
+            where[id(item)] = slice(offset, offset + size)
+            offset += size
+        for stop in self.stops:
+            joint = stop.joint
+            if joint.kind == "revolute":       # a difference of the bodies' angles
+                continue
+            rows = where[id(joint)]
+            moved = [k for k in names
+                     if np.any(problem.parameter_partials.get(k, np.zeros(offset))[rows])]
+            if moved:
+                raise ValueError(f"simulate: the coordinate of joint '{joint.name}', which "
+                                 f"stop '{stop.name}' limits, moves with Parameter "
+                                 f"'{moved[0]}': its impacts' sensitivities are not "
+                                 "carried (keep the joint's geometry out of the Parameters "
+                                 "asked for)")
 
     def steady_state(self, period: float, guess=None, method: str = "newton",
                      tol: float = 1e-8, max_iter: int = 30, t_start: float = 0.0,

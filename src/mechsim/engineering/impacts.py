@@ -16,7 +16,7 @@ energy log, so its balance stays at the solver's accuracy; the friction's switch
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -40,7 +40,8 @@ class Impact:
     before and after it (rad/s or m/s), the kinetic energy it took [J], whether the joint
     came to rest on the stop, the stop's impulse on body_b along the joint's coordinate
     (N·m·s or N·s) and each joint's impulsive reaction, the impulse [N·s] it gave its
-    body_b ({joint name: [x, y]}, global axes; minimum-norm where redundant)."""
+    body_b ({joint name: [x, y]}, global axes; minimum-norm where redundant) and, in a run
+    carrying sensitivities, the impact time's to each Parameter ({name: dt/dk})."""
     t: float
     stop: str
     limit: float
@@ -50,6 +51,7 @@ class Impact:
     resting: bool
     impulse: float = 0.0
     joint_impulses: dict = field(default_factory=dict)
+    time_sensitivity: dict = field(default_factory=dict)
 
 
 class StopEvents:
@@ -103,23 +105,27 @@ class Joined:
         return part.describe(k)
 
 
-def simulate_with_stops(mech, report, t_end, method=None, **options):
+def simulate_with_stops(mech, report, t_end, method=None, sensitivities=None, **options):
     """`Mechanism.simulate` for a mechanism with stops or joints with friction from its
-    assembled state `report` (see the module docstring)."""
+    assembled state `report` (see the module docstring). `sensitivities`: (a
+    `MotionEquations`, ∂q0/∂k, ∂v0/∂k) carried through the pieces and across the impacts
+    (`mechsim.engineering.impact_sensitivity`) until a joint comes to rest on a stop."""
     if options.get("stream") is not None:
         raise ModelError(f"mechanism '{mech.name}': a run with stops or friction is a "
                          "sequence of runs joined in memory; it cannot be streamed "
                          "(simulate without `stream`)")
-    return PiecewiseRun(mech, report.q, report.v, t_end, method, options).run()
+    return PiecewiseRun(mech, report.q, report.v, t_end, method, options,
+                        sensitivities=sensitivities).run()
 
 
 class PiecewiseRun:
     """The pieces of a run with stops and friction, from one event to the next: the stops
     its joints rest on (`held`: (stop, sign, limit)), the mode of every element of the
     problem's `FrictionModel` (`modes`: each friction's and each stop's), what happened at
-    each event (`impacts`, `switches`) and the pieces' results."""
+    each event (`impacts`, `switches`) and the pieces' results; the sensitivities carried
+    (`carried`: (q_k, v_k) at the present instant, None once they end)."""
 
-    def __init__(self, mech, q, v, t_end, method, options, contacts=None):
+    def __init__(self, mech, q, v, t_end, method, options, contacts=None, sensitivities=None):
         self.mech, self.t_end, self.method = mech, t_end, method
         self.t = float(options.pop("t_start", 0.0))
         self.output_step = options.pop("output_step", None)
@@ -143,6 +149,11 @@ class PiecewiseRun:
             self.modes = np.array(contacts["modes"], int)
         self.pieces, self.impacts, self.switches, self.schedule = [], [], [], []
         self.stalled, self.failure = 0, ""
+        self.equations, self.carried, self.uncarried = None, None, ""
+        if sensitivities is not None:
+            self.equations, self.carried = sensitivities[0], tuple(sensitivities[1:])
+            if not np.all(np.isfinite(self.carried[0])):    # they ended in an earlier run
+                self.carried = None
 
     def piece_problem(self):
         """(the problem of the present piece, its free limits)."""
@@ -196,9 +207,13 @@ class PiecewiseRun:
         events = Joined([stops, friction])
         here = None if self.grid is None else np.concatenate(
             [[t], self.grid[self.grid > t + 1e-12 * max(1.0, abs(t))]])
+        carried = None if self.carried is None else (self.equations, *self.carried)
         res = simulate(p, q, v, t_start=t, t_end=self.t_end, method=self.method,
-                       output_grid=here, events=events, mechanism=self.mech, **self.options)
+                       output_grid=here, events=events, mechanism=self.mech,
+                       sensitivities=carried, **self.options)
         self.pieces.append(res)
+        if carried is not None:
+            self.carried = (res.sensitivities.q[-1], res.sensitivities.v[-1])
         self.schedule.append((float(res.t[-1]), self.modes.copy()))
         if res.event is None or not res.success:
             return False
@@ -224,11 +239,31 @@ class PiecewiseRun:
 
     def hit(self, p, limit):
         """The impact on the stop limit (stop, sign, value) at the present state."""
+        v_before = self.v
         self.v, impact = _impact(p, *limit, self.t, self.q, self.v)
+        if self.carried is not None:
+            impact = self._carry_across(p, limit[0], impact, v_before)
         self.impacts.append(impact)
         if impact.resting:
             self.held.append(limit)
         self.remode(p)                                # the impulse moved every joint
+
+    def _carry_across(self, p, stop, impact, v_before):
+        """The sensitivities carried across `impact` (its time's kept on it); where the
+        joint came to rest they end here, and the result says so."""
+        if impact.resting:
+            self.carried = None
+            self.uncarried = (f"the sensitivities end at t = {self.t:.9g}, where joint "
+                              f"'{stop.joint.name}' came to rest on stop '{stop.name}' (a "
+                              "resting contact is not differentiated; later samples hold NaN)")
+            return impact
+        from .impact_sensitivity import impact_jump
+        Sq, Sv, dt = impact_jump(p, self.equations, p.joints[stop.joint.name],
+                                 stop.restitution, self.t, self.q, v_before, self.v,
+                                 *self.carried)
+        self.carried = (Sq, Sv)
+        return replace(impact, time_sensitivity={
+            name: float(x) for name, x in zip(self.equations.names, dt)})
 
     def switch(self, p, k):
         """Friction element k's joint reached zero rate (sliding) or its limit (stuck)."""
@@ -254,6 +289,8 @@ class PiecewiseRun:
         # last, whose status ends the run).
         last = len(self.pieces) - 1
         kept = [i for i, p in enumerate(self.pieces) if p.t[-1] > p.t[0] or i == last]
+        if self.equations is not None:
+            self._unknown_sensitivities()
         self.schedule = [self.schedule[i] for i in kept]
         out = self.pieces[kept[0]]
         for i in kept[1:]:
@@ -274,18 +311,38 @@ class PiecewiseRun:
             out.message += f"; {len(self.impacts)} impact(s) on the stops"
         if out.success and self.switches:
             out.message += f"; {len(self.switches)} stick-slip switch(es)"
+        if self.uncarried:
+            out.message += "; " + self.uncarried
         _impact_work(out, self.impacts)
         return out
+
+
+    def _unknown_sensitivities(self):
+        """The pieces run after the sensitivities ended hold NaN for them, so that the
+        joined result's table spans all its samples."""
+        from ..problem.sensitivity import MotionSensitivities
+        width = self.equations.width
+        for piece in self.pieces:
+            if piece.sensitivities is None:
+                piece.sensitivities = MotionSensitivities(
+                    self.equations, piece.t, piece.q, piece.v,
+                    np.full((len(piece.t), width), np.nan), lam=lambda: None,
+                    accelerations=piece.accelerations)
 
 
 def extend_piecewise(result, t_end, overrides):
     """`SimulationResult.extend` of a run with stops or friction: the run goes on from its
     last state with the modes and held stops it ended with, joined into one result."""
     from ..results.join import join
+    from ..problem.sensitivity import MotionSensitivities
     settings = {**result.settings, **overrides}
     contacts, method = settings.pop("contacts"), settings.pop("method", None)
+    table = result.sensitivities
+    carried = (table.equations, table.q[-1], table.v[-1]) \
+        if isinstance(table, MotionSensitivities) else None
     rest = PiecewiseRun(result.mechanism, result.q[-1], result.v[-1], t_end, method,
-                        dict(settings, t_start=float(result.t[-1])), contacts).run()
+                        dict(settings, t_start=float(result.t[-1])), contacts,
+                        sensitivities=carried).run()
     out = join(result, rest)
     out.mechanism, out.settings = result.mechanism, rest.settings
     out.continuation = extend_piecewise

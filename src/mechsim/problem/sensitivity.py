@@ -170,8 +170,8 @@ def _loads_differentiated(problem, what="sensitivities of the multipliers") -> N
     """ValueError where the applied forces cannot be differentiated (`what` begins the
     message): flexible bodies, friction, a load whose function reads the motion."""
     why = problem.load_model.not_differentiated()
-    if not why and problem.friction is not None:
-        why = "friction"
+    if not why and problem.friction is not None and problem.friction.frictions:
+        why = "friction"             # (a stop's element acts only while a joint rests on it)
     if why:
         raise ValueError(f"{what}: {why} is not differentiated yet")
 
