@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import mechsim as ms
+from mechsim.problem.geometry import joint_gradient
 
 G = 9.81
 
@@ -23,11 +24,11 @@ def pendulum(length=1.0, restitution=0.8):
     return mech
 
 
-def thrown_slider(k=30.0, slider_mass=0.5, arm_mass=1.0, driven=True):
+def thrown_slider(k=30.0, slider_mass=0.5, arm_mass=1.0, w=2.0, driven=True):
     """A slider on a turning arm, tied to the pivot by a spring, thrown against the two
     ends of its slot (a prismatic stop whose coordinate turns with the arm; the slot 0.1 m
     off the pivot, so that its impulses turn the arm too); the arm
-    driven at 2 + 1.5 cos 3t rad/s, or free from 3.5 rad/s."""
+    driven by w t + 0.5 sin 3t (w = 2 rad/s), or free from 3.5 rad/s."""
     mech = ms.Mechanism("thrown slider", gravity=(0.0, -G))
     arm = mech.add(ms.RigidBody.rod("arm", (0, 0), (1.0, 0.0), arm_mass))
     pivot = mech.add(ms.Revolute(mech.ground, arm, at=(0, 0), name="pivot"))
@@ -38,7 +39,7 @@ def thrown_slider(k=30.0, slider_mass=0.5, arm_mass=1.0, driven=True):
                        rest_length=0.3, name="tie"))
     mech.set_speed(slot, 0.6)
     if driven:
-        mech.add(ms.Driver(pivot, "2.0*t + 0.5*sin(3*t)", name="motor"))
+        mech.add(ms.Driver(pivot, "w*t + 0.5*sin(3*t)", values={"w": w}, name="motor"))
     else:
         mech.set_speed(pivot, 3.5)
     return mech
@@ -89,12 +90,13 @@ def test_a_pendulum_bouncing_on_its_stop_agrees_with_finite_differences(method):
 
 
 @pytest.mark.parametrize("which, driven", [("k", True), ("slider_mass", True),
-                                           ("arm_mass", False)])
+                                           ("w", True), ("arm_mass", False)])
 def test_a_slider_thrown_against_the_ends_of_a_turning_slot(which, driven):
     """A prismatic stop whose coordinate turns with the arm (its second derivatives enter
     the impact), a spring, and a driver (the constraint's time derivative enters the
-    impact's time shift): the spring's stiffness, the slider's and the arm's mass."""
-    values = {"k": 30.0, "slider_mass": 0.5, "arm_mass": 1.0}
+    impact's time shift): the spring's stiffness, the slider's and the arm's mass, the
+    driver's speed."""
+    values = {"k": 30.0, "slider_mass": 0.5, "arm_mass": 1.0, "w": 2.0}
     check_against_differences(
         lambda x: thrown_slider(**{**values, which: x}, driven=driven), which,
         values[which], 2.0)
@@ -141,3 +143,17 @@ def test_what_cannot_be_carried_across_impacts_is_refused_naming_it():
     rubbing.add(ms.Friction(rubbing.joint("pin"), mu=0.1, radius=0.01, name="bearing"))
     with pytest.raises(ValueError, match="friction 'bearing'"):
         rubbing.simulate(1.0, sensitivities=["length"])
+
+
+def test_the_initial_sensitivities_hold_the_rates_set_on_joints():
+    """The start linearises the assembly itself: the slot's rate, given by `set_speed`,
+    does not move with the driver's speed w, while the arm's rate w + 1.5 moves by 1."""
+    mech = thrown_slider(w=ms.Parameter("w", 2.0))
+    mech.stops.clear()
+    res = mech.simulate(0.05, rtol=1e-10, atol=1e-12, output_step=0.01,
+                        sensitivities=["w"])
+    Sv = res.sensitivity("w", of="v")[0]
+    q, problem = res.q[0], res.problem
+    slot = joint_gradient(problem.joints["slot"], q) @ Sv
+    pivot = joint_gradient(problem.joints["pivot"], q) @ Sv
+    assert abs(slot) < 1e-12 and pivot == pytest.approx(1.0, abs=1e-12)

@@ -14,9 +14,11 @@ from mechsim.model.parameters import Dual, atan2, hypot
 THETA0, SPEED = 0.3, 5.0
 
 
-def offset_slider_crank(r=0.15, l=0.40, e=0.05, tilt=0.0, theta0=THETA0, m_rod=0.8):
-    """Crank r from the origin (driven at SPEED from theta0), rod l, slider on the line
-    y = e (tilted by `tilt`: its axis (1, tilt)); numbers or Parameters."""
+def offset_slider_crank(r=0.15, l=0.40, e=0.05, tilt=0.0, theta0=THETA0, m_rod=0.8,
+                        speed=SPEED, law="w*t"):
+    """Crank r from the origin (driven by `law` in t and w = `speed` from theta0), rod l,
+    slider on the line y = e (tilted by `tilt`: its axis (1, tilt)); numbers or
+    Parameters."""
     mech = ms.Mechanism("offset slider-crank", gravity=(0.0, -9.81))
     b = np.array([r * np.cos(theta0), r * np.sin(theta0)])
     # The slider's point on its line y = e + tilt·x, found from the rod's length by one
@@ -34,7 +36,7 @@ def offset_slider_crank(r=0.15, l=0.40, e=0.05, tilt=0.0, theta0=THETA0, m_rod=0
     mech.add(ms.Revolute(crank, rod, at=b, name="A"))
     mech.add(ms.Revolute(rod, slider, at=c, name="B"))
     mech.add(ms.Prismatic(mech.ground, slider, axis=(1.0, tilt), at=c, name="guide"))
-    mech.add(ms.Driver(pin, f"{SPEED}*t"))
+    mech.add(ms.Driver(pin, law, values={"w": speed}))
     return mech
 
 
@@ -416,3 +418,50 @@ def test_a_spring_s_stiffness_enters_the_motor_torque_exactly():
     reference = two.driver_effort(two.mechanism.drivers[0]) - \
         one.driver_effort(one.mechanism.drivers[0])
     assert relative(got, reference) < 1e-8
+
+
+def test_a_driver_law_s_parameter_has_exact_sensitivities():
+    """The crank speed w in the law w t + 0.2 sin(w t) (`Driver(values=...)`): the crank
+    angle's sensitivity is t (1 + 0.2 cos(w t)) exactly; the slider's position, rate and
+    acceleration and the motor torque against central differences; a new value needs no
+    build and equals a fresh model."""
+    law = "w*t + 0.2*sin(w*t)"
+    mech = offset_slider_crank(speed=ms.Parameter("w", SPEED), law=law)
+    assert mech.parameters == ["w"]
+    kin = mech.kinematics(1.0, 0.05, sensitivities=["w"])
+    col = kin.coordinate_names.index("crank.angle")
+    np.testing.assert_allclose(kin.sensitivity("w")[:, col],
+                               kin.t * (1 + 0.2 * np.cos(SPEED * kin.t)), atol=1e-12)
+
+    def build(w):
+        return offset_slider_crank(speed=w, law=law)
+    for of, quantity in (("q", lambda k: k.q), ("v", lambda k: k.v),
+                         ("a", lambda k: k.accelerations())):
+        assert relative(kin.sensitivity("w", of=of),
+                        central_difference(build, SPEED, quantity)) < 1e-6, of
+    motor = mech.drivers[0]
+    effort = central_difference(build, SPEED,
+                                lambda k: k.driver_effort(k.mechanism.drivers[0]))
+    assert relative(kin.sensitivity("w", of="driver_effort", driver=motor), effort) < 1e-6
+    mech.set_parameters(w=7.0)
+    assert motor.expression == "((7.0 * t) + (0.2 * sin((7.0 * t))))"
+    np.testing.assert_allclose(mech.kinematics(1.0, 0.05).q, build(7.0).kinematics(1.0, 0.05).q,
+                               atol=1e-12)
+
+
+def test_bad_driver_values_are_refused_naming_the_driver():
+    mech = offset_slider_crank()
+    pin = mech.joint("O")
+    with pytest.raises(ms.ModelError, match="driver 'd': `values` names 'k', which its "
+                                            "expression"):
+        ms.Driver(pin, "w*t", name="d", values={"w": 1.0, "k": 2.0})
+    with pytest.raises(ms.ModelError, match="`values` key 't' is not a name"):
+        ms.Driver(pin, "t", name="d", values={"t": 1.0})
+    with pytest.raises(ms.ModelError, match="a table or a function has none"):
+        ms.Driver(pin, name="d", table=([0, 1, 2, 3], [0, 1, 2, 3]), values={"w": 1.0})
+    with pytest.raises(ms.ModelError, match="values\\['w'\\]"):
+        ms.Driver(pin, "w*t", name="d", values={"w": "fast"})
+    with pytest.raises(ms.ModelError, match="driver 'd': the Parameter bound to 'n' is a whole-number exponent"):
+        ms.Driver(pin, "t**n", name="d", values={"n": ms.Parameter("n", 2.0)})
+    with pytest.raises(ms.ModelError, match="unknown name|not allowed|'u'"):
+        ms.Driver(pin, "u*t", name="d", values={"w": 1.0})

@@ -253,6 +253,8 @@ class Mechanism(MechanismModel):
         self.check_tables(config.t_start, config.t_end)
         tangent = self._tangent(sensitivities) if sensitivities is not None else None
         report = self._assembled or self.assemble(t=config.t_start)
+        if tangent is not None and self._state is None:
+            tangent = self._assembled_partials(tangent, report, config.t_start)
         if self.stops or self.frictions:
             from .engineering.impacts import simulate_with_stops
             res = simulate_with_stops(self, report, t_end, method, sensitivities=tangent,
@@ -288,6 +290,23 @@ class Mechanism(MechanismModel):
             held = np.zeros((len(self.coordinate_names), len(names)))
             return equations, held, held
         return (equations, *self.initial_partials(names))
+
+    def _assembled_partials(self, tangent, report, t):
+        """(equations, q_k, v_k) at the assembled start: q_k on the constraints' tangent,
+        v_k the assembly's velocity projection linearised (the rates of `set_speed` held,
+        the given velocities' own change and the masses' metric included:
+        `mechsim.engineering.impact_sensitivity.VelocityProjection`). A flexible
+        mechanism's (M(q)) are left to the tangent's projection."""
+        equations, Sq, Sv = tangent
+        problem = equations.problem
+        if problem.flexible:
+            return tangent
+        from .engineering.impact_sensitivity import VelocityProjection
+        Sq = equations.project(t, report.q, report.v, Sq, Sv)[0]
+        rows = [(problem.joints[name], 0.0) for name in self.speeds]
+        law = VelocityProjection(problem, equations, rows, t, report.q,
+                                 self.initial_velocities(), report.v)
+        return equations, Sq, law.partials(Sq, Sv)
 
     def _check_stops_differentiable(self, names) -> None:
         """ValueError naming the stop where its impacts' sensitivities cannot be carried:

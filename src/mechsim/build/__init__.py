@@ -93,7 +93,7 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
     model, from_cache = constraint_model(mech, items, mode)
     starts = body_starts(mech)
     exact = [x for item in items for x in item.parameter_values()] + \
-        [x for item in items for x in getattr(item, "law_constants", ())]
+        [x for item in items for x in getattr(item, "exact_law_constants", ())]
     params = [value_of(x) for x in exact]
     # ∂p/∂(each Parameter the geometry depends on), exact (`mechsim.model.parameters`).
     named = parameter_names(exact)

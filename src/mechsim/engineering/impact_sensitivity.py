@@ -47,48 +47,71 @@ def _hessian(geometry, q) -> np.ndarray:
     return H + np.triu(H, 1).T
 
 
+class VelocityProjection:
+    """The velocities v⁺ nearest v⁻ in the mass metric with Φ_q v⁺ + Φ_t = 0 and, for each
+    joint row (geometry, e), G v⁺ = −e G v⁻ (an impact's Newton law) or, with e = 0 and
+    a constant target, the joint's rate held (`Mechanism.set_speed`), linearised at the
+    state (t, q, v⁻ → v⁺): `partials` in the parameters' directions, `along_motion` along
+    the motion before it (module docstring). Rigid bodies: M constant and diagonal."""
+
+    def __init__(self, problem, equations, joints, t, q, v_before, v_after):
+        n, self.n = problem.n, problem.n
+        self.problem, self.t, self.q = problem, t, q
+        self.v_before, self.v_after = v_before, v_after
+        self.module, self.P, self.p = equations.module, equations.P, problem.p
+        self.M, self.Mk = problem.mass_diagonal, equations.forces.Mk     # M, ∂M/∂k (n, K)
+        self.e = np.array([e for _, e in joints], float)
+        J = sparse.dense(problem.phi_q(q, t)).reshape(-1, n)
+        self.G = np.array([joint_gradient(g, q) for g, _ in joints]).reshape(-1, n)
+        self.H = [_hessian(g, q) for g, _ in joints]
+        A = np.vstack([J, self.G])
+        m, k = J.shape[0], self.G.shape[0]
+        eta = np.linalg.lstsq(A.T, self.M * (v_before - v_after), rcond=None)[0]
+        mu, self.nu = eta[:m], eta[m:]
+        self.r1q, self.r1p = self.module.sensitivity_terms(q, v_after, np.zeros(n), t,
+                                                           self.p)[1:3]
+        self.r3q, self.r3p = self.module.multiplier_terms(q, mu, t, self.p) if m else \
+            (np.zeros((n, n)), np.zeros((n, len(self.p))))
+        self.saddle = np.block([[np.diag(self.M), A.T], [A, np.zeros((m + k, m + k))]])
+
+    def _solve(self, dq, dv, top, mid):
+        """v⁺'s change for the changes dq, dv (of q, v⁻), given the M rows' and Φ rows'
+        other terms (`top`, `mid`), the joint rows' from dq and dv."""
+        HS = [H @ dq for H in self.H]
+        top = top - sum(nu * HSj for nu, HSj in zip(self.nu, HS))
+        bottom = np.array([-e * (G @ dv + self.v_before @ HSj) - self.v_after @ HSj
+                           for e, G, HSj in zip(self.e, self.G, HS)]).reshape(-1, dq.shape[1])
+        rhs = np.vstack([top, mid, bottom])
+        return np.linalg.lstsq(self.saddle, rhs, rcond=None)[0][:self.n]
+
+    def partials(self, Sq, Sv):
+        """∂v⁺/∂k (n, K) for the sensitivities (Sq, Sv) of q and v⁻."""
+        top = self.M[:, None] * Sv + self.Mk * (self.v_before - self.v_after)[:, None] \
+            - self.r3q @ Sq - self.r3p @ self.P
+        return self._solve(Sq, Sv, top, -(self.r1q @ Sq + self.r1p @ self.P))
+
+    def along_motion(self, a_before):
+        """d v⁺/dt along the motion before (v⁻, q̈⁻, 1); R1's time derivative from γ."""
+        _, gamma = self.problem.dynamics_terms(self.q, self.v_after, self.t)
+        vb, va = self.v_before, self.v_after
+        return self._solve(vb[:, None], a_before[:, None],
+                           (self.M * a_before - self.r3q @ vb)[:, None],
+                           (np.asarray(gamma, float) - self.r1q @ (vb - va))[:, None])[:, 0]
+
+
 def impact_jump(problem, equations, geometry, restitution, t, q, v_before, v_after,
                 Sq, Sv):
     """(q_k⁺, v_k⁺, dt_e/dk) across the impact at t (module docstring): `geometry` the
     stop's joint, `restitution` e (0 where the joint came to rest), v_before/v_after the
     velocities on either side and (Sq, Sv) the sensitivities before it, each (n, K)."""
-    n = problem.n
-    module, P, p = equations.module, equations.P, problem.p
-    M = problem.mass_diagonal
-    Mk = equations.forces.Mk                                 # ∂M/∂k, (n, K)
-    J = sparse.dense(problem.phi_q(q, t)).reshape(-1, n)
-    G = joint_gradient(geometry, q)
-    H = _hessian(geometry, q)
-    A = np.vstack([J, G[None]])
-    m = J.shape[0]
-    eta = np.linalg.lstsq(A.T, M * (v_before - v_after), rcond=None)[0]
-    mu, nu = eta[:m], eta[m]
-    r1q, r1p = module.sensitivity_terms(q, v_after, np.zeros(n), t, p)[1:3]
-    r3q, r3p = module.multiplier_terms(q, mu, t, p) if m else \
-        (np.zeros((n, n)), np.zeros((n, len(p))))
-    _, gamma = problem.dynamics_terms(q, v_after, t)
+    law = VelocityProjection(problem, equations, [(geometry, restitution)], t, q, v_before,
+                             v_after)
     a_before = _accelerations(problem, t, q, v_before)
     a_after = _accelerations(problem, t, q, v_after)
-    saddle = np.block([[np.diag(M), A.T], [A, np.zeros((m + 1, m + 1))]])
-
-    def solve(top, mid, bottom):
-        rhs = np.vstack([top, mid, bottom])
-        return np.linalg.lstsq(saddle, rhs, rcond=None)[0][:n]
-
-    e = restitution
-    # in the parameters' directions (q_k⁻, v_k⁻, p_k)
-    HSq = H @ Sq
-    Lk = solve(M[:, None] * Sv + Mk * (v_before - v_after)[:, None] - r3q @ Sq - r3p @ P
-               - nu * HSq,
-               -(r1q @ Sq + r1p @ P),
-               (-e * (G @ Sv + v_before @ HSq) - v_after @ HSq)[None])
-    # along the motion before the impact (v⁻, q̈⁻, 1)
-    Hv = H @ v_before
-    Lt = solve((M * a_before - r3q @ v_before - nu * Hv)[:, None],
-               (np.asarray(gamma, float) - r1q @ (v_before - v_after))[:, None],
-               np.array([[-e * (G @ a_before + v_before @ Hv) - v_after @ Hv]]))[:, 0]
+    G = law.G[0]
     dt = -(G @ Sq) / float(G @ v_before)
-    return (Sq + np.outer(v_before - v_after, dt), Lk + np.outer(Lt - a_after, dt), dt)
+    return (Sq + np.outer(v_before - v_after, dt),
+            law.partials(Sq, Sv) + np.outer(law.along_motion(a_before) - a_after, dt), dt)
 
 
 def _accelerations(problem, t, q, v):

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .checks import ModelError, name_or_default, number_array
+from . import parameters as dual
+from .checks import ModelError, name_or_default, number_array, scalar
 from .expressions import parse
 from .joints import Joint, coordinate_joint
 
@@ -25,6 +26,12 @@ class Driver:
     exp, log, sqrt, abs, hypot, radians, degrees, and step(t, t0, s0, t1, s1), MSC Adams'
     smooth cubic step from s0 to s1). It is parsed here, not evaluated by
     Python: anything else, an unknown name among them, is a ModelError naming the driver.
+
+    `values` binds other names of the expression to numbers or Parameters
+    (`mechsim.model.parameters`): `Driver(pivot, "w*t", values={"w": ms.Parameter("w",
+    150.0)})` turns the crank at a speed a design can change (`Mechanism.set_parameters`,
+    no new build: the law's numbers are parameters of the compiled model) and whose exact
+    sensitivities the analyses give.
     """
 
     kind = "driver"
@@ -32,7 +39,7 @@ class Driver:
     equation_labels = ("coordinate",)
 
     def __init__(self, joint: Joint, expression=None, name: str | None = None, *,
-                 table=None, function=None):
+                 table=None, function=None, values=None):
         self.joint = coordinate_joint(joint, "driver", "prescribe")
         self.name = name_or_default(name, f"driver({joint.name})", "driver")
         if sum(x is not None for x in (expression, table, function)) != 1:
@@ -42,9 +49,59 @@ class Driver:
             self.law = TableLaw(table, f"driver '{self.name}' `table`")
         elif function is not None:
             self.law = FunctionLaw(function, f"driver '{self.name}'")
-        else:
-            self.law = parse(expression, {"t"}, f"driver '{self.name}' `expression`")
-        self.expression = self.law.text
+        self.values = self._checked_values(values, expression)
+        self._unbound = None
+        if expression is not None:
+            self._unbound = parse(expression, {"t", *self.values},
+                                  f"driver '{self.name}' `expression`")
+            unused = sorted(set(self.values) - self._unbound.names)
+            if unused:
+                raise ModelError(f"driver '{self.name}': `values` names {unused[0]!r}, which "
+                                 f"its expression {self._unbound.text!r:.80} does not use")
+            self.refresh_numbers()
+
+    @property
+    def expression(self) -> str:
+        """Its law's text (with the `values` bound to it now, as numbers)."""
+        return self.law.text
+
+    def _checked_values(self, values, expression) -> dict:
+        """`values` as a dict of names to numbers or Parameters; ModelError naming the
+        driver and the key where it is not one."""
+        if values is None:
+            return {}
+        owner = f"driver '{self.name}'"
+        if expression is None:
+            raise ModelError(f"{owner}: `values` binds names of an expression; a table or a "
+                             "function has none")
+        if not isinstance(values, dict):
+            raise ModelError(f"{owner}: `values` must be a dict of names to numbers or "
+                             f"Parameters, got {type(values).__name__}")
+        out = {}
+        for key, x in values.items():
+            if not isinstance(key, str) or not key.isidentifier() or key in ("t", "pi", "e"):
+                raise ModelError(f"{owner}: `values` key {key!r:.40} is not a name the law "
+                                 "can use (an identifier other than t, pi and e)")
+            if not dual.is_exact(x):
+                x = scalar(x, f"values[{key!r}]", owner)
+            out[key] = x
+        return out
+
+    def exact_numbers(self) -> list:
+        """The numbers bound into its law (`values`, Parameters kept)."""
+        return list(self.values.values())
+
+    def refresh_numbers(self) -> None:
+        """Its law with the bound numbers' present values (after the Parameters took new
+        ones): the same template, new constants."""
+        if self._unbound is None:
+            return
+        bound = {k: dual.value_of(x) for k, x in self.values.items()}
+        self.law = self._unbound.bind(**bound) if bound else self._unbound
+        try:
+            self._unbound.exact_constants(self.values)    # a Parameter as an exponent: refused
+        except ModelError as exc:
+            raise ModelError(f"driver '{self.name}': {exc}") from None
 
     @property
     def tabulated(self) -> bool:
@@ -70,6 +127,13 @@ class Driver:
 
     def parameter_values(self):
         return (self.joint.exact_initial_coordinate(),)
+
+    @property
+    def exact_law_constants(self) -> list:
+        """`law_constants`, those bound to Parameters as Duals (their exact derivatives)."""
+        if self._unbound is None or not self.values:
+            return self.law_constants
+        return self._unbound.exact_constants(self.values)
 
     @property
     def law_constants(self) -> list[float]:

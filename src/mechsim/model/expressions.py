@@ -131,6 +131,15 @@ class Expression:
         """`canonical` with each of its `constants` written as #."""
         return _canonical(self.tree, template=True)
 
+    def exact_constants(self, values: dict) -> list:
+        """`constants` of `bind(**values)` in the same order, each value bound to a name
+        as given (a Parameter or a Dual kept: `mechsim.model.parameters`). ModelError
+        where a Parameter would be a whole-number exponent (part of the shape, not
+        differentiated)."""
+        out = []
+        _exact_constants(self.tree, values, out)
+        return out
+
     def bind(self, **values) -> "Expression":
         """The same expression with the names in `values` replaced by those numbers (a
         scene's parameters in a driver's law), written out as its canonical text."""
@@ -453,6 +462,30 @@ def _constants(tree, out, parent=None) -> None:
     elif kind == "call":
         for a in tree[2:]:
             _constants(a, out, tree)
+
+
+def _exact_constants(tree, values, out, parent=None) -> None:
+    kind = tree[0]
+    if kind == "name" and tree[1] in values:
+        x = values[tree[1]]
+        bound = ("num", float(dual.value_of(x)))
+        if not (parent is not None and parent[0] == "op" and parent[1] == "**" and
+                parent[3] is tree and bound[1].is_integer()):
+            out.append(x)
+        elif dual.is_exact(x):
+            raise ModelError(f"the Parameter bound to {tree[1]!r} is a whole-number exponent, "
+                             "which shapes the law and is not differentiated")
+    elif kind == "num":
+        if not _structural(tree, parent):
+            out.append(float(tree[1]))
+    elif kind == "neg":
+        _exact_constants(tree[1], values, out, tree)
+    elif kind == "op":
+        _exact_constants(tree[2], values, out, tree)
+        _exact_constants(tree[3], values, out, tree)
+    elif kind == "call":
+        for a in tree[2:]:
+            _exact_constants(a, values, out, tree)
 
 
 def _sympy(tree, symbols, sp, stand_ins=None, parent=None):

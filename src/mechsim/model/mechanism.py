@@ -259,9 +259,10 @@ class MechanismModel:
         return [x for owner in self._parametrized() for x in owner.exact_numbers()]
 
     def _parametrized(self) -> list:
-        """Bodies, joints, springs and loads: what holds numbers that may be Parameters."""
-        return self.bodies + self.joints + [ld for ld in self.loads
-                                            if hasattr(ld, "exact_numbers")]
+        """Bodies, joints, drivers, springs and loads: what holds numbers that may be
+        Parameters."""
+        return self.bodies + self.joints + self.drivers + \
+            [ld for ld in self.loads if hasattr(ld, "exact_numbers")]
 
     def parameter_blind_loads(self) -> list[str]:
         """The loads that depend on Parameters but do not carry their derivatives (a
