@@ -3,6 +3,7 @@ against the offset slider-crank's closed form and against central finite differe
 rebuilt mechanisms, and the errors that keep a derivative from being dropped silently."""
 
 import math
+import pathlib
 
 import numpy as np
 import pytest
@@ -465,3 +466,15 @@ def test_bad_driver_values_are_refused_naming_the_driver():
         ms.Driver(pin, "t**n", name="d", values={"n": ms.Parameter("n", 2.0)})
     with pytest.raises(ms.ModelError, match="unknown name|not allowed|'u'"):
         ms.Driver(pin, "u*t", name="d", values={"w": 1.0})
+
+
+def test_a_scene_s_parameter_in_its_driver_s_law_is_differentiated():
+    """The driven slider-crank scene's crank speed w, given as a Parameter, stays one in
+    the driver's law "w*t": the crank angle's sensitivity is t exactly."""
+    path = pathlib.Path(__file__).resolve().parents[1] / "mechanisms" / \
+        "driven_slider_crank.toml"
+    mech = ms.load_scene(path, {"w": ms.Parameter("w", 50 * math.pi)}).mechanism
+    assert "w" in mech.parameters
+    kin = mech.kinematics(0.02, 0.001, sensitivities=["w"])
+    col = kin.coordinate_names.index("crank.angle")
+    np.testing.assert_allclose(kin.sensitivity("w")[:, col], kin.t, atol=1e-12)

@@ -196,10 +196,11 @@ class _Reader:
                                         f"{_show(value)}")
             return value
         if kind == "driver":
-            # A law in t and the scene's parameters: the parameters bound to their values,
-            # the rest left to `Driver`, which parses it again and names itself.
-            return self._bound(value, where).text if isinstance(value, str) and self.names \
-                else value
+            # A law in t and the scene's parameters, checked here; the scene builder binds
+            # the parameters it uses (`Driver(values=...)`: Parameters stay differentiable).
+            if isinstance(value, str) and self.names:
+                self._parsed(value, where)
+            return value
         if kind in ("load", "load_vector"):
             return self._load(kind == "load_vector", value, where)
         if kind in ("name", "text", "path"):
@@ -258,16 +259,20 @@ class _Reader:
                     for b, p in value]
         raise AssertionError(kind)
 
-    def _bound(self, text, where):
-        """`text` parsed as an expression of t and the parameters, the parameters bound."""
+    def _parsed(self, text, where):
+        """`text` parsed as an expression of t and the parameters."""
         try:
-            law = parse(text, {"t", *self.names}, f"{self.file}: {where}")
+            return parse(text, {"t", *self.names}, f"{self.file}: {where}")
         except ExpressionError as exc:
             raise SceneError(str(exc)) from None
+
+    def _bound(self, text, where):
+        """`text` parsed as an expression of t and the parameters, the parameters bound."""
+        law = self._parsed(text, where)
         exact = sorted(k for k in law.names if isinstance(self.names.get(k), Dual))
         if exact:
             raise self.error(where, f"depends on the Parameter(s) {', '.join(exact)}: a "
-                                    "driver's law or a load cannot depend on a Parameter yet")
+                                    "load cannot depend on a Parameter yet")
         return law.bind(**{k: self.names[k] for k in law.names if k != "t"})
 
     def _load(self, many, value, where):

@@ -86,7 +86,8 @@ def build(r, name, gravity, tables) -> Mechanism:
         if ("expression" in t) == ("table" in t):
             raise r.error(where, "needs an `expression` or a `table`, one of them")
         make(where, lambda: mech.add(Driver(joint, t.get("expression"), name=t.get("name"),
-                                            table=t.get("table"))))
+                                            table=t.get("table"),
+                                            values=_law_values(r, t.get("expression")))))
     for key, (kind, keys) in ON_JOINTS.items():
         for where, t in tables[key]:
             joint = joint_named(r, joints, t["joint"], where)
@@ -138,6 +139,15 @@ def _gear(r, mech, joints, t, where) -> Gear:
     if t["type"] == "rack":
         return Gear.rack(a, b, t["radius"], name=t.get("name"))
     return Gear(a, b, t["ratio"], name=t.get("name"))
+
+
+def _law_values(r, text):
+    """The scene's parameters a driver's law uses, {name: number or Parameter}: bound by
+    `Driver(values=...)`, so that a design's Parameter in a law keeps its derivatives."""
+    if not isinstance(text, str) or not r.names:
+        return None
+    names = parse(text, {"t", *r.names}, "law").names - {"t"}
+    return {k: r.names[k] for k in sorted(names)} or None
 
 
 def _channel(r, mech, t, where) -> Channel:

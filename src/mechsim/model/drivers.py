@@ -79,9 +79,9 @@ class Driver:
                              f"Parameters, got {type(values).__name__}")
         out = {}
         for key, x in values.items():
-            if not isinstance(key, str) or not key.isidentifier() or key in ("t", "pi", "e"):
+            if not isinstance(key, str) or not key.isidentifier() or key == "t":
                 raise ModelError(f"{owner}: `values` key {key!r:.40} is not a name the law "
-                                 "can use (an identifier other than t, pi and e)")
+                                 "can use (an identifier other than t)")
             if not dual.is_exact(x):
                 x = scalar(x, f"values[{key!r}]", owner)
             out[key] = x
