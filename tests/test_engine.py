@@ -9,8 +9,12 @@ import sysconfig
 import numpy as np
 import pytest
 
+from scipy.integrate import DOP853
+
 import mechsim as ms
+from mechsim.app.bench import PROBLEMS
 from mechsim.codegen import cache, engine
+from mechsim.integrators import CompiledDOP853
 from mechsim.formulations.partitioned import Partitioned
 
 needs_compiler = pytest.mark.skipif(
@@ -389,3 +393,69 @@ def test_compiled_fresh_newton_agrees_with_the_python_path():
             for x, z in zip(a[:2], b[:2]):
                 np.testing.assert_allclose(x, z, rtol=0, atol=1e-12 * (1.0 + np.abs(z).max()))
     assert fresh >= 3                # the compiled fresh iterations were exercised
+
+
+@needs_compiler
+@pytest.mark.parametrize("method", ["projection", "lu"])
+def test_compiled_dop853_steps_are_scipy_s_steps(method, monkeypatch):
+    """The crank-rocker's 3 s with its steps and dense output taken in the engine
+    (`CompiledDOP853`) and with scipy's Python step on the same compiled rate: the same
+    steps and the same motion to round-off (the two sum the stages in different orders;
+    a step whose stage the engine declines is taken again by scipy, its compiled stages
+    spent)."""
+    mech = PROBLEMS["crank-rocker"].build()
+    run = dict(method=method, rtol=1e-6, atol=1e-8, output_step=0.01)
+    taken = []
+    compiled_step = CompiledDOP853._step_impl
+
+    def counting(self):
+        taken.append(self.rate() is not None)
+        return compiled_step(self)
+    monkeypatch.setattr(CompiledDOP853, "_step_impl", counting)
+    fast = mech.simulate(3.0, **run)
+    assert fast.success and len(taken) > 40 and all(taken)
+    monkeypatch.setattr(CompiledDOP853, "_step_impl", DOP853._step_impl)
+    monkeypatch.setattr(CompiledDOP853, "_dense_output_impl", DOP853._dense_output_impl)
+    slow = mech.simulate(3.0, **run)
+    assert slow.success
+    assert fast.stats["steps"] == slow.stats["steps"]
+    np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-9)     # rtol 1e-6
+
+
+@needs_compiler
+def test_stages_the_engine_declines_are_the_python_rate_s(monkeypatch):
+    """With the engine made to decline every state (a condition bound no factor meets),
+    each stage of the compiled steps is the formulation's Python rate, called back from
+    C: the run equals scipy's own Python steps to round-off, with the same steps, and a
+    rate that raises inside the callback reaches the caller."""
+    from mechsim.formulations.projection import Projection
+    from mechsim.integrators.compiled import CompiledRate
+    mech = PROBLEMS["crank-rocker"].build()
+    run = dict(method="projection", rtol=1e-6, atol=1e-8, output_step=0.01)
+    original = Projection.compiled_rate
+
+    def declining(self):
+        rate = original(self)
+        return None if rate is None else CompiledRate(
+            self.problem.algebra.engine.lib, rate.context, 0, rate.counted, 2.0, 0.0)
+    monkeypatch.setattr(Projection, "compiled_rate", declining)
+    called = []
+    rhs = Projection.rhs
+    monkeypatch.setattr(Projection, "rhs", lambda self, t, y: called.append(t) or rhs(self, t, y))
+    back = mech.simulate(1.0, **run)
+    assert back.success and len(called) > 10 * back.stats["steps"]
+    monkeypatch.setattr(CompiledDOP853, "_step_impl", DOP853._step_impl)
+    monkeypatch.setattr(CompiledDOP853, "_dense_output_impl", DOP853._dense_output_impl)
+    plain = mech.simulate(1.0, **run)
+    assert back.stats["steps"] == plain.stats["steps"]
+    np.testing.assert_allclose(back.q, plain.q, rtol=0, atol=1e-9)
+    def failing(self, t, y):
+        if t > 0.5:
+            raise FloatingPointError("the rate failed here")
+        return rhs(self, t, y)
+    monkeypatch.undo()
+    monkeypatch.setattr(Projection, "compiled_rate", declining)
+    monkeypatch.setattr(Projection, "rhs", failing)
+    failed = mech.simulate(1.0, **run)
+    assert failed.status == "failed" and "the rate failed here" in failed.message
+    assert 0.4 < failed.t[-1] <= 0.5

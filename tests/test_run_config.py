@@ -9,6 +9,7 @@ import pytest
 
 import mechsim as ms
 from mechsim.formulations.hybrid import SwitchPolicy
+from mechsim.integrators import integrator_name
 from mechsim.run.solver import RunConfig
 from mechsim.tolerances import Tolerances
 
@@ -33,7 +34,7 @@ def test_a_run_config_is_checked_once_and_is_what_the_result_keeps():
     n = len(mech.coordinate_names)
     config = RunConfig.from_keywords(n, 0.3, "projection", rtol=1e-7, atol=1e-9,
                                      output_step=0.01, rcond=1e-3)
-    assert config.method.name == "projection" and config.integrator.__name__ == "DOP853"
+    assert config.method.name == "projection" and integrator_name(config.integrator) == "DOP853"
     assert (config.rtol, config.atol, config.t_start, config.t_end) == (1e-7, 1e-9, 0.0, 0.3)
     assert config.options == {"rcond": 1e-3}
     res = mech.simulate(0.3, method="projection", rtol=1e-7, atol=1e-9, output_step=0.01,

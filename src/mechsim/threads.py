@@ -11,6 +11,7 @@ So a run holds the BLAS libraries numpy and scipy loaded to one thread while it 
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 
 # Setting any of these says the user chose the BLAS threads: a run then leaves them as set.
@@ -37,21 +38,27 @@ def run_threads():
     if chosen_by_user() or _DEPTH:
         yield
         return
-    import scipy.linalg  # noqa: F401  (its BLAS loaded now, so that the limit reaches it)
-    from threadpoolctl import threadpool_limits
     _DEPTH += 1
     try:
-        with threadpool_limits(limits=1, user_api="blas"):
+        with _controller().limit(limits=1, user_api="blas"):
             yield
     finally:
         _DEPTH -= 1
 
 
+@functools.lru_cache(maxsize=1)
+def _controller():
+    """The process's BLAS libraries, found once (threadpoolctl's scan of the loaded
+    libraries takes milliseconds, as long as a small run): scipy's linear algebra is
+    imported first, so that its BLAS is among them."""
+    import scipy.linalg  # noqa: F401
+    from threadpoolctl import ThreadpoolController
+    return ThreadpoolController()
+
+
 def in_run_threads(function):
     """`function` called within `run_threads` (a decorator for the analyses that are runs:
     kinematics, equilibrium, periodic orbits)."""
-    import functools
-
     @functools.wraps(function)
     def wrapper(*args, **kwargs):
         with run_threads():

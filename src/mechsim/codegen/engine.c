@@ -619,6 +619,154 @@ double mechsim_lu_condition(mechsim_projection *c, double t) {
   return norm * inorm;
 }
 
+/* ---- a DOP853 step over the compiled rate (mechsim.integrators.compiled) ---- */
+
+/* The formulation's own rate in Python, for a state the engine declines: 0 done. */
+typedef int (*mechsim_rate_t)(double, const double *, double *);
+
+/* The rate at (t, y) into f: [v; qdd] of the projection method (kind 0, ctx a
+   mechsim_projection, min_rcond and cut as mechsim_projection_accelerations takes them)
+   or [zd; zdd] of the partition (kind 1, ctx a mechsim_lu), under the forces the context
+   holds; where the engine declines the state, by `fallback` (counted in *python).
+   Nonzero where that fails too (the Python step decides). */
+static int compiled_rate(void *ctx, int64_t kind, double t, const double *y, double *f,
+                         int64_t N, double min_rcond, double cut, mechsim_rate_t fallback,
+                         int64_t *python) {
+  int declined;
+  if (kind == 0) {
+    mechsim_projection *c = (mechsim_projection *)ctx;
+    memcpy(c->q, y, c->n * sizeof(double));
+    memcpy(c->v, y + c->n, c->n * sizeof(double));
+    declined = mechsim_projection_accelerations(c, t, min_rcond, cut);
+    if (!declined) memcpy(f, c->out, N * sizeof(double));
+  } else {
+    mechsim_lu *c = (mechsim_lu *)ctx;
+    memcpy(c->y, y, N * sizeof(double));
+    declined = mechsim_lu_rhs(c, t);
+    if (!declined) memcpy(f, c->out, N * sizeof(double));
+  }
+  if (!declined) return 0;
+  (*python)++;
+  return fallback(t, y, f);
+}
+
+/* One accepted step of scipy's DOP853 from (t, y) with f = f(t, y): its step-size rule
+   and error norm as scipy.integrate.DOP853._step_impl has them, on the coefficients
+   scipy's class holds (coef: A (S x S), B, C (S), E3, E5 (S + 1)) and its controller's
+   constants (in: S, t, h_abs, t_bound, direction, max_step, rtol, min_rcond, cut,
+   safety, min_factor, max_factor, exponent). The stages go to the rows of K ((S + 1) x N,
+   the last f_new), the step's end to y_new and f_new, and out = (t_new, h, the next
+   h_abs, the engine's evaluations, the fallback's). A stage the engine declines is
+   evaluated by `fallback`. 0: accepted; 1: the fallback failed (nothing changed, the
+   Python step serves); 2: the step fell below scipy's smallest. */
+int mechsim_dop853(void *ctx, int64_t kind, int64_t N, const double *coef, const double *in,
+                   const double *y, const double *f, const double *atol, double *K,
+                   double *y_new, double *f_new, double *work, double *out, void *fallback) {
+  const mechsim_rate_t rate = (mechsim_rate_t)fallback;
+  int64_t python = 0;
+  const int64_t S = (int64_t)in[0];
+  const double t = in[1], t_bound = in[3], direction = in[4], max_step = in[5];
+  const double rtol = in[6], min_rcond = in[7], cut = in[8], safety = in[9];
+  const double min_factor = in[10], max_factor = in[11], exponent = in[12];
+  const double *A = coef, *B = coef + S * S, *C = B + S, *E3 = C + S, *E5 = E3 + S + 1;
+  const double min_step = 10.0 * fabs(nextafter(t, direction * INFINITY) - t);
+  double h_abs = in[2];
+  int64_t nfev = 0;
+  int rejected = 0;
+  if (h_abs > max_step) h_abs = max_step;
+  else if (h_abs < min_step) h_abs = min_step;
+  for (;;) {
+    out[3] = (double)(nfev - python);
+    out[4] = (double)python;
+    if (h_abs < min_step) return 2;
+    double h = h_abs * direction, t_new = t + h;
+    if (direction * (t_new - t_bound) > 0.0) t_new = t_bound;
+    h = t_new - t;
+    h_abs = fabs(h);
+    memcpy(K, f, N * sizeof(double));
+    for (int64_t s = 1; s < S; s++) {
+      const double *a = A + s * S;
+      for (int64_t i = 0; i < N; i++) {
+        double dy = 0.0;
+        for (int64_t j = 0; j < s; j++) dy += K[j * N + i] * a[j];
+        work[i] = y[i] + dy * h;
+      }
+      nfev++;
+      const int failed = compiled_rate(ctx, kind, t + C[s] * h, work, K + s * N, N,
+                                       min_rcond, cut, rate, &python);
+      out[3] = (double)(nfev - python);
+      out[4] = (double)python;
+      if (failed) return 1;
+    }
+    for (int64_t i = 0; i < N; i++) {
+      double dy = 0.0;
+      for (int64_t j = 0; j < S; j++) dy += K[j * N + i] * B[j];
+      y_new[i] = y[i] + h * dy;
+    }
+    nfev++;
+    const int failed = compiled_rate(ctx, kind, t + h, y_new, f_new, N, min_rcond, cut, rate,
+                                     &python);
+    out[3] = (double)(nfev - python);
+    out[4] = (double)python;
+    if (failed) return 1;
+    memcpy(K + S * N, f_new, N * sizeof(double));
+    double e5 = 0.0, e3 = 0.0;
+    for (int64_t i = 0; i < N; i++) {
+      const double scale = atol[i] + fmax(fabs(y[i]), fabs(y_new[i])) * rtol;
+      double a5 = 0.0, a3 = 0.0;
+      for (int64_t j = 0; j <= S; j++) {
+        a5 += K[j * N + i] * E5[j];
+        a3 += K[j * N + i] * E3[j];
+      }
+      a5 /= scale;
+      a3 /= scale;
+      e5 += a5 * a5;
+      e3 += a3 * a3;
+    }
+    const double norm = (e5 == 0.0 && e3 == 0.0) ? 0.0 :
+        h_abs * e5 / sqrt((e5 + 0.01 * e3) * (double)N);
+    if (norm < 1.0) {
+      double factor = norm == 0.0 ? max_factor : fmin(max_factor, safety * pow(norm, exponent));
+      if (rejected) factor = fmin(1.0, factor);
+      out[0] = t_new;
+      out[1] = h;
+      out[2] = h_abs * factor;
+      return 0;
+    }
+    h_abs *= fmax(min_factor, safety * pow(norm, exponent));   /* NaN: min_factor */
+    rejected = 1;
+  }
+}
+
+/* The extra stages of DOP853's dense output for the step just taken from (t_old, y_old)
+   with step h: rows first .. first + extra - 1 of K (each row s from the rows before it,
+   with coefficients coef[(s - first) * width ...] and nodes coef[extra * width + s -
+   first]); in = (first, extra, width, t_old, h, min_rcond, cut); out = (the engine's
+   evaluations, the fallback's). 0: done; 1: the fallback failed (Python computes them). */
+int mechsim_dop853_extra(void *ctx, int64_t kind, int64_t N, const double *coef,
+                         const double *in, const double *y_old, double *K, double *work,
+                         double *out, void *fallback) {
+  int64_t python = 0;
+  const int64_t first = (int64_t)in[0], extra = (int64_t)in[1], width = (int64_t)in[2];
+  const double t_old = in[3], h = in[4], min_rcond = in[5], cut = in[6];
+  for (int64_t e = 0; e < extra; e++) {
+    const int64_t s = first + e;
+    const double *a = coef + e * width;
+    for (int64_t i = 0; i < N; i++) {
+      double dy = 0.0;
+      for (int64_t j = 0; j < s; j++) dy += K[j * N + i] * a[j];
+      work[i] = y_old[i] + dy * h;
+    }
+    const int failed = compiled_rate(ctx, kind, t_old + coef[extra * width + e] * h, work,
+                                     K + s * N, N, min_rcond, cut,
+                                     (mechsim_rate_t)fallback, &python);
+    out[0] = (double)(e + 1 - python);
+    out[1] = (double)python;
+    if (failed) return 1;
+  }
+  return 0;
+}
+
 /* The structures' sizes as this compiler lays them out: Python checks them against its
    ctypes twins before using the library. */
 int64_t mechsim_sizeof_lu(void) { return (int64_t)sizeof(mechsim_lu); }

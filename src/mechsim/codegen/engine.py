@@ -167,6 +167,12 @@ def library(model):
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64] + \
             [ctypes.c_void_p] * 3
         fn.restype = ctypes.c_int
+        fn = lib.mechsim_dop853
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64] + [ctypes.c_void_p] * 11
+        fn.restype = ctypes.c_int
+        fn = lib.mechsim_dop853_extra
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64] + [ctypes.c_void_p] * 7
+        fn.restype = ctypes.c_int
         fn = lib.mechsim_multipliers
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 4 + \
             [ctypes.c_double] * 2 + [ctypes.c_void_p] * 2
@@ -223,9 +229,10 @@ class PartitionedEngine:
             newton_tol=newton_tol, chord_contraction=CHORD_CONTRACTION, t_last=0.0,
             stall_ratio=STALL_RATIO,
             stall_span=0.0 if round_off is None else round_off / newton_tol), arrays)
-        self._ptr = ctypes.addressof(self.ctx)
+        self.context = ctypes.addressof(self.ctx)
         self._state, self._acc = lib.mechsim_lu_state, lib.mechsim_lu_accelerations
         self._rhs = lib.mechsim_lu_rhs
+        self.lib = lib
         self._states = lib.mechsim_lu_states
         self.ready = False
 
@@ -246,7 +253,7 @@ class PartitionedEngine:
         fresh Φ_q D, as `Partitioned.full_state` counts them), or None where the Python
         path must decide."""
         self.y[:] = y
-        if self._state(self._ptr, t):
+        if self._state(self.context, t):
             return None
         return self.q.copy(), self.v.copy(), self.J.copy(), int(self.ctx.fresh)
 
@@ -256,7 +263,7 @@ class PartitionedEngine:
         in the buffers, as `state` does."""
         self.y[:] = y
         self.Q[:] = Q
-        if self._rhs(self._ptr, t):
+        if self._rhs(self.context, t):
             return None
         return self.out.copy()
 
@@ -264,7 +271,7 @@ class PartitionedEngine:
         """[ż; z̈] at the state the last successful `state` left in the buffers, with the
         applied forces Q there; None if the Schur complement is not positive definite."""
         self.Q[:] = Q
-        if self._acc(self._ptr, t):
+        if self._acc(self.context, t):
             return None
         return self.out.copy()
 
@@ -275,7 +282,7 @@ class PartitionedEngine:
         Y = np.ascontiguousarray(Y, dtype=float)
         k, n = len(ts), self.q.size
         Qs, Vs, signs = np.empty((k, n)), np.empty((k, n)), np.empty(k)
-        if self._states(self._ptr, k, ts.ctypes.data, Y.ctypes.data, Qs.ctypes.data,
+        if self._states(self.context, k, ts.ctypes.data, Y.ctypes.data, Qs.ctypes.data,
                         Vs.ctypes.data, self.J_samples.ctypes.data, signs.ctypes.data):
             return None
         return Qs, Vs, signs
@@ -303,7 +310,7 @@ class ProjectionEngine:
             stall_ratio=STALL_RATIO, stall_span=STALL_SPAN), arrays)
         self.n = n
         self.lib = lib
-        self._ptr = ctypes.addressof(self.ctx)
+        self.context = ctypes.addressof(self.ctx)
         self._fn = lib.mechsim_projection_accelerations
         self._project = lib.mechsim_project_state
         self._measure = lib.mechsim_measure
@@ -331,7 +338,7 @@ class ProjectionEngine:
     def _evaluate(self, t, Q, min_rcond, cut):
         """[v; q̈] into `out` at the state in the buffers; nonzero where declined."""
         self.Q[:] = Q
-        return self._fn(self._ptr, t, min_rcond, cut)
+        return self._fn(self.context, t, min_rcond, cut)
 
     def project_state(self, t, q, v, tol, min_rcond=-1.0, skip_tol=-1.0, extra=0, max_iter=8):
         """`NumericProblem.project_state` compiled: (q, v) with ‖Φ‖∞ ≤ tol (or at round-off;
@@ -342,7 +349,7 @@ class ProjectionEngine:
         (when min_rcond ≥ 0), or the chord does not converge in max_iter iterations."""
         self.q[:] = q
         self.v[:] = v
-        status = self._project(self._ptr, t, skip_tol, tol, min_rcond, extra, max_iter)
+        status = self._project(self.context, t, skip_tol, tol, min_rcond, extra, max_iter)
         if status == 2:
             return False
         if status:
@@ -359,7 +366,7 @@ class ProjectionEngine:
         if eps > 0.0:
             self.v[:] = v
         out = self.measured
-        if self._measure(self._ptr, t, eps, out.ctypes.data, self.Jt.ctypes.data):
+        if self._measure(self.context, t, eps, out.ctypes.data, self.Jt.ctypes.data):
             return None
         smin, smax, dmin, dmax = out[:4].tolist()
         return smin, smax, dmin, dmax, out[4:].copy(), self.Jt.copy()
@@ -371,7 +378,7 @@ class ProjectionEngine:
         T = np.ascontiguousarray(T, dtype=float)
         tols = np.ascontiguousarray(tols, dtype=float)
         status = np.empty(len(T), dtype=np.int64)
-        self._project_many(self._ptr, len(T), T.ctypes.data, Q.ctypes.data, V.ctypes.data,
+        self._project_many(self.context, len(T), T.ctypes.data, Q.ctypes.data, V.ctypes.data,
                            tols.ctypes.data, max_iter, status.ctypes.data)
         self.counters.projections += int(np.count_nonzero(status == 0))
         return status
@@ -382,7 +389,7 @@ class ProjectionEngine:
         T = np.ascontiguousarray(T, dtype=float)
         Q = np.ascontiguousarray(Q, dtype=float)
         out = np.empty(max(len(T) - 1, 0))
-        self._chords(self._ptr, len(T), T.ctypes.data, Q.ctypes.data, out.ctypes.data)
+        self._chords(self.context, len(T), T.ctypes.data, Q.ctypes.data, out.ctypes.data)
         return out
 
     def extremes(self, T, Q, k):
@@ -391,7 +398,7 @@ class ProjectionEngine:
         T = np.ascontiguousarray(T, dtype=float)
         Q = np.ascontiguousarray(Q, dtype=float)
         out = np.empty((len(T), 2))
-        if self._extremes(self._ptr, len(T), k, T.ctypes.data, Q.ctypes.data,
+        if self._extremes(self.context, len(T), k, T.ctypes.data, Q.ctypes.data,
                           out.ctypes.data):
             return None
         return out
@@ -405,7 +412,7 @@ class ProjectionEngine:
         Q, V, F = (np.ascontiguousarray(x, dtype=float) for x in (Q, V, F))
         out = np.zeros(lam.shape)
         done = np.zeros(len(T), dtype=np.int64)
-        self._multipliers(self._ptr, len(T), T.ctypes.data, Q.ctypes.data, V.ctypes.data,
+        self._multipliers(self.context, len(T), T.ctypes.data, Q.ctypes.data, V.ctypes.data,
                           F.ctypes.data, min_rcond, min_pivot, out.ctypes.data,
                           done.ctypes.data)
         ok = done.astype(bool)
@@ -416,4 +423,4 @@ class ProjectionEngine:
         """cond₁ of the dependent block Φ_q D that LU partitioning (`Partitioned.choose`)
         picks at (q, t), for Φ_q of full row rank; inf where it is singular."""
         self.q[:] = q
-        return self._lu_condition(self._ptr, t)
+        return self._lu_condition(self.context, t)

@@ -164,6 +164,12 @@ class Formulation:
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
+    def compiled_rate(self):
+        """The rate as one compiled call at every state of the next step
+        (`mechsim.integrators.compiled.CompiledRate`), for `CompiledDOP853` to take the
+        step in the engine; None (the default) where the Python rate serves."""
+        return None
+
     @property
     def integrand(self):
         """The right-hand side the integrator about to start calls: `rhs` (a manager of

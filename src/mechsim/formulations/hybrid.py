@@ -171,6 +171,9 @@ class Hybrid(Formulation):
     def integrand(self):
         return self.active.rhs
 
+    def compiled_rate(self):
+        return self.active.compiled_rate()
+
     def state(self, t, y):
         return self.active.state(t, y)
 

@@ -32,6 +32,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..linalg import dense, sparse
+from ..integrators.compiled import CompiledRate
 from ..linalg.newton import CHORD_CONTRACTION, newton
 from ..options import Option
 from .base import KEEP, Correction, Formulation
@@ -385,6 +386,17 @@ class Partitioned(Formulation):
                 return out
         block = self._cache.block
         return np.concatenate([y[self.basis.f:], self.basis.Bt(self._qdd(t, q, v, J, block))])
+
+    def compiled_rate(self):
+        """The engine's rate for the next step where it is `rhs`'s first choice: the
+        partition's engine ready and the applied forces constant."""
+        prob = self.problem
+        engine, Q = self.engine, prob.constant_forces()
+        if Q is None or engine is None or not engine.ready:
+            return None
+        engine.Q[:] = Q
+        self._cache = None                 # (the engine's buffers will hold other states)
+        return CompiledRate(engine.lib, engine.context, 1, prob.counters.compiled_rates)
 
     def derivative(self, t, q, v):
         qdd = self._qdd(t, q, v, self.problem.phi_q(q, t))

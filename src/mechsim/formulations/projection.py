@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..linalg import dense, sparse
+from ..integrators.compiled import CompiledRate
 from ..linalg.newton import newton
 from .bridge import PassageBridge
 from ..options import Option
@@ -233,6 +234,18 @@ class Projection(FullCoordinates):
             if out is not None:
                 return out
         return np.concatenate([v, self._accelerations(t, q, v, Q, None, compiled=False)])
+
+    def compiled_rate(self):
+        """The engine's rate for the next step where it is `rhs`'s first choice at every
+        state: the Cholesky path, the engine built and the applied forces constant."""
+        prob = self.problem
+        Q = prob.constant_forces() if self._cholesky else None
+        engine = prob.algebra.engine if Q is not None else None
+        if engine is None:
+            return None
+        engine.Q[:] = Q
+        return CompiledRate(engine.lib, engine.context, 0, prob.counters.compiled_rates,
+                            -1.0 if self._far else self._min_rcond, self.cut)
 
     def accelerations(self, t, q, v, far=None):
         """q̈ at (t, q, v); `far`: skip the condition estimate (default: as the last

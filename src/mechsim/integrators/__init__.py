@@ -8,13 +8,19 @@ from __future__ import annotations
 
 import difflib
 
-from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
+from scipy.integrate import BDF, LSODA, RK23, RK45, Radau
 
 from .adams import AdamsPECE
+from .compiled import CompiledDOP853
 from .trapezoidal import Trapezoidal
 
-INTEGRATORS = {"adams": AdamsPECE, "RK45": RK45, "RK23": RK23, "DOP853": DOP853,
+INTEGRATORS = {"adams": AdamsPECE, "RK45": RK45, "RK23": RK23, "DOP853": CompiledDOP853,
                "Radau": Radau, "BDF": BDF, "LSODA": LSODA, "trapezoidal": Trapezoidal}
+
+
+def integrator_name(cls) -> str:
+    """The registry's name of the integrator class `cls` (its class name if unlisted)."""
+    return next((key for key, known in INTEGRATORS.items() if known is cls), cls.__name__)
 
 
 def integrator_class(name: str):
@@ -29,4 +35,5 @@ def integrator_class(name: str):
                      f"{', '.join(INTEGRATORS)}")
 
 
-__all__ = ["INTEGRATORS", "AdamsPECE", "Trapezoidal", "integrator_class"]
+__all__ = ["INTEGRATORS", "AdamsPECE", "CompiledDOP853", "Trapezoidal", "integrator_class",
+           "integrator_name"]

@@ -30,6 +30,12 @@ class Counters:
     partitions: int = 0
     switches: int = 0
 
+    def compiled_rates(self, evaluations: int) -> None:
+        """Rates a compiled step evaluated (`mechsim.integrators.compiled`): right-hand
+        sides, each with its factorization."""
+        self.rhs += evaluations
+        self.factorizations += evaluations
+
 
 class NumericProblem:
     """Compiled model plus parameter values.

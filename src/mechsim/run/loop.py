@@ -30,7 +30,7 @@ import numpy as np
 
 from ..formulations.bridge import bridge_passage
 from ..formulations.full import settle_samples
-from ..integrators import AdamsPECE
+from ..integrators import AdamsPECE, CompiledDOP853, integrator_name
 from ..integrators.adapters import bound_read_at_start, correct_in_place, proposed_step, shift_in_place, warm_start
 from ..results import SimulationResult
 from ..records import Status, WorkRecord
@@ -416,6 +416,8 @@ class Run:
         kw = {"first_step": min(step, s.t_end - t, bound)} if step else {}
         solver = self.solver_cls(self.form.integrand, t, y, s.t_end, rtol=s.rtol, atol=s.atol,
                                  max_step=bound, **kw)
+        if isinstance(solver, CompiledDOP853):
+            solver.rate = self.form.compiled_rate
         if isinstance(solver, AdamsPECE):
             # Project inside the step, before its last evaluation: after_step then finds
             # the state on the constraints and the projection costs no extra evaluation.
@@ -520,7 +522,7 @@ class Run:
         bridge_evals = bridge.evaluations - self._bridge_start[0] if bridge is not None else 0
         return {
             "method": self.method,
-            "integrator": self.solver_cls.__name__,
+            "integrator": integrator_name(self.solver_cls),
             "steps": st.steps,
             "rejected_steps": (st.rejected + int(solver.n_rejected)
                                if solver is not None and hasattr(solver, "n_rejected")

@@ -1,0 +1,162 @@
+"""scipy's DOP853 with its steps taken in the compiled engine where the rate is compiled.
+
+A run's steps on a small rigid mechanism spend most of their time around the rate, not in
+it: twelve stages a step, each a Python call through scipy's wrappers, the formulation and
+the engine for a few microseconds of compiled work. `CompiledDOP853` is scipy's class,
+with its dense output, state and interface unchanged; where the formulation says its rate
+is one compiled call at every state of the step (`Formulation.compiled_rate`: rigid
+bodies, the engine built, the applied forces constant), the whole step (stages, error
+norm, step-size rule, rejections) runs in `mechsim_dop853`, the engine's transcription of
+scipy's `_step_impl` on the coefficients and controller constants scipy's own class
+holds. A stage the engine declines (a state near a passage's band, a Newton that does
+not converge) is evaluated by the formulation's Python rate, called back from C, as
+scipy's step would have; where that raises, nothing is kept and scipy's Python step takes
+the step (and raises). The two paths sum the stages in different orders, so their numbers
+agree to round-off, not bit for bit.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+
+import numpy as np
+from scipy.integrate import DOP853
+from scipy.integrate._ivp import rk
+
+
+# The Python rate the engine calls back for a stage it declines: (t, y, f) -> 0 when done.
+_RATE = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_double, ctypes.POINTER(ctypes.c_double),
+                         ctypes.POINTER(ctypes.c_double))
+
+
+@functools.lru_cache(maxsize=None)
+def _extra_coefficients() -> np.ndarray:
+    """scipy's DOP853 dense output's extra stages as the engine reads them: their rows of
+    A_EXTRA, then their nodes C_EXTRA."""
+    return np.ascontiguousarray(np.concatenate([np.asarray(DOP853.A_EXTRA, float).ravel(),
+                                                np.asarray(DOP853.C_EXTRA, float)]))
+
+
+@functools.lru_cache(maxsize=None)
+def _coefficients() -> np.ndarray:
+    """scipy's DOP853 tableau as the engine reads it: A (S × S), B, C, E3, E5."""
+    S = DOP853.n_stages
+    return np.ascontiguousarray(np.concatenate([
+        np.asarray(DOP853.A, float)[:S, :S].ravel(), np.asarray(DOP853.B, float)[:S],
+        np.asarray(DOP853.C, float)[:S], np.asarray(DOP853.E3, float)[:S + 1],
+        np.asarray(DOP853.E5, float)[:S + 1]]))
+
+
+class CompiledDOP853(DOP853):
+    """scipy's DOP853; `rate` (set by the run: a callable giving the formulation's
+    `CompiledRate` for the next step, or None) moves a step into the engine (module
+    docstring)."""
+
+    rate = None
+
+    def __init__(self, fun, t0, y0, t_bound, **options):
+        super().__init__(fun, t0, y0, t_bound, **options)
+        self._atol = np.ascontiguousarray(np.broadcast_to(np.asarray(self.atol, float),
+                                                          self.y.shape))
+        self._in, self._extra_in = np.zeros(13), np.zeros(7)
+        self._out = np.zeros(5)
+        self._work = np.empty(self.n)
+        self._fallback = _RATE(self._python_rate)
+        self._raised = None
+
+    def _python_rate(self, t, y, f):
+        """The callback: scipy's own call of the rate (counted in nfev) at a state the
+        engine declined; 1 where it raised (kept for `_after`)."""
+        try:
+            np.ctypeslib.as_array(f, (self.n,))[:] = self.fun(
+                t, np.ctypeslib.as_array(y, (self.n,)).copy())
+            return 0
+        except BaseException as exc:            # noqa: BLE001 (re-raised after the call)
+            self._raised = exc
+            return 1
+
+    def _after(self, engine_evaluations, compiled) -> None:
+        """Count the engine's evaluations; re-raise an interrupt the callback caught (an
+        error is left to the Python step, which takes the step again and raises it)."""
+        self.nfev += engine_evaluations
+        compiled.counted(engine_evaluations)
+        raised, self._raised = self._raised, None
+        if isinstance(raised, (KeyboardInterrupt, SystemExit)):
+            raise raised
+
+    def _step_impl(self):
+        compiled = self.rate() if self.rate is not None else None
+        if compiled is None or self.y.dtype != np.float64:
+            return super()._step_impl()
+        y = np.ascontiguousarray(self.y, dtype=float)
+        f = np.ascontiguousarray(self.f, dtype=float)
+        y_new, f_new = np.empty_like(y), np.empty_like(y)
+        self._in[:] = (DOP853.n_stages, self.t, self.h_abs, self.t_bound, self.direction,
+                       self.max_step, self.rtol, compiled.min_rcond, compiled.cut,
+                       rk.SAFETY, rk.MIN_FACTOR, rk.MAX_FACTOR, self.error_exponent)
+        K = self.K
+        status = compiled.step(compiled.context, compiled.kind, self.n,
+                               _coefficients().ctypes.data, self._in.ctypes.data,
+                               y.ctypes.data, f.ctypes.data, self._atol.ctypes.data,
+                               K.ctypes.data, y_new.ctypes.data, f_new.ctypes.data,
+                               self._work.ctypes.data, self._out.ctypes.data,
+                               ctypes.cast(self._fallback, ctypes.c_void_p))
+        self._after(int(self._out[3]), compiled)
+        if status == 1:
+            return super()._step_impl()
+        if status == 2:
+            return False, self.TOO_SMALL_STEP
+        t_new, h, h_abs = self._out[:3]
+        self.h_previous, self.y_old = float(h), y
+        self.t, self.y, self.h_abs, self.f = float(t_new), y_new, float(h_abs), f_new
+        return True, None
+
+    def _dense_output_impl(self):
+        """scipy's interpolant of the step just taken, its three extra stages evaluated
+        in the engine where it takes them (`rate`), then scipy's own construction from the
+        stages (`_from_stages`)."""
+        compiled = self.rate() if self.rate is not None else None
+        if compiled is None:
+            return super()._dense_output_impl()
+        extra = _extra_coefficients()
+        rows, width = np.asarray(DOP853.A_EXTRA).shape
+        self._extra_in[:] = (self.n_stages + 1, rows, width, self.t_old, self.h_previous,
+                             compiled.min_rcond, compiled.cut)
+        failed = compiled.extra(compiled.context, compiled.kind, self.n, extra.ctypes.data,
+                                self._extra_in.ctypes.data, self.y_old.ctypes.data,
+                                self.K_extended.ctypes.data, self._work.ctypes.data,
+                                self._out.ctypes.data,
+                                ctypes.cast(self._fallback, ctypes.c_void_p))
+        self._after(int(self._out[0]), compiled)
+        if failed:
+            return super()._dense_output_impl()
+        return self._from_stages()
+
+    def _from_stages(self):
+        """`super()._dense_output_impl` with its extra stages in K_extended already: the
+        rate it calls for them returns those rows."""
+        stages = iter(self.K_extended[self.n_stages + 1:].copy())
+        fun = self.fun
+        self.fun = lambda t, y: next(stages)
+        try:
+            return super()._dense_output_impl()
+        finally:
+            self.fun = fun
+
+
+class CompiledRate:
+    """What `mechsim_dop853` needs of a formulation for one step: the engine's step
+    function (`step`), the context (its address) and `kind` (0 projection, 1 partition),
+    the projection's `min_rcond` and `cut`, and `counted(evaluations)`, which books the
+    stages as the formulation's own right-hand sides."""
+
+    __slots__ = ("step", "extra", "context", "kind", "min_rcond", "cut", "counted")
+
+    def __init__(self, lib, context: int, kind: int, counted, min_rcond=-1.0, cut=0.0):
+        self.step, self.extra = lib.mechsim_dop853, lib.mechsim_dop853_extra
+        self.context, self.kind, self.counted = context, kind, counted
+        self.min_rcond, self.cut = float(min_rcond), float(cut)
+
+
+__all__ = ["CompiledDOP853", "CompiledRate"]
