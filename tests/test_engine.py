@@ -406,16 +406,16 @@ def test_compiled_dop853_steps_are_scipy_s_steps(method, monkeypatch):
     mech = PROBLEMS["crank-rocker"].build()
     run = dict(method=method, rtol=1e-6, atol=1e-8, output_step=0.01)
     taken = []
-    compiled_step = CompiledDOP853._step_impl
+    compiled_step = CompiledDOP853.step
 
     def counting(self):
         taken.append(self.rate() is not None)
         return compiled_step(self)
-    monkeypatch.setattr(CompiledDOP853, "_step_impl", counting)
+    monkeypatch.setattr(CompiledDOP853, "step", counting)
     fast = mech.simulate(3.0, **run)
     assert fast.success and len(taken) > 40 and all(taken)
-    monkeypatch.setattr(CompiledDOP853, "_step_impl", DOP853._step_impl)
-    monkeypatch.setattr(CompiledDOP853, "_dense_output_impl", DOP853._dense_output_impl)
+    monkeypatch.setattr(CompiledDOP853, "step", DOP853.step)
+    monkeypatch.setattr(CompiledDOP853, "dense_output", DOP853.dense_output)
     slow = mech.simulate(3.0, **run)
     assert slow.success
     assert fast.stats["steps"] == slow.stats["steps"]
@@ -444,8 +444,8 @@ def test_stages_the_engine_declines_are_the_python_rate_s(monkeypatch):
     monkeypatch.setattr(Projection, "rhs", lambda self, t, y: called.append(t) or rhs(self, t, y))
     back = mech.simulate(1.0, **run)
     assert back.success and len(called) > 10 * back.stats["steps"]
-    monkeypatch.setattr(CompiledDOP853, "_step_impl", DOP853._step_impl)
-    monkeypatch.setattr(CompiledDOP853, "_dense_output_impl", DOP853._dense_output_impl)
+    monkeypatch.setattr(CompiledDOP853, "step", DOP853.step)
+    monkeypatch.setattr(CompiledDOP853, "dense_output", DOP853.dense_output)
     plain = mech.simulate(1.0, **run)
     assert back.stats["steps"] == plain.stats["steps"]
     np.testing.assert_allclose(back.q, plain.q, rtol=0, atol=1e-9)

@@ -85,40 +85,46 @@ class CompiledDOP853(DOP853):
         if isinstance(raised, (KeyboardInterrupt, SystemExit)):
             raise raised
 
-    def _step_impl(self):
+    def step(self):
+        """scipy's `step`, the step taken in the engine where `rate` gives it (module
+        docstring); scipy's own where not, or where the Python rate raised in it."""
         compiled = self.rate() if self.rate is not None else None
-        if compiled is None or self.y.dtype != np.float64:
-            return super()._step_impl()
+        if compiled is None or self.status != "running" or self.n == 0 or \
+                self.t == self.t_bound or self.y.dtype != np.float64:
+            return super().step()
+        t = self.t
         y = np.ascontiguousarray(self.y, dtype=float)
         f = np.ascontiguousarray(self.f, dtype=float)
         y_new, f_new = np.empty_like(y), np.empty_like(y)
-        self._in[:] = (DOP853.n_stages, self.t, self.h_abs, self.t_bound, self.direction,
+        self._in[:] = (DOP853.n_stages, t, self.h_abs, self.t_bound, self.direction,
                        self.max_step, self.rtol, compiled.min_rcond, compiled.cut,
                        rk.SAFETY, rk.MIN_FACTOR, rk.MAX_FACTOR, self.error_exponent)
-        K = self.K
         status = compiled.step(compiled.context, compiled.kind, self.n,
                                _coefficients().ctypes.data, self._in.ctypes.data,
                                y.ctypes.data, f.ctypes.data, self._atol.ctypes.data,
-                               K.ctypes.data, y_new.ctypes.data, f_new.ctypes.data,
+                               self.K.ctypes.data, y_new.ctypes.data, f_new.ctypes.data,
                                self._work.ctypes.data, self._out.ctypes.data,
                                ctypes.cast(self._fallback, ctypes.c_void_p))
         self._after(int(self._out[3]), compiled)
         if status == 1:
-            return super()._step_impl()
+            return super().step()
         if status == 2:
-            return False, self.TOO_SMALL_STEP
+            self.status = "failed"
+            return self.TOO_SMALL_STEP
         t_new, h, h_abs = self._out[:3]
-        self.h_previous, self.y_old = float(h), y
+        self.h_previous, self.y_old, self.t_old = float(h), y, t
         self.t, self.y, self.h_abs, self.f = float(t_new), y_new, float(h_abs), f_new
-        return True, None
+        if self.direction * (self.t - self.t_bound) >= 0:
+            self.status = "finished"
+        return None
 
-    def _dense_output_impl(self):
+    def dense_output(self):
         """scipy's interpolant of the step just taken, its three extra stages evaluated
-        in the engine where it takes them (`rate`), then scipy's own construction from the
-        stages (`_from_stages`)."""
+        in the engine where `rate` gives it, then scipy's own construction from the stages
+        (`_from_stages`)."""
         compiled = self.rate() if self.rate is not None else None
-        if compiled is None:
-            return super()._dense_output_impl()
+        if compiled is None or self.t_old is None or self.n == 0 or self.t == self.t_old:
+            return super().dense_output()
         extra = _extra_coefficients()
         rows, width = np.asarray(DOP853.A_EXTRA).shape
         self._extra_in[:] = (self.n_stages + 1, rows, width, self.t_old, self.h_previous,
@@ -130,17 +136,17 @@ class CompiledDOP853(DOP853):
                                 ctypes.cast(self._fallback, ctypes.c_void_p))
         self._after(int(self._out[0]), compiled)
         if failed:
-            return super()._dense_output_impl()
+            return super().dense_output()
         return self._from_stages()
 
     def _from_stages(self):
-        """`super()._dense_output_impl` with its extra stages in K_extended already: the
-        rate it calls for them returns those rows."""
+        """scipy's `dense_output` with its extra stages in K_extended already: the rate it
+        calls for them returns those rows."""
         stages = iter(self.K_extended[self.n_stages + 1:].copy())
         fun = self.fun
         self.fun = lambda t, y: next(stages)
         try:
-            return super()._dense_output_impl()
+            return super().dense_output()
         finally:
             self.fun = fun
 

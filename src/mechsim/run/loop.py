@@ -408,19 +408,17 @@ class Run:
 
     # --- parts -------------------------------------------------------------------------------
     def make(self, t, y, step, bound=None):
-        """A new integrator at (t, y), starting with `step` (a fixed step stays fixed),
-        bounded by `bound` (default: the run's max_step)."""
+        """A new integrator at (t, y) from `step` (a fixed step stays), within `bound`
+        (default: the run's max_step)."""
         s = self.s
         bound = s.max_step if bound is None else bound
         step = s.first_step if s.h is not None else step
         kw = {"first_step": min(step, s.t_end - t, bound)} if step else {}
         solver = self.solver_cls(self.form.integrand, t, y, s.t_end, rtol=s.rtol, atol=s.atol,
                                  max_step=bound, **kw)
-        if isinstance(solver, CompiledDOP853):
+        if isinstance(solver, CompiledDOP853):       # its steps in C where the rate is
             solver.rate = self.form.compiled_rate
-        if isinstance(solver, AdamsPECE):
-            # Project inside the step, before its last evaluation: after_step then finds
-            # the state on the constraints and the projection costs no extra evaluation.
+        if isinstance(solver, AdamsPECE):   # projects before its last evaluation: no extra
             solver.project = self.form.project_now
         return solver
 
