@@ -418,7 +418,8 @@ class Run:
                                  max_step=bound, **kw)
         if isinstance(solver, CompiledDOP853):       # its steps in C where the rate is
             solver.rate = self.form.compiled_rate
-        if isinstance(solver, AdamsPECE):   # projects before its last evaluation: no extra
+        if isinstance(solver, AdamsPECE):
+            # It projects before its step's last evaluation: after_step needs no other one.
             solver.project = self.form.project_now
         return solver
 
