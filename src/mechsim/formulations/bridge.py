@@ -42,6 +42,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..integrators.adams import error_norm, integration_weights, step_weights
+from ..integrators.compiled import CompiledDOP853
 from ..integrators.adapters import proposed_step
 from ..tolerances import Tolerances
 
@@ -56,10 +57,6 @@ FLOOR_ACCEPT = 10.0
 MIN_HISTORY = 5
 # The most right-hand sides a history's backward integration may spend, per point.
 HISTORY_BUDGET = 400
-
-
-class _OverBudget(Exception):
-    """A history integration spent its budget."""
 
 
 class Crossing(NamedTuple):
@@ -93,8 +90,9 @@ class PassageBridge:
     """
 
     def __init__(self, problem, accelerations, cut, rtol, atol, order=10, compiled=False,
-                 extension=None):
+                 extension=None, rate=None):
         self.problem = problem
+        self.rate = rate           # () -> the engine's rate as `accelerations` (or None)
         self.extension = extension
         self.accelerations = accelerations
         self.compiled = compiled
@@ -117,7 +115,7 @@ class PassageBridge:
     def extended(self, extension) -> "PassageBridge":
         """A new bridge with this one's settings that carries `extension` over too."""
         return PassageBridge(self.problem, self.accelerations, self._cut, self.rtol,
-                             self.atol, self.order, self.compiled, extension)
+                             self.atol, self.order, self.compiled, extension, self.rate)
 
     def note_step(self, h_next, max_step_bound=False):
         """Keep the longest step proposed since the last passage (also while another
@@ -207,27 +205,41 @@ class PassageBridge:
         return np.concatenate([q, v, self.extension.consistent(t, q, v, y[2 * n:])])
 
     def _history(self, t_n, y_n, ts):
-        """Consistent states at the times `ts` before t_n on the trajectory through
-        y_n: integrated backwards, away from the configuration, at a hundredth of the
-        run's tolerances; None if that integration fails."""
-        from scipy.integrate import solve_ivp
+        """Consistent states at the times `ts` (decreasing) before t_n on the trajectory
+        through y_n: integrated backwards, away from the configuration, at a hundredth of
+        the run's tolerances (DOP853, its steps compiled where `rate` gives the engine's
+        rate); None if that integration fails or grinds (`HISTORY_BUDGET` evaluations a
+        point: a configuration it cannot resolve)."""
         inner = self.tol.inner()
-        budget = [HISTORY_BUDGET * len(ts)]
+        solver = CompiledDOP853(self._f, t_n, y_n, ts[-1], rtol=inner.rtol, atol=inner.atol)
+        if self.rate is not None and self.extension is None:
+            solver.rate = self._history_rate
+        states, k = [], 0
+        while k < len(ts):
+            solver.step()
+            if solver.status == "failed" or solver.nfev > HISTORY_BUDGET * len(ts):
+                return None
+            passed = []
+            while k < len(ts) and solver.direction * (solver.t - ts[k]) >= 0.0:
+                passed.append(ts[k])
+                k += 1
+            if passed:
+                interpolant = solver.dense_output()
+                states += [self._settled(interpolant(tk), tk) for tk in passed]
+        return states
 
-        def f(t, y):
-            budget[0] -= 1
-            if budget[0] < 0:              # grinding: a configuration it cannot resolve
-                raise _OverBudget
-            return self._f(t, y)
+    def _history_rate(self):
+        """The engine's rate for the history's steps (`rate`), its evaluations counted as
+        the bridge's."""
+        rate = self.rate()
+        if rate is not None:
+            counted = rate.counted
 
-        try:
-            sol = solve_ivp(f, (t_n, ts[-1]), y_n, method="DOP853",
-                            t_eval=ts, rtol=inner.rtol, atol=inner.atol)
-        except _OverBudget:
-            return None
-        if sol.status != 0:
-            return None
-        return [self._settled(y, tk) for tk, y in zip(ts, sol.y.T)]
+            def both(evaluations):
+                counted(evaluations)
+                self.evaluations += evaluations
+            rate.counted = both
+        return rate
 
     @property
     def edge(self) -> float:

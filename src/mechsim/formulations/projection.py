@@ -87,7 +87,8 @@ class Projection(FullCoordinates):
         self._far = False
         if self.regularization == "truncate" and self.bridge_passages:
             self.bridge = PassageBridge(problem, lambda t, q, v: self.accelerations(t, q, v, False),
-                                        lambda: self.cut, rtol, atol, compiled=self._cholesky)
+                                        lambda: self.cut, rtol, atol, compiled=self._cholesky,
+                                        rate=lambda: self.compiled_rate(far=False))
             self.bridging = True
 
     @classmethod
@@ -235,17 +236,19 @@ class Projection(FullCoordinates):
                 return out
         return np.concatenate([v, self._accelerations(t, q, v, Q, None, compiled=False)])
 
-    def compiled_rate(self):
+    def compiled_rate(self, far=None):
         """The engine's rate for the next step where it is `rhs`'s first choice at every
-        state: the Cholesky path, the engine built and the applied forces constant."""
+        state: the Cholesky path, the engine built and the applied forces constant. `far`:
+        as `accelerations` takes it."""
         prob = self.problem
         Q = prob.constant_forces() if self._cholesky else None
         engine = prob.algebra.engine if Q is not None else None
         if engine is None:
             return None
         engine.Q[:] = Q
+        far = self._far if far is None else far
         return CompiledRate(engine.lib, engine.context, 0, prob.counters.compiled_rates,
-                            -1.0 if self._far else self._min_rcond, self.cut)
+                            -1.0 if far else self._min_rcond, self.cut)
 
     def accelerations(self, t, q, v, far=None):
         """q̈ at (t, q, v); `far`: skip the condition estimate (default: as the last
