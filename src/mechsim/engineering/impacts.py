@@ -154,6 +154,7 @@ class PiecewiseRun:
             self.equations, self.carried = sensitivities[0], tuple(sensitivities[1:])
             if not np.all(np.isfinite(self.carried[0])):    # they ended in an earlier run
                 self.carried = None
+                self.uncarried = "the sensitivities ended in the run this one extends"
 
     def piece_problem(self):
         """(the problem of the present piece, its free limits)."""
@@ -315,7 +316,6 @@ class PiecewiseRun:
             out.message += "; " + self.uncarried
         _impact_work(out, self.impacts)
         return out
-
 
     def _unknown_sensitivities(self):
         """The pieces run after the sensitivities ended hold NaN for them, so that the
