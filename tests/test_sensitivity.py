@@ -233,21 +233,81 @@ def test_new_values_need_no_new_build_and_equal_a_fresh_model():
 
 
 def test_a_constraint_that_drops_derivatives_refuses_sensitivities():
-    """A gear whose joints' bodies move with a Parameter does not carry its derivatives:
-    sensitivities through it are refused, naming it (a plain run is not)."""
-    a = ms.Parameter("a", 0.1)
-    mech = ms.Mechanism("gear pair")
-    g = mech.ground
-    one = mech.add(ms.RigidBody("one", mass=1.0, inertia=0.01, position=(0.0, a)))
-    two = mech.add(ms.RigidBody("two", mass=1.0, inertia=0.01, position=(0.3, 0.0)))
-    p1 = mech.add(ms.Revolute(g, one, at=(0.0, a)))
-    p2 = mech.add(ms.Revolute(g, two, at=(0.3, 0.0)))
-    mech.add(ms.Gear(p1, p2, ratio=-2.0, name="pair"))
-    mech.add(ms.Driver(p1, "t"))
-    assert mech.parameter_blind() == ["pair"]
-    with pytest.raises(KinematicsError, match="'pair' depends on Parameters but does not carry"):
-        mech.kinematics(0.5, 0.1, sensitivities=["a"])
+    """A pin in a slot (`PointOnCurve`) whose bodies move with a Parameter does not carry
+    its derivatives: sensitivities through it are refused, naming it (a plain run is
+    not)."""
+    r = ms.Parameter("r", 0.1)
+    mech = ms.Mechanism("scotch yoke")
+    crank = mech.add(ms.RigidBody.rod("crank", (0, 0), (r, 0.0), 0.5))
+    yoke = mech.add(ms.RigidBody.point_mass("yoke", (r, 0.0), 2.0))
+    pivot = mech.add(ms.Revolute(mech.ground, crank, at=(0, 0), name="O"))
+    mech.add(ms.Prismatic(mech.ground, yoke, axis=(1, 0), at=(r, 0.0), name="guide"))
+    mech.add(ms.PointOnCurve(yoke, crank, at=(0.1, 0.0), curve=("line", (0, 1)), name="slot"))
+    mech.add(ms.Driver(pivot, "t"))
+    assert mech.parameter_blind() == ["slot"]
+    with pytest.raises(KinematicsError, match="'slot' depends on Parameters but does not carry"):
+        mech.kinematics(0.5, 0.1, sensitivities=["r"])
     assert mech.kinematics(0.5, 0.1).success
+
+
+def geared(ratio=-2.0, ra=0.05, rb=0.1, arm=0.1, rack=0.02, spur=True):
+    """A driven crank (arm) geared to a second pin by a plain ratio, a spur pair from that
+    pin's gear to a third (with `spur`; else a plain coupling of the same ratio), and a
+    rack on a slide driven by the third's pinion against a spring (numbers or
+    Parameters)."""
+    mech = ms.Mechanism("gear train", gravity=(0.0, -9.81))
+    g = mech.ground
+    one = mech.add(ms.RigidBody.rod("one", (0.0, 0.0), (arm, 0.0), 0.5))
+    two = mech.add(ms.RigidBody("two", mass=1.0, inertia=0.002, position=(0.3, 0.0)))
+    three = mech.add(ms.RigidBody("three", mass=1.0, inertia=0.004, position=(0.45, 0.0)))
+    bar = mech.add(ms.RigidBody("bar", mass=0.4, inertia=0.001, position=(0.45, -0.12)))
+    p1 = mech.add(ms.Revolute(g, one, at=(0.0, 0.0), name="p1"))
+    p2 = mech.add(ms.Revolute(g, two, at=(0.3, 0.0), name="p2"))
+    p3 = mech.add(ms.Revolute(g, three, at=(0.45, 0.0), name="p3"))
+    slide = mech.add(ms.Prismatic(g, bar, axis=(1.0, 0.0), at=(0.45, -0.12), name="slide"))
+    mech.add(ms.Gear(p1, p2, ratio=ratio, name="coupling"))
+    mech.add(ms.Gear.spur(p2, p3, ra, rb, name="mesh") if spur else
+             ms.Gear(p2, p3, -ra / rb, name="mesh"))
+    mech.add(ms.Gear.rack(p3, slide, rack, name="rack"))
+    mech.add(ms.Spring(g, bar, at_a=(0.7, -0.12), at_b=(0.45, -0.12), stiffness=200.0,
+                       rest_length=0.2, name="return"))
+    mech.add(ms.Driver(p1, "3*t", name="motor"))
+    return mech
+
+
+@pytest.mark.parametrize("which, spur", [
+    ("ratio", False), ("rack", False), ("ra", False),
+    pytest.param("rb", True, marks=pytest.mark.slow)])      # the spur's derivatives: 12 s
+def test_gear_ratios_and_radii_have_exact_sensitivities(which, spur):
+    """A plain coupling's ratio (also one computed from Parameters), a spur pair's radius
+    and a rack's radius as Parameters: the rack's travel is exactly linear in each along
+    the train (∂x/∂k against its closed form), the motor torque against central
+    differences; a new value needs no build."""
+    values = {"ratio": -2.0, "ra": 0.05, "rb": 0.1, "rack": 0.02}
+    mech = geared(**{**values, which: ms.Parameter(which, values[which])}, spur=spur)
+    kin = mech.kinematics(1.0, 0.05, sensitivities=[which])
+    assert kin.success, kin.message
+    turn = 3.0 * kin.t * values["ratio"] * (-values["ra"] / values["rb"])   # the third gear's
+    travel = {"ratio": turn / values["ratio"] * values["rack"],
+              "ra": turn / values["ra"] * values["rack"],
+              "rb": -turn / values["rb"] * values["rack"], "rack": turn}[which]
+    col = kin.coordinate_names.index("bar.x")
+    np.testing.assert_allclose(kin.sensitivity(which)[:, col], travel, atol=1e-10)
+
+    def build(x):
+        return geared(**{**values, which: x}, spur=spur)
+
+    def central(h):
+        up, down = (build(values[which] + s * h).kinematics(1.0, 0.05) for s in (1, -1))
+        return (up.driver_effort(up.mechanism.drivers[0])
+                - down.driver_effort(down.mechanism.drivers[0])) / (2 * h)
+    h = 1e-3 * abs(values[which])                  # Richardson-extrapolated: error O(h⁴)
+    effort = (4 * central(h / 2) - central(h)) / 3
+    motor = mech.drivers[0]
+    assert relative(kin.sensitivity(which, of="driver_effort", driver=motor), effort) < 1e-6
+    mech.set_parameters(**{which: 1.2 * values[which]})
+    np.testing.assert_allclose(mech.kinematics(1.0, 0.05).q,
+                               build(1.2 * values[which]).kinematics(1.0, 0.05).q, atol=1e-12)
 
 
 def test_motor_torque_and_multiplier_sensitivities_agree_with_finite_differences():

@@ -14,8 +14,21 @@ import math
 
 import numpy as np
 
+from . import parameters as dual
 from .checks import ModelError, name_or_default, rotation, scalar
 from .joints import Joint, coordinate_joint
+
+
+def _number(value, what: str, owner: str, positive: bool = False):
+    """`value` as given where it is a Parameter (or computed from one), else checked as a
+    number (`scalar`); ModelError naming `owner` where it is not finite (or not positive)."""
+    if not dual.is_exact(value):
+        return scalar(value, what, owner, positive=positive)
+    x = dual.value_of(value)
+    if not math.isfinite(x) or (positive and not x > 0.0):
+        raise ModelError(f"{owner}: `{what}` must be a finite{' positive' if positive else ''}"
+                         f" number, got {x:g}")
+    return value
 
 
 class Gear:
@@ -29,13 +42,18 @@ class Gear:
     guide): it moves the mechanism right but puts no load on the bearings. The spur pair
     and the rack are written on the gears' centres, so the tooth force also loads the
     pins and the guide as a real mesh does (`SimulationResult.gear_force`). Both joints
-    must be in the mechanism before the gear."""
+    must be in the mechanism before the gear. The ratio and the radii may be Parameters
+    (`mechsim.model.parameters`): the gear carries their derivatives into its equation
+    and `Mechanism.set_parameters` changes them without a build."""
 
     kind = "gear"
     form = "ratio"
     equation_labels = ("mesh",)
     parameter_names = ("ratio", "offset")
     internal = False
+    # Its parameters carry the derivatives of Parameters in its numbers and its joints'
+    # bodies' frames (`parameter_values`).
+    carries_parameters = True
 
     def __init__(self, joint_a: Joint, joint_b: Joint, ratio: float, name: str | None = None):
         for joint in (joint_a, joint_b):
@@ -45,10 +63,20 @@ class Gear:
         self.joint_a, self.joint_b = joint_a, joint_b
         self.name = name_or_default(name, f"gear({joint_a.name},{joint_b.name})", "gear")
         self.owner = f"gear '{self.name}'"
-        self.ratio = scalar(ratio, "ratio", self.owner)
+        self.exact_ratio = _number(ratio, "ratio", self.owner)
+        self.refresh_numbers()
+
+    def exact_numbers(self) -> list:
+        """Its ratio as given (Parameters kept; a spur pair's and a rack's from their
+        radii)."""
+        return [self.exact_ratio]
+
+    def refresh_numbers(self) -> None:
+        """Its numbers' values again, after the Parameters took new ones."""
+        self.ratio = dual.value_of(self.exact_ratio)
         if self.ratio == 0.0:
             raise ModelError(f"{self.owner}: `ratio` must not be 0 (that locks joint "
-                             f"'{joint_b.name}')")
+                             f"'{self.joint_b.name}')")
 
     @staticmethod
     def spur(pin_a: Joint, pin_b: Joint, radius_a: float, radius_b: float,
@@ -75,11 +103,12 @@ class Gear:
         return 1
 
     def parameter_values(self):
-        return self.finite((self.ratio, self.joint_b.initial_coordinate()
-                            - self.ratio * self.joint_a.initial_coordinate()))
+        r = self.exact_ratio
+        return self.finite((r, self.joint_b.exact_initial_coordinate()
+                            - r * self.joint_a.exact_initial_coordinate()))
 
     def finite(self, values):
-        if not all(math.isfinite(x) for x in values):
+        if not all(math.isfinite(dual.value_of(x)) for x in values):
             raise ModelError(f"{self.owner}: its joints' initial coordinates are not finite")
         return values
 
@@ -143,6 +172,14 @@ class _Meshed(Gear):
         local = joint.attachment_points()[0 if role == "a" else 1]
         return body.position + rotation(body.angle) @ np.asarray(local, float)
 
+    def exact_centre(self, key, role) -> np.ndarray:
+        """`centre` carrying the derivatives of Parameters (an object array of two)."""
+        joint = self.joint_a if key == "a" else self.joint_b
+        body = self.body(key, role)
+        local = np.asarray(joint.exact_attachment_points()[0 if role == "a" else 1], object)
+        return np.asarray(body.exact_position, object) + \
+            dual.rotation(dual.lift(body.exact_angle)) @ local
+
     def pinion(self, ctx, pa):
         """(carrier's angle, gear a's centre, gear a's angle) in `ctx`."""
         ga = self.side["a"][1]
@@ -168,14 +205,19 @@ class SpurGear(_Meshed):
     def __init__(self, pin_a: Joint, pin_b: Joint, radius_a: float, radius_b: float,
                  internal: bool = False, name: str | None = None, carrier=None):
         owner = f"gear '{name or 'spur'}'"
-        ra = scalar(radius_a, "radius_a", owner, positive=True)
-        rb = scalar(radius_b, "radius_b", owner, positive=True)
+        ra = _number(radius_a, "radius_a", owner, positive=True)
+        rb = _number(radius_b, "radius_b", owner, positive=True)
+        self.exact_radii = (ra, rb)
         super().__init__(pin_a, pin_b, (ra if internal else -ra) / rb, name, carrier)
         for pin in (pin_a, pin_b):
             if pin.kind != "revolute":
                 raise ModelError(f"{self.owner}: a spur pair turns on pins; joint "
                                  f"'{pin.name}' is {pin.kind}")
-        self.radius_a, self.radius_b, self.internal = ra, rb, bool(internal)
+        self.internal = bool(internal)
+
+    def refresh_numbers(self) -> None:
+        self.radius_a, self.radius_b = (dual.value_of(r) for r in self.exact_radii)
+        super().refresh_numbers()
 
     def drawn(self, points: int = 49) -> list:
         """[(gear body, its pitch circle as a closed polyline in its frame)] (`drawing`)."""
@@ -191,15 +233,16 @@ class SpurGear(_Meshed):
 
     def parameter_values(self):
         ga, gb = self.side["a"][1], self.side["b"][1]
-        d = self.centre("b", gb) - self.centre("a", ga)
-        if not np.hypot(*d) > 0.0:
+        d = self.exact_centre("b", gb) - self.exact_centre("a", ga)
+        if not np.hypot(*(dual.value_of(x) for x in d)) > 0.0:
             raise ModelError(f"{self.owner}: the two pins coincide; a spur pair's centres "
                              "lie apart")
-        line = math.atan2(d[1], d[0])
-        rb = -self.radius_b if self.internal else self.radius_b
-        offset = self.radius_a * (self.body("a", ga).angle - line) + \
-            rb * (self.body("b", gb).angle - line)
-        return self.finite((self.radius_a, rb, line - self.carrier.angle, offset))
+        line = dual.atan2(d[1], d[0])
+        ra, rb = self.exact_radii
+        rb = -rb if self.internal else rb
+        offset = ra * (self.body("a", ga).exact_angle - line) + \
+            rb * (self.body("b", gb).exact_angle - line)
+        return self.finite((ra, rb, line - self.carrier.exact_angle, offset))
 
     def equations(self, ctx, p):
         pa, pb = ctx.parameters(self.joint_a), ctx.parameters(self.joint_b)
@@ -210,9 +253,13 @@ class SpurGear(_Meshed):
         d = [centre_b[0] - centre_a[0], centre_b[1] - centre_a[1]]
         ref = carrier + p["phi0"]
         c, s = ctx.cos(ref), ctx.sin(ref)
-        # The line of centres from the carrier's axis turned by its initial angle: near 0
-        # throughout (the centres sit on the carrier), never at atan2's cut.
-        line = ref + ctx.atan2(c * d[1] - s * d[0], c * d[0] + s * d[1])
+        # The line of centres from the carrier's axis turned by its initial angle: the
+        # centres' offset across it over their distance along it, 0 wherever the pins
+        # hold the centres on the carrier. There it has atan2's value and, along every
+        # motion the pins allow, all its derivatives (those of a quotient are sympy's
+        # cheap ones: with atan2 the sensitivities' third derivatives of a pair took 43 s
+        # to generate, with the quotient 4 s).
+        line = ref + (c * d[1] - s * d[0]) / (c * d[0] + s * d[1])
         return [p["ra"] * (angle_a - line) + p["rb"] * (ctx.angle(gear_b, pb, gb) - line)
                 - p["offset"]]
 
@@ -228,19 +275,23 @@ class RackGear(_Meshed):
     parameter_names = ("r", "offset")
 
     def __init__(self, pin: Joint, slide: Joint, radius: float, name: str | None = None):
-        r = scalar(radius, "radius", f"gear '{name or 'rack'}'")
-        super().__init__(pin, slide, r if r else 1.0, name)
+        r = _number(radius, "radius", f"gear '{name or 'rack'}'")
+        super().__init__(pin, slide, r if dual.value_of(r) else 1.0, name)
         if pin.kind != "revolute" or slide.kind != "prismatic":
             raise ModelError(f"{self.owner}: a rack and pinion needs a revolute `pin` and a "
                              f"prismatic `slide`, got {pin.kind} and {slide.kind}")
-        if r == 0.0:
+        if dual.value_of(r) == 0.0:
             raise ModelError(f"{self.owner}: `radius` must not be 0")
-        self.radius_a = r
+        self.radius_a = dual.value_of(r)
 
     def parameter_values(self):
-        turn = self.body("a", self.side["a"][1]).angle - self.carrier.angle
-        return self.finite((self.radius_a,
-                            self.joint_b.initial_coordinate() - self.radius_a * turn))
+        turn = self.body("a", self.side["a"][1]).exact_angle - self.carrier.exact_angle
+        r = self.exact_ratio
+        return self.finite((r, self.joint_b.exact_initial_coordinate() - r * turn))
+
+    def refresh_numbers(self) -> None:
+        super().refresh_numbers()
+        self.radius_a = self.ratio
 
     def equations(self, ctx, p):
         pa, pb = ctx.parameters(self.joint_a), ctx.parameters(self.joint_b)

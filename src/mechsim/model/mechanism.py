@@ -261,7 +261,7 @@ class MechanismModel:
     def _parametrized(self) -> list:
         """Bodies, joints, drivers, springs and loads: what holds numbers that may be
         Parameters."""
-        return self.bodies + self.joints + self.drivers + \
+        return self.bodies + self.joints + self.drivers + self.gears + \
             [ld for ld in self.loads if hasattr(ld, "exact_numbers")]
 
     def parameter_blind_loads(self) -> list[str]:
