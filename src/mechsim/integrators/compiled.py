@@ -22,7 +22,11 @@ import functools
 
 import numpy as np
 from scipy.integrate import DOP853
-from scipy.integrate._ivp import rk
+
+try:            # scipy's step-size controller's constants (scipy 1.12 to 1.17 keep them here)
+    from scipy.integrate._ivp.rk import MAX_FACTOR, MIN_FACTOR, SAFETY
+except ImportError:                       # moved: scipy's own steps serve
+    MAX_FACTOR = MIN_FACTOR = SAFETY = None
 
 
 # The Python rate the engine calls back for a stage it declines: (t, y, f) -> 0 when done.
@@ -89,7 +93,7 @@ class CompiledDOP853(DOP853):
         """scipy's `step`, the step taken in the engine where `rate` gives it (module
         docstring); scipy's own where not, or where the Python rate raised in it."""
         compiled = self.rate() if self.rate is not None else None
-        if compiled is None or self.status != "running" or self.n == 0 or \
+        if compiled is None or SAFETY is None or self.status != "running" or self.n == 0 or \
                 self.t == self.t_bound or self.y.dtype != np.float64:
             return super().step()
         t = self.t
@@ -98,7 +102,7 @@ class CompiledDOP853(DOP853):
         y_new, f_new = np.empty_like(y), np.empty_like(y)
         self._in[:] = (DOP853.n_stages, t, self.h_abs, self.t_bound, self.direction,
                        self.max_step, self.rtol, compiled.min_rcond, compiled.cut,
-                       rk.SAFETY, rk.MIN_FACTOR, rk.MAX_FACTOR, self.error_exponent)
+                       SAFETY, MIN_FACTOR, MAX_FACTOR, self.error_exponent)
         status = compiled.step(compiled.context, compiled.kind, self.n,
                                _coefficients().ctypes.data, self._in.ctypes.data,
                                y.ctypes.data, f.ctypes.data, self._atol.ctypes.data,
@@ -123,7 +127,8 @@ class CompiledDOP853(DOP853):
         in the engine where `rate` gives it, then scipy's own construction from the stages
         (`_from_stages`)."""
         compiled = self.rate() if self.rate is not None else None
-        if compiled is None or self.t_old is None or self.n == 0 or self.t == self.t_old:
+        if compiled is None or SAFETY is None or self.t_old is None or self.n == 0 or \
+                self.t == self.t_old:
             return super().dense_output()
         extra = _extra_coefficients()
         rows, width = np.asarray(DOP853.A_EXTRA).shape
