@@ -146,9 +146,8 @@ class BandedSchur:
     def largest(self):
         """(λ_max, u) of the latest S, to 1e-3 relative (what the singularity monitor's
         ratios σ_min/σ_max need). From the previous call's vector, Lanczos (ARPACK, O(m kd)
-        a product, on a basis of 6 vectors: its default of 20 took 34 products a call on
-        the 40-window chain, this 13) settles in a few products, consecutive calls being
-        close. The first call, or one that does not settle, takes the eigenvalue from
+        a product, on a basis of 6 vectors: each restart of its default 20 costs 20
+        products) settles in a few products, consecutive calls being close. The first call, or one that does not settle, takes the eigenvalue from
         LAPACK's banded solver (dsbevx, that one value only: its reduction to tridiagonal
         form is O(m² kd)) and its vector by two steps of inverse iteration shifted just
         past it. The top of a long chain's spectrum is crowded (many alike joints):

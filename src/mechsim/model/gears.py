@@ -256,9 +256,8 @@ class SpurGear(_Meshed):
         # The line of centres from the carrier's axis turned by its initial angle: the
         # centres' offset across it over their distance along it, 0 wherever the pins
         # hold the centres on the carrier. There it has atan2's value and, along every
-        # motion the pins allow, all its derivatives (those of a quotient are sympy's
-        # cheap ones: with atan2 the sensitivities' third derivatives of a pair took 43 s
-        # to generate, with the quotient 4 s).
+        # motion the pins allow, all its derivatives; a quotient's third derivatives (the
+        # sensitivities') are far cheaper for sympy than atan2's (docs/benchmarks.md).
         line = ref + (c * d[1] - s * d[0]) / (c * d[0] + s * d[1])
         return [p["ra"] * (angle_a - line) + p["rb"] * (ctx.angle(gear_b, pb, gb) - line)
                 - p["offset"]]
