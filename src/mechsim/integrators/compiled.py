@@ -68,6 +68,7 @@ class CompiledDOP853(DOP853):
         self._work = np.empty(self.n)
         self._fallback = _RATE(self._python_rate)
         self._raised = None
+        self._taken = None          # the rate the last step was taken on (None: scipy's)
 
     def _python_rate(self, t, y, f):
         """The callback: scipy's own call of the rate (counted in nfev) at a state the
@@ -92,6 +93,7 @@ class CompiledDOP853(DOP853):
     def step(self):
         """scipy's `step`, the step taken in the engine where `rate` gives it (module
         docstring); scipy's own where not, or where the Python rate raised in it."""
+        self._taken = None
         compiled = self.rate() if self.rate is not None else None
         if compiled is None or SAFETY is None or self.status != "running" or self.n == 0 or \
                 self.t == self.t_bound or self.y.dtype != np.float64:
@@ -116,6 +118,7 @@ class CompiledDOP853(DOP853):
             self.status = "failed"
             return self.TOO_SMALL_STEP
         t_new, h, h_abs = self._out[:3]
+        self._taken = compiled
         self.h_previous, self.y_old, self.t_old = float(h), y, t
         self.t, self.y, self.h_abs, self.f = float(t_new), y_new, float(h_abs), f_new
         if self.direction * (self.t - self.t_bound) >= 0:
@@ -124,11 +127,10 @@ class CompiledDOP853(DOP853):
 
     def dense_output(self):
         """scipy's interpolant of the step just taken, its three extra stages evaluated
-        in the engine where `rate` gives it, then scipy's own construction from the stages
-        (`_from_stages`)."""
-        compiled = self.rate() if self.rate is not None else None
-        if compiled is None or SAFETY is None or self.t_old is None or self.n == 0 or \
-                self.t == self.t_old:
+        in the engine where that step was (on its rate), then scipy's own construction
+        from the stages (`_from_stages`)."""
+        compiled = self._taken
+        if compiled is None or self.t == self.t_old:
             return super().dense_output()
         extra = _extra_coefficients()
         rows, width = np.asarray(DOP853.A_EXTRA).shape
