@@ -190,6 +190,8 @@ def test_mechsim_optimize_finds_the_design_the_python_interface_finds(tmp_path, 
     (dict(analysis={"over": {"driver": "motor", "degrees": [0, 360, 0]}}), "a step > 0"),
     (dict(analysis=None), "\\[analysis\\] must give"),
     (dict(gradient="adjoint"), "`gradient` must be"),
+    (dict(method="newton"), "`method` must be one of"),
+    (dict(method="least_squares"), "'least_squares' takes a path objective"),
     (dict(constraint=[{"transmission_angle": {"bodies": ["rod", "arm"], "minimum": 60.0}}]),
      "`bodies` must name two of the scene's bodies"),
     (dict(constraint=[{"transmission_angle": {"bodies": ["rod", "plunger"], "minimum": 95}}]),
@@ -497,3 +499,28 @@ def test_a_design_file_s_pin_load_objective_is_the_python_one(tmp_path, monkeypa
     assert written["value"] == pytest.approx(design.value, rel=1e-6)
     assert written["parameters"]["m_cw"] == pytest.approx(design.parameters["m_cw"], rel=1e-4)
     assert design.value < 0.9 * before
+
+
+def test_a_design_file_s_path_is_searched_by_least_squares(tmp_path, monkeypatch):
+    """`method = "least_squares"` with a path objective: the plunger's positions over a
+    turn drawn with the guide 20 mm off the crank's pivot, the search from the scene's
+    offset 0 finds it again."""
+    import tomllib
+    from mechsim.app.cli import main
+    from mechsim.app.scene import load_scene
+    monkeypatch.chdir(tmp_path)
+    path = _design_file(tmp_path, parameters={"offset": [-0.06, 0.06]},
+                        analysis={"over": {"driver": "motor", "degrees": [0, 360, 30]}},
+                        method="least_squares", objective=None)
+    drawn = load_scene(tmp_path / "pump.toml", {"offset": ms.Parameter("offset", 0.02)})
+    targets = drawn.mechanism.kinematics(over=("motor", np.radians(np.arange(0, 361, 30)))) \
+        .point("plunger", (0.0, 0.0))
+    rows = ", ".join(f"[{float(x)!r}, {float(y)!r}]" for x, y in targets)
+    path.write_text(path.read_text() + "[objective]\npath = { body = \"plunger\", "
+                    f"point = [0.0, 0.0], targets = [{rows}] }}\n")
+    assert main(["optimize", str(path), "--quiet"]) == 0
+    with open(tmp_path / "out" / "pump_counterweight.toml", "rb") as fh:
+        written = tomllib.load(fh)
+    # (scipy's default tolerances: steps of 1e-8 relative)
+    assert written["parameters"]["offset"] == pytest.approx(0.02, abs=1e-8)
+    assert written["value"] < 1e-14                     # m²: the plunger within 0.1 µm

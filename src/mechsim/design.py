@@ -102,8 +102,14 @@ def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
         Exact gradients from the objective, or scipy's finite differences.
     method : str, optional
         scipy's method; default "L-BFGS-B", or "SLSQP" with constraints.
+        "least_squares": `scipy.optimize.least_squares` (trust-region reflective, within
+        the bounds) on the objective's residuals and their exact Jacobian (an objective
+        with `residuals(mech, names) -> (r, J)`, value r·r: `PathPoints`,
+        `FunctionPoints`), no constraints: precision-point synthesis, where the best
+        design traces the points exactly, converges there quadratically.
     tol, options
-        As for `scipy.optimize.minimize`.
+        As for `scipy.optimize.minimize` (with "least_squares": tol its ftol, xtol and
+        gtol, options its keywords).
 
     Raises ValueError, before any evaluation, naming what is wrong with the arguments.
     """
@@ -125,6 +131,9 @@ def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
         if hasattr(item, "check"):
             item.check(mech)
     trials = _Trials(mech, names, exact, objective if own else None)
+    if method == "least_squares":
+        return _least_squares(objective, constraints, trials, x0, lows_highs, gradient,
+                              tol, options or {}, own)
     scipy_constraints = [c if isinstance(c, dict) else trials.constraint(c, x0)
                          for c in constraints]
     started = time.perf_counter()
@@ -139,6 +148,48 @@ def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
                   trials.values, trials.gradients, int(getattr(res, "nit", 0)),
                   trials.failures, time.perf_counter() - started, trials.messages, res,
                   dict(zip(own, x[len(names):].tolist())))
+
+
+def _least_squares(objective, constraints, trials, x0, lows_highs, gradient, tol, options,
+                   own) -> Design:
+    """`optimize` with method "least_squares" (its docstring)."""
+    from scipy.optimize import least_squares
+    if not hasattr(objective, "residuals"):
+        raise ValueError("optimize: method 'least_squares' needs an objective with "
+                         "residuals(mech, names) (PathPoints, FunctionPoints)")
+    if constraints:
+        raise ValueError("optimize: method 'least_squares' takes no constraints (bounds "
+                         "only)")
+    pairs = lows_highs or [(None, None)] * len(x0)
+    low = np.array([-np.inf if a is None else a for a, _ in pairs], float)
+    high = np.array([np.inf if b is None else b for _, b in pairs], float)
+    x0 = np.clip(x0, low, high)
+    size = len(trials.residuals(objective, x0)[0])     # it must evaluate at the start
+    trials.values -= 1
+    trials.gradients -= trials.exact
+    last = {}
+
+    def fun(x):
+        r, jac = trials.residuals(objective, x, size)
+        last.update(x=x.copy(), jac=jac)
+        return r
+
+    def jac(x):
+        if "x" not in last or not np.array_equal(x, last["x"]):
+            fun(x)
+        return last["jac"]
+
+    kw = dict(ftol=tol, xtol=tol, gtol=tol) if tol is not None else {}
+    names = trials.names
+    started = time.perf_counter()
+    res = least_squares(fun, x0, jac=jac if trials.exact else gradient, bounds=(low, high),
+                        method="trf", **kw, **options)
+    x = np.asarray(res.x, float)
+    trials.set(x)
+    return Design(dict(zip(names, x[:len(names)].tolist())), float(2.0 * res.cost),
+                  bool(res.success), str(res.message), trials.values, trials.gradients,
+                  int(res.njev or 0), trials.failures, time.perf_counter() - started,
+                  trials.messages, res, dict(zip(own, x[len(names):].tolist())))
 
 
 class _Trials:
@@ -181,6 +232,26 @@ class _Trials:
         else:
             self.worst = value if self.worst is None else max(self.worst, value)
         return (value, np.asarray(grad, float)) if self.exact else value
+
+    def residuals(self, objective, x, size=None):
+        """(r, J) at x (J with exact gradients, else None); a design that cannot be
+        evaluated gets residuals above every value seen (`size` of them) and a zero J."""
+        self.values += 1
+        self.gradients += self.exact
+        try:
+            self.set(x)
+            r, jac = objective.residuals(self.mech, self.names if self.exact else [])
+        except (DesignError, ValueError) as exc:
+            if size is None:
+                raise
+            self._failed(exc)
+            worst = 1.0 if self.worst is None else self.worst
+            return np.full(size, np.sqrt((10.0 * worst + 1.0) / size)), \
+                np.zeros((size, self.size))
+        r = np.asarray(r, float)
+        value = float(r @ r)
+        self.worst = value if self.worst is None else max(self.worst, value)
+        return r, (np.asarray(jac, float) if self.exact else None)
 
     def constraint(self, c, x0) -> dict:
         """scipy's dict of the mechsim constraint `c` (its size from the start design x0,

@@ -171,19 +171,23 @@ def slider_crank(crank_length: float = 0.15, rod_length: float = 0.30,
     return mech
 
 
-def coupler_four_bar(a, b, c, d, px, py, theta0, branch=1) -> Mechanism:
-    """A path-generating four-bar: crank `a` from the ground pivot (0, 0) at angle
-    `theta0`, coupler `b`, rocker `c` to the ground pivot (d, 0), assembled on the branch
-    with the coupler–rocker pin left of the line from the crank pin to (d, 0) (`branch`
-    1; −1: right of it); the coupler
-    body's frame is its tracing point, `px` along the coupler from the crank pin and `py`
-    across it (its mass does not enter a kinematic analysis). The crank is driven by
-    "motor" (law t: the crank's turn from theta0). Each argument a number or a Parameter
-    (numpy's functions carry them): path synthesis (`mechsim.design.PathPoints`)."""
+def coupler_four_bar(a, b, c, d, px, py, theta0, branch=1, origin=(0.0, 0.0),
+                     tilt=0.0) -> Mechanism:
+    """A path-generating four-bar: crank `a` from the ground pivot `origin` at angle
+    `theta0` (from the x axis), coupler `b`, rocker `c` to the ground pivot `d` from
+    `origin` along the direction `tilt` (default (d, 0)), assembled on the branch with the
+    coupler–rocker pin left of the line from the crank pin to the rocker's pivot (`branch`
+    1; −1: right of it); the coupler body's frame is its tracing point, `px` along the
+    coupler from the crank pin and `py` across it (its mass does not enter a kinematic
+    analysis). The crank is driven by "motor" (law t: the crank's turn from theta0). Each
+    argument a number or a Parameter (numpy's functions carry them): path synthesis
+    (`mechsim.design.PathPoints`), where `origin` and `tilt` place the linkage in the
+    plane of the targets."""
     mech = Mechanism("path generator")
     ground = mech.ground
-    A = np.array([a * np.cos(theta0), a * np.sin(theta0)])
-    O4 = np.array([d, 0.0])
+    O2 = np.array([origin[0], origin[1]])
+    A = O2 + np.array([a * np.cos(theta0), a * np.sin(theta0)])
+    O4 = O2 + np.array([d * np.cos(tilt), d * np.sin(tilt)])
     AO = O4 - A
     span = np.hypot(AO[0], AO[1])
     along = (b * b - c * c + span * span) / (2 * span)
@@ -192,11 +196,11 @@ def coupler_four_bar(a, b, c, d, px, py, theta0, branch=1) -> Mechanism:
     th3 = np.arctan2(B[1] - A[1], B[0] - A[0])
     P = A + px * np.array([np.cos(th3), np.sin(th3)]) + \
         py * np.array([-np.sin(th3), np.cos(th3)])
-    crank = mech.add(RigidBody.rod("crank", (0.0, 0.0), A, mass=1.0))
+    crank = mech.add(RigidBody.rod("crank", O2, A, mass=1.0))
     coupler = mech.add(RigidBody("coupler", mass=1.0, inertia=0.01, position=P,
                                  angle=th3))
     rocker = mech.add(RigidBody.rod("rocker", O4, B, mass=1.0))
-    pin = mech.add(Revolute(ground, crank, at=(0.0, 0.0)))
+    pin = mech.add(Revolute(ground, crank, at=O2))
     mech.add(Revolute(crank, coupler, at=A))
     mech.add(Revolute(coupler, rocker, at=B))
     mech.add(Revolute(rocker, ground, at=O4))

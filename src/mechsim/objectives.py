@@ -82,39 +82,56 @@ class PathPoints:
             self.values = self.values[0] + np.concatenate([[0.0], np.cumsum(advances)])
 
     def __call__(self, mech, names):
+        return _squares(self.residuals(mech, names))
+
+    def residuals(self, mech, names):
+        """(r, J): the errors r scaled so that r·r is the value (each target's distance
+        components over √N, then the angle errors times `length` over √N), and their
+        exact Jacobian over `names` and the objective's own variables ((len(r), 0) when
+        `names` is empty): for a least-squares search (`optimize(method=
+        "least_squares")`)."""
         body = mech.body(self.body) if isinstance(self.body, str) else self.body
         kin = mech.kinematics(over=(self.driver, self.values),
                               sensitivities=list(names) or None)
         if not kin.success or len(kin.t) != len(self.values):
             raise DesignError(f"the path's points could not be reached: {kin.message}")
+        root = np.sqrt(len(self.values))
         d = kin.point(body, self.local) - self.targets
-        value = float(np.mean(np.sum(d * d, axis=1)))
-        grad = [2.0 * float(np.mean(np.sum(
-            d * kin.sensitivity(k, of="point", body=body, local=self.local), axis=1)))
-            for k in names]
-        e = None
+        parts = [d.ravel() / root]
+        columns = [[kin.sensitivity(k, of="point", body=body, local=self.local).ravel()
+                    / root] for k in names]
         if self.angles is not None:
             column = kin.coordinate_names.index(f"{body.name}.angle")
-            e = kin.q[:, column] - self.angles
-            value += self.length ** 2 * float(np.mean(e * e))
-            grad = [g + 2.0 * self.length ** 2 * float(np.mean(e * kin.sensitivity(k)[:, column]))
-                    for g, k in zip(grad, names)]
+            parts.append(self.length * (kin.q[:, column] - self.angles) / root)
+            for entry, k in zip(columns, names):
+                entry.append(self.length * kin.sensitivity(k)[:, column] / root)
+        r = np.concatenate(parts)
+        jac = np.array([np.concatenate(c) for c in columns]).T.reshape(len(r), len(names))
         if self.free_timing and names:
-            grad += list(self._timing_gradient(mech, kin, body, d, e))
-        return value, np.array(grad)
+            jac = np.hstack([jac, self._timing_jacobian(mech, kin, body, root)])
+        return r, jac
 
-    def _timing_gradient(self, mech, kin, body, d, e) -> np.ndarray:
-        """∂value/∂(advance j) = Σ_{i ≥ j} ∂value/∂values[i], ∂r_i/∂values[i] being the
-        point's velocity over the driver's rate at sample i (and the body's angular
-        velocity over it for the angle errors `e`, None without)."""
+    def _timing_jacobian(self, mech, kin, body, root) -> np.ndarray:
+        """∂r/∂(advance j) = Σ_{i ≥ j} ∂r/∂values[i], ∂r_i/∂values[i] being the point's
+        velocity over the driver's rate at sample i (and the body's angular velocity over
+        it for the angle errors)."""
         driver = mech.driver(self.driver)
         rates = np.array([driver.law.jet("t", float(t))[1] for t in kin.t])
-        along = kin.point_velocity(body, self.local) / rates[:, None]
-        per_value = 2.0 * np.sum(d * along, axis=1) / len(self.values)
-        if e is not None:
-            per_value += 2.0 * self.length ** 2 * e * kin.angular_velocity(body) / rates \
-                / len(self.values)
-        return np.cumsum(per_value[::-1])[::-1][1:]
+        count = len(self.values)
+        along = kin.point_velocity(body, self.local) / rates[:, None] / root
+        per_value = np.zeros((2 * count, count))
+        for i in range(count):
+            per_value[2 * i:2 * i + 2, i] = along[i]
+        if self.angles is not None:
+            turning = self.length * kin.angular_velocity(body) / rates / root
+            per_value = np.vstack([per_value, np.diag(turning)])
+        return np.cumsum(per_value[:, ::-1], axis=1)[:, ::-1][:, 1:]
+
+
+def _squares(residuals):
+    """(r·r, 2 Jᵀ r) of an objective's (r, J)."""
+    r, jac = residuals
+    return float(r @ r), 2.0 * (jac.T @ r)
 
 
 class FunctionPoints:
@@ -142,6 +159,11 @@ class FunctionPoints:
         return (kin.q if of is None else kin.sensitivity(of))[:, column]
 
     def __call__(self, mech, names):
+        return _squares(self.residuals(mech, names))
+
+    def residuals(self, mech, names):
+        """(r, J): the turns' errors over √N (r·r is the value) and their exact Jacobian
+        over `names` (`PathPoints.residuals`)."""
         kin = mech.kinematics(over=(self.driver, self.values),
                               sensitivities=list(names) or None)
         if not kin.success or len(kin.t) != len(self.values):
@@ -150,10 +172,10 @@ class FunctionPoints:
         def turn(of=None):
             psi = self._angle(kin, self.body_b, of) - self._angle(kin, self.body_a, of)
             return psi - psi[0]
-        error = turn() - self.targets
-        value = float(np.mean(error * error))
-        grad = [2.0 * float(np.mean(error * turn(k))) for k in names]
-        return value, np.array(grad)
+        root = np.sqrt(len(self.values))
+        r = (turn() - self.targets) / root
+        jac = np.array([turn(k) / root for k in names]).T.reshape(len(r), len(names))
+        return r, jac
 
 
 class _OnAnalysis:

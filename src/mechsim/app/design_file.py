@@ -4,6 +4,9 @@
     scene = "../pump.toml"                  # the scene, relative to this file
     output = "out/pump_counterweight.toml"  # the design found (default: out/<name>.toml)
     gradient = "exact"                      # or "2-point", scipy's finite differences
+    method = "least_squares"                # a path: trust-region least squares on its
+                                            # points' errors (default: L-BFGS-B, or
+                                            # SLSQP with constraints)
 
     [parameters]                # the scene's [parameters] varied, from their values there,
     m_cw = [0.0, 8.0]           # each within [low, high]
@@ -49,7 +52,9 @@ from ..options import unknown_names
 from .scene import load_scene, read_toml
 from .study_file import read_with_scene
 
-_TOP = {"scene", "output", "gradient", "parameters", "objective", "analysis", "constraint"}
+_TOP = {"scene", "output", "gradient", "method", "parameters", "objective", "analysis",
+        "constraint"}
+_METHODS = ("L-BFGS-B", "SLSQP", "trust-constr", "least_squares")
 _OBJECTIVES = ("peak_effort", "rms_effort", "peak_joint_force", "rms_joint_force", "path")
 PEAK_NORM = 16.0
 
@@ -69,6 +74,7 @@ class DesignFile:
     gradient: str
     output: Path
     constraints: tuple = ()
+    method: str | None = None
 
     def run(self):
         """(the `mechsim.design.Design` found, the scene's mechanism set to it), from the
@@ -78,7 +84,8 @@ class DesignFile:
                                          for k in self.bounds})
         mech = loaded.mechanism
         design = optimize(mech, self.objective, list(self.bounds), bounds=self.bounds,
-                          constraints=self.constraints, gradient=self.gradient)
+                          constraints=self.constraints, gradient=self.gradient,
+                          method=self.method)
         return design, mech
 
 
@@ -113,8 +120,15 @@ def load_design(path) -> DesignFile:
         raise DesignFileError(f"{f}: `output` must be a relative path ending in .toml inside "
                               f"the working directory, got {output!r:.80}")
     constraints = _constraints(f, data.get("constraint", []), base, analysis)
+    method = data.get("method")
+    if method is not None and method not in _METHODS:
+        raise DesignFileError(f"{f}: `method` must be one of {', '.join(_METHODS)}, got "
+                              f"{method!r:.40}")
+    if method == "least_squares" and (constraints or not hasattr(objective, "residuals")):
+        raise DesignFileError(f"{f}: `method` 'least_squares' takes a path objective and no "
+                              "[[constraint]]")
     return DesignFile(path, scene, bounds, objective, gradient, Path(output),
-                      tuple(constraints))
+                      tuple(constraints), method)
 
 
 def _constraints(f, tables, mech, analysis) -> list:
