@@ -6,7 +6,7 @@ that keep them need not know each other."""
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,13 +29,15 @@ class SingularPassage:
     normalized smallest singular value of Φ_q M^{-1/2} stayed below the monitor's threshold;
     its minimum `min_sigma` came at `t_min`; `joints` own the rows of its singular vector;
     `bridged`: crossed in one step by the passage bridge, `t_min` being its predicted
-    singular instant."""
+    singular instant; `time_sensitivity`: {Parameter: ∂t_min/∂Parameter} of a run with
+    sensitivities (its instant's shift as the design changes, to first order)."""
     t_start: float
     t_end: float
     min_sigma: float
     joints: tuple[str, ...] = ()
     t_min: float | None = None
     bridged: bool = False
+    time_sensitivity: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

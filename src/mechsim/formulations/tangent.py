@@ -26,6 +26,10 @@ from ..problem.sensitivity import ROUND_OFF
 from .projection import RCOND, crossing_cluster, end_state, truncation_cut
 
 
+# Newton's steps at most refining a passage's instant for its time sensitivity.
+PASSAGE_NEWTON = 4
+
+
 class Tangent(Formulation):
     """`base`'s motion and its sensitivities: the equations `equations` (a
     `MotionEquations`), starting from the sensitivities (Sq0, Sv0) of the state given to
@@ -86,6 +90,23 @@ class Tangent(Formulation):
     def resume(self, t, q, v, extra=None):
         yb = self.base.resume(t, q, v)
         return self._join(yb, *self.eq.project(t, q, v, *self.eq.split(extra)))
+
+    def passage_time(self, t, state_at, within) -> dict:
+        """{name: ∂t*/∂name} of the singular passage whose instant was found at t;
+        `state_at(t) -> (q, v, x)` (x the sensitivities) over `within` = (t0, t1). The
+        instant is first refined where Φ_q's singular value crosses zero (Newton's steps
+        on `MotionEquations.passage_time`'s estimate, staying within): a predicted or
+        sampled instant off by δ errs in ∂t*/∂k by about δ times its rate."""
+        index = self.problem.m - 1 - self.monitor.redundant
+        t0, t1 = within
+        for _ in range(PASSAGE_NEWTON):
+            q, v, x = state_at(t)
+            slopes, shift = self.eq.passage_time(t, q, v, self.eq.split(x)[0], index)
+            t_next = min(max(t + shift, t0), t1)
+            if abs(t_next - t) <= 1e-13 * max(1.0, abs(t)):
+                break
+            t = t_next
+        return dict(zip(self.eq.names, slopes.tolist()))
 
     def extension_of(self, y):
         return y[len(y) - self.width:]

@@ -301,6 +301,30 @@ class MotionEquations:
         g = -(r2q @ Sq + r2v @ Sv + r2p @ self.P)
         return F, g
 
+    def passage_time(self, t, q, v, Sq, index):
+        """(∂t*/∂k (K,), t* − t to first order) of a singular passage's instant t*, at a
+        state (t, q, v) near it with the sensitivities Sq. `index`: the singular value σ
+        of Φ_q that vanishes there (left and right vectors u, w). t* is where
+        g = uᵀ Φ_q(q(t; k), t; k) w crosses zero, so ∂t*/∂k = −(∂g/∂k)/(dg/dt), with
+        dg/dt = uᵀ (Φ_q v + Φ_t)_q w = uᵀ R1_q w and ∂g/∂k = uᵀ (Φ_qq[w] q_k + (Φ_q w)_p
+        p_k), both from R1's generated derivatives (R1 is linear in the velocity it is
+        given, and Φ_qq[w] q_k = Φ_qq[q_k] w); and t* − t ≈ −σ/(dg/dt) (here g = σ).
+        NaN where the motion does not cross the configuration (dg/dt = 0)."""
+        prob = self.problem
+        U, sig, Vt = np.linalg.svd(sparse.dense(prob.phi_q(q, t)))
+        u, w = U[:, index], Vt[index]
+        zero = np.zeros(prob.n)
+
+        def r1(velocity):
+            return self.module.sensitivity_terms(q, velocity, zero, t, prob.p)[1:3]
+        r1q_0, r1p_0 = r1(zero)
+        r1q_w, r1p_w = r1(w)
+        rate = float(u @ (r1(v)[0] @ w))
+        along = u @ ((r1q_w - r1q_0) @ Sq + (r1p_w - r1p_0) @ self.P)
+        if not abs(rate) > 0.0:
+            return np.full(len(self.names), np.nan), 0.0
+        return -along / rate, -float(sig[index]) / rate
+
     def project(self, t, q, v, Sq, Sv, tol=None):
         """(Sq, Sv) moved onto the constraints' tangent at the consistent (t, q, v): the
         smallest change in the mass metric (Φ_q's pseudo-inverse truncated only at

@@ -6,14 +6,14 @@ integrate the work along it; let the singularity monitor look at it; let the for
 correct the state (in place where the integrator allows, else a restart); cross a singular
 passage ahead with the passage bridge. Its parts:
 
-- `Recorder` (`mechsim.run.samples`): the output samples, in one array grown in place and handed
-  to the result without a copy (no lists of small arrays),
-  with the work of each channel at each sample;
+- `Recorder` (`mechsim.run.samples`): the output samples (one array grown in place, handed to
+  the result without a copy) with the work of each channel at each sample;
 - `StepBound`: the one bound on the next step (the run's `max_step`, the formulation's
   `step_limit`, the bridge's landing), and LSODA's restart when it changes;
 - `Statistics`: the counts of what the run spent;
 - the integrator adapters (`mechsim.integrators.adapters`) for everything private to scipy;
-- the passage bridge (`mechsim.formulations.bridge`, `bridge_passage`).
+- the passage bridge (`mechsim.formulations.bridge`, `bridge_passage`), and the
+  sensitivities of the passages' instants (`mechsim.run.passage_times`).
 
 A failure mid-run (an exception in the model, a singular matrix, an integrator giving up, the
 user pressing Ctrl-C) ends the loop and returns everything computed so far, with a `status`
@@ -36,6 +36,8 @@ from ..results import SimulationResult
 from ..records import Status, WorkRecord
 from ..results.stream import begin_stream
 from ..results.work import WorkIntegral
+from .bounds import Statistics, StepBound
+from .passage_times import PassageTimes
 from .runaway import Runaway
 from ..formulations.basis import ConstraintSolveError
 from ..model.checks import LoadError
@@ -54,60 +56,6 @@ STALL_SPAN = 1e-7
 # quarter of its length, up to this many times in a row, by the methods that resolve
 # passages; then it stands, and the run says so.
 BRANCH_RETRIES = 6
-
-
-class StepBound:
-    """The one bound on the next step: the run's `max_step`, lowered by the formulation's
-    `step_limit` (the hybrid ahead of a singularity) and by the passage bridge's landing.
-    scipy's RK, Radau and BDF and the Adams method read `max_step` at every step, so a bound
-    applies at once; LSODA takes its bound only when it starts, so a new bound restarts it
-    (`restart_for`)."""
-
-    def __init__(self, max_step: float, read_at_start: bool):
-        self.max_step = max_step
-        self._started_with = max_step if read_at_start else None
-
-    def after_step(self, solver, limit: float | None) -> None:
-        """Bound the next step by the run's max_step and the formulation's `limit`."""
-        solver.max_step = self.max_step if limit is None else min(self.max_step, limit)
-
-    def land(self, solver, reach: float) -> None:
-        solver.max_step = min(solver.max_step, reach)
-
-    def restart_for(self, solver):
-        """(first step, bound) for an LSODA restart where the bound decides the next step (a
-        tighter one below the step it would take, or a looser one where the old bound held
-        it); None otherwise."""
-        if self._started_with is None:
-            return None
-        want = getattr(solver, "max_step", self._started_with)
-        h_next = proposed_step(solver) or 0.0
-        if (want < self._started_with and h_next > want) or \
-                (want > self._started_with and h_next >= 0.9 * self._started_with):
-            self._started_with = want
-            return (min(h_next, want) or None), want
-        return None
-
-
-@dataclass
-class Statistics:
-    """What a run spent, beyond the live integrator's own counts."""
-    steps: int = 0
-    restarts: int = 0
-    rejected: int = 0
-    corrections: int = 0
-    retries: int = 0            # consecutive retakes of a step that left its branch
-    bridges: int = 0
-    nfev: int = 0
-    njev: int = 0
-    nlu: int = 0
-
-    def retire(self, solver) -> None:
-        """Add the counts of an integrator the run replaces."""
-        self.nfev += solver.nfev
-        self.njev += int(getattr(solver, "njev", 0))
-        self.nlu += int(getattr(solver, "nlu", 0))
-        self.rejected += int(getattr(solver, "n_rejected", 0))
 
 
 @dataclass(frozen=True)
@@ -198,6 +146,7 @@ class Run:
         self.t_reached = settings.t_start
         self.solver = None
         self.y0 = form.initial_state(settings.t_start, q0, v0)
+        self.passage_times = PassageTimes(form, self.monitor)
         self.monitor.observe(settings.t_start, q0, v0)
         if settings.ts is None or settings.ts[0] == settings.t_start:
             self.out.record_due(settings.t_start, q0, v0, self.y0)
@@ -338,6 +287,8 @@ class Run:
         self.monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
                              t_old=t_old, positions_at=lambda ts: form.positions(
                                  ts, np.atleast_2d(dense(ts).T)))
+        self.passage_times.note(t_old, t_new, lambda tk: (
+            *form.state(tk, dense(tk)), form.extension_of(dense(tk))))
         correction = form.after_step(t_new, y_new, t_new - t_old)
         self.bound.after_step(solver, correction.step_limit)
         corrected = correction.y
@@ -390,6 +341,7 @@ class Run:
         self._add_work(t, t_b, lambda tk: _split(interp(tk).T, n), recorded, [])
         self.monitor.crossed(t, t_b, t_star, interp(t_star)[:n])
         self.monitor.observe(t_b, q_b, v_b)
+        self.passage_times.note(t, t_b, lambda tk: np.split(interp(tk), [n, 2 * n]))
         y_b = form.resume(t_b, q_b, v_b, crossed.extra)
         after = form.after_step(t_b, y_b, t_b - t).y
         y_b = y_b if after is None else after
@@ -555,7 +507,8 @@ class Run:
         res = SimulationResult(t, q, v, self.problem.coordinate_names, problem=self.problem,
                                status=self.status, message=self.message,
                                stats=self._statistics(),
-                               singular_passages=self.monitor.passages,
+                               singular_passages=self.passage_times.attach(
+                                   self.monitor.passages),
                                switches=self.form.switches, exception=self.exception,
                                work=work)
         res.event = self.event
@@ -571,9 +524,7 @@ class Run:
         if work.unresolved:
             notes.append(f"{work.unresolved} piece(s) of steps not resolved to the "
                          "quadrature's tolerance")
-        return WorkRecord(tuple(work.channels),
-                          self.out.work.take(),
-                          "; ".join(notes))
+        return WorkRecord(tuple(work.channels), self.out.work.take(), "; ".join(notes))
 
 
 def _split(Y, n):
