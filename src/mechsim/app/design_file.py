@@ -4,9 +4,7 @@
     scene = "../pump.toml"                  # the scene, relative to this file
     output = "out/pump_counterweight.toml"  # the design found (default: out/<name>.toml)
     gradient = "exact"                      # or "2-point", scipy's finite differences
-    method = "least_squares"                # a path: trust-region least squares on its
-                                            # points' errors (default: L-BFGS-B, or
-                                            # SLSQP with constraints)
+    method = "least_squares"                # a path: least squares on its points' errors
 
     [parameters]                # the scene's [parameters] varied, from their values there,
     m_cw = [0.0, 8.0]           # each within [low, high]
@@ -31,6 +29,9 @@
     #   kept the shortest link of a Grashof four-bar (it turns fully)
 
 A path's targets are reached at the samples of `over`, one each (prescribed timing).
+`method` is scipy's minimizer (default L-BFGS-B, or SLSQP with constraints), or
+"least_squares" for a path without constraints: trust-region least squares on the points'
+errors and their exact Jacobian.
 Every key, name and number is checked before any evaluation; nothing in the file is
 executed. The design is written as a TOML table of the parameters' values with the
 objective's value and the search's counts.
