@@ -410,3 +410,33 @@ def test_a_driven_pin_starting_from_rest_unaccelerated_rubs_the_way_it_turns():
     free = plain.simulate(1.0, rtol=1e-9, output_step=0.05)
     extra = res.driver_effort(motor) - free.driver_effort(plain.drivers[0])
     np.testing.assert_allclose(extra[moving], -friction[moving], rtol=1e-9, atol=1e-12)
+
+
+def test_friction_coefficients_take_parameters_set_without_a_build():
+    """μ and μ_s as Parameters: the block slides at μ = 0.3 (closed form), and after
+    `set_parameters(mu=0.2)` at the new μ, no new build; μ_s raised above tan 30° makes it
+    stick. A μ_s below μ is refused naming the friction, the old values kept; sensitivities
+    through friction are refused naming it."""
+    angle = math.radians(30)
+    mu, mu_s = ms.Parameter("mu", 0.3), ms.Parameter("mu_s", 0.5)
+    mech, guide = incline(angle, mu, mu_s)
+    assert {"mu", "mu_s"} <= set(mech.parameters)
+
+    def slide(value):
+        res = mech.simulate(0.5, rtol=1e-10, atol=1e-12, output_step=0.05)
+        assert res.success, res.message
+        a = G * (math.sin(angle) - value * math.cos(angle))
+        return np.max(np.abs(res.joint_coordinate(guide) - 0.5 * a * res.t**2))
+
+    assert slide(0.3) < 1e-8
+    mech.set_parameters(mu=0.2)
+    assert mech.frictions[0].mu == 0.2
+    assert slide(0.2) < 1e-8
+    mech.set_parameters(mu_s=0.7)                 # tan 30° = 0.577 < 0.7: the block rests
+    res = mech.simulate(0.5, rtol=1e-10, atol=1e-12, output_step=0.05)
+    assert np.max(np.abs(res.joint_coordinate(guide))) < 1e-12
+    with pytest.raises(ms.ModelError, match="friction 'rub'.*must not be below"):
+        mech.set_parameters(mu_s=0.1)
+    assert mech.frictions[0].mu_static == 0.7
+    with pytest.raises((ms.ModelError, ValueError), match="rub|friction"):
+        mech.simulate(0.1, sensitivities=["mu"])

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import math
 
-from .checks import ModelError, name_or_default, scalar
+from . import parameters as dual
+from .checks import ModelError, name_or_default, scalar, scalar_exact
 from .joints import Joint, coordinate_joint
 
 
@@ -20,7 +21,9 @@ class Friction:
       block of that length carrying the normal force F and the couple M (contact on
       opposite faces where the couple wins).
 
-    `preload` [N] presses the surfaces besides the reaction (a press fit, a seal). The
+    Each number may be a Parameter (`set_parameters` gives it a new value, no new build;
+    sensitivities through friction are refused). `preload` [N] presses the surfaces
+    besides the reaction (a press fit, a seal). The
     coefficient in slip is `mu`, or with `transition_velocity` v_t (rad/s or m/s) the
     Stribeck curve μ + (μ_s − μ) exp(−(ṡ/v_t)²); at rest it is `mu_static` μ_s (default
     `mu`). The reaction depends on the friction force and the friction force on the
@@ -40,32 +43,53 @@ class Friction:
         self.joint = coordinate_joint(joint, "friction", "rub along")
         self.name = name_or_default(name, f"friction({joint.name})", "friction")
         owner = f"friction '{self.name}'"
-        self.mu = scalar(mu, "mu", owner, nonnegative=True)
-        self.mu_static = self.mu if mu_static is None else \
-            scalar(mu_static, "mu_static", owner, nonnegative=True)
-        if self.mu_static < self.mu:
-            raise ModelError(f"{owner}: `mu_static` ({self.mu_static:g}) must not be below "
-                             f"`mu` ({self.mu:g}): a joint at rest holds at least what it "
-                             "takes to keep it sliding")
-        self.preload = scalar(preload, "preload", owner, nonnegative=True)
-        self.transition_velocity = None if transition_velocity is None else \
-            scalar(transition_velocity, "transition_velocity", owner, positive=True)
+        # The numbers as given (Parameters kept: `exact_numbers`), their floats for the runs.
+        self._exact = dict(
+            mu=scalar_exact(mu, "mu", owner, nonnegative=True)[1],
+            mu_static=None if mu_static is None else
+            scalar_exact(mu_static, "mu_static", owner, nonnegative=True)[1],
+            preload=scalar_exact(preload, "preload", owner, nonnegative=True)[1],
+            transition_velocity=None if transition_velocity is None else
+            scalar_exact(transition_velocity, "transition_velocity", owner, positive=True)[1],
+            radius=None if radius is None else
+            scalar_exact(radius, "radius", owner, positive=True)[1],
+            length=None if length is None else
+            scalar_exact(length, "length", owner, positive=True)[1])
+        self._floats()
         if self.joint.kind == "revolute":
             if radius is None:
                 raise ModelError(f"{owner}: revolute joint '{joint.name}' needs the pin's "
                                  "`radius` [m]: the friction torque is μ r ‖F‖")
-            self.radius = scalar(radius, "radius", owner, positive=True)
             if length is not None:
                 raise ModelError(f"{owner}: `length` is a prismatic guide's; revolute joint "
                                  f"'{joint.name}' takes `radius`")
-            self.length = None
-        else:
-            if radius is not None:
-                raise ModelError(f"{owner}: `radius` is a pin's; prismatic joint "
-                                 f"'{joint.name}' takes `length` (its block's contact length)")
-            self.radius = None
-            self.length = None if length is None else \
-                scalar(length, "length", owner, positive=True)
+        elif radius is not None:
+            raise ModelError(f"{owner}: `radius` is a pin's; prismatic joint "
+                             f"'{joint.name}' takes `length` (its block's contact length)")
+
+    def _floats(self) -> None:
+        """The floats of the numbers as given, checked (a ModelError naming the friction)."""
+        owner = f"friction '{self.name}'"
+        checks = dict(mu={"nonnegative": True}, mu_static={"nonnegative": True},
+                      preload={"nonnegative": True}, transition_velocity={"positive": True},
+                      radius={"positive": True}, length={"positive": True})
+        for key, exact in self._exact.items():
+            setattr(self, key, None if exact is None else
+                    scalar(dual.value_of(exact), key, owner, **checks[key]))
+        if self.mu_static is None:
+            self.mu_static = self.mu
+        if self.mu_static < self.mu:
+            raise ModelError(f"{owner}: `mu_static` ({self.mu_static:g}) must not be below "
+                             f"`mu` ({self.mu:g}): a joint at rest holds at least what it "
+                             "takes to keep it sliding")
+
+    def exact_numbers(self) -> list:
+        """The numbers as given that are Parameters or computed from them."""
+        return [x for x in self._exact.values() if isinstance(x, dual.Dual)]
+
+    def refresh_numbers(self) -> None:
+        """Their floats again, after the Parameters took new values."""
+        self._floats()
 
     def coefficient(self, speed: float) -> float:
         """μ while sliding at the speed the speed ṡ (`speed`): the Stribeck curve with a transition

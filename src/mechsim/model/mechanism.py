@@ -259,10 +259,11 @@ class MechanismModel:
         return [x for owner in self._parametrized() for x in owner.exact_numbers()]
 
     def _parametrized(self) -> list:
-        """Bodies, joints, drivers, springs and loads: what holds numbers that may be
-        Parameters."""
+        """Bodies, joints, drivers, gears, springs, loads and frictions: what holds numbers
+        that may be Parameters."""
         return self.bodies + self.joints + self.drivers + self.gears + \
-            [ld for ld in self.loads if hasattr(ld, "exact_numbers")]
+            [ld for ld in self.loads if hasattr(ld, "exact_numbers")] + \
+            list(self.frictions)
 
     def parameter_blind_loads(self) -> list[str]:
         """The loads that depend on Parameters but do not carry their derivatives (a
