@@ -35,7 +35,9 @@ Printed: the rms error reached [m], the evaluations and the time of each.
 
 from __future__ import annotations
 
+import importlib.util
 import math
+import pathlib
 import time
 
 import numpy as np
@@ -109,32 +111,15 @@ def pylinkage_locus(pl, a, b, c, d, px, py, theta0, x0, y0, tilt, *advances):
 
 
 def swarm(pl, seed=0):
-    """(rms error [m], evaluations, seconds) of pylinkage's particle swarm."""
-    from pylinkage.optimization.particle_swarm import particle_swarm_optimization
-    count = [0]
-
-    def score(_linkage, values, _coords):
-        count[0] += 1
-        try:
-            d = pylinkage_locus(pl, *values) - POINTS
-        except (ArithmeticError, ValueError, pl.UnbuildableError):
-            return math.inf
-        value = float(np.mean(np.sum(d * d, axis=1)))
-        return value if math.isfinite(value) else math.inf
-
+    """(rms error [m], evaluations, seconds) of pylinkage's particle swarm
+    (`examples/path_synthesis_peer.py`) on the nine points."""
+    spec = importlib.util.spec_from_file_location(
+        "path_synthesis_peer", pathlib.Path(__file__).with_name("path_synthesis_peer.py"))
+    peer = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(peer)
     known = np.concatenate([list(KNOWN.values()), ADVANCES])
-    box = (known - 0.1 * np.abs(known), known + 0.1 * np.abs(known))
-    dummy = pl.Linkage([pl.Ground(0.0, 0.0)])
-    np.random.seed(seed)
-    began = time.perf_counter()
-    best = particle_swarm_optimization(score, dummy, dimensions=len(known), bounds=box,
-                                       n_particles=50, iterations=200, order_relation=min,
-                                       verbose=False)
-    seconds = time.perf_counter() - began
-    values = np.asarray(best[0].dimensions if hasattr(best[0], "dimensions")
-                        else best[0][1], float)
-    d = pylinkage_locus(pl, *values) - POINTS
-    return math.sqrt(float(np.mean(np.sum(d * d, axis=1)))), count[0], seconds
+    return peer.pylinkage_swarm(pl, lambda values: pylinkage_locus(pl, *values), POINTS,
+                                known, seed)
 
 
 def main():

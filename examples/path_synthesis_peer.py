@@ -52,19 +52,27 @@ def pylinkage_locus(pl, a, b, c, d, px, py, theta0):
 
 def swarm(pl, targets, seed=0):
     """(rms error [m], evaluations, seconds) of pylinkage's particle swarm."""
+    return pylinkage_swarm(pl, lambda values: pylinkage_locus(pl, *values), targets,
+                           np.array(list(synthesis.TRUE.values())), seed)
+
+
+def pylinkage_swarm(pl, locus, targets, known, seed=0):
+    """(rms error [m], evaluations, seconds) of pylinkage's particle swarm over a box of
+    ±10 % around the design `known`, each particle scored by the mean squared distance of
+    `locus(values)` (pylinkage's own simulation of that design) from `targets`; an
+    unbuildable linkage scores infinity."""
     from pylinkage.optimization.particle_swarm import particle_swarm_optimization
     count = [0]
 
     def score(_linkage, values, _coords):
         count[0] += 1
         try:
-            d = pylinkage_locus(pl, *values) - targets
+            d = locus(values) - targets
         except (ArithmeticError, ValueError, pl.UnbuildableError):
             return math.inf
         value = float(np.mean(np.sum(d * d, axis=1)))
         return value if math.isfinite(value) else math.inf
 
-    known = np.array(list(synthesis.TRUE.values()))
     box = (known - 0.1 * np.abs(known), known + 0.1 * np.abs(known))
     dummy = pl.Linkage([pl.Ground(0.0, 0.0)])
     np.random.seed(seed)
@@ -75,7 +83,7 @@ def swarm(pl, targets, seed=0):
     seconds = time.perf_counter() - began
     values = np.asarray(best[0].dimensions if hasattr(best[0], "dimensions")
                         else best[0][1], float)
-    d = pylinkage_locus(pl, *values) - targets
+    d = locus(values) - targets
     return math.sqrt(float(np.mean(np.sum(d * d, axis=1)))), count[0], seconds
 
 
