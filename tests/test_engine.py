@@ -413,7 +413,8 @@ def test_compiled_dop853_steps_are_scipy_s_steps(method, monkeypatch):
         return compiled_step(self)
     monkeypatch.setattr(CompiledDOP853, "step", counting)
     fast = mech.simulate(3.0, **run)
-    assert fast.success and len(taken) > 40 and all(taken)
+    # Every accepted step went through the compiled step, on the engine's rate.
+    assert fast.success and len(taken) >= fast.stats["steps"] and all(taken)
     monkeypatch.setattr(CompiledDOP853, "step", DOP853.step)
     monkeypatch.setattr(CompiledDOP853, "dense_output", DOP853.dense_output)
     slow = mech.simulate(3.0, **run)
@@ -443,7 +444,8 @@ def test_stages_the_engine_declines_are_the_python_rate_s(monkeypatch):
     rhs = Projection.rhs
     monkeypatch.setattr(Projection, "rhs", lambda self, t, y: called.append(t) or rhs(self, t, y))
     back = mech.simulate(1.0, **run)
-    assert back.success and len(called) > 10 * back.stats["steps"]
+    # Every evaluation the run counted was the Python rate's (called back from C).
+    assert back.success and len(called) == back.stats["rhs_evaluations"]
     monkeypatch.setattr(CompiledDOP853, "step", DOP853.step)
     monkeypatch.setattr(CompiledDOP853, "dense_output", DOP853.dense_output)
     plain = mech.simulate(1.0, **run)
