@@ -106,7 +106,8 @@ def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
         the bounds) on the objective's residuals and their exact Jacobian (an objective
         with `residuals(mech, names) -> (r, J)`, value r·r: `PathPoints`,
         `FunctionPoints`), no constraints: precision-point synthesis, where the best
-        design traces the points exactly, converges there quadratically.
+        design traces the points exactly, converges there quadratically. The start
+        must be evaluable (its DesignError is raised otherwise).
     tol, options
         As for `scipy.optimize.minimize` (with "least_squares": tol its ftol, xtol and
         gtol, options its keywords).
@@ -164,19 +165,19 @@ def _least_squares(objective, constraints, trials, x0, lows_highs, gradient, tol
     low = np.array([-np.inf if a is None else a for a, _ in pairs], float)
     high = np.array([np.inf if b is None else b for _, b in pairs], float)
     x0 = np.clip(x0, low, high)
-    size = len(trials.residuals(objective, x0)[0])     # it must evaluate at the start
-    trials.values -= 1
-    trials.gradients -= trials.exact
-    last = {}
+    # The start must evaluate (else its DesignError is raised); the last design's (r, J)
+    # serve scipy's calls of the residuals and of the Jacobian at the same design.
+    r0, jac0 = trials.residuals(objective, x0)
+    last = dict(x=x0.copy(), r=r0, jac=jac0)
 
     def fun(x):
-        r, jac = trials.residuals(objective, x, size)
-        last.update(x=x.copy(), jac=jac)
-        return r
+        if not np.array_equal(x, last["x"]):
+            r, jac = trials.residuals(objective, x, len(r0))
+            last.update(x=x.copy(), r=r, jac=jac)
+        return last["r"]
 
     def jac(x):
-        if "x" not in last or not np.array_equal(x, last["x"]):
-            fun(x)
+        fun(x)
         return last["jac"]
 
     kw = dict(ftol=tol, xtol=tol, gtol=tol) if tol is not None else {}
