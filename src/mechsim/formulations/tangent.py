@@ -108,6 +108,10 @@ class Tangent(Formulation):
             t = t_next
         return dict(zip(self.eq.names, slopes.tolist()))
 
+    def split(self, t, y):
+        """(q, v, x) of the state y at t, x the sensitivities."""
+        return (*self.state(t, y), self.extension_of(y))
+
     def extension_of(self, y):
         return y[len(y) - self.width:]
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from . import parameters as dual
-from .checks import ModelError, name_or_default, scalar, scalar_exact
+from .checks import ModelError, name_or_default, scalar_exact
 from .joints import Joint, coordinate_joint
 
 
@@ -36,6 +36,11 @@ class Friction:
     the work the friction takes is a channel of the energy balance."""
 
     kind = "friction"
+    # What each number must be; those that may be left out (None).
+    _OPTIONAL = frozenset({"mu_static", "transition_velocity", "radius", "length"})
+    _CHECKS = dict(mu={"nonnegative": True}, mu_static={"nonnegative": True},
+                   preload={"nonnegative": True}, transition_velocity={"positive": True},
+                   radius={"positive": True}, length={"positive": True})
 
     def __init__(self, joint: Joint, mu: float, mu_static: float | None = None,
                  radius: float | None = None, transition_velocity: float | None = None,
@@ -43,18 +48,10 @@ class Friction:
         self.joint = coordinate_joint(joint, "friction", "rub along")
         self.name = name_or_default(name, f"friction({joint.name})", "friction")
         owner = f"friction '{self.name}'"
-        # The numbers as given (Parameters kept: `exact_numbers`), their floats for the runs.
-        self._exact = dict(
-            mu=scalar_exact(mu, "mu", owner, nonnegative=True)[1],
-            mu_static=None if mu_static is None else
-            scalar_exact(mu_static, "mu_static", owner, nonnegative=True)[1],
-            preload=scalar_exact(preload, "preload", owner, nonnegative=True)[1],
-            transition_velocity=None if transition_velocity is None else
-            scalar_exact(transition_velocity, "transition_velocity", owner, positive=True)[1],
-            radius=None if radius is None else
-            scalar_exact(radius, "radius", owner, positive=True)[1],
-            length=None if length is None else
-            scalar_exact(length, "length", owner, positive=True)[1])
+        # The numbers as given (Parameters kept: `exact_numbers`); `_floats` checks them.
+        self._exact = dict(mu=mu, mu_static=mu_static, preload=preload,
+                           transition_velocity=transition_velocity, radius=radius,
+                           length=length)
         self._floats()
         if self.joint.kind == "revolute":
             if radius is None:
@@ -70,12 +67,9 @@ class Friction:
     def _floats(self) -> None:
         """The floats of the numbers as given, checked (a ModelError naming the friction)."""
         owner = f"friction '{self.name}'"
-        checks = dict(mu={"nonnegative": True}, mu_static={"nonnegative": True},
-                      preload={"nonnegative": True}, transition_velocity={"positive": True},
-                      radius={"positive": True}, length={"positive": True})
         for key, exact in self._exact.items():
-            setattr(self, key, None if exact is None else
-                    scalar(dual.value_of(exact), key, owner, **checks[key]))
+            setattr(self, key, None if exact is None and key in self._OPTIONAL else
+                    scalar_exact(exact, key, owner, **self._CHECKS[key])[0])
         if self.mu_static is None:
             self.mu_static = self.mu
         if self.mu_static < self.mu:

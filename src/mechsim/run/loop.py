@@ -287,8 +287,7 @@ class Run:
         self.monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
                              t_old=t_old, positions_at=lambda ts: form.positions(
                                  ts, np.atleast_2d(dense(ts).T)))
-        self.passage_times.note(t_old, t_new, lambda tk: (
-            *form.state(tk, dense(tk)), form.extension_of(dense(tk))))
+        self.passage_times.note(t_old, t_new, lambda tk: form.split(tk, dense(tk)))
         correction = form.after_step(t_new, y_new, t_new - t_old)
         self.bound.after_step(solver, correction.step_limit)
         corrected = correction.y

@@ -23,14 +23,18 @@ class PassageTimes:
         self.form = form if hasattr(form, "passage_time") else None
         self.monitor = monitor
         self.at = {}                     # instant -> {name: ∂t*/∂name}
+        self.seen = 0                    # the passages recorded at the last note
 
     def note(self, t_old, t_new, state_at) -> None:
-        """Compute at the instants of the open passage and the latest recorded ones that
-        lie in (t_old, t_new]; `state_at(t) -> (q, v, x)`, x the sensitivities."""
+        """Compute at the instants of the open passage and of those recorded since the last
+        note that lie in (t_old, t_new] (a closed passage's instant no longer moves: it was
+        the open one's when its step came); `state_at(t) -> (q, v, x)`, x the
+        sensitivities."""
         if self.form is None:
             return
         monitor = self.monitor
-        here = [p.t_min for p in monitor.passages[-3:]]
+        here = [p.t_min for p in monitor.passages[self.seen:]]
+        self.seen = len(monitor.passages)
         if monitor.open_passage is not None:
             here.append(monitor.open_passage.t_min)
         for tm in here:
