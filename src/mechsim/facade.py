@@ -282,8 +282,10 @@ class Mechanism(MechanismModel):
         if blind:
             raise ValueError(f"simulate: {load_blindness(blind[0])}")
         if self.frictions:
-            raise ValueError("simulate: sensitivities through friction are not carried yet "
-                             f"(friction '{self.frictions[0].name}')")
+            from .problem.friction_sensitivity import refusal
+            why = refusal(self, self.problem(), names)
+            if why:
+                raise ValueError(f"simulate: {why}")
         self._check_stops_differentiable(names)
         equations = MotionEquations(self.problem(), sensitivity_model(self), names)
         if self._state is not None:            # a state set by the user: held as given

@@ -10,7 +10,7 @@ evaluation (`mechsim.problem.friction`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,13 +25,15 @@ class FrictionSwitch:
     """A joint with friction changing its mode at time `t` [s]: `before` and `after` are
     "slipping forwards", "slipping backwards" or "stuck" (forwards: its coordinate
     growing); `force` is the friction force or torque there (N or N·m, on body_b along the
-    joint's coordinate) and `limit` μ_s times the joint's load."""
+    joint's coordinate) and `limit` μ_s times the joint's load. A run carrying
+    sensitivities keeps the switch time's to each Parameter ({name: dt/dk})."""
     t: float
     friction: str
     before: str
     after: str
     force: float
     limit: float
+    time_sensitivity: dict = field(default_factory=dict)
 
 
 def initial_modes(problem, t, q, v, held=()) -> np.ndarray:

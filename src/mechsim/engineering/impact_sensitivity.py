@@ -100,14 +100,16 @@ class VelocityProjection:
 
 
 def impact_jump(problem, equations, geometry, restitution, t, q, v_before, v_after,
-                Sq, Sv):
+                Sq, Sv, after=None):
     """(q_k⁺, v_k⁺, dt_e/dk) across the impact at t (module docstring): `geometry` the
     stop's joint, `restitution` e (0 where the joint came to rest), v_before/v_after the
-    velocities on either side and (Sq, Sv) the sensitivities before it, each (n, K)."""
+    velocities on either side and (Sq, Sv) the sensitivities before it, each (n, K).
+    `after`: the problem after the impact where it differs (its joints' friction in the
+    modes the impulse left them), else `problem`."""
     law = VelocityProjection(problem, equations, [(geometry, restitution)], t, q, v_before,
                              v_after)
     a_before = _accelerations(problem, t, q, v_before)
-    a_after = _accelerations(problem, t, q, v_after)
+    a_after = _accelerations(problem if after is None else after, t, q, v_after)
     G = law.G[0]
     dt = -(G @ Sq) / float(G @ v_before)
     return (Sq + np.outer(v_before - v_after, dt),

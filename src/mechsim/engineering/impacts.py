@@ -208,7 +208,8 @@ class PiecewiseRun:
         events = Joined([stops, friction])
         here = None if self.grid is None else np.concatenate(
             [[t], self.grid[self.grid > t + 1e-12 * max(1.0, abs(t))]])
-        carried = None if self.carried is None else (self.equations, *self.carried)
+        carried = None if self.carried is None else \
+            (self.equations.for_problem(p), *self.carried)
         res = simulate(p, q, v, t_start=t, t_end=self.t_end, method=self.method,
                        output_grid=here, events=events, mechanism=self.mech,
                        sensitivities=carried, **self.options)
@@ -242,12 +243,12 @@ class PiecewiseRun:
         """The impact on the stop limit (stop, sign, value) at the present state."""
         v_before = self.v
         self.v, impact = _impact(p, *limit, self.t, self.q, self.v)
-        if self.carried is not None:
-            impact = self._carry_across(p, limit[0], impact, v_before)
-        self.impacts.append(impact)
         if impact.resting:
             self.held.append(limit)
         self.remode(p)                                # the impulse moved every joint
+        if self.carried is not None:
+            impact = self._carry_across(p, limit[0], impact, v_before)
+        self.impacts.append(impact)
 
     def _carry_across(self, p, stop, impact, v_before):
         """The sensitivities carried across `impact` (its time's kept on it); where the
@@ -259,16 +260,17 @@ class PiecewiseRun:
                               "resting contact is not differentiated; later samples hold NaN)")
             return impact
         from .impact_sensitivity import impact_jump
+        after = self.problem.with_friction(self.problem.friction.with_modes(self.modes))
         Sq, Sv, dt = impact_jump(p, self.equations, p.joints[stop.joint.name],
                                  stop.restitution, self.t, self.q, v_before, self.v,
-                                 *self.carried)
+                                 *self.carried, after=after)
         self.carried = (Sq, Sv)
         return replace(impact, time_sensitivity={
             name: float(x) for name, x in zip(self.equations.names, dt)})
 
     def switch(self, p, k):
         """Friction element k's joint reached zero rate (sliding) or its limit (stuck)."""
-        before = self.modes[k]
+        before, v_before = self.modes[k], self.v
         if before == STUCK:
             state = p.friction_state(self.t, self.q, self.v)
             force = state.forces[k]
@@ -279,9 +281,32 @@ class PiecewiseRun:
             if after == STUCK:
                 self.v = stop_moving(p, k, self.t, self.q, self.v)
         self.modes[k] = after
-        self.switches.append(FrictionSwitch(float(self.t), p.friction.elements[k].name,
-                                            MODE_NAMES[before], MODE_NAMES[after],
-                                            float(force), float(limit)))
+        switch = FrictionSwitch(float(self.t), p.friction.elements[k].name,
+                                MODE_NAMES[before], MODE_NAMES[after], float(force),
+                                float(limit))
+        if self.carried is not None:
+            switch = self._carry_switch(p, k, switch, v_before)
+        self.switches.append(switch)
+
+    def _carry_switch(self, p, k, switch, v_before):
+        """The sensitivities carried across friction element k's `switch` (its time's kept
+        on it: `mechsim.problem.friction_sensitivity.switch_jump`); where its event
+        depends on time explicitly they end here, and the result says so."""
+        from ..problem.friction_sensitivity import switch_jump
+        after = self.problem.with_friction(self.problem.friction.with_modes(self.modes))
+        jump = switch_jump(self.equations.for_problem(p), self.equations.for_problem(after),
+                           k, self.t, self.q, v_before, self.v, *self.carried)
+        if jump is None:
+            self.carried = None
+            self.uncarried = (f"the sensitivities end at t = {self.t:.9g}, where friction "
+                              f"'{switch.friction}' let its joint slip under loads or "
+                              "drivers given as functions of time (not differentiated; "
+                              "later samples hold NaN)")
+            return switch
+        Sv, dt = jump
+        self.carried = (self.carried[0], Sv)
+        return replace(switch, time_sensitivity={
+            name: float(x) for name, x in zip(self.equations.names, dt)})
 
     def result(self):
         from ..results.join import join
@@ -306,6 +331,9 @@ class PiecewiseRun:
         # each sample's forces, reactions and work with the modes its piece ran in
         out.problem = self.problem.with_friction(
             self.problem.friction.with_schedule(self.schedule))
+        if self.equations is not None and out.sensitivities is not None:
+            # q̈_k at the samples in the modes each piece ran in
+            out.sensitivities.equations = self.equations.for_problem(out.problem)
         if self.failure:
             out.status, out.message = Status.FAILED, self.failure
         elif out.success and self.impacts:

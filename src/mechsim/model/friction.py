@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from . import parameters as dual
 from .checks import ModelError, name_or_default, scalar_exact
 from .joints import Joint, coordinate_joint
@@ -22,7 +24,8 @@ class Friction:
       opposite faces where the couple wins).
 
     Each number may be a Parameter (`set_parameters` gives it a new value, no new build;
-    sensitivities through friction are refused). `preload` [N] presses the surfaces
+    a simulation's sensitivities carry their derivatives,
+    `mechsim.problem.friction_sensitivity`). `preload` [N] presses the surfaces
     besides the reaction (a press fit, a seal). The
     coefficient in slip is `mu`, or with `transition_velocity` v_t (rad/s or m/s) the
     Stribeck curve μ + (μ_s − μ) exp(−(ṡ/v_t)²); at rest it is `mu_static` μ_s (default
@@ -84,6 +87,30 @@ class Friction:
     def refresh_numbers(self) -> None:
         """Their floats again, after the Parameters took new values."""
         self._floats()
+
+    def partials(self, key: str, names) -> np.ndarray:
+        """∂(number `key`)/∂k for the Parameters `names`, (K,) (zeros for a plain number)."""
+        exact = self._exact[key]
+        partials = exact.partials if isinstance(exact, dual.Dual) else {}
+        return np.array([float(partials.get(k, 0.0)) for k in names])
+
+    def static_partials(self, names) -> np.ndarray:
+        """∂μ_s/∂k (K,) (μ's where μ_s was left out)."""
+        return self.partials("mu" if self._exact["mu_static"] is None else "mu_static", names)
+
+    def coefficient_partials(self, speed: float, names):
+        """(μ, ∂μ/∂ṡ, ∂μ/∂k (K,)) of `coefficient` at the speed ṡ ≥ 0, for the Parameters
+        `names` (through μ, μ_s and the transition velocity)."""
+        dmu = self.partials("mu", names)
+        if self.transition_velocity is None:
+            return self.mu, 0.0, dmu
+        vt, gap = self.transition_velocity, self.mu_static - self.mu
+        weight = math.exp(-(speed / vt) ** 2)
+        static = self.static_partials(names)
+        return (self.mu + gap * weight, -2.0 * gap * weight * speed / vt ** 2,
+                dmu + (static - dmu) * weight
+                + gap * weight * 2.0 * speed ** 2 / vt ** 3 * self.partials(
+                    "transition_velocity", names))
 
     def coefficient(self, speed: float) -> float:
         """μ while sliding at the speed the speed ṡ (`speed`): the Stribeck curve with a transition

@@ -63,6 +63,9 @@ class Dual:
             return Dual(self.x / o.x, (self.d * _col(o.x) - o.d * _col(self.x)) / _col(o.x * o.x))
         return Dual(self.x / o, self.d / _col(o))
 
+    def __rtruediv__(self, o):
+        return Dual(o / self.x, -self.d * _col(o / (self.x * self.x)))
+
 
 def _col(x):
     """x with a trailing axis, to scale derivatives (plain numbers pass)."""
@@ -205,15 +208,15 @@ class Jet:
 
 
 def _jet_cos(a):
-    if isinstance(a, Jet):
-        c, s = np.cos(a.x), np.sin(a.x)
+    if isinstance(a, Jet):                  # (its parts may be duals: `DualJetContext`)
+        c, s = cos(a.x), sin(a.x)
         return Jet(c, -s * a.d1, -c * a.d1 * a.d1 - s * a.d2)
     return np.cos(a)
 
 
 def _jet_sin(a):
     if isinstance(a, Jet):
-        c, s = np.cos(a.x), np.sin(a.x)
+        c, s = cos(a.x), sin(a.x)
         return Jet(s, c * a.d1, -s * a.d1 * a.d1 + c * a.d2)
     return np.sin(a)
 
@@ -228,6 +231,27 @@ class JetContext(NumericContext):
     def coordinate(self, i):
         x = self.q[:, i]
         return Jet(x, self.v[:, i], np.zeros_like(x))
+
+    cos, sin = staticmethod(_jet_cos), staticmethod(_jet_sin)
+
+
+class DualJetContext(NumericContext):
+    """A `JetContext` along q + τ v + τ² q̈/2 whose parts are `Dual`s: the value and
+    rate seeded with the directions dq, dv (N, n, k) (q̈'s seeds zero), so a coordinate's
+    jet carries its exact derivatives along them — third derivatives of s from second-order
+    jets (`joint_path_partials`)."""
+
+    def __init__(self, starts, q, v, a, dq, dv):
+        super().__init__(starts, q)
+        self.v, self.a = np.atleast_2d(v), np.atleast_2d(a)
+        self.dq, self.dv = dq, dv
+
+    def coordinate(self, i):
+        x = self.q[:, i]
+        k = self.dq.shape[-1]
+        return Jet(Dual(x, np.broadcast_to(self.dq[..., i, :], x.shape + (k,))),
+                   Dual(self.v[:, i], np.broadcast_to(self.dv[..., i, :], x.shape + (k,))),
+                   Dual(self.a[:, i], np.zeros(x.shape + (k,))))
 
     cos, sin = staticmethod(_jet_cos), staticmethod(_jet_sin)
 
@@ -338,3 +362,33 @@ def joint_path_rates(geometry: JointGeometry, q, v):
         zero = np.zeros(n)
         return np.broadcast_to(value(c), (n,)).copy(), zero, zero.copy()
     return tuple(np.broadcast_to(x, (n,)).copy() for x in (c.x, c.d1, c.d2))
+
+
+def _jet_derivatives(geometry, ctx, N, k):
+    """(∂ṡ, ∂(vᵀ∂²s v + ∂s q̈)) along the seeded directions of a `DualJetContext`, (N, k)
+    each (zeros where the coordinate does not move with them)."""
+    c = geometry.joint.coordinate(ctx, geometry.parameters)
+    if not isinstance(c, Jet):
+        return np.zeros((N, k)), np.zeros((N, k))
+    return (np.broadcast_to(derivative(c.d1, (N, k)), (N, k)),
+            np.broadcast_to(derivative(c.d2, (N, k)), (N, k)))
+
+
+def joint_path_partials(geometry: JointGeometry, q, v, a, dq, dv):
+    """The changes of the joint's rate ṡ and of s̈ − (∂s/∂q) q̈ at the state (q, v, q̈ = a)
+    (n,) along the directions (dq, dv) (n, k) of (q, v), each (k,): (∂s/∂q) dv +
+    (∂²s/∂q² dq)·v, and (∂²s/∂q² dq)·q̈ + 2 vᵀ ∂²s/∂q² dv + ∂³s/∂q³[v, v, dq] (exact:
+    the coordinate's second-order jet in dual numbers)."""
+    k = dq.shape[1]
+    ctx = DualJetContext(geometry.starts, q[None], v[None], a[None], dq[None], dv[None])
+    rate, rest = _jet_derivatives(geometry, ctx, 1, k)
+    return rate[0].copy(), rest[0].copy()
+
+
+def joint_curvature(geometry: JointGeometry, q, W) -> np.ndarray:
+    """(∂²s/∂q²) W at the state q (n,) of the joint's coordinate s, for the columns of W
+    (n, k): shape (n, k) (each column the gradient of (∂s/∂q)·w in q)."""
+    n, k = W.shape
+    ctx = DualJetContext(geometry.starts, np.broadcast_to(q, (k, n)), W.T, np.zeros((k, n)),
+                         np.eye(n)[None], np.zeros((1, n, n)))
+    return _jet_derivatives(geometry, ctx, k, n)[0].T.copy()

@@ -166,11 +166,14 @@ def _factor(J):
     return solve
 
 
-def _loads_differentiated(problem, what="sensitivities of the multipliers") -> None:
+def _loads_differentiated(problem, what="sensitivities of the multipliers",
+                          friction=False) -> None:
     """ValueError where the applied forces cannot be differentiated (`what` begins the
-    message): flexible bodies, friction, a load whose function reads the motion."""
+    message): flexible bodies, a load whose function reads the motion, friction unless
+    `friction` (the motion's equations carry it: `MotionEquations`)."""
     why = problem.load_model.not_differentiated()
-    if not why and problem.friction is not None and problem.friction.frictions:
+    if not why and not friction and problem.friction is not None and \
+            problem.friction.frictions:
         why = "friction"             # (a stop's element acts only while a joint rests on it)
     if why:
         raise ValueError(f"{what}: {why} is not differentiated yet")
@@ -226,10 +229,25 @@ class MotionEquations:
     differentiated (`Loads.not_differentiated`, friction)."""
 
     def __init__(self, problem, module, names):
-        _loads_differentiated(problem, "sensitivities of a simulation")
+        _loads_differentiated(problem, "sensitivities of a simulation", friction=True)
         self.problem, self.module, self.names = problem, module, list(names)
         self.P = parameter_partials(problem, self.names)
         self.forces = ForceSensitivity(problem, self.names)
+        self.friction = None
+        if problem.friction is not None and problem.friction.frictions:
+            from .friction_sensitivity import FrictionLinearization
+            self.friction = FrictionLinearization(self)
+
+    def for_problem(self, problem) -> "MotionEquations":
+        """These equations for `problem`: the same model with other modes of its joints'
+        friction (a piece of a run with stick and slip, a result's schedule)."""
+        return MotionEquations(problem, self.module, self.names)
+
+    def along_motion(self) -> "MotionEquations":
+        """These equations in one direction that no Parameter moves: given (v, q̈) for
+        (q_k, v_k), they differentiate along the motion of a time-invariant model."""
+        from .friction_sensitivity import ALONG_MOTION
+        return MotionEquations(self.problem, self.module, [ALONG_MOTION])
 
     @property
     def width(self) -> int:
@@ -261,36 +279,63 @@ class MotionEquations:
         lacks its components along those directions), else None. Where every singular
         value is clear of the projection method's band, one Cholesky factor of
         Φ_q M⁻¹ Φ_qᵀ solves for λ and λ_k (the problem's algebra); else the SVD. M = L Lᵀ
-        may depend on q (flexible bodies)."""
+        may depend on q (flexible bodies). Joints with friction add their terms
+        (`mechsim.problem.friction_sensitivity`)."""
+        ak, a, dropped = self._solve(t, q, v, Sq, Sv, cut, a)[:3]
+        return ak, a, dropped
+
+    def friction_partials(self, t, q, v, Sq, Sv):
+        """(x, δL, active): the changes of the active friction elements' forces and loads
+        (A, K) along (Sq, Sv) at the state (t, q, v), and their indices."""
+        return self._solve(t, q, v, Sq, Sv, 0.0)[3]
+
+    def _solve(self, t, q, v, Sq, Sv, cut, a=None):
         prob = self.problem
         J, gamma = prob.dynamics_terms(q, v, t)
         J = sparse.dense(J)
-        Q = prob.forces(t, q, v)
+        state = None
+        if self.friction is not None:
+            state = prob.friction_state(t, q, v)
+            Q = prob.load_model.forces(t, q, v) + state.generalized()
+        else:
+            Q = prob.forces(t, q, v)
         f = prob.mass_factor(q)
-        solve = None
+        clear = None
         if J.shape[0]:
             # (LAPACK's 1/κ₁ errs towards ill-conditioning: above cut², every σ/σ_max is
             # above the cut.)
-            solve = prob.algebra.clear_solver(J, f, cut, cut ** 2)
-        if solve is not None:
+            clear = prob.algebra.clear_solver(J, f, cut, cut ** 2)
+        if clear is not None:
             if a is None:
                 wQ = f.inverse(Q)
-                lam = solve(J @ wQ - gamma)
+                lam = clear(J @ wQ - gamma)
                 a = wQ - f.inverse(J.T @ lam)
             else:
-                lam = solve(J @ f.inverse(Q) - J @ a)
-            F, g = self._sides(t, q, v, a, lam, Sq, Sv)
-            wF = f.inverse(F)
-            return wF - f.inverse(J.T @ solve(J @ wF - g)), a, None
-        V, Ui, dropped = self._svd(J, f, cut) if J.shape[0] else \
-            (np.zeros((prob.n, 0)), np.zeros((0, 0)), None)
-        xQ = f.left(Q)
-        if a is None:
-            a = f.right(xQ - V @ (V.T @ xQ) + V @ (Ui @ gamma))
-        lam = Ui.T @ (V.T @ (xQ - f.unright(a)))
+                lam = clear(J @ f.inverse(Q) - J @ a)
+
+            def solve(F, g):
+                wF = f.inverse(F)
+                lam_k = clear(J @ wF - g)
+                return wF - f.inverse(J.T @ lam_k), lam_k
+            dropped = None
+        else:
+            V, Ui, dropped = self._svd(J, f, cut) if J.shape[0] else \
+                (np.zeros((prob.n, 0)), np.zeros((0, 0)), None)
+            xQ = f.left(Q)
+            if a is None:
+                a = f.right(xQ - V @ (V.T @ xQ) + V @ (Ui @ gamma))
+            lam = Ui.T @ (V.T @ (xQ - f.unright(a)))
+
+            def solve(F, g):
+                X = f.left(F)
+                ak = f.right(X - V @ (V.T @ X) + V @ (Ui @ g))
+                return ak, Ui.T @ (V.T @ (X - f.unright(ak)))
         F, g = self._sides(t, q, v, a, lam, Sq, Sv)
-        X = f.left(F)
-        return f.right(X - V @ (V.T @ X) + V @ (Ui @ g)), a, dropped
+        if state is None:
+            return solve(F, g)[0], a, dropped, None
+        ak, x, dL, active = self.friction.accelerations(solve, t, q, v, a, lam, J, state,
+                                                        Sq, Sv, F, g)
+        return ak, a, dropped, (x, dL, active)
 
     def _sides(self, t, q, v, a, lam, Sq, Sv):
         """The right sides (F (n, K), g (m, K)) of M q̈_k + Φ_qᵀ λ_k = F, Φ_q q̈_k = g."""

@@ -1,0 +1,191 @@
+"""Sensitivities of a motion through dry friction in joints (`mechsim.problem.friction`).
+
+Within a piece of a run every joint keeps its mode and the motion obeys
+
+    M q̈ + Φ_qᵀ λ = Q + Σ_j f_j g_j,    Φ_q q̈ = γ,
+
+with each active element's own equation: a sliding joint's f_j = −σ μ(|ṡ_j|) L_j(λ)
+(L_j = ρ (‖F_j‖ + preload), ρ the pin's radius or 1 for a guide, F_j the force its rows
+of λ apply), a held joint's s̈_j = g_j q̈ + vᵀ H_j v = 0 (g_j = ∂s_j/∂q, H_j = ∂²s_j/∂q²).
+Differentiated in a Parameter k along the sensitivities (q_k, v_k), with x_j = ∂f_j/∂k:
+
+    M q̈_k + Φ_qᵀ λ_k = F + Σ_j f_j H_j q_k + Σ_j x_j g_j,    Φ_q q̈_k = g,
+    sliding:  x_j = −σ (μ' σ ṡ_j,k L_j + μ L_j,k + μ_k L_j),
+              L_j,k = ρ e_j·F_j,k + ρ_k (‖F_j‖ + preload) + ρ preload_k,
+    held:     g_j q̈_k + (H_j q_k)·q̈ + 2 vᵀ H_j v_k + ∂³s_j[v, v, q_k] = 0,
+
+where F, g are the right sides without friction (`MotionEquations`), ṡ_j,k = g_j v_k +
+(H_j q_k)·v, e_j = F_j/‖F_j‖, F_j,k = −(Φ_qᵀ λ_k + R3_q q_k + R3_p p_k) on the body's x, y
+over the joint's rows (R3 = Φ_qᵀ λ of its own multipliers: the generated derivatives), and
+μ_k, ρ_k, preload_k the friction's own numbers' derivatives (Parameters). The joints'
+derivatives come from their coordinates' second-order jets in dual numbers
+(`mechsim.problem.geometry.joint_path_partials`). q̈_k and λ_k are affine in x (one solve
+for F and one per active joint's g_j, the factor of the motion's), so x solves a small
+linear system with a column per Parameter.
+
+At a switch the state is continuous and the acceleration jumps: the switch's time moves
+with k by dt_s/dk = −e_k/ė of its event function e (a sliding joint's σ ṡ, a held one's
+μ_s L − |f|, both differentiated by the same linearisation, ė along the motion (v, q̈)),
+and v_k⁺ = v_k⁻ + (q̈⁻ − q̈⁺) dt_s/dk (q_k continuous): `switch_jump`.
+
+Rigid bodies; a joint whose coordinate moves with a differentiated Parameter, or a
+guide's `length` (its couple's load), are refused before the run (`check`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .friction import FREE, STUCK
+from .geometry import joint_curvature, joint_path_partials, joint_path_rates
+
+# The direction along the motion has no Parameter: a name no Parameter has.
+ALONG_MOTION = "\0along the motion"
+
+
+def refusal(mech, problem, names) -> str:
+    """Why the sensitivities `names` cannot be carried through `mech`'s friction ("" where
+    they can): a flexible mechanism, a guide's `length`, or a friction joint's coordinate
+    that moves with a differentiated Parameter."""
+    if not mech.frictions:
+        return ""
+    if problem.flexible:
+        return (f"sensitivities through friction '{mech.frictions[0].name}' are carried "
+                "for rigid bodies only")
+    for fr in mech.frictions:
+        if fr.length is not None:
+            return (f"sensitivities through friction '{fr.name}' with a `length` (the "
+                    "guide's couple in its load) are not carried yet")
+    offset, where = 0, {}
+    for item in mech.constraint_items:
+        size = len(item.parameter_values())
+        where[id(item)] = slice(offset, offset + size)
+        offset += size
+    for fr in mech.frictions:
+        joint = fr.joint
+        if joint.kind == "revolute":        # a difference of the bodies' angles
+            continue
+        moved = [k for k in names if np.any(
+            problem.parameter_partials.get(k, np.zeros(offset))[where[id(joint)]])]
+        if moved:
+            return (f"the coordinate of joint '{joint.name}', where friction '{fr.name}' "
+                    f"rubs, moves with Parameter '{moved[0]}': sensitivities through it "
+                    "are not carried")
+    return ""
+
+
+class FrictionLinearization:
+    """The friction terms of `equations` (a `MotionEquations` whose problem's friction
+    model has the piece's modes) at one state: `accelerations` solves the differentiated
+    equations of motion with them (module docstring)."""
+
+    def __init__(self, equations):
+        self.eq = equations
+        self.problem = equations.problem
+        self.model = self.problem.friction
+
+    def accelerations(self, solve, t, q, v, a, lam, J, state, Sq, Sv, F, g):
+        """(q̈_k (n, K), x (A, K), δL (A, K), active): `solve(F, g) -> (q̈_k, λ_k)` the
+        motion's factor; `state` the `FrictionState` at (t, q, v); x the friction forces'
+        and δL the loads' changes of the active elements `active` (indices)."""
+        model, K = self.model, Sq.shape[1]
+        active = [j for j in range(len(model.elements)) if state.modes[j] != FREE]
+        if not active:
+            return solve(F, g)[0], np.zeros((0, K)), np.zeros((0, K)), active
+        for j in active:
+            if state.forces[j] != 0.0:
+                F = F + state.forces[j] * joint_curvature(model.elements[j].geometry, q, Sq)
+        ak0, lk0 = solve(F, g)
+        size = len(active)
+        Aa, Al = solve(state.gradients[active].T, np.zeros((J.shape[0], size)))
+        D, c = np.zeros((size, size)), np.zeros((size, K))
+        dL0, dLx = np.zeros((size, K)), np.zeros((size, size))
+        W = self.problem.inverse_mass_diagonal
+        for i, j in enumerate(active):
+            element = model.elements[j]
+            gj = state.gradients[j]
+            rate_k, rest_k = joint_path_partials(element.geometry, q, v, a, Sq, Sv)
+            if element.kind == "friction":
+                dL0[i], dLx[i] = self._load(element, t, q, lam, J, state.loads[j], lk0, Al,
+                                            Sq)
+            if state.modes[j] == STUCK:
+                scale = 1.0 / float(gj @ (W * gj))
+                D[i], c[i] = scale * (gj @ Aa), scale * (gj @ ak0 + rest_k)
+                continue
+            fr, sigma = element.friction, float(state.modes[j])
+            mu, slope, dmu = fr.coefficient_partials(abs(state.rates[j]), self.eq.names)
+            L = state.loads[j]
+            D[i] = sigma * mu * dLx[i]
+            D[i, i] += 1.0
+            c[i] = sigma * (slope * sigma * rate_k * L + mu * dL0[i] + dmu * L)
+        x = np.linalg.solve(D, -c)
+        return ak0 + Aa @ x, x, dL0 + dLx @ x, active
+
+    def _load(self, element, t, q, lam, J, load, lk0, Al, Sq):
+        """(δL without x (K,), δL's coefficients of x (A,)) of a friction element's load."""
+        fr, geometry, rows = element.friction, element.geometry, list(element.rows)
+        start = geometry.start_b if geometry.start_b is not None else geometry.start_a
+        side = slice(start, start + 2)
+        Jr = J[rows]
+        force = -(Jr[:, side].T @ lam[rows])
+        size = float(np.hypot(*force))
+        unit = force / size if size > 0.0 else np.zeros(2)
+        own = np.zeros(len(lam))
+        own[rows] = lam[rows]
+        r3q, r3p = self.eq.module.multiplier_terms(q, own, t, self.problem.p)
+        dF0 = -(Jr.T @ lk0[rows] + r3q @ Sq + r3p @ self.eq.P)[side]
+        dFx = -(Jr[:, side].T @ Al[rows])
+        rho = 1.0 if fr.radius is None else fr.radius
+        names = self.eq.names
+        own_numbers = fr.preload * self._radius_partials(fr, names) + \
+            rho * fr.partials("preload", names)
+        if fr.radius is not None:
+            own_numbers = own_numbers + size * self._radius_partials(fr, names)
+        return rho * (unit @ dF0) + own_numbers, rho * (unit @ dFx)
+
+    @staticmethod
+    def _radius_partials(fr, names):
+        return fr.partials("radius", names) if fr.radius is not None else \
+            np.zeros(len(names))
+
+
+def switch_jump(before, after, k, t, q, v_before, v_after, Sq, Sv):
+    """(v_k⁺, dt_s/dk (K,)) across friction element k's switch at t from the modes of
+    `before` to those of `after` (each a `MotionEquations` of the piece's problem): its
+    time's sensitivity from its event function (module docstring) and the saltation of
+    v_k; None where the held joint's event depends on time explicitly (a driver, a load
+    given as a function), which is not differentiated."""
+    problem = before.problem
+    element = problem.friction.elements[k]
+    a_before = _accelerations(problem, t, q, v_before)
+    a_after = _accelerations(after.problem, t, q, v_after)
+    state = problem.friction_state(t, q, v_before)
+    if state.modes[k] == STUCK:
+        if problem.rheonomic_rows or any(callable(x.value) for x in problem.load_model.loads):
+            return None
+        change = _limit_change(before, t, q, v_before, state, k, Sq, Sv)
+        motion = before.along_motion()
+        rate = _limit_change(motion, t, q, v_before, state, k, v_before[:, None],
+                             a_before[:, None])[0]
+    else:
+        sigma = float(state.modes[k])
+        change = sigma * joint_path_partials(element.geometry, q, v_before, a_before, Sq,
+                                             Sv)[0]
+        rate = sigma * (state.gradients[k] @ a_before +
+                        joint_path_rates(element.geometry, q, v_before)[2][0])
+    dt = -change / rate
+    return Sv + np.outer(a_before - a_after, dt), dt
+
+
+def _limit_change(equations, t, q, v, state, k, Sq, Sv):
+    """The change of μ_s L − |f| of held element k along (Sq, Sv) (K,)."""
+    x, dL, active = equations.friction_partials(t, q, v, Sq, Sv)
+    i = active.index(k)
+    fr = equations.problem.friction.elements[k].friction
+    return fr.static_partials(equations.names) * state.loads[k] + fr.mu_static * dL[i] \
+        - np.sign(state.forces[k]) * x[i]
+
+
+def _accelerations(problem, t, q, v):
+    J, gamma = problem.dynamics_terms(q, v, t)
+    return problem.accelerations(J, problem.forces(t, q, v), gamma, q)[0]
