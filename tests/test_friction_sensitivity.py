@@ -23,46 +23,44 @@ def at(res, times):
     return rows
 
 
-def central(build, values, name, times, t_end, of):
-    """∂(of(res)[at times])/∂name by central differences of `build(**values)` runs, and
-    the switch times' (zip of the runs' switches, impacts first)."""
+def coordinates(*columns):
+    """The quantity pair (sensitivity, value) of the coordinates `columns`."""
+    columns = list(columns)
+    return (lambda res, name: res.sensitivity(name)[:, columns], lambda res: res.q[:, columns])
+
+
+def central(build, values, name, times, t_end, quantities):
+    """[∂quantity/∂name at `times`], ∂(event times)/∂name by central differences of
+    `build(**values)` runs (the events: impacts, then switches)."""
     h = (3 * RTOL) ** (1 / 3) * abs(values[name])
     runs = [build(**{**values, name: values[name] + s * h}).simulate(
         t_end, rtol=RTOL, atol=1e-14, output_step=0.05) for s in (1.0, -1.0)]
-    change = (of(runs[0])[at(runs[0], times)] - of(runs[1])[at(runs[1], times)]) / (2 * h)
+    changes = [(value(runs[0])[at(runs[0], times)] - value(runs[1])[at(runs[1], times)]) /
+               (2 * h) for _, value in quantities]
     events = [[e.t for e in r.impacts + r.friction_switches] for r in runs]
     assert len(events[0]) == len(events[1])
-    return change, (np.array(events[0]) - np.array(events[1])) / (2 * h)
+    return changes, (np.array(events[0]) - np.array(events[1])) / (2 * h)
 
 
-def check(build, values, names, times, t_end, of, tol=1e-5):
-    """The carried sensitivities of `of` and of every event's time agree with central
-    differences to `tol` relative (of the largest)."""
+def check(build, values, names, times, t_end, *quantities, tol=1e-5):
+    """The carried sensitivities of each quantity (a pair: the sensitivity from the
+    result and the name, the value from a result) at `times` and of every event's time
+    agree with central differences to `tol` relative (of the largest)."""
     res = build(**values).simulate(t_end, rtol=1e-10, atol=1e-12, output_step=0.05,
                                    sensitivities=names)
     assert res.success, res.message
     for name in names:
-        exact = of_sensitivity(res, name, of)[at(res, times)]
         events = np.array([e.time_sensitivity[name]
                            for e in res.impacts + res.friction_switches])
-        fd, fd_events = central(build, values, name, times, t_end, of)
-        scale = max(np.max(np.abs(fd)), 1e-3)
-        assert np.max(np.abs(exact - fd)) < tol * scale, (name, exact, fd)
+        fds, fd_events = central(build, values, name, times, t_end, quantities)
+        for (sensitivity, _), fd in zip(quantities, fds):
+            exact = sensitivity(res, name)[at(res, times)]
+            scale = max(np.max(np.abs(fd)), 1e-3)
+            assert np.max(np.abs(exact - fd)) < tol * scale, (name, exact, fd)
         if events.size:
             scale = max(np.max(np.abs(fd_events)), 1e-3)
             assert np.max(np.abs(events - fd_events)) < tol * scale, (name, events, fd_events)
     return res
-
-
-def of_sensitivity(res, name, of):
-    return of(_Sensitivity(res, name))
-
-
-class _Sensitivity:
-    """A result's ∂q/∂k looked at as a result's q (so `of` reads both)."""
-
-    def __init__(self, res, name):
-        self.q = res.sensitivity(name)
 
 
 def incline(angle, mu, mu_static=None, speed=0.0, preload=0.0):
@@ -135,11 +133,15 @@ def rubbing_pendulum(mu=0.3, r=0.3, m=1.0):
 
 
 def test_a_rubbing_pendulum_s_swings_and_rest_agree_with_central_differences():
-    """Through its reversals to where it sticks: the angle at samples between them and
-    every reversal's instant, to μ and the pin's radius; its mass moves nothing (every
-    force scales with it)."""
+    """Through its reversals to where it sticks: the angle, its acceleration and the pin's
+    force at samples between them and every reversal's instant, to μ and the pin's radius;
+    its mass moves nothing (every force scales with it)."""
     res = check(rubbing_pendulum, dict(mu=0.3, r=0.3), ["mu", "r"],
-                [0.4, 0.95, 1.5, 2.2, 2.65], 2.7, lambda r: r.q[:, 2])
+                [0.4, 0.95, 1.5, 2.2, 2.65], 2.7, coordinates(2),
+                (lambda res, name: res.sensitivity(name, of="joint_force", joint="pin"),
+                 lambda res: res.joint_force("pin")),
+                (lambda res, name: res.sensitivity(name, of="a")[:, 2],
+                 lambda res: res.accelerations()[:, 2]))
     assert [s.after for s in res.friction_switches][-1] == "stuck"
     assert len(res.friction_switches) >= 3
     plain = rubbing_pendulum().simulate(2.7, rtol=1e-10, atol=1e-12, output_step=0.05,
@@ -148,10 +150,11 @@ def test_a_rubbing_pendulum_s_swings_and_rest_agree_with_central_differences():
     assert all(abs(s.time_sensitivity["m"]) < 1e-12 for s in plain.friction_switches)
 
 
-def sprung_cart(mu=0.2, mu_s=0.3, k=50.0, mb=0.5):
+def sprung_cart(mu=0.2, mu_s=0.3, k=50.0, mb=0.5, vt=None):
     """A 2 kg cart on a smooth rail, a spring k to the ground stretched 0.2 m, carrying a
-    block mb on a guide with friction μ (μ_s at rest): the block rides, breaks away where
-    the cart's acceleration needs more than μ_s g, slides, and sticks again."""
+    block mb on a guide with friction μ (μ_s at rest; with `vt` the Stribeck curve): the
+    block rides, breaks away where the cart's acceleration needs more than μ_s g, slides,
+    and sticks again."""
     mech = ms.Mechanism("sprung cart", gravity=(0.0, -G))
     cart = mech.add(ms.RigidBody("cart", mass=2.0, inertia=0.1, position=(0.2, 0.0)))
     block = mech.add(ms.RigidBody("block", mass=ms.Parameter("mb", mb), inertia=0.01,
@@ -161,7 +164,8 @@ def sprung_cart(mu=0.2, mu_s=0.3, k=50.0, mb=0.5):
     mech.add(ms.Spring(mech.ground, cart, (-1.0, 0.0), (0.2, 0.0),
                        stiffness=ms.Parameter("k", k), rest_length=1.0))
     mech.add(ms.Friction(top, mu=ms.Parameter("mu", mu),
-                         mu_static=ms.Parameter("mu_s", mu_s), name="rub"))
+                         mu_static=ms.Parameter("mu_s", mu_s), name="rub",
+                         transition_velocity=None if vt is None else ms.Parameter("vt", vt)))
     return mech
 
 
@@ -170,10 +174,17 @@ def test_a_block_breaking_away_on_a_sprung_cart_agrees_with_central_differences(
     linearised with the reactions): the block's position and every switch's instant, to
     μ_s, μ, the spring rate and the block's mass."""
     res = check(sprung_cart, dict(mu=0.2, mu_s=0.3, k=50.0, mb=0.5), ["mu_s", "mu", "k", "mb"],
-                [0.3, 0.6, 1.0, 1.3], 1.35, lambda r: r.q[:, 3])
+                [0.3, 0.6, 1.0, 1.3], 1.35, coordinates(3))
     kinds = [(s.before, s.after) for s in res.friction_switches]
     assert ("stuck", "slipping backwards") in kinds and \
         ("slipping backwards", "stuck") in kinds and ("slipping forwards", "stuck") in kinds
+
+
+def test_a_block_on_a_sprung_cart_with_a_stribeck_curve_agrees_with_central_differences():
+    """μ(ṡ) = μ + (μ_s − μ) exp(−(ṡ/v_t)²): its slope in the speed and its transition
+    velocity's derivative enter the sliding block's."""
+    check(sprung_cart, dict(mu=0.2, mu_s=0.3, k=50.0, mb=0.5, vt=0.05), ["vt", "mu"],
+          [0.3, 0.45, 0.6, 0.7], 0.7, coordinates(3))
 
 
 def rubbing_four_bar(mu=0.1, m1=1.0):
@@ -188,10 +199,12 @@ def rubbing_four_bar(mu=0.1, m1=1.0):
 
 
 def test_a_four_bar_with_friction_in_its_coupler_pins_agrees_with_central_differences():
-    """The crank angle and the pins' reversals' instants (together, and the
-    coupler–rocker pin alone) to μ and the crank's mass."""
+    """The crank angle, the rocker's pivot force and the pins' reversals' instants
+    (together, and the coupler–rocker pin alone) to μ and the crank's mass."""
     res = check(rubbing_four_bar, dict(mu=0.1, m1=1.0), ["mu", "m1"],
-                [0.05, 0.15, 0.25, 0.35], 0.35, lambda r: r.q[:, 2])
+                [0.05, 0.15, 0.25, 0.35], 0.35, coordinates(2),
+                (lambda res, name: res.sensitivity(name, of="joint_force", joint="O4"),
+                 lambda res: res.joint_force("O4")))
     assert len(res.friction_switches) == 3
 
 
@@ -215,7 +228,7 @@ def rubbing_slot(k=30.0, mu=0.8):
 
 def test_a_slider_sticking_in_a_swinging_arm_s_slot_agrees_with_central_differences():
     res = check(rubbing_slot, dict(k=30.0, mu=0.8), ["k", "mu"], [0.1, 0.25, 0.4, 0.5],
-                0.5, lambda r: r.q[:, [2, 3]])
+                0.5, coordinates(2, 3))
     assert [s.after for s in res.friction_switches] == \
         ["slipping backwards", "stuck", "slipping forwards"]
 
@@ -234,7 +247,7 @@ def bouncing_pendulum(length=1.0, mu=0.1):
 
 def test_impacts_and_reversals_of_a_rubbing_pendulum_agree_with_central_differences():
     res = check(bouncing_pendulum, dict(length=1.0, mu=0.1), ["length", "mu"],
-                [0.3, 0.7, 1.1, 1.45], 1.5, lambda r: r.q[:, 2])
+                [0.3, 0.7, 1.1, 1.45], 1.5, coordinates(2))
     assert len(res.impacts) == 2 and len(res.friction_switches) == 2
 
 

@@ -139,10 +139,6 @@ def test_what_cannot_be_carried_across_impacts_is_refused_naming_it():
     with pytest.raises(ValueError, match="joint 'guide', which stop 'end' limits, moves "
                                          "with Parameter 'tilt'"):
         tilted.simulate(1.0, sensitivities=["tilt"])
-    rubbing = pendulum(length=ms.Parameter("length", 1.0))
-    rubbing.add(ms.Friction(rubbing.joint("pin"), mu=0.1, radius=0.01, name="bearing"))
-    with pytest.raises(ValueError, match="friction 'bearing'"):
-        rubbing.simulate(1.0, sensitivities=["length"])
 
 
 def test_the_initial_sensitivities_hold_the_rates_set_on_joints():

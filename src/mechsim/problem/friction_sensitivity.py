@@ -15,9 +15,10 @@ Differentiated in a Parameter k along the sensitivities (q_k, v_k), with x_j = �
     held:     g_j q̈_k + (H_j q_k)·q̈ + 2 vᵀ H_j v_k + ∂³s_j[v, v, q_k] = 0,
 
 where F, g are the right sides without friction (`MotionEquations`), ṡ_j,k = g_j v_k +
-(H_j q_k)·v, e_j = F_j/‖F_j‖, F_j,k = −(Φ_qᵀ λ_k + R3_q q_k + R3_p p_k) on the body's x, y
-over the joint's rows (R3 = Φ_qᵀ λ of its own multipliers: the generated derivatives), and
-μ_k, ρ_k, preload_k the friction's own numbers' derivatives (Parameters). The joints'
+(H_j q_k)·v, e_j = F_j/‖F_j‖, e_j·F_j,k = −e_j·(Φ_qᵀ λ_k) on the body's x, y over the
+joint's rows (those rows' gradients there change only across F: a pin's are constant, a
+guide's normal turns at unit length), and μ_k, ρ_k, preload_k the friction's own numbers'
+derivatives (Parameters). The joints'
 derivatives come from their coordinates' second-order jets in dual numbers
 (`mechsim.problem.geometry.joint_path_partials`). q̈_k and λ_k are affine in x (one solve
 for F and one per active joint's g_j, the factor of the motion's), so x solves a small
@@ -85,17 +86,20 @@ class FrictionLinearization:
         self.model = self.problem.friction
 
     def accelerations(self, solve, t, q, v, a, lam, J, state, Sq, Sv, F, g):
-        """(q̈_k (n, K), x (A, K), δL (A, K), active): `solve(F, g) -> (q̈_k, λ_k)` the
-        motion's factor; `state` the `FrictionState` at (t, q, v); x the friction forces'
-        and δL the loads' changes of the active elements `active` (indices)."""
+        """(q̈_k (n, K), x (A, K), δL (A, K), active, Σ ∂(f_j g_j)/∂k (n, K)):
+        `solve(F, g) -> (q̈_k, λ_k)` the motion's factor; `state` the `FrictionState` at
+        (t, q, v); x the friction forces' and δL the loads' changes of the active
+        elements `active` (indices), the last their generalized force's."""
         model, K = self.model, Sq.shape[1]
         active = [j for j in range(len(model.elements)) if state.modes[j] != FREE]
         if not active:
-            return solve(F, g)[0], np.zeros((0, K)), np.zeros((0, K)), active
+            return solve(F, g)[0], np.zeros((0, K)), np.zeros((0, K)), active, \
+                np.zeros_like(Sq)
+        bent = np.zeros_like(Sq)
         for j in active:
             if state.forces[j] != 0.0:
-                F = F + state.forces[j] * joint_curvature(model.elements[j].geometry, q, Sq)
-        ak0, lk0 = solve(F, g)
+                bent += state.forces[j] * joint_curvature(model.elements[j].geometry, q, Sq)
+        ak0, lk0 = solve(F + bent, g)
         size = len(active)
         Aa, Al = solve(state.gradients[active].T, np.zeros((J.shape[0], size)))
         D, c = np.zeros((size, size)), np.zeros((size, K))
@@ -106,8 +110,7 @@ class FrictionLinearization:
             gj = state.gradients[j]
             rate_k, rest_k = joint_path_partials(element.geometry, q, v, a, Sq, Sv)
             if element.kind == "friction":
-                dL0[i], dLx[i] = self._load(element, t, q, lam, J, state.loads[j], lk0, Al,
-                                            Sq)
+                dL0[i], dLx[i] = self._load(element, lam, J, lk0, Al)
             if state.modes[j] == STUCK:
                 scale = 1.0 / float(gj @ (W * gj))
                 D[i], c[i] = scale * (gj @ Aa), scale * (gj @ ak0 + rest_k)
@@ -119,22 +122,18 @@ class FrictionLinearization:
             D[i, i] += 1.0
             c[i] = sigma * (slope * sigma * rate_k * L + mu * dL0[i] + dmu * L)
         x = np.linalg.solve(D, -c)
-        return ak0 + Aa @ x, x, dL0 + dLx @ x, active
+        return ak0 + Aa @ x, x, dL0 + dLx @ x, active, bent + state.gradients[active].T @ x
 
-    def _load(self, element, t, q, lam, J, load, lk0, Al, Sq):
+    def _load(self, element, lam, J, lk0, Al):
         """(δL without x (K,), δL's coefficients of x (A,)) of a friction element's load."""
         fr, geometry, rows = element.friction, element.geometry, list(element.rows)
         start = geometry.start_b if geometry.start_b is not None else geometry.start_a
         side = slice(start, start + 2)
-        Jr = J[rows]
-        force = -(Jr[:, side].T @ lam[rows])
+        Jr = J[rows][:, side]
+        force = -(Jr.T @ lam[rows])
         size = float(np.hypot(*force))
         unit = force / size if size > 0.0 else np.zeros(2)
-        own = np.zeros(len(lam))
-        own[rows] = lam[rows]
-        r3q, r3p = self.eq.module.multiplier_terms(q, own, t, self.problem.p)
-        dF0 = -(Jr.T @ lk0[rows] + r3q @ Sq + r3p @ self.eq.P)[side]
-        dFx = -(Jr[:, side].T @ Al[rows])
+        dF0, dFx = -(Jr.T @ lk0[rows]), -(Jr.T @ Al[rows])
         rho = 1.0 if fr.radius is None else fr.radius
         names = self.eq.names
         own_numbers = fr.preload * self._radius_partials(fr, names) + \
@@ -179,7 +178,7 @@ def switch_jump(before, after, k, t, q, v_before, v_after, Sq, Sv):
 
 def _limit_change(equations, t, q, v, state, k, Sq, Sv):
     """The change of μ_s L − |f| of held element k along (Sq, Sv) (K,)."""
-    x, dL, active = equations.friction_partials(t, q, v, Sq, Sv)
+    x, dL, active, _ = equations.friction_partials(t, q, v, Sq, Sv)
     i = active.index(k)
     fr = equations.problem.friction.elements[k].friction
     return fr.static_partials(equations.names) * state.loads[k] + fr.mu_static * dL[i] \

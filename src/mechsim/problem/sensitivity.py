@@ -136,7 +136,10 @@ class Sensitivities:
 
     def _compute_multipliers(self):
         prob = self.problem
-        _loads_differentiated(prob)
+        carried = getattr(self, "equations", None)      # a motion's, through its friction
+        if carried is not None and carried.friction is None:
+            carried = None
+        _loads_differentiated(prob, friction=carried is not None)
         if self.blind_loads:
             raise ValueError("sensitivities of the multipliers: "
                              + load_blindness(self.blind_loads[0]))
@@ -149,6 +152,8 @@ class Sensitivities:
                 prob.mass_diagonal[:, None] * self.a[i]
             rhs = forces(t, q, v, a, self.q[i], self.v[i]) - inertia \
                 - r3q @ self.q[i] - r3p @ self.P
+            if carried is not None:
+                rhs += carried.friction_partials(t, q, v, self.q[i], self.v[i])[3]
             out[i] = self._factors[i](rhs, transposed=True)
         return out
 
@@ -285,8 +290,9 @@ class MotionEquations:
         return ak, a, dropped
 
     def friction_partials(self, t, q, v, Sq, Sv):
-        """(x, δL, active): the changes of the active friction elements' forces and loads
-        (A, K) along (Sq, Sv) at the state (t, q, v), and their indices."""
+        """(x, δL, active, F_k): the changes of the active friction elements' forces and
+        loads (A, K) along (Sq, Sv) at the state (t, q, v), their indices, and the change
+        of their generalized force Σ f_j g_j (n, K)."""
         return self._solve(t, q, v, Sq, Sv, 0.0)[3]
 
     def _solve(self, t, q, v, Sq, Sv, cut, a=None):
@@ -333,9 +339,9 @@ class MotionEquations:
         F, g = self._sides(t, q, v, a, lam, Sq, Sv)
         if state is None:
             return solve(F, g)[0], a, dropped, None
-        ak, x, dL, active = self.friction.accelerations(solve, t, q, v, a, lam, J, state,
-                                                        Sq, Sv, F, g)
-        return ak, a, dropped, (x, dL, active)
+        ak, *rest = self.friction.accelerations(solve, t, q, v, a, lam, J, state, Sq, Sv,
+                                                F, g)
+        return ak, a, dropped, rest
 
     def _sides(self, t, q, v, a, lam, Sq, Sv):
         """The right sides (F (n, K), g (m, K)) of M q̈_k + Φ_qᵀ λ_k = F, Φ_q q̈_k = g."""
