@@ -1,8 +1,9 @@
-"""Sensitivities of motions with dry friction in their joints: through sliding, sticking,
-breaking away and reversing, against closed forms on an incline, exact invariances, and
-central differences (h from the error balance of runs at rtol 1e-12) on a rubbing
-pendulum, a block riding a sprung cart, a closed four-bar with friction in every pin and a
-rubbing pendulum bouncing on a stop."""
+"""Sensitivities of motions whose joints are held or rub: through sliding, sticking,
+breaking away and reversing under dry friction, and resting on a stop and leaving it,
+against closed forms on an incline, exact invariances, and central differences (h from
+the error balance of runs at rtol 1e-12) on a rubbing pendulum, a block riding a sprung
+cart, a slider in a swinging arm's slot, a closed four-bar whose coupler pins rub, a
+rubbing pendulum bouncing on a stop and a double pendulum resting on a stop."""
 
 import math
 
@@ -249,6 +250,36 @@ def test_impacts_and_reversals_of_a_rubbing_pendulum_agree_with_central_differen
     res = check(bouncing_pendulum, dict(length=1.0, mu=0.1), ["length", "mu"],
                 [0.3, 0.7, 1.1, 1.45], 1.5, coordinates(2))
     assert len(res.impacts) == 2 and len(res.friction_switches) == 2
+
+
+def resting_double_pendulum(l1=1.0, l2=0.8, m2=1.0):
+    """Two rods hanging from a pin with a plastic stop (e = 0) at −45°: the upper comes to
+    rest on it, is lifted off at once by the lower's swing, rests again, is held while
+    the lower swings, and let go where the stop would pull."""
+    mech = ms.Mechanism("double pendulum on a stop", gravity=(0.0, -G))
+    l1 = ms.Parameter("l1", l1)
+    upper = mech.add(ms.RigidBody.rod("upper", (0, 0), (l1, 0.0), 1.0))
+    pin = mech.add(ms.Revolute(mech.ground, upper, at=(0, 0), name="pin"))
+    lower = mech.add(ms.RigidBody.rod("lower", (l1, 0.0), (l1 + ms.Parameter("l2", l2), 0.0),
+                                      ms.Parameter("m2", m2)))
+    mech.add(ms.Revolute(upper, lower, at=(l1, 0.0), name="knee"))
+    mech.add(ms.Stop(pin, lower=-math.pi / 4, restitution=0.0, name="stop"))
+    return mech
+
+
+def test_a_double_pendulum_resting_on_its_stop_and_let_go_agrees_with_central_differences():
+    """Through the resting impacts (plastic), the holds (the stop's force holding the pin
+    still, linearised as a stuck joint's) and the releases (where the push reaches zero;
+    or at once, moving with its impact): both angles and the impacts' instants."""
+    res = check(resting_double_pendulum, dict(l1=1.0, l2=0.8, m2=1.0), ["l2", "l1"],
+                [0.3, 0.45, 0.8, 1.5, 1.9], 1.95, coordinates(2, 5))
+    assert [i.resting for i in res.impacts] == [True] * 3
+    upper = res.coordinate("upper.angle")
+    # (an impact's own sample holds the state before it)
+    events = np.isin(res.t, [i.t for i in res.impacts])
+    held = (np.abs(upper + math.pi / 4) < 1e-12) & ~events
+    assert np.any(held[res.t < 1.3]) and np.any(held[res.t > 1.75])
+    assert np.max(np.abs(res.sensitivity("l2")[held, 2])) < 1e-9
 
 
 def test_what_friction_cannot_carry_is_refused_or_ended_and_said():

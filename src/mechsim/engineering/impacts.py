@@ -24,6 +24,7 @@ from ..model import ModelError
 from ..records import Status
 from ..problem.friction import BACKWARD, FORWARD, STUCK, FrictionError
 from ..run.solver import output_times, simulate
+from ..problem.friction_sensitivity import accelerations as _accelerations
 from .friction import (MODE_NAMES, FrictionEvents, FrictionSwitch, decide, initial_modes,
                        stop_element, stop_moving)
 from ..problem.geometry import joint_coordinates, joint_gradient, joint_wrench
@@ -32,6 +33,9 @@ from ..problem.geometry import joint_coordinates, joint_gradient, joint_wrench
 # Impacts, holds and releases at one instant, in a row, after which the run gives up
 # there (a contact that cannot be resolved) instead of switching for ever.
 MAX_STILL = 50
+# A joint arriving at its stop slower than this (relative to the fastest coordinate's
+# rate) was pressed onto it at rest: no impact time to differentiate.
+PRESSED = 1e-9
 
 
 @dataclass(frozen=True)
@@ -108,8 +112,10 @@ class Joined:
 def simulate_with_stops(mech, report, t_end, method=None, sensitivities=None, **options):
     """`Mechanism.simulate` for a mechanism with stops or joints with friction from its
     assembled state `report` (see the module docstring). `sensitivities`: (a
-    `MotionEquations`, ∂q0/∂k, ∂v0/∂k) carried through the pieces and across the impacts
-    (`mechsim.engineering.impact_sensitivity`) until a joint comes to rest on a stop."""
+    `MotionEquations`, ∂q0/∂k, ∂v0/∂k) carried through the pieces, across the impacts
+    (`mechsim.engineering.impact_sensitivity`), the holds and the friction's switches
+    (`mechsim.problem.friction_sensitivity`), unless a joint is pressed onto a stop at
+    rest or a held joint is let go under loads given in time: there they end."""
     if options.get("stream") is not None:
         raise ModelError(f"mechanism '{mech.name}': a run with stops or friction is a "
                          "sequence of runs joined in memory; it cannot be streamed "
@@ -150,6 +156,7 @@ class PiecewiseRun:
         self.pieces, self.impacts, self.switches, self.schedule = [], [], [], []
         self.stalled, self.failure = 0, ""
         self.equations, self.carried, self.uncarried = None, None, ""
+        self.holds = {}          # stop name: (t, dt/dk) of the impact that began its hold
         if sensitivities is not None:
             self.equations, self.carried = sensitivities[0], tuple(sensitivities[1:])
             if not np.all(np.isfinite(self.carried[0])):    # they ended in an earlier run
@@ -235,8 +242,11 @@ class PiecewiseRun:
         elif k < len(free):
             self.hit(p, free[k])
         else:
-            self.released.append(self.held.pop(k - len(free)))
+            held = self.held.pop(k - len(free))
+            self.released.append(held)
             self.remode(p)
+            if self.carried is not None:
+                self._carry_release(p, held)
         return True
 
     def hit(self, p, limit):
@@ -251,22 +261,55 @@ class PiecewiseRun:
         self.impacts.append(impact)
 
     def _carry_across(self, p, stop, impact, v_before):
-        """The sensitivities carried across `impact` (its time's kept on it); where the
-        joint came to rest they end here, and the result says so."""
-        if impact.resting:
-            self.carried = None
-            self.uncarried = (f"the sensitivities end at t = {self.t:.9g}, where joint "
-                              f"'{stop.joint.name}' came to rest on stop '{stop.name}' (a "
-                              "resting contact is not differentiated; later samples hold NaN)")
+        """The sensitivities carried across `impact` (its time's kept on it), where the
+        joint comes to rest as a plastic impact's (e = 0); a joint pressed onto its stop
+        at rest (no impact's time to differentiate) ends them here, and the result says
+        so."""
+        if impact.resting and not abs(impact.rate_before) > PRESSED * max(
+                1.0, float(np.max(np.abs(v_before)))):
+            self._end(f"where joint '{stop.joint.name}' was pressed onto stop "
+                      f"'{stop.name}' at rest (not differentiated)")
             return impact
         from .impact_sensitivity import impact_jump
         after = self.problem.with_friction(self.problem.friction.with_modes(self.modes))
         Sq, Sv, dt = impact_jump(p, self.equations, p.joints[stop.joint.name],
-                                 stop.restitution, self.t, self.q, v_before, self.v,
-                                 *self.carried, after=after)
+                                 0.0 if impact.resting else stop.restitution, self.t,
+                                 self.q, v_before, self.v, *self.carried, after=after)
         self.carried = (Sq, Sv)
+        if impact.resting:
+            self.holds[stop.name] = (self.t, dt)
         return replace(impact, time_sensitivity={
             name: float(x) for name, x in zip(self.equations.names, dt)})
+
+    def _carry_release(self, p, held):
+        """The sensitivities carried across the stop `held` letting its joint go (where
+        its push reached zero); ended where that depends on time explicitly."""
+        from ..problem.friction_sensitivity import switch_jump
+        stop, sign, _ = held
+        after = self.problem.with_friction(self.problem.friction.with_modes(self.modes))
+        since = self.holds.pop(stop.name, None)
+        if since is not None and since[0] == self.t:
+            # Let go at the instant it came to rest (its push a pull at once): the
+            # release moves with the impact, and the motion after it is the free one.
+            a_held = _accelerations(p, self.t, self.q, self.v)
+            a_free = _accelerations(after, self.t, self.q, self.v)
+            self.carried = (self.carried[0],
+                            self.carried[1] + np.outer(a_held - a_free, since[1]))
+            return
+        jump = switch_jump(self.equations.for_problem(p), self.equations.for_problem(after),
+                           stop_element(p, stop), self.t, self.q, self.v, self.v,
+                           *self.carried, push=sign)
+        if jump is None:
+            self._end(f"where stop '{stop.name}' let joint '{stop.joint.name}' go under "
+                      "loads or drivers given as functions of time (not differentiated)")
+            return
+        self.carried = (self.carried[0], jump[0])
+
+    def _end(self, where: str) -> None:
+        """The sensitivities end at the present instant; the result says `where`."""
+        self.carried = None
+        self.uncarried = (f"the sensitivities end at t = {self.t:.9g}, {where}; later "
+                          "samples hold NaN")
 
     def switch(self, p, k):
         """Friction element k's joint reached zero rate (sliding) or its limit (stuck)."""
@@ -297,11 +340,8 @@ class PiecewiseRun:
         jump = switch_jump(self.equations.for_problem(p), self.equations.for_problem(after),
                            k, self.t, self.q, v_before, self.v, *self.carried)
         if jump is None:
-            self.carried = None
-            self.uncarried = (f"the sensitivities end at t = {self.t:.9g}, where friction "
-                              f"'{switch.friction}' let its joint slip under loads or "
-                              "drivers given as functions of time (not differentiated; "
-                              "later samples hold NaN)")
+            self._end(f"where friction '{switch.friction}' let its joint slip under loads "
+                      "or drivers given as functions of time (not differentiated)")
             return switch
         Sv, dt = jump
         self.carried = (self.carried[0], Sv)

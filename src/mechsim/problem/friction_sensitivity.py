@@ -27,7 +27,9 @@ linear system with a column per Parameter.
 At a switch the state is continuous and the acceleration jumps: the switch's time moves
 with k by dt_s/dk = −e_k/ė of its event function e (a sliding joint's σ ṡ, a held one's
 μ_s L − |f|, both differentiated by the same linearisation, ė along the motion (v, q̈)),
-and v_k⁺ = v_k⁻ + (q̈⁻ − q̈⁺) dt_s/dk (q_k continuous): `switch_jump`.
+and v_k⁺ = v_k⁻ + (q̈⁻ − q̈⁺) dt_s/dk (q_k continuous): `switch_jump`. A stop holding
+its joint is a held element of the same kind (its force the multiplier of s̈ = 0), let go
+where its push sign·f reaches zero.
 
 Rigid bodies; a joint whose coordinate moves with a differentiated Parameter, or a
 guide's `length` (its couple's load), are refused before the run (`check`).
@@ -148,24 +150,32 @@ class FrictionLinearization:
             np.zeros(len(names))
 
 
-def switch_jump(before, after, k, t, q, v_before, v_after, Sq, Sv):
-    """(v_k⁺, dt_s/dk (K,)) across friction element k's switch at t from the modes of
-    `before` to those of `after` (each a `MotionEquations` of the piece's problem): its
-    time's sensitivity from its event function (module docstring) and the saltation of
-    v_k; None where the held joint's event depends on time explicitly (a driver, a load
-    given as a function), which is not differentiated."""
+def switch_jump(before, after, k, t, q, v_before, v_after, Sq, Sv, push=None):
+    """(v_k⁺, dt_s/dk (K,)) across element k's switch at t from the modes of `before` to
+    those of `after` (each a `MotionEquations` of the piece's problem): its time's
+    sensitivity from its event function (module docstring) and the saltation of v_k.
+    `push`: for a stop letting its joint go, the sign of its push (the event sign·f = 0).
+    None where a held joint's event depends on time explicitly (a driver, a load given
+    as a function), which is not differentiated."""
     problem = before.problem
     element = problem.friction.elements[k]
-    a_before = _accelerations(problem, t, q, v_before)
-    a_after = _accelerations(after.problem, t, q, v_after)
+    a_before = accelerations(problem, t, q, v_before)
+    a_after = accelerations(after.problem, t, q, v_after)
     state = problem.friction_state(t, q, v_before)
     if state.modes[k] == STUCK:
         if problem.rheonomic_rows or any(callable(x.value) for x in problem.load_model.loads):
             return None
-        change = _limit_change(before, t, q, v_before, state, k, Sq, Sv)
-        motion = before.along_motion()
-        rate = _limit_change(motion, t, q, v_before, state, k, v_before[:, None],
-                             a_before[:, None])[0]
+
+        def event(equations, dq, dv):
+            x, dL, active, _ = equations.friction_partials(t, q, v_before, dq, dv)
+            i = active.index(k)
+            if push is not None:
+                return push * x[i]
+            fr = element.friction
+            return fr.static_partials(equations.names) * state.loads[k] + \
+                fr.mu_static * dL[i] - np.sign(state.forces[k]) * x[i]
+        change = event(before, Sq, Sv)
+        rate = event(before.along_motion(), v_before[:, None], a_before[:, None])[0]
     else:
         sigma = float(state.modes[k])
         change = sigma * joint_path_partials(element.geometry, q, v_before, a_before, Sq,
@@ -176,15 +186,7 @@ def switch_jump(before, after, k, t, q, v_before, v_after, Sq, Sv):
     return Sv + np.outer(a_before - a_after, dt), dt
 
 
-def _limit_change(equations, t, q, v, state, k, Sq, Sv):
-    """The change of μ_s L − |f| of held element k along (Sq, Sv) (K,)."""
-    x, dL, active, _ = equations.friction_partials(t, q, v, Sq, Sv)
-    i = active.index(k)
-    fr = equations.problem.friction.elements[k].friction
-    return fr.static_partials(equations.names) * state.loads[k] + fr.mu_static * dL[i] \
-        - np.sign(state.forces[k]) * x[i]
-
-
-def _accelerations(problem, t, q, v):
+def accelerations(problem, t, q, v):
+    """q̈ of `problem` (its joints' friction and stops in its modes) at (t, q, v)."""
     J, gamma = problem.dynamics_terms(q, v, t)
     return problem.accelerations(J, problem.forces(t, q, v), gamma, q)[0]

@@ -239,7 +239,7 @@ class MotionEquations:
         self.P = parameter_partials(problem, self.names)
         self.forces = ForceSensitivity(problem, self.names)
         self.friction = None
-        if problem.friction is not None and problem.friction.frictions:
+        if problem.friction is not None and problem.friction.elements:
             from .friction_sensitivity import FrictionLinearization
             self.friction = FrictionLinearization(self)
 
@@ -300,7 +300,7 @@ class MotionEquations:
         J, gamma = prob.dynamics_terms(q, v, t)
         J = sparse.dense(J)
         state = None
-        if self.friction is not None:
+        if self.friction is not None and not prob.friction.idle:
             state = prob.friction_state(t, q, v)
             Q = prob.load_model.forces(t, q, v) + state.generalized()
         else:
