@@ -163,6 +163,28 @@ def test_a_free_slider_crank_agrees_with_finite_differences(method, which):
         assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference)), of
 
 
+@pytest.mark.parametrize("which", ["r", "e"])
+def test_joint_coordinates_sensitivities_include_the_joints_own_geometry(which):
+    """The guide's slide is measured from its point on the ground, which moves with the
+    crank's length and the offset (the guide's `at` is computed from them): ∂s/∂k is
+    ∂s/∂q q_k plus that; the rod's pin angle through the states alone."""
+    values = {"r": 0.12, "e": 0.03}
+
+    def build(x):
+        return offset_slider_crank(**{**values, which: x})
+    res = build(ms.Parameter(which, values[which])).simulate(
+        0.2, output_step=0.01, rtol=1e-10, atol=1e-12, sensitivities=[which])
+    for joint in ("guide", "A"):
+        reference = central_difference(build, values[which],
+                                       lambda r: r.joint_coordinate(joint), 0.2)
+        got = res.sensitivity(which, of="joint_coordinate", joint=joint)
+        assert np.max(np.abs(got - reference)) < 1e-6 * np.max(np.abs(reference)), joint
+    through_states = res.sensitivity(which)[:, 6] if which == "r" else None
+    if through_states is not None:       # the slide's own geometry moves: not x_k alone
+        assert np.max(np.abs(res.sensitivity(which, of="joint_coordinate", joint="guide")
+                             - through_states)) > 1e-3
+
+
 def test_accelerations_and_multipliers_of_a_free_motion_agree_with_finite_differences():
     """∂q̈/∂k and ∂λ/∂k at the samples (computed when asked, from the carried q_k and v_k)
     against central differences of the rebuilt runs' accelerations and multipliers."""
@@ -281,11 +303,11 @@ def test_joint_force_sensitivity_of_a_free_motion():
     assert np.max(np.abs(got - reference)) < 1e-5 * np.max(np.abs(reference))
 
 
-def sprung_slider_crank(k=400.0, c=2.0, rest=0.3, kt=3.0, rest_angle=0.2):
+def sprung_slider_crank(k=400.0, c=2.0, rest=0.3, kt=3.0, rest_angle=0.2, rod_mass=0.5):
     """The free offset slider-crank with a spring–damper on the slider (stiffness k,
     damping c, rest length `rest`) and a torsion spring at the crank's pivot (kt,
     `rest_angle`): numbers or Parameters."""
-    mech = offset_slider_crank()
+    mech = offset_slider_crank(rod_mass=rod_mass)
     slider, crank = mech.body("slider"), mech.body("crank")
     mech.add(ms.Spring(mech.ground, slider, at_a=(0.6, 0.03), at_b=slider.position,
                        stiffness=k, rest_length=rest, damping=c, name="return"))
@@ -301,6 +323,25 @@ def test_spring_constants_as_parameters(which):
     a new value set without a new build runs as a mechanism built with it."""
     values = {"k": 400.0, "c": 2.0, "rest": 0.3, "kt": 3.0, "rest_angle": 0.2}
     check_parameter(sprung_slider_crank, which, values[which])
+
+
+@pytest.mark.parametrize("which", ["k", "rest", "kt", "rest_angle", "m"])
+def test_energies_sensitivities_agree_with_finite_differences(which):
+    """of="kinetic_energy" and "potential_energy" (gravity, the spring and the torsion
+    spring, their constants and the rod's mass moving them) against central differences
+    of the energy log."""
+    values = {"k": 400.0, "rest": 0.3, "kt": 3.0, "rest_angle": 0.2, "m": 0.5}
+
+    def build(x):
+        return sprung_slider_crank(**{"rod_mass" if which == "m" else which: x})
+    res = build(ms.Parameter(which, values[which])).simulate(
+        0.2, output_step=0.01, rtol=1e-10, atol=1e-12, sensitivities=[which])
+    for of in ("kinetic_energy", "potential_energy"):
+        field = of.split("_")[0]
+        reference = central_difference(build, values[which],
+                                       lambda r: getattr(r.energy, field), 0.2)
+        got = res.sensitivity(which, of=of)
+        assert np.max(np.abs(got - reference)) < 1e-6 * np.max(np.abs(reference)), of
 
 
 def check_parameter(build, which, value):

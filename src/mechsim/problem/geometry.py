@@ -392,3 +392,15 @@ def joint_curvature(geometry: JointGeometry, q, W) -> np.ndarray:
     ctx = DualJetContext(geometry.starts, np.broadcast_to(q, (k, n)), W.T, np.zeros((k, n)),
                          np.eye(n)[None], np.zeros((1, n, n)))
     return _jet_derivatives(geometry, ctx, k, n)[0].T.copy()
+
+
+def joint_coordinate_partials(geometry: JointGeometry, q, dq, parameters) -> np.ndarray:
+    """d s/dk of the joint's coordinate at the states q (N, n) for the sensitivities dq
+    (N, n, K) and `parameters`: the joint's parameters' derivatives {name: (K,)} (those
+    absent do not move): ∂s/∂q q_k + ∂s/∂p ∂p/∂k, shape (N, K), in one pass of duals."""
+    q = np.atleast_2d(q)
+    N, K = q.shape[0], dq.shape[-1]
+    values = {name: Dual(x, np.asarray(parameters[name], float)) if name in parameters else x
+              for name, x in geometry.parameters.items()}
+    c = geometry.joint.coordinate(NumericContext(geometry.starts, q, dq), values)
+    return np.broadcast_to(derivative(c, (N, K)), (N, K)).copy()

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kinematics import add_point_force, frame_point, point, point_velocity
+from ..kinematics import (add_point_force, frame_point, frame_point_velocity, point,
+                          point_velocity)
 
 
 @dataclass(frozen=True)
@@ -330,6 +331,34 @@ class Loads:
         for rs in self.torsion:
             total = total + 0.5 * rs.stiffness * (rs.angles(q) - rs.rest) ** 2
         return total
+
+    def spring_potential_derivative(self, q, dq, names) -> np.ndarray:
+        """∂(`spring_potential`)/∂k (N, K) at the states q (N, n) with sensitivities dq
+        (N, n, K): k (l − l₀)(e·(ṙ_b − ṙ_a) − ∂l₀/∂k) + ½ ∂k/∂k' (l − l₀)² of each spring
+        (its points' change along dq), the torsion springs' likewise; `names` the
+        Parameters of the columns, for the springs' own constants (rigid bodies)."""
+        column = {name: j for j, name in enumerate(names)}
+        out = np.zeros(dq.shape[:1] + dq.shape[2:])
+        for sp in self.springs:
+            d = frame_point(q, sp.b, sp.sb) - frame_point(q, sp.a, sp.sa)
+            length = np.linalg.norm(d, axis=-1)
+            e = d / length[:, None]
+            stretch = length - sp.rest_length
+            for j in range(dq.shape[2]):
+                dd = frame_point_velocity(q, dq[:, :, j], sp.b, sp.sb) - \
+                    frame_point_velocity(q, dq[:, :, j], sp.a, sp.sa)
+                out[:, j] += sp.stiffness * stretch * np.sum(e * dd, axis=-1)
+            for name, (dk, _, drest) in sp.partials:
+                if name in column:
+                    out[:, column[name]] += 0.5 * dk * stretch**2 - sp.stiffness * stretch * drest
+        for rs in self.torsion:
+            twist = rs.angles(q) - rs.rest
+            for j in range(dq.shape[2]):
+                out[:, j] += rs.stiffness * twist * rs.angles(dq[:, :, j])
+            for name, (dk, _, drest) in rs.partials:
+                if name in column:
+                    out[:, column[name]] += 0.5 * dk * twist**2 - rs.stiffness * twist * drest
+        return out
 
     def strain_energy(self, q) -> np.ndarray:
         """Elastic energy of the flexible bodies' modes, ½ Σ ω_k² η_k²."""

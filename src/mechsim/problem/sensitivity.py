@@ -41,6 +41,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..linalg import sparse
+from .geometry import joint_coordinate_partials
 
 # Singular values of the mass-scaled Φ_q below this fraction of the largest are redundant
 # directions in the projections of the sensitivities (the exact pseudo-inverse).
@@ -133,6 +134,37 @@ class Sensitivities:
             generalized = -(J.T @ lam_k[i, rows] + r3q @ self.q[i][:, j] + r3p @ self.P[:, j])
             out[i] = generalized[start:start + 2]
         return out if on_b else -out
+
+    def joint_coordinate(self, name, geometry, exact) -> np.ndarray:
+        """∂s/∂k (N,) of a joint's coordinate s for the Parameter `name`: through the
+        states' sensitivities and the joint's own geometry (`exact`: its parameter values
+        as given, Parameters' duals kept: `Joint.parameter_values`)."""
+        from ..model.parameters import Dual
+        j = self.names.index(name)
+        moved = {key: [x.partials.get(name, 0.0)] for key, x in
+                 zip(geometry.joint.parameter_names, exact) if isinstance(x, Dual)}
+        return joint_coordinate_partials(geometry, self.Q, self.q[:, :, j:j + 1], moved)[:, 0]
+
+    def energy(self, name, which) -> np.ndarray:
+        """∂E/∂k (N,) of the kinetic ("kinetic_energy": Σ M v v_k + ½ M_k v²) or potential
+        ("potential_energy": gravity's −(q_k·G + q·G_k), G the weights, and the springs')
+        energy for the Parameter `name`; rigid bodies (ValueError otherwise)."""
+        prob = self.problem
+        if prob.flexible:
+            raise ValueError(f"sensitivity(of={which!r}): the energies' sensitivities are "
+                             "given for rigid bodies only")
+        j = self.names.index(name)
+        Mk = prob.mass_partials.get(name, np.zeros(prob.n))
+        if which == "kinetic_energy":
+            V, Sv = np.asarray(self.V, float), self.v[:, :, j]
+            M = prob.mass_diagonal
+            return np.sum(M * V * Sv + 0.5 * Mk * V * V, axis=1)
+        Sq = self.q[:, :, j]
+        loads = prob.load_model
+        weights = np.divide(loads.gravity_force, prob.mass_diagonal,
+                            out=np.zeros(prob.n), where=prob.mass_diagonal > 0) * Mk
+        return -(Sq @ loads.gravity_force + self.Q @ weights) + \
+            loads.spring_potential_derivative(self.Q, Sq[:, :, None], [name])[:, 0]
 
     def _compute_multipliers(self):
         prob = self.problem
@@ -482,8 +514,9 @@ class StoredSensitivities:
         return self.arrays[of][:, :, self.names.index(name)]
 
     def _unsaved(self, *_):
-        raise ValueError("sensitivities of the multipliers, efforts and joint forces are "
-                         "not kept by a saved result: they need the model's Parameters; "
+        raise ValueError("sensitivities of the multipliers, efforts, joint forces, joint "
+                         "coordinates and energies are not kept by a saved result: they need "
+                         "the model's Parameters; "
                          "run the analysis again with sensitivities=[...]")
 
-    multipliers = joint_force = _unsaved
+    multipliers = joint_force = joint_coordinate = energy = _unsaved

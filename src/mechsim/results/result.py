@@ -193,8 +193,11 @@ class SimulationResult:
         quantity's shape: of "q" (∂q/∂k, the shape of `q`), "v", "a" (of q̈), "point"
         (∂r/∂k of the body-fixed point `local` of `body`, (n, 2): r's Jacobian in q
         applied to ∂q/∂k), "lambda" (of the multipliers, (n, m)), "driver_effort"
-        (of `driver_effort(driver)`, (n,)) or "joint_force" (of `joint_force(joint)`,
-        global axes, (n, 2)). The analysis must have been asked for it
+        (of `driver_effort(driver)`, (n,)), "joint_force" (of `joint_force(joint)`,
+        global axes, (n, 2)), "joint_coordinate" (of `joint_coordinate(joint)`, (n,):
+        through the states and the joint's own geometry), "kinetic_energy" or
+        "potential_energy" (of `energy.kinetic` and `energy.potential`, (n,); rigid
+        bodies). The analysis must have been asked for it
         (`kinematics(..., sensitivities=[name])`, `simulate(..., sensitivities=[name])`);
         the multipliers' (and what follows from them) are computed when first asked, for
         the loads that are differentiated (`mechsim.problem.sensitivity`)."""
@@ -224,8 +227,18 @@ class SimulationResult:
             owner = self.reactions.joint_name(joint)
             return table.joint_force(name, self.problem.joints[owner],
                                      self.problem.rows_of(owner))
+        if of == "joint_coordinate":
+            if joint is None:
+                raise ValueError("sensitivity(of='joint_coordinate') needs the `joint`")
+            owner = self.reactions.joint_name(joint)
+            model = self.mechanism.joint(owner) if self.mechanism is not None else None
+            exact = model.parameter_values() if model is not None else ()
+            return table.joint_coordinate(name, self.problem.joints[owner], exact)
+        if of in ("kinetic_energy", "potential_energy"):
+            return table.energy(name, of)
         raise ValueError(f"sensitivity: `of` must be 'q', 'v', 'a', 'point', 'lambda', "
-                         f"'driver_effort' or 'joint_force', got {of!r:.40}")
+                         f"'driver_effort', 'joint_force', 'joint_coordinate', "
+                         f"'kinetic_energy' or 'potential_energy', got {of!r:.40}")
 
     def angular_velocity(self, body) -> np.ndarray:
         """The angular velocity [rad/s] of a body's frame over time, shape (n,) (0 for the
