@@ -209,19 +209,27 @@ def test_a_four_bar_with_friction_in_its_coupler_pins_agrees_with_central_differ
     assert len(res.friction_switches) == 3
 
 
-def rubbing_slot(k=30.0, mu=0.8):
+def rubbing_slot(k=30.0, mu=0.8, length=None):
     """A slider in a slot 0.1 m off a swinging arm's axis, tied to the pivot by a spring,
-    friction μ (μ_s 1.0) in the slot: its load is the Coriolis and swing's reaction, and
-    the slot's coordinate turns with the arm (the joint's curvature and third derivatives
-    enter)."""
+    friction μ (μ_s 1.0; 1.25 μ for a slider of `length`, whose centre is off its
+    slot) in the slot: its load is the Coriolis and swing's reaction (or the couple on a
+    short slider), and the slot's coordinate turns with the arm (the joint's curvature and
+    third derivatives enter)."""
     mech = ms.Mechanism("rubbing slot", gravity=(0.0, -G))
     arm = mech.add(ms.RigidBody.rod("arm", (0, 0), (1.0, 0.0), 1.0))
     pivot = mech.add(ms.Revolute(mech.ground, arm, at=(0, 0), name="pivot"))
-    slider = mech.add(ms.RigidBody("slider", 0.5, 0.01, (0.3, 0.1)))
+    # (the short slider's centre off its point: the couple's arm turns with it)
+    slider = mech.add(ms.RigidBody("slider", 0.5, 0.01,
+                                   (0.3, 0.1) if length is None else (0.33, 0.13)))
     slot = mech.add(ms.Prismatic(arm, slider, axis=(1.0, 0.0), at=(0.3, 0.1), name="slot"))
     mech.add(ms.Spring(arm, slider, at_a=(0.0, 0.0), at_b=(0.3, 0.1),
                        stiffness=ms.Parameter("k", k), rest_length=0.3, name="tie"))
-    mech.add(ms.Friction(slot, mu=ms.Parameter("mu", mu), mu_static=1.0, name="rub"))
+    mu = ms.Parameter("mu", mu)
+    if length is None:
+        mech.add(ms.Friction(slot, mu=mu, mu_static=1.0, name="rub"))
+    else:
+        mech.add(ms.Friction(slot, mu=mu, mu_static=1.25 * mu, name="rub",
+                             length=ms.Parameter("length", length)))
     mech.set_speed(slot, 0.6)
     mech.set_speed(pivot, 3.5)
     return mech
@@ -232,6 +240,42 @@ def test_a_slider_sticking_in_a_swinging_arm_s_slot_agrees_with_central_differen
                 0.5, coordinates(2, 3))
     assert [s.after for s in res.friction_switches] == \
         ["slipping backwards", "stuck", "slipping forwards"]
+
+
+def test_a_short_slider_whose_load_is_its_couple_agrees_with_central_differences():
+    """A slider 5 cm long in the swinging slot: its load is mostly 2|M|/ℓ (the couple
+    about its point, its centre's arm turning with it), through sliding, sticking and
+    breaking away, to the spring, μ and the slider's length."""
+    res = check(rubbing_slot, dict(k=30.0, mu=0.4, length=0.05), ["k", "mu", "length"],
+                [0.05, 0.25, 0.35, 0.45, 0.55], 0.55, coordinates(2, 3))
+    assert [s.after for s in res.friction_switches][-2:] == ["stuck", "slipping forwards"]
+
+
+def test_a_block_tipped_by_its_pull_slides_as_the_closed_form_says():
+    """Pulled by F at a height h over a guide of length ℓ, its load is the couple's
+    2 F h/ℓ (> m g) plus the preload P: s = (F − μ (2 F h/ℓ + P)) t²/2m, so ∂s/∂μ,
+    ∂s/∂ℓ and ∂s/∂P in closed form."""
+    force, h, length, mu, mass, preload = 30.0, 0.2, 0.1, 0.2, 2.0, 1.0
+    mech = ms.Mechanism("tipped block", gravity=(0.0, -G))
+    block = mech.add(ms.RigidBody("block", mass, 0.01, (0.0, 0.0)))
+    guide = mech.add(ms.Prismatic(mech.ground, block, axis=(1, 0), at=(0, 0), name="guide"))
+    mech.add(ms.Force(block, [force, 0.0], at=(0.0, h), name="pull"))
+    mech.add(ms.Friction(guide, mu=ms.Parameter("mu", mu),
+                         length=ms.Parameter("length", length),
+                         preload=ms.Parameter("preload", preload), name="rub"))
+    res = mech.simulate(0.5, rtol=1e-10, atol=1e-12, output_step=0.1,
+                        sensitivities=["mu", "length", "preload"])
+    assert res.success, res.message
+    couple = 2 * force * h / length
+    assert couple > mass * G
+    half = res.t**2 / (2 * mass)
+    np.testing.assert_allclose(res.q[:, 0], (force - mu * (couple + preload)) * half,
+                               atol=1e-9)
+    np.testing.assert_allclose(res.sensitivity("mu")[:, 0], -(couple + preload) * half,
+                               atol=1e-9)
+    np.testing.assert_allclose(res.sensitivity("length")[:, 0], mu * couple / length * half,
+                               atol=1e-9)
+    np.testing.assert_allclose(res.sensitivity("preload")[:, 0], -mu * half, atol=1e-9)
 
 
 def bouncing_pendulum(length=1.0, mu=0.1):
@@ -283,10 +327,13 @@ def test_a_double_pendulum_resting_on_its_stop_and_let_go_agrees_with_central_di
 
 
 def test_what_friction_cannot_carry_is_refused_or_ended_and_said():
-    mech, _ = incline(0.3, ms.Parameter("mu", 0.2))
-    mech.frictions[0]._exact["length"] = mech.frictions[0].length = 0.1
-    with pytest.raises(ValueError, match="friction 'rub' with a `length`"):
-        mech.simulate(0.5, sensitivities=["mu"])
+    upside_down = ms.Mechanism("guide on its block", gravity=(0.0, -G))
+    block = upside_down.add(ms.RigidBody("block", 1.0, 0.01, (0.0, 0.0)))
+    guide = upside_down.add(ms.Prismatic(block, upside_down.ground, axis=(1, 0), at=(0, 0)))
+    upside_down.add(ms.Friction(guide, mu=ms.Parameter("mu", 0.2), length=0.1, name="rub"))
+    with pytest.raises(ValueError, match="friction 'rub' with a `length` on a guide whose "
+                                         "body_b is the ground"):
+        upside_down.simulate(0.5, sensitivities=["mu"])
     tilted = ms.Mechanism("tilted guide", gravity=(0.0, -G))
     block = tilted.add(ms.RigidBody("block", 1.0, 0.01, (0.0, 0.0)))
     guide = tilted.add(ms.Prismatic(tilted.ground, block,

@@ -6,7 +6,8 @@ Within a piece of a run every joint keeps its mode and the motion obeys
 
 with each active element's own equation: a sliding joint's f_j = −σ μ(|ṡ_j|) L_j(λ)
 (L_j = ρ (‖F_j‖ + preload), ρ the pin's radius or 1 for a guide, F_j the force its rows
-of λ apply), a held joint's s̈_j = g_j q̈ + vᵀ H_j v = 0 (g_j = ∂s_j/∂q, H_j = ∂²s_j/∂q²).
+of λ apply; a guide of length ℓ whose couple wins, 2|M_j|/ℓ + preload, M_j the moment
+about the joint's point), a held joint's s̈_j = g_j q̈ + vᵀ H_j v = 0 (g_j = ∂s_j/∂q, H_j = ∂²s_j/∂q²).
 Differentiated in a Parameter k along the sensitivities (q_k, v_k), with x_j = ∂f_j/∂k:
 
     M q̈_k + Φ_qᵀ λ_k = F + Σ_j f_j H_j q_k + Σ_j x_j g_j,    Φ_q q̈_k = g,
@@ -18,7 +19,10 @@ where F, g are the right sides without friction (`MotionEquations`), ṡ_j,k = g
 (H_j q_k)·v, e_j = F_j/‖F_j‖, e_j·F_j,k = −e_j·(Φ_qᵀ λ_k) on the body's x, y over the
 joint's rows (those rows' gradients there change only across F: a pin's are constant, a
 guide's normal turns at unit length), and μ_k, ρ_k, preload_k the friction's own numbers'
-derivatives (Parameters). The joints'
+derivatives (Parameters). The couple's change is M_k = M_R,k − r_k × F − r × F_k with the
+whole wrench's change −(Φ_qᵀ λ_k + R3_q q_k + R3_p p_k) on the body's x, y, θ (R3 = Φ_qᵀ λ
+of the joint's own multipliers: the generated derivatives) and r = P − R turning with
+the body. The joints'
 derivatives come from their coordinates' second-order jets in dual numbers
 (`mechsim.problem.geometry.joint_path_partials`). q̈_k and λ_k are affine in x (one solve
 for F and one per active joint's g_j, the factor of the motion's), so x solves a small
@@ -32,7 +36,8 @@ its joint is a held element of the same kind (its force the multiplier of s̈ = 
 where its push sign·f reaches zero.
 
 Rigid bodies; a joint whose coordinate moves with a differentiated Parameter, or a
-guide's `length` (its couple's load), are refused before the run (`check`).
+guide with a `length` whose body_b is the ground, are refused before the run
+(`refusal`).
 """
 
 from __future__ import annotations
@@ -40,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 
 from .friction import FREE, STUCK
-from .geometry import joint_curvature, joint_path_partials, joint_path_rates
+from .geometry import joint_curvature, joint_path_partials, joint_path_rates, joint_point
 
 # The direction along the motion has no Parameter: a name no Parameter has.
 ALONG_MOTION = "\0along the motion"
@@ -48,17 +53,18 @@ ALONG_MOTION = "\0along the motion"
 
 def refusal(mech, problem, names) -> str:
     """Why the sensitivities `names` cannot be carried through `mech`'s friction ("" where
-    they can): a flexible mechanism, a guide's `length`, or a friction joint's coordinate
-    that moves with a differentiated Parameter."""
+    they can): a flexible mechanism, a guide with a `length` on the ground as its body_b,
+    or a friction joint's coordinate that moves with a differentiated Parameter."""
     if not mech.frictions:
         return ""
     if problem.flexible:
         return (f"sensitivities through friction '{mech.frictions[0].name}' are carried "
                 "for rigid bodies only")
     for fr in mech.frictions:
-        if fr.length is not None:
-            return (f"sensitivities through friction '{fr.name}' with a `length` (the "
-                    "guide's couple in its load) are not carried yet")
+        if fr.length is not None and fr.joint.body_b is mech.ground:
+            return (f"sensitivities through friction '{fr.name}' with a `length` on a guide "
+                    "whose body_b is the ground are not carried (make the moving body "
+                    "its body_b)")
     offset, where = 0, {}
     for item in mech.constraint_items:
         size = len(item.parameter_values())
@@ -112,7 +118,7 @@ class FrictionLinearization:
             gj = state.gradients[j]
             rate_k, rest_k = joint_path_partials(element.geometry, q, v, a, Sq, Sv)
             if element.kind == "friction":
-                dL0[i], dLx[i] = self._load(element, lam, J, lk0, Al)
+                dL0[i], dLx[i] = self._load(element, t, q, lam, J, lk0, Al, Sq)
             if state.modes[j] == STUCK:
                 scale = 1.0 / float(gj @ (W * gj))
                 D[i], c[i] = scale * (gj @ Aa), scale * (gj @ ak0 + rest_k)
@@ -126,23 +132,40 @@ class FrictionLinearization:
         x = np.linalg.solve(D, -c)
         return ak0 + Aa @ x, x, dL0 + dLx @ x, active, bent + state.gradients[active].T @ x
 
-    def _load(self, element, lam, J, lk0, Al):
+    def _load(self, element, t, q, lam, J, lk0, Al, Sq):
         """(δL without x (K,), δL's coefficients of x (A,)) of a friction element's load."""
         fr, geometry, rows = element.friction, element.geometry, list(element.rows)
         start = geometry.start_b if geometry.start_b is not None else geometry.start_a
-        side = slice(start, start + 2)
-        Jr = J[rows][:, side]
-        force = -(Jr.T @ lam[rows])
+        frame = slice(start, start + 3)
+        Jr = J[rows][:, frame]
+        wrench = -(Jr.T @ lam[rows])                 # on the body's x, y, θ
+        force = wrench[:2]
         size = float(np.hypot(*force))
-        unit = force / size if size > 0.0 else np.zeros(2)
-        dF0, dFx = -(Jr.T @ lk0[rows]), -(Jr.T @ Al[rows])
-        rho = 1.0 if fr.radius is None else fr.radius
+        d0, dx = -(Jr.T @ lk0[rows]), -(Jr.T @ Al[rows])      # (3, K), (3, A)
         names = self.eq.names
+        if fr.length is not None:
+            # The couple about the joint's point P on body_b: M = M_R − r × F, r = P − R.
+            own = np.zeros(len(lam))
+            own[rows] = lam[rows]
+            r3q, r3p = self.eq.module.multiplier_terms(q, own, t, self.problem.p)
+            d0 = d0 - (r3q @ Sq + r3p @ self.eq.P)[frame]
+            r = joint_point(geometry, q)[0] - q[start:start + 2]
+            couple = wrench[2] - _cross(r, force)
+            if 2.0 * abs(couple) / fr.length > size:
+                turn = np.outer([-r[1], r[0]], Sq[start + 2])            # δr (2, K)
+                dM0 = d0[2] - _cross(turn, force[:, None]) - _cross(r[:, None], d0[:2])
+                dMx = dx[2] - _cross(r[:, None], dx[:2])
+                scale = 2.0 * np.sign(couple) / fr.length
+                return (scale * dM0 - 2.0 * abs(couple) / fr.length ** 2 *
+                        fr.partials("length", names) + fr.partials("preload", names),
+                        scale * dMx)
+        unit = force / size if size > 0.0 else np.zeros(2)
+        rho = 1.0 if fr.radius is None else fr.radius
         own_numbers = fr.preload * self._radius_partials(fr, names) + \
             rho * fr.partials("preload", names)
         if fr.radius is not None:
             own_numbers = own_numbers + size * self._radius_partials(fr, names)
-        return rho * (unit @ dF0) + own_numbers, rho * (unit @ dFx)
+        return rho * (unit @ d0[:2]) + own_numbers, rho * (unit @ dx[:2])
 
     @staticmethod
     def _radius_partials(fr, names):
@@ -190,3 +213,8 @@ def accelerations(problem, t, q, v):
     """q̈ of `problem` (its joints' friction and stops in its modes) at (t, q, v)."""
     J, gamma = problem.dynamics_terms(q, v, t)
     return problem.accelerations(J, problem.forces(t, q, v), gamma, q)[0]
+
+
+def _cross(a, b):
+    """a × b of 2-vectors (along the first axis)."""
+    return a[0] * b[1] - a[1] * b[0]
