@@ -320,22 +320,13 @@ class Mechanism(MechanismModel):
         if problem.flexible:
             raise ValueError(f"simulate: sensitivities across the impacts on stop "
                              f"'{self.stops[0].name}' are carried for rigid bodies only")
-        offset, where = 0, {}
-        for item in self.constraint_items:
-            size = len(item.parameter_values())
-            where[id(item)] = slice(offset, offset + size)
-            offset += size
+        from .problem.friction_sensitivity import moving_parameter
         for stop in self.stops:
-            joint = stop.joint
-            if joint.kind == "revolute":       # a difference of the bodies' angles
-                continue
-            rows = where[id(joint)]
-            moved = [k for k in names
-                     if np.any(problem.parameter_partials.get(k, np.zeros(offset))[rows])]
-            if moved:
-                raise ValueError(f"simulate: the coordinate of joint '{joint.name}', which "
-                                 f"stop '{stop.name}' limits, moves with Parameter "
-                                 f"'{moved[0]}': its impacts' sensitivities are not "
+            moved = moving_parameter(self, problem, stop.joint, names)
+            if moved is not None:
+                raise ValueError(f"simulate: the coordinate of joint '{stop.joint.name}', "
+                                 f"which stop '{stop.name}' limits, moves with Parameter "
+                                 f"'{moved}': its impacts' sensitivities are not "
                                  "carried (keep the joint's geometry out of the Parameters "
                                  "asked for)")
 

@@ -8,7 +8,7 @@ one answers the same questions without the model.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
@@ -16,6 +16,7 @@ import numpy as np
 
 from ..kinematics import frame_point, frame_point_acceleration, frame_point_velocity
 from ..records import Status, WorkRecord
+from .meta import metadata
 
 
 @dataclass
@@ -585,29 +586,3 @@ def _cumulative_integral(y, t):
     if len(t) < 3:
         return cumulative_trapezoid(y, t, initial=0.0, axis=0)
     return cumulative_simpson(y, x=t, initial=0.0, axis=0)
-
-
-def metadata(result) -> dict:
-    """The JSON-able description of a result (names, status, statistics, passages,
-    switches, the settings `extend` goes on with, and the mechanism as a scene where the
-    result knows it and a scene can hold it) that `save` and a stream's meta.json keep."""
-    meta = {"coordinate_names": result.coordinate_names, "status": result.status,
-            "message": result.message, "stats": result.stats,
-            "singular_passages": [asdict(s) for s in result.singular_passages],
-            "switches": [asdict(s) for s in result.switches],
-            "settings": result.settings}
-    if result.impacts or result.friction_switches:
-        meta["impacts"] = [asdict(i) for i in result.impacts]
-        meta["friction_switches"] = [asdict(s) for s in result.friction_switches]
-    friction = getattr(result.problem, "friction", None)
-    if friction is not None and friction.schedule:
-        meta["friction_schedule"] = [[float(t), [int(m) for m in modes]]
-                                     for t, modes in friction.schedule]
-    if result.mechanism is not None:
-        from ..model import ModelError
-        from ..model.scene_save import scene_data
-        try:
-            meta["mechanism"] = scene_data(result.mechanism)
-        except ModelError as exc:
-            meta["mechanism_left_out"] = str(exc)
-    return meta

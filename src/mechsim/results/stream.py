@@ -12,7 +12,8 @@ import json
 import numpy as np
 
 from ..records import SingularPassage, Status, Switch, WorkRecord
-from .result import SimulationResult, metadata
+from .meta import metadata
+from .result import SimulationResult
 
 # The files a streamed run writes into its directory (`simulate(stream=...)`).
 STREAM_FILES = ("samples.bin", "work.bin", "meta.json")
