@@ -111,6 +111,30 @@ def test_slider_crank_sensitivities_agree_with_finite_differences(which):
                                        lambda res: res.accelerations())) < 1e-6
 
 
+@pytest.mark.parametrize("which", ["e", "m_rod"])
+def test_a_driven_analysis_s_energies_and_joint_coordinates_sensitivities(which):
+    """of="kinetic_energy", "potential_energy" and "joint_coordinate" of a kinematic
+    analysis (the guide's slide measured from its point, which the offset moves; the
+    rod's mass moves the energies alone) against central differences."""
+    values = {"e": 0.05, "m_rod": 0.8}
+
+    def build(x):
+        return offset_slider_crank(**{which: x})
+    kin = build(ms.Parameter(which, values[which])).kinematics(1.0, 0.05,
+                                                               sensitivities=[which])
+    quantities = {"kinetic_energy": lambda r: r.energy.kinetic,
+                  "potential_energy": lambda r: r.energy.potential}
+    for of, quantity in quantities.items():
+        reference = central_difference(build, values[which], quantity)
+        assert relative(kin.sensitivity(which, of=of), reference) < 1e-6, of
+    for joint in ("A", "guide"):
+        reference = central_difference(build, values[which],
+                                       lambda r: r.joint_coordinate(joint))
+        got = kin.sensitivity(which, of="joint_coordinate", joint=joint)
+        assert np.max(np.abs(got - reference)) <= 1e-6 * max(np.max(np.abs(reference)),
+                                                             1e-6), joint
+
+
 def test_four_bar_sensitivities_of_states_and_a_coupler_point():
     """Crank length and ground pivot of a driven four-bar: ∂q, ∂v, ∂q̈ and the coupler
     point's ∂r against central differences."""
