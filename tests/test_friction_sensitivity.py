@@ -122,14 +122,15 @@ def test_a_block_thrown_uphill_stops_where_the_closed_form_says_and_its_rest_mov
     assert np.all(slide(res, down, "mu_s") == 0.0)
 
 
-def rubbing_pendulum(mu=0.3, r=0.3, m=1.0):
-    """A rod pinned at its end, released level, friction μ r |F| in its pin (μ_s 1.4 μ)."""
+def rubbing_pendulum(mu=0.3, r=0.3, m=1.0, vt=None):
+    """A rod pinned at its end, released level, friction μ r |F| in its pin (μ_s 1.4 μ;
+    with `vt` the Stribeck curve)."""
     mech = ms.Mechanism("rubbing pendulum", gravity=(0.0, -G))
     rod = mech.add(ms.RigidBody.rod("rod", (0, 0), (1.0, 0), ms.Parameter("m", m)))
     pin = mech.add(ms.Revolute(mech.ground, rod, at=(0, 0), name="pin"))
     mu = ms.Parameter("mu", mu)
     mech.add(ms.Friction(pin, mu=mu, mu_static=1.4 * mu, radius=ms.Parameter("r", r),
-                         name="bearing"))
+                         transition_velocity=vt, name="bearing"))
     return mech
 
 
@@ -149,6 +150,13 @@ def test_a_rubbing_pendulum_s_swings_and_rest_agree_with_central_differences():
                                         sensitivities=["m"])
     assert np.max(np.abs(plain.sensitivity("m"))) < 1e-12
     assert all(abs(s.time_sensitivity["m"]) < 1e-12 for s in plain.friction_switches)
+
+
+def test_a_pin_s_stribeck_curve_agrees_with_central_differences():
+    """The pendulum's pin with μ(ω) = μ + (μ_s − μ) exp(−(ω/0.5)²) through its first
+    reversal: the curve's slope in the pin's rate enters."""
+    check(rubbing_pendulum, dict(mu=0.3, r=0.3, vt=0.5), ["mu"], [0.3, 0.6, 0.9, 1.1], 1.1,
+          coordinates(2))
 
 
 def sprung_cart(mu=0.2, mu_s=0.3, k=50.0, mb=0.5, vt=None):

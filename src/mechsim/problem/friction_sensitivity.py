@@ -116,7 +116,7 @@ class FrictionLinearization:
                 np.zeros_like(Sq)
         bent = np.zeros_like(Sq)
         for j in active:
-            if state.forces[j] != 0.0:
+            if state.forces[j] != 0.0 and not _linear(model.elements[j]):
                 bent += state.forces[j] * joint_curvature(model.elements[j].geometry, q, Sq)
         ak0, lk0 = solve(F + bent, g)
         size = len(active)
@@ -127,7 +127,10 @@ class FrictionLinearization:
         for i, j in enumerate(active):
             element = model.elements[j]
             gj = state.gradients[j]
-            rate_k, rest_k = joint_path_partials(element.geometry, q, v, a, Sq, Sv)
+            if _linear(element):
+                rate_k, rest_k = gj @ Sv, np.zeros(K)
+            else:
+                rate_k, rest_k = joint_path_partials(element.geometry, q, v, a, Sq, Sv)
             if element.kind == "friction":
                 dL0[i], dLx[i] = self._load(element, t, q, lam, J, lk0, Al, Sq)
             if state.modes[j] == STUCK:
@@ -224,6 +227,12 @@ def accelerations(problem, t, q, v):
     """q̈ of `problem` (its joints' friction and stops in its modes) at (t, q, v)."""
     J, gamma = problem.dynamics_terms(q, v, t)
     return problem.accelerations(J, problem.forces(t, q, v), gamma, q)[0]
+
+
+def _linear(element) -> bool:
+    """Is the element's joint coordinate linear in q (a revolute's θ_b − θ_a of rigid
+    bodies: no curvature, no third derivatives)?"""
+    return element.geometry.joint.kind == "revolute"
 
 
 def _cross(a, b):
