@@ -320,9 +320,8 @@ class Mechanism(MechanismModel):
         if problem.flexible:
             raise ValueError(f"simulate: sensitivities across the impacts on stop "
                              f"'{self.stops[0].name}' are carried for rigid bodies only")
-        from .problem.friction_sensitivity import moving_parameter
         for stop in self.stops:
-            moved = moving_parameter(self, problem, stop.joint, names)
+            moved = stop.joint.moved_by(names)
             if moved is not None:
                 raise ValueError(f"simulate: the coordinate of joint '{stop.joint.name}', "
                                  f"which stop '{stop.name}' limits, moves with Parameter "

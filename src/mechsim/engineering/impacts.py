@@ -163,9 +163,13 @@ class PiecewiseRun:
                 self.carried = None
                 self.uncarried = "the sensitivities ended in the run this one extends"
 
+    def moded(self):
+        """The problem with every element in its present mode."""
+        return self.problem.with_friction(self.problem.friction.with_modes(self.modes))
+
     def piece_problem(self):
         """(the problem of the present piece, its free limits)."""
-        p = self.problem.with_friction(self.problem.friction.with_modes(self.modes))
+        p = self.moded()
         free = [(stop, sign, limit) for stop in self.mech.stops
                 for sign, limit in stop.limits()
                 if not any(h[0] is stop and h[2] == limit for h in self.held)]
@@ -271,7 +275,7 @@ class PiecewiseRun:
                       f"'{stop.name}' at rest (not differentiated)")
             return impact
         from .impact_sensitivity import impact_jump
-        after = self.problem.with_friction(self.problem.friction.with_modes(self.modes))
+        after = self.moded()
         Sq, Sv, dt = impact_jump(p, self.equations, p.joints[stop.joint.name],
                                  0.0 if impact.resting else stop.restitution, self.t,
                                  self.q, v_before, self.v, *self.carried, after=after)
@@ -286,7 +290,7 @@ class PiecewiseRun:
         its push reached zero); ended where that depends on time explicitly."""
         from ..problem.friction_sensitivity import switch_jump
         stop, sign, _ = held
-        after = self.problem.with_friction(self.problem.friction.with_modes(self.modes))
+        after = self.moded()
         since = self.holds.pop(stop.name, None)
         if since is not None and since[0] == self.t:
             # Let go at the instant it came to rest (its push a pull at once): the
@@ -336,7 +340,7 @@ class PiecewiseRun:
         on it: `mechsim.problem.friction_sensitivity.switch_jump`); where its event
         depends on time explicitly they end here, and the result says so."""
         from ..problem.friction_sensitivity import switch_jump
-        after = self.problem.with_friction(self.problem.friction.with_modes(self.modes))
+        after = self.moded()
         jump = switch_jump(self.equations.for_problem(p), self.equations.for_problem(after),
                            k, self.t, self.q, v_before, self.v, *self.carried)
         if jump is None:

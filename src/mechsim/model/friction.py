@@ -90,9 +90,7 @@ class Friction:
 
     def partials(self, key: str, names) -> np.ndarray:
         """∂(number `key`)/∂k for the Parameters `names`, (K,) (zeros for a plain number)."""
-        exact = self._exact[key]
-        partials = exact.partials if isinstance(exact, dual.Dual) else {}
-        return np.array([float(partials.get(k, 0.0)) for k in names])
+        return dual.gradient([self._exact[key]], names)[0]
 
     def static_partials(self, names) -> np.ndarray:
         """∂μ_s/∂k (K,) (μ's where μ_s was left out)."""

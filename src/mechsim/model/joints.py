@@ -117,6 +117,11 @@ class Joint:
     # into its equations' parameters (`parameter_values`)?
     carries_parameters = False
 
+    def moved_by(self, names):
+        """The first of the Parameters `names` that moves this joint's coordinate (through
+        the numbers of its geometry, `parameter_values`), else None."""
+        return _first_moving(self.parameter_values(), names)
+
     def structure(self, index) -> tuple:
         """What this joint's generated equations depend on: its kind and its bodies'
         positions `index(body)` (−1: the ground), with its parameter names."""
@@ -124,6 +129,13 @@ class Joint:
 
     def __repr__(self):
         return f"{type(self).__name__}({self.name!r})"
+
+
+def _first_moving(values, names):
+    """The first of the Parameters `names` some of the numbers `values` move with, else
+    None."""
+    moving = np.any(dual.gradient(values, names) != 0.0, axis=0)
+    return next((name for name, moves in zip(names, moving) if moves), None)
 
 
 def coordinate_joint(joint, role: str, purpose: str) -> Joint:
@@ -213,6 +225,11 @@ class Revolute(Joint):
 
     def exact_initial_coordinate(self):
         return self.exact_relative_angle()
+
+    def moved_by(self, names):
+        """As `Joint.moved_by`; the coordinate (its bodies' angles' difference, with a
+        beam node's modal rotations) does not move with the attachment points."""
+        return _first_moving(self.parameter_values()[4:], names)
 
 
 class Prismatic(Joint):

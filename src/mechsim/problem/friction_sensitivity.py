@@ -65,33 +65,12 @@ def refusal(mech, problem, names) -> str:
             return (f"sensitivities through friction '{fr.name}' with a `length` on a guide "
                     "whose body_b is the ground are not carried (make the moving body "
                     "its body_b)")
-    for fr in mech.frictions:
-        moved = moving_parameter(mech, problem, fr.joint, names)
+        moved = fr.joint.moved_by(names)
         if moved is not None:
             return (f"the coordinate of joint '{fr.joint.name}', where friction '{fr.name}' "
                     f"rubs, moves with Parameter '{moved}': sensitivities through it "
                     "are not carried")
     return ""
-
-
-def moving_parameter(mech, problem, joint, names):
-    """The first of the Parameters `names` that moves `joint`'s coordinate (through its
-    generated equations' parameters), else None; a revolute's (the difference of its
-    bodies' angles) moves with none."""
-    if joint.kind == "revolute":
-        return None
-    offset = 0
-    for item in mech.constraint_items:
-        size = len(item.parameter_values())
-        if item is joint:
-            break
-        offset += size
-    rows = slice(offset, offset + size)
-    for name in names:
-        partials = problem.parameter_partials.get(name)
-        if partials is not None and np.any(partials[rows]):
-            return name
-    return None
 
 
 class FrictionLinearization:

@@ -139,10 +139,9 @@ class Sensitivities:
         """∂s/∂k (N,) of a joint's coordinate s for the Parameter `name`: through the
         states' sensitivities and the joint's own geometry (`exact`: its parameter values
         as given, Parameters' duals kept: `Joint.parameter_values`)."""
-        from ..model.parameters import Dual
+        from ..model.parameters import gradient
         j = self.names.index(name)
-        moved = {key: [x.partials.get(name, 0.0)] for key, x in
-                 zip(geometry.joint.parameter_names, exact) if isinstance(x, Dual)}
+        moved = dict(zip(geometry.joint.parameter_names, gradient(exact, [name])))
         return joint_coordinate_partials(geometry, self.Q, self.q[:, :, j:j + 1], moved)[:, 0]
 
     def energy(self, name, which) -> np.ndarray:
@@ -154,24 +153,25 @@ class Sensitivities:
             raise ValueError(f"sensitivity(of={which!r}): the energies' sensitivities are "
                              "given for rigid bodies only")
         j = self.names.index(name)
-        Mk = prob.mass_partials.get(name, np.zeros(prob.n))
+        masses = ForceSensitivity(prob, [name])            # M_k and the weights' G_k
         if which == "kinetic_energy":
             V, Sv = np.asarray(self.V, float), self.v[:, :, j]
-            M = prob.mass_diagonal
-            return np.sum(M * V * Sv + 0.5 * Mk * V * V, axis=1)
+            return np.sum(prob.mass_diagonal * V * Sv + 0.5 * masses.Mk[:, 0] * V * V,
+                          axis=1)
         Sq = self.q[:, :, j]
         loads = prob.load_model
-        weights = np.divide(loads.gravity_force, prob.mass_diagonal,
-                            out=np.zeros(prob.n), where=prob.mass_diagonal > 0) * Mk
-        return -(Sq @ loads.gravity_force + self.Q @ weights) + \
+        return -(Sq @ loads.gravity_force + self.Q @ masses.gravity[:, 0]) + \
             loads.spring_potential_derivative(self.Q, Sq[:, :, None], [name])[:, 0]
+
+    def _friction_forces(self):
+        """The changes of the joints' friction forces Σ f_j g_j at the samples, (N, n, K),
+        where the sensitivities carry them (a motion's), else None."""
+        return None
 
     def _compute_multipliers(self):
         prob = self.problem
-        carried = getattr(self, "equations", None)      # a motion's, through its friction
-        if carried is not None and carried.friction is None:
-            carried = None
-        _loads_differentiated(prob, friction=carried is not None)
+        rubbed = self._friction_forces()
+        _loads_differentiated(prob, friction=rubbed is not None)
         if self.blind_loads:
             raise ValueError("sensitivities of the multipliers: "
                              + load_blindness(self.blind_loads[0]))
@@ -184,8 +184,8 @@ class Sensitivities:
                 prob.mass_diagonal[:, None] * self.a[i]
             rhs = forces(t, q, v, a, self.q[i], self.v[i]) - inertia \
                 - r3q @ self.q[i] - r3p @ self.P
-            if carried is not None:
-                rhs += carried.friction_partials(t, q, v, self.q[i], self.v[i])[3]
+            if rubbed is not None:
+                rhs += rubbed[i]
             out[i] = self._factors[i](rhs, transposed=True)
         return out
 
@@ -318,16 +318,19 @@ class MotionEquations:
         Φ_q M⁻¹ Φ_qᵀ solves for λ and λ_k (the problem's algebra); else the SVD. M = L Lᵀ
         may depend on q (flexible bodies). Joints with friction add their terms
         (`mechsim.problem.friction_sensitivity`)."""
-        ak, a, dropped = self._solve(t, q, v, Sq, Sv, cut, a)[:3]
+        ak, a, dropped = self.solved(t, q, v, Sq, Sv, cut, a)[:3]
         return ak, a, dropped
 
     def friction_partials(self, t, q, v, Sq, Sv):
         """(x, δL, active, F_k): the changes of the active friction elements' forces and
         loads (A, K) along (Sq, Sv) at the state (t, q, v), their indices, and the change
         of their generalized force Σ f_j g_j (n, K)."""
-        return self._solve(t, q, v, Sq, Sv, 0.0)[3]
+        return self.solved(t, q, v, Sq, Sv, 0.0)[3]
 
-    def _solve(self, t, q, v, Sq, Sv, cut, a=None):
+    def solved(self, t, q, v, Sq, Sv, cut, a=None):
+        """(q̈_k, q̈, truncation, friction) as `accelerations` gives the first three;
+        `friction`: `friction_partials`' four where joints' friction or stops act, else
+        None."""
         prob = self.problem
         J, gamma = prob.dynamics_terms(q, v, t)
         J = sparse.dense(J)
@@ -446,7 +449,7 @@ class MotionSensitivities(Sensitivities):
         self.q = rows[:, :n * K].reshape(N, n, K)
         self.v = rows[:, n * K:].reshape(N, n, K)
         self.P = equations.P
-        self._multipliers = self._A = self._a = self._solvers = None
+        self._multipliers = self._A = self._a = self._solvers = self._rubbed = None
 
     def stored(self) -> dict:
         """The carried q_k and v_k (q̈_k is computed from them when asked, with the model's
@@ -479,10 +482,20 @@ class MotionSensitivities(Sensitivities):
         """q̈_k at the samples, (N, n, K)."""
         if self._a is None:
             eq = self.equations
-            self._a = np.array([eq.accelerations(t, q, v, Sq, Sv, RCOND_SAMPLES, a)[0]
-                                for t, q, v, Sq, Sv, a in zip(self.t, self.Q, self.V,
-                                                              self.q, self.v, self.A)])
+            solved = [eq.solved(t, q, v, Sq, Sv, RCOND_SAMPLES, a)
+                      for t, q, v, Sq, Sv, a in zip(self.t, self.Q, self.V, self.q, self.v,
+                                                    self.A)]
+            self._a = np.array([x[0] for x in solved])
+            if eq.friction is not None:
+                self._rubbed = np.array([np.zeros_like(Sq) if x[3] is None else x[3][3]
+                                         for x, Sq in zip(solved, self.q)])
         return self._a
+
+    def _friction_forces(self):
+        if self.equations.friction is None:
+            return None
+        self.a                              # (computed with q̈_k)
+        return self._rubbed
 
     @property
     def _factors(self):
