@@ -30,9 +30,9 @@ spacings H/3 and H/4 read 2–10× larger estimates. A bridge whose estimate mis
 tolerance is not taken: d shrinks by the estimate's (order+1)-th root and the integrator
 lands again. Where landing closer makes the estimate no better (it is then the round-off of
 q̈ near the configuration, not truncation), or at the floor of 1.2 `EDGE` cuts, the best
-declined bridge with an estimate up to `FLOOR_ACCEPT` is taken; without one, or if a
-landing falls inside the band, the bridge stands down and the formulation steps through the
-passage on its own.
+declined bridge with an estimate up to `FLOOR_ACCEPT` tolerances (or 1e-8 relative) is
+taken; without one, or if a landing falls inside the band, the bridge stands down and the
+formulation steps through the passage on its own.
 """
 
 from __future__ import annotations
@@ -51,8 +51,14 @@ EDGE = 3.0
 # Landing distance before t* as a fraction of the free step, and bridge length per distance.
 LANDING = 1.0 / 14.0
 SPAN = 2.4
-# The largest error estimate taken at the landing floor rather than stepping through.
+# The largest error estimate taken at the landing floor rather than stepping through, in
+# tolerances, or relative (`FLOOR_ACCEPT_RELATIVE`) where that is more: a bridge's estimate
+# there is the round-off of q̈ near the configuration, about 1e-9 relative; held to 10
+# tolerances at rtol 1e-10 the bridge stood down and the parallelogram's passages were
+# stepped through in ~250 steps each (3.1 s against 0.1 s; the double four-bar at rtol
+# 1e-11 failed after 20000 steps).
 FLOOR_ACCEPT = 10.0
+FLOOR_ACCEPT_RELATIVE = 1e-8
 # The fewest history points a crossing is built on (its corrector orders start at 3).
 MIN_HISTORY = 5
 # The most right-hand sides a history's backward integration may spend, per point.
@@ -293,10 +299,11 @@ class PassageBridge:
         err = self.last_estimate = errs[best]
         # At the floor the only alternative is stepping through the band (on the 40-window
         # chain at rtol 3e-9, one passage so cost 110 s): there an estimate up to
-        # `FLOOR_ACCEPT` is taken, and counted, since it bounds the error of the order below
-        # the kept one (measured 6–100× the true error).
+        # `FLOOR_ACCEPT` (or `FLOOR_ACCEPT_RELATIVE`) is taken, and counted, since it
+        # bounds the error of the order below the kept one (measured 6–100× the true error).
         at_floor = self.landing is not None and self.landing <= 1.01 * self._floor()
-        if err > 1.0 and not (at_floor and err <= FLOOR_ACCEPT):
+        accept = max(FLOOR_ACCEPT, FLOOR_ACCEPT_RELATIVE / self.rtol)
+        if err > 1.0 and not (at_floor and err <= accept):
             best_declined = self._declined
             if best_declined is not None and (err >= best_declined[0] or at_floor):
                 # Closer was no better: the estimate is the round-off of q̈ near the
@@ -306,7 +313,7 @@ class PassageBridge:
                 self._declined, self.landing = None, None
                 self.over_tolerance += 1
                 return best_declined[1]
-            if err <= FLOOR_ACCEPT:
+            if err <= accept:
                 self._declined = (err, self._finish(n, t_n, t_b, H, y_n, ys, best, nodes, F,
                                                     t_star, history))
             return self._decline(err)
