@@ -322,6 +322,18 @@ class SingularityMonitor:
                 tr, sr = self._refine(s_at, times[k - 1], times[k + 1])
                 if sr < sm:
                     tm, sm = tr, sr
+            elif last > 0:
+                # The least value at an end of the step: the bisection stops beside it
+                # (`apart`), yet s may still fall into the step from there, its minimum
+                # between the end and its neighbour (a partitioned method's long step over
+                # a turning parallelogram: reported 1.9 ms late, at σ 1.3e-3). One value
+                # just inside tells.
+                j = 1 if k == 0 else last - 1
+                inside = times[k] + 1e-3 * (times[j] - times[k])
+                if s_at(inside) < sm:
+                    tr, sr = self._refine(s_at, *sorted((times[k], times[j])))
+                    if sr < sm:
+                        tm, sm = tr, sr
             _, _, um = self.measure(state_at(tm)[0], tm)
             at_start, at_end = run[0] == 0, not closed
             dips.append(Dip(tm, sm, self.joints_of(um),
