@@ -8,6 +8,13 @@ import math
 from dataclasses import dataclass
 
 
+# The share of the asked rtol a run's local error test gets from `LOCAL_FULL` up, and the
+# rtol from which down it gets all of it (`Tolerances.local`).
+LOCAL_SHARE = 1.0 / 30.0
+LOCAL_FULL = 1e-6
+LOCAL_FLOOR = 1e-9
+
+
 @dataclass(frozen=True)
 class Tolerances:
     """The integrator's tolerances and what follows from them (all absolute, in the
@@ -15,6 +22,8 @@ class Tolerances:
 
     rtol, atol : the local error test's relative and absolute tolerances, as in scipy's
         `solve_ivp` (error ≤ atol + rtol·abs(y) per component)
+
+    A run asks for an accuracy of its motion and integrates with `local()` of it.
     """
     rtol: float
     atol: float
@@ -24,6 +33,30 @@ class Tolerances:
             if not (isinstance(value, (int, float)) and not isinstance(value, bool)
                     and value > 0 and math.isfinite(value)):
                 raise ValueError(f"`{name}` must be a positive number, got {value!r:.40}")
+
+    def local(self) -> "Tolerances":
+        """The tolerances a run integrates with when these are the accuracy asked of its
+        motion: `LOCAL_SHARE` of them from rtol `LOCAL_FULL` up, all of them from
+        `LOCAL_FLOOR` down, and between a share falling geometrically with rtol (so the
+        local tolerance still falls ~10× for each 100× rtol); atol in the same proportion.
+
+        A local error test passed at every step leaves a global error that adds up over
+        the steps and the turns of a mechanism: with rtol as the local tolerance the
+        bench's mechanisms erred 30–270 × rtol at rtol 1e-4 … 1e-7 (docs/benchmarks.md,
+        session 29). Near `LOCAL_FLOOR` the passages set the error (a bridge's estimate
+        is round-off there, not truncation) and a tighter local tolerance mostly costs
+        time: a passage stepped through (redundant constraints) took 10× as long at
+        3e-10 as at 1e-9.
+        """
+        r = self.rtol
+        if r >= LOCAL_FULL:
+            share = LOCAL_SHARE
+        elif r <= LOCAL_FLOOR:
+            share = 1.0
+        else:
+            share = LOCAL_SHARE ** (math.log(r / LOCAL_FLOOR) /
+                                    math.log(LOCAL_FULL / LOCAL_FLOOR))
+        return Tolerances(r * share, self.atol * share)
 
     @property
     def newton(self) -> float:

@@ -198,7 +198,9 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     Parameters
     ----------
     method : name in `mechsim.formulations.METHODS` (default "hybrid")
-    rtol, atol : integrator tolerances
+    rtol, atol : the accuracy asked of the motion; the integrator's local error test runs
+        at `Tolerances.local()` of them (a thirtieth from rtol 1e-6 up, all of it from 1e-9
+        down), so that the error of the whole run, not of each step, is of the order of rtol
     max_step : largest step the integrator may take
     output_step : spacing of output samples (None: one sample per accepted step)
     integrator : name in `mechsim.integrators.INTEGRATORS` (default: the method's choice)
@@ -218,9 +220,10 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
         sample); `mechsim.load_result(stream)` loads it again
     mechanism : the Mechanism `problem` was built from, kept with the result (and saved
         with it: a loaded result then has its model)
-    events : where the run ends early (`mechsim.engineering.impacts` passes the stops): an object with
-        `values(t, q, v)` (an array, each ≥ 0 while the run may go on) and `describe(i)`;
-        the result's `event` is then (t, i, q, v) of the first crossing, else None
+    events : where the run ends early (`mechsim.engineering.impacts` passes the stops): an
+        object with `values(t, q, v)` (an array, each ≥ 0 while the run may go on) and
+        `describe(i)`; the result's `event` is then (t, i, q, v) of the first crossing,
+        else None
     output_grid : the output times (from t_start to t_end), instead of `output_step`'s
     sensitivities : (a `MotionEquations`, ∂q0/∂k, ∂v0/∂k) to carry with the motion (`run`)
     **options : method-specific options (e.g. `alpha`, `beta` for "baumgarte")
@@ -250,14 +253,15 @@ def run(problem: NumericProblem, q0, v0, config: RunConfig, *, stream=None, mech
     # as redundant everywhere: the singularity monitor watches the rank-th singular value.
     redundant = max(problem.m - (problem.n - dof), 0)
     monitor = SingularityMonitor(problem, *c.singular_thresholds, redundant=redundant)
-    form = _formulation(c.method, problem, q0, c.t_start, c.rtol, c.atol, c.options,
+    local = c.tolerances.local()         # the accuracy asked, as the local error test's
+    form = _formulation(c.method, problem, q0, c.t_start, local.rtol, local.atol, c.options,
                         redundant, fully_driven, monitor)
     if sensitivities is not None:
         form = Tangent(form, *sensitivities)
     grid = output_times(c.t_start, c.t_end, c.output_step) if output_grid is None else \
         np.asarray(output_grid, float)
-    settings = Settings(c.t_start, c.t_end, c.rtol, c.atol, c.max_step, c.first_step, c.h,
-                        c.max_steps, grid, c.work, c.progress, stream, events)
+    settings = Settings(c.t_start, c.t_end, local.rtol, local.atol, c.max_step, c.first_step,
+                        c.h, c.max_steps, grid, c.work, c.progress, stream, events)
     with run_threads():
         runner = Run(problem, form, c.integrator, settings, q0, v0, method=c.method.name,
                      fully_driven=fully_driven)
