@@ -41,12 +41,10 @@ class Tolerances:
         local tolerance still falls ~10× for each 100× rtol); atol in the same proportion.
 
         A local error test passed at every step leaves a global error that adds up over
-        the steps and the turns of a mechanism: with rtol as the local tolerance the
-        bench's mechanisms erred 30–270 × rtol at rtol 1e-4 … 1e-7 (docs/benchmarks.md,
-        session 29). Near `LOCAL_FLOOR` the passages set the error (a bridge's estimate
+        the steps and the turns of a mechanism; the share keeps a run's error of the
+        order of rtol. Near `LOCAL_FLOOR` the passages set the error (a bridge's estimate
         is round-off there, not truncation) and a tighter local tolerance mostly costs
-        time: a passage stepped through (redundant constraints) took 10× as long at
-        3e-10 as at 1e-9.
+        time (docs/design-notes.md, tolerances).
         """
         r = self.rtol
         if r >= LOCAL_FULL:

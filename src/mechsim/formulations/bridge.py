@@ -53,10 +53,8 @@ LANDING = 1.0 / 14.0
 SPAN = 2.4
 # The largest error estimate taken at the landing floor rather than stepping through, in
 # tolerances, or relative (`FLOOR_ACCEPT_RELATIVE`) where that is more: a bridge's estimate
-# there is the round-off of q̈ near the configuration, about 1e-9 relative; held to 10
-# tolerances at rtol 1e-10 the bridge stood down and the parallelogram's passages were
-# stepped through in ~250 steps each (3.1 s against 0.1 s; the double four-bar at rtol
-# 1e-11 failed after 20000 steps).
+# there is the round-off of q̈ near the configuration, about 1e-9 relative
+# (docs/design-notes.md, passage bridge).
 FLOOR_ACCEPT = 10.0
 FLOOR_ACCEPT_RELATIVE = 1e-8
 # The fewest history points a crossing is built on (its corrector orders start at 3).

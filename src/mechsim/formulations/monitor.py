@@ -325,9 +325,7 @@ class SingularityMonitor:
             elif last > 0:
                 # The least value at an end of the step: the bisection stops beside it
                 # (`apart`), yet s may still fall into the step from there, its minimum
-                # between the end and its neighbour (a partitioned method's long step over
-                # a turning parallelogram: reported 1.9 ms late, at σ 1.3e-3). One value
-                # just inside tells.
+                # between the end and its neighbour. One value just inside tells.
                 j = 1 if k == 0 else last - 1
                 inside = times[k] + 1e-3 * (times[j] - times[k])
                 if s_at(inside) < sm:
