@@ -492,7 +492,8 @@ def main(argv=None) -> int:
     run.add_argument("--t-end", type=float, help="override the scene's end time")
     run.add_argument("--integrator", help="override the method's integrator (DOP853, adams, "
                                           "Radau, BDF, LSODA, trapezoidal, …)")
-    run.add_argument("--rtol", type=float, help="relative tolerance")
+    run.add_argument("--rtol", type=float,
+                     help="relative accuracy of the whole run (its steps are held to a share)")
     run.add_argument("--atol", type=float, help="absolute tolerance")
     run.add_argument("--max-step", type=float, help="largest step [s]")
     run.add_argument("--output-step", type=float, help="spacing of the output samples [s]")
