@@ -428,7 +428,9 @@ def test_bench_runs_the_seeds_projection_as_a_variant(monkeypatch, capsys):
     assert len(calls) >= 0.8 * seed.rhs
     monkeypatch.setattr(dense, "svd", svd)
     rows = bench.run(["parallelogram"], ["projection", "hybrid"], [1e-6], progress=None)
-    assert rows[0].steps == seed.steps and abs(rows[0].error - seed.error) < 1e-10
+    # The same motion to round-off (the two factorizations' round-off may move a step-size
+    # decision: 204 against 205 steps with the Haswell and Sandybridge BLAS kernels).
+    assert abs(rows[0].error - seed.error) < 1e-10
     ratios = bench.ratios(rows + [seed], 1e-6)["parallelogram"]
     assert ratios["hybrid/projection-svd"] == rows[1].wall_time / seed.wall_time
     with pytest.raises(ValueError, match="'projektion'; methods: .*projection-svd"):
