@@ -124,6 +124,9 @@ PROBLEMS["crank-rocker"] = Problem(
     "crank-rocker", _crank_rocker, 3.0, math.radians(60.0), 0.0, 1,
     reference=_crank_rocker_reference, quantity="max coupler-point error [m]",
     description="Grashof crank-rocker falling from rest, 3 s, no singular passage")
+PROBLEMS["seven-window"] = Problem(
+    "seven-window", lambda: examples.double_four_bar(7), 3.0, math.pi / 2, -1.0, 7,
+    description="7-window four-bar, 3 s, 45 coordinates, 3 singular passages")
 PROBLEMS["ten-window"] = Problem(
     "ten-window", lambda: examples.double_four_bar(10), 3.0, math.pi / 2, -1.0, 10,
     description="10-window four-bar, 3 s, 63 coordinates, 3 singular passages")

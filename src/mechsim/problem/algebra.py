@@ -38,7 +38,8 @@ class ConstraintAlgebra:
 
     - ``cut_reference``: float, the level of σ_min/σ_max of J̃ that the projection
       method's truncation cut `rcond` is relative to (`mechsim.formulations.projection`)
-    - ``small``: bool, J̃'s SVD is cheap (at most `SMALL_ROWS` constraint rows)
+    - ``small``: bool, J̃'s SVD is cheap (the dense algebra's, at most `SMALL_ROWS`
+      constraint rows)
     - ``batched``: bool, J̃ of many states is measured together by one stacked dense SVD
     - ``dense_complement``: bool, Φ_q M⁻¹ Φ_qᵀ is formed dense with a constant diagonal
       mass, so many right-hand sides share one factor (output samples settled by one
@@ -315,6 +316,10 @@ class BandedAlgebra(DenseAlgebra):
     batched = False
     dense_complement = False
     compiles = False
+    # Its measurement (inverse iteration and Lanczos on the band, about a millisecond at
+    # any length) is not cheap even under `SMALL_ROWS` rows: the singularity monitor bounds
+    # its search by the rates seen, as for any long chain (docs/benchmarks.md, session 30).
+    small = False
 
     def __init__(self, problem, band):
         super().__init__(problem)
