@@ -151,9 +151,8 @@ def test_a_seven_window_chain_reports_each_passage_at_its_exact_instant(method):
     """The 7-window chain (44 constraint rows, under `SMALL_ROWS`, on the banded path) for
     3 s: its three singular passages, where every crank is flat (sin θ = 0 on the exact
     branch), each reported once and within 0.2 ms of the exact instant (2e-5 s seen), and
-    the cranks on the branch within 20 rtol. (Its monitor bounds the search inside a step by the rates
-    seen, as for longer chains: with Weyl's bound and one banded measurement per state it
-    took 3–7 s instead of 0.4–0.9 s.)"""
+    the cranks on the branch within 20 rtol. (Its monitor bounds the search inside a step
+    by the rates seen, as for longer chains.)"""
     n, rtol = 7, 1e-6
     res = ms.examples.double_four_bar(n).simulate(t_end=3.0, method=method, rtol=rtol,
                                                   atol=rtol * 1e-2, output_step=0.003)

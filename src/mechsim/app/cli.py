@@ -431,8 +431,8 @@ def _sweep(args) -> int:
         try:
             from distributed import Client
         except ImportError:
-            print("mechsim: --scheduler needs dask.distributed (pip install distributed; from a checkout, pip install '.[dask]')",
-                  file=sys.stderr)
+            print("mechsim: --scheduler needs dask.distributed (pip install distributed; "
+                  "from a checkout, pip install '.[dask]')", file=sys.stderr)
             return 2
         try:
             client = Client(args.scheduler, timeout="10s")
@@ -518,8 +518,9 @@ def main(argv=None) -> int:
                             "hybrid against projection at the smallest rtol), coulomb "
                             "(shooting against brute force), analysis (reactions, "
                             "equilibrium and linearization), crank-rocker, seven-window, "
-                            "ten-window, peers (MuJoCo and Exudyn beside mechsim on the problems named, "
-                            "default double-four-bar and crank-rocker: the peers extra), "
+                            "ten-window, peers (MuJoCo and Exudyn beside mechsim on the "
+                            "problems named, default double-four-bar and crank-rocker: the "
+                            "peers extra), "
                             "costs (steps, right-hand sides and bridge evaluations of the "
                             "cases the tests bound loosely); default: the first three and "
                             "random")
