@@ -487,7 +487,8 @@ static void scaled_jacobian(mechsim_projection *c, const double *q, double t, do
 /* The singularity monitor's measurement (SingularityMonitor.measure, m <= n): the
    extreme singular values of J~ = Phi_q W^(1/2) at c->q by LAPACK's dgesdd and, with
    eps > 0, their derivatives along the motion, u^T dJ~ v with dJ~ from J~ at
-   (q + eps v, t + eps). out: [s_min, s_max, ds_min, ds_max, u_min (m)]; J~ in Jt.
+   (q + eps v, t + eps), and the Frobenius norm of dJ~/dt there.
+   out: [s_min, s_max, ds_min, ds_max, u_min (m), ||dJ~/dt||_F]; J~ in Jt.
    1 where the SVD fails. */
 int mechsim_measure(mechsim_projection *c, double t, double eps, double *out, double *Jt) {
   const int64_t n = c->n, m = c->m;
@@ -499,24 +500,26 @@ int mechsim_measure(mechsim_projection *c, double t, double eps, double *out, do
   const int64_t k = m - 1;
   out[0] = c->sig[k];
   out[1] = c->sig[0];
-  out[2] = out[3] = 0.0;
+  out[2] = out[3] = out[4 + m] = 0.0;
   for (int64_t i = 0; i < m; i++) out[4 + i] = VT[k + i * m];
   if (eps > 0.0) {
     for (int64_t j = 0; j < n; j++) q1[j] = c->q[j] + eps * c->v[j];
     scaled_jacobian(c, q1, t + eps, J1);
-    double dmin = 0.0, dmax = 0.0;
+    double dmin = 0.0, dmax = 0.0, frob = 0.0;
     for (int64_t i = 0; i < m; i++) {
       double smin = 0.0, smax = 0.0;
       for (int64_t j = 0; j < n; j++) {
         const double d = J1[i * n + j] - Jt[i * n + j];
         smin += d * U[j + k * n];
         smax += d * U[j];
+        frob += d * d;
       }
       dmin += VT[k + i * m] * smin;
       dmax += VT[i * m] * smax;
     }
     out[2] = dmin / eps;
     out[3] = dmax / eps;
+    out[4 + m] = sqrt(frob) / eps;
   }
   return 0;
 }

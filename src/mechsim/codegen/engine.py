@@ -302,7 +302,7 @@ class ProjectionEngine:
         self.y, self.Q, self.out = np.zeros(2 * n), np.zeros(n), np.zeros(2 * n)
         self.q, self.v = self.y[:n], self.y[n:]
         self.buffers = PROJECTION.buffers(Dims(n, m))
-        self.measured, self.Jt = np.zeros(4 + m), np.zeros((m, n))
+        self.measured, self.Jt = np.zeros(5 + m), np.zeros((m, n))
         arrays = {**self.buffers, "p": self.p, "winv": self.winv, "q": self.q, "v": self.v,
                   "Q": self.Q, "out": self.out}
         self.ctx = PROJECTION.make(dict(
@@ -360,8 +360,8 @@ class ProjectionEngine:
     def measure(self, t, q, v=None, eps=0.0):
         """The extreme singular values of J̃ = Φ_q M^{-1/2} at (q, t) and, with eps > 0,
         their rates along v (from J̃ at (q + eps v, t + eps)): (σ_min, σ_max, σ̇_min,
-        σ̇_max, left singular vector of σ_min, J̃); None where the SVD fails. Needs
-        m ≤ n (else σ_min is 0 by count)."""
+        σ̇_max, left singular vector of σ_min, J̃, ‖dJ̃/dt‖_F (0 without eps)); None where
+        the SVD fails. Needs m ≤ n (else σ_min is 0 by count)."""
         self.q[:] = q
         if eps > 0.0:
             self.v[:] = v
@@ -369,7 +369,7 @@ class ProjectionEngine:
         if self._measure(self.context, t, eps, out.ctypes.data, self.Jt.ctypes.data):
             return None
         smin, smax, dmin, dmax = out[:4].tolist()
-        return smin, smax, dmin, dmax, out[4:].copy(), self.Jt.copy()
+        return smin, smax, dmin, dmax, out[4:-1].copy(), self.Jt.copy(), float(out[-1])
 
     def project_states(self, T, Q, V, tols, max_iter=8):
         """`project_state` of each state (T[i], Q[i], V[i]) to tols[i] in one call, Q and V

@@ -54,7 +54,7 @@ class DenseBlock:
     solve through scipy's wrapper."""
 
     def __init__(self, A):
-        self.A, self._inv = A, False
+        self.A, self._inv, self._sign = A, False, None
 
     def solve(self, b):
         return solve(self.A, b)
@@ -73,10 +73,11 @@ class DenseBlock:
         return condition_number(self.A, self.inverse())
 
     def sign(self) -> int:
-        """The sign of det A (0 where A is singular or not square)."""
-        if self.A.shape[0] != self.A.shape[1]:
-            return 0
-        return int(np.linalg.slogdet(self.A)[0])
+        """The sign of det A (0 where A is singular or not square), computed once."""
+        if self._sign is None:
+            self._sign = 0 if self.A.shape[0] != self.A.shape[1] else \
+                int(np.linalg.slogdet(self.A)[0])
+        return self._sign
 
 
 class SparseBlock:

@@ -122,19 +122,20 @@ class SingularityMonitor:
         return self._measure(q, t, v)[:3]
 
     def _measure(self, q, t, v, J=None):
-        """`measure`, also returning σ_min, σ_max (σ_max = 0: rank lost) and J̃ = J̃(q)
-        (`J` if the caller has it)."""
+        """`measure`, also returning σ_min, σ_max (σ_max = 0: rank lost), J̃ = J̃(q)
+        (`J` if the caller has it) and ‖dJ̃/dt‖_F along v (0 without v)."""
         speed = float(np.max(np.abs(v))) if v is not None and v.size else 0.0
         eps = 1e-7 / speed if speed > 0.0 else 0.0
         m = self.problem.m
         if m == 0:
-            return 1.0, 0.0, np.zeros(0), 1.0, 1.0, self._jacobian(q, t) if J is None else J
-        smin, smax, d_min, d_max, u_min, J = self.problem.algebra.measure(
+            return (1.0, 0.0, np.zeros(0), 1.0, 1.0,
+                    self._jacobian(q, t) if J is None else J, 0.0)
+        smin, smax, d_min, d_max, u_min, J, rate_norm = self.problem.algebra.measure(
             q, t, v, eps, m - 1 - self.redundant, J)
         if not smax > 0.0:
-            return 0.0, 0.0, u_min, 0.0, 0.0, J
+            return 0.0, 0.0, u_min, 0.0, 0.0, J, 0.0
         rate = float((d_min * smax - smin * d_max) / smax ** 2) if eps else 0.0
-        return float(smin / smax), rate, u_min, float(smin), float(smax), J
+        return float(smin / smax), rate, u_min, float(smin), float(smax), J, rate_norm
 
     def _masses_hide(self, q, t) -> bool:
         """Do unequal masses, not the configuration, make σ_min/σ_max of J̃ that small?
@@ -188,11 +189,11 @@ class SingularityMonitor:
         if skip:
             self._skipped += 1
             return self.last
-        raw, rate, u, smin, smax, J = self._measure(q, t, v, J)
+        raw, rate, u, smin, smax, J, rate_norm = self._measure(q, t, v, J)
         self._measured = (J, smin, smax) if smax > 0.0 else None
         self._known = {tk: x for tk, x in self._known.items() if tk == t_old}
         self._known[t] = (smin, smax)
-        speed_before, self._ratio_speed = self._ratio_speed, self._speed(q, v, t, J, smax)
+        speed_before, self._ratio_speed = self._ratio_speed, self._speed(rate_norm, smax)
         self.peak = max(self.peak, raw)
         if self.peak < BLIND and self._masses_hide(q, t):
             # Below round-off, s/peak is noise: no passage can be told from it.
@@ -248,18 +249,15 @@ class SingularityMonitor:
         elif sm < self.enter * self.peak:
             self.open_passage = OpenPassage(t0, tm, sm, self.joints_of(um), True)
 
-    def _speed(self, q, v, t, J, smax) -> float:
-        """A bound on how fast σ_min/σ_max can change at (q, v): every singular value of J̃
-        moves at most ‖dJ̃/dt‖ (Weyl), so |d(σ_min/σ_max)/dt| ≤ 2 ‖dJ̃/dt‖_F / σ_max. Unlike
-        the rates of s seen so far it holds near a passage, where s turns sharply."""
-        if v is None or not smax > 0.0 or not v.size or not self.problem.algebra.small:
+    def _speed(self, rate_norm, smax) -> float:
+        """A bound on how fast σ_min/σ_max can change where ‖dJ̃/dt‖_F is `rate_norm` (from
+        the measurement, along the velocity): every singular value of J̃ moves at most
+        ‖dJ̃/dt‖ (Weyl), so |d(σ_min/σ_max)/dt| ≤ 2 ‖dJ̃/dt‖_F / σ_max. Unlike the rates of
+        s seen so far it holds near a passage, where s turns sharply. 0 for an algebra that
+        is not small (its search is bounded by the rates seen)."""
+        if not smax > 0.0 or not self.problem.algebra.small:
             return 0.0
-        speed = float(np.max(np.abs(v)))
-        if speed == 0.0:
-            return 0.0
-        eps = 1e-7 / speed
-        dJ = sparse.difference(self._jacobian(q + eps * v, t + eps), J, 1.0 / eps)
-        return 2.0 * sparse.frobenius(dJ) / smax
+        return 2.0 * rate_norm / smax
 
     def _hidden_passages(self, a, b, state_at, ratio_speed=0.0,
                          positions_at=None) -> list[Dip]:

@@ -61,9 +61,9 @@ class ConstraintAlgebra:
       the cut, else None (the formulation then decides by the SVD); `far`: the last
       accepted step found the motion far from any singular configuration, so no
       condition estimate is needed
-    - ``measure(q, t, v, eps, k, J=None)``: (σ_k, σ_max, σ̇_k, σ̇_max, u_k, J̃) at (q, t),
-      the rates along v from J̃ at (q + eps v, t + eps) (0 where eps is 0; `J`: J̃ at q
-      if the caller has it); σ_max = 0 where J̃ has lost that rank
+    - ``measure(q, t, v, eps, k, J=None)``: (σ_k, σ_max, σ̇_k, σ̇_max, u_k, J̃,
+      ‖dJ̃/dt‖_F) at (q, t), the rates along v from J̃ at (q + eps v, t + eps) (0 where
+      eps is 0; `J`: J̃ at q if the caller has it); σ_max = 0 where J̃ has lost that rank
     - ``chords(times, Q)``, ``singular_extremes(times, Q, k)``: bounds of ‖J̃ᵢ₊₁ − J̃ᵢ‖₂
       (`chord_bound`), (σ_k, σ_max) at each configuration: the passage search's grid
     - ``compiled_accelerations(t, q, v, Q, cut, bound, far)``: q̈ at (t, q, v) under the
@@ -142,13 +142,14 @@ class ConstraintAlgebra:
             J = self.scaled_jacobian(q, t)
         smin, u_min, v_min, smax, u_max, v_max = self.extremes(J, k)
         if not smax > 0.0:
-            return 0.0, 0.0, 0.0, 0.0, u_min, J
-        d_min = d_max = 0.0
+            return 0.0, 0.0, 0.0, 0.0, u_min, J, 0.0
+        d_min = d_max = rate_norm = 0.0
         if eps:
             dJ = sparse.difference(self.scaled_jacobian(q + eps * v, t + eps), J, 1.0 / eps)
             d_min = u_min @ (dJ @ v_min)
             d_max = u_max @ (dJ @ v_max)
-        return smin, smax, d_min, d_max, u_min, J
+            rate_norm = sparse.frobenius(dJ)
+        return smin, smax, d_min, d_max, u_min, J, rate_norm
 
     def chords(self, times, Q):
         J = np.array([sparse.dense(self.scaled_jacobian(q, tk)) for tk, q in zip(times, Q)])
