@@ -101,6 +101,25 @@ def test_assembled_equals_fused(name):
     assert np.array_equal(a.phi_q_csr(q, t, p).toarray(), a.phi_q(q, t, p))
 
 
+@pytest.mark.parametrize("name", list(MECHANISMS))
+def test_many_states_at_once_equal_each_state_bitwise(name):
+    """`NumericProblem.phi_many` and `phi_q_many` of the assembled model (each kernel once
+    for the joints of all states: the output samples and the passage search) give every
+    state's Φ and Φ_q to the last bit, drivers' laws at each state's own time included."""
+    mech = MECHANISMS[name]()
+    prob = mech.problem(build="assembled")
+    rng = np.random.default_rng(3)
+    Q, ts = rng.standard_normal((5, prob.n)), rng.uniform(0.0, 0.5, 5)
+    one = [(prob.phi(q, t), prob.phi_q(q, t)) for q, t in zip(Q, ts)]
+    phis, jacobians = prob.phi_many(Q, ts), prob.phi_q_many(Q, ts)
+    assert phis.shape == (5, prob.m) and jacobians.shape == (5, prob.m, prob.n)
+    for k, (phi, J) in enumerate(one):
+        np.testing.assert_array_equal(phis[k], phi)
+        np.testing.assert_array_equal(jacobians[k], J)
+    if mech.drivers:                          # each driver's law at its state's own time
+        assert not np.array_equal(prob.phi(Q[0], ts[1]), phis[0])
+
+
 @pytest.mark.parametrize("name", ["scene driven_slider_crank", "scene flexible_slider_crank",
                                   "flexible_four_bar 3 modes", "random double-rocker"])
 def test_assembled_against_finite_differences(name):

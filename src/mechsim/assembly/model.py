@@ -201,6 +201,33 @@ class AssembledModel:
         return tuple(a.reshape(self.M, self.N) if name == "J" else
                      self._csr(a) if name == "Jcsr" else a for a, name in zip(arrays, outputs))
 
+    def _evaluate_many(self, function, output, Q, ts, p):
+        """`output` ("phi" or "J") at the states (ts[i], Q[i]) stacked, (k, M) or
+        (k, M, N): each group's kernel called once for all of them (its joints of every
+        state as rows), so many states cost about what one does."""
+        Q = np.asarray(Q, dtype=float)
+        k = Q.shape[0]
+        width = self.M * self.N if output == "J" else self.M
+        out = np.zeros((k, width))
+        for g, P in zip(self.groups, self._p(p)):
+            joints = g.rows.shape[0]
+            rows = Q[:, g.cols].reshape(k * joints, -1)
+            value = getattr(g.kernel, function)(rows, np.tile(P, (k, 1)))
+            target = g.flat if output == "J" else g.rows
+            out[:, target] = np.reshape(value, (k, *target.shape))
+        if self.laws and output == "phi":
+            for i, t in enumerate(ts):
+                out[i, self.law_rows] -= self._law(t)[0]
+        return out.reshape(k, self.M, self.N) if output == "J" else out
+
+    def phi_many(self, Q, ts, p):
+        """Φ at the states (ts[i], Q[i]), (k, M), as `phi` gives each."""
+        return self._evaluate_many("phi", "phi", Q, ts, p)
+
+    def phi_q_many(self, Q, ts, p):
+        """Φ_q at the states (ts[i], Q[i]), (k, M, N), as `phi_q` gives each."""
+        return self._evaluate_many("jacobian", "J", Q, ts, p)
+
     def _csr(self, data):
         from scipy.sparse import csr_array
         return csr_array((data, self._csr_indices, self._csr_indptr), shape=(self.M, self.N))

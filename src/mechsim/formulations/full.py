@@ -120,7 +120,7 @@ def settle_samples(problem, ts, Q, V, accept, compiled=False) -> None:
         Q[left], V[left] = sub_Q, sub_V
         return
     floors = ROUND_OFF * np.maximum(1.0, np.max(np.abs(Q), axis=1))
-    phis = np.array([problem.phi(q, t) for q, t in zip(Q, ts)])
+    phis = problem.phi_many(Q, ts)
     off = np.flatnonzero(np.max(np.abs(phis), axis=1) > floors)
     if not off.size:
         return
@@ -148,20 +148,20 @@ def _settle_together(problem, ts, Q, V, phis, floors, off):
     landed = np.zeros(len(off), dtype=bool)
     for _ in range(SETTLE_STEPS):
         todo = np.flatnonzero(~landed)
-        J = np.array([problem.phi_q(q_new[i], tk[i]) for i in todo])       # (s, m, n)
+        J = problem.phi_q_many(q_new[todo], tk[todo])                       # (s, m, n)
         try:
             lam = np.linalg.solve((J * w) @ J.transpose(0, 2, 1), phi[todo][..., None])
         except np.linalg.LinAlgError:
             break
         q_new[todo] -= w * np.einsum("smn,sm->sn", J, lam[..., 0])
-        phi[todo] = [problem.phi(q_new[i], tk[i]) for i in todo]
+        phi[todo] = problem.phi_many(q_new[todo], tk[todo])
         landed[todo] = np.max(np.abs(phi[todo]), axis=1) <= floors[off][todo]
         if landed.all():
             break
     if not np.any(landed):
         return off
     idx, q_new, tk = off[landed], q_new[landed], tk[landed]
-    J = np.array([problem.phi_q(q, t) for q, t in zip(q_new, tk)])
+    J = problem.phi_q_many(q_new, tk)
     r = np.einsum("smn,sn->sm", J, V[idx])
     if problem.rheonomic_rows:
         r += np.array([problem.phi_t(q, t) for q, t in zip(q_new, tk)])

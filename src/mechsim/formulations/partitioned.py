@@ -319,8 +319,9 @@ class Partitioned(Formulation):
         """The output samples of a step, solved for together: the chord Newton on all
         samples at once (one product with the chord factor and one convergence test per
         iteration for all of them), then the velocity solves stacked in one LAPACK call.
-        The model's functions still run once per sample: on a step's dozen samples numpy
-        ufuncs over all of them cost twice as much as the scalar kernels one by one. A
+        The model's functions run once per sample where they are scalar code (a fused
+        model: on a step's dozen samples numpy ufuncs over all of them cost twice as much),
+        once for all samples where they are arrays already (`NumericProblem.phi_many`). A
         chord that stalls on any sample, a non-square Φ_q D (redundant constraints), a
         singular or a sparse one (long chains) leaves the samples to `alone(ts, Y)` (by
         default `state`, one by one). Returns (Q, V, signs): signs those of det(Φ_q D) at
@@ -341,7 +342,7 @@ class Partitioned(Formulation):
 
         def residual(W):
             Q = bs.combine(base, Z, W).T                     # (k, n)
-            return np.array([prob.phi(q, t) for q, t in zip(Q, ts)]).T, Q
+            return prob.phi_many(Q, ts).T, Q
 
         def correct(W, phi, Q, slow):
             return None if slow else W - self._chord.chord(phi)
@@ -352,7 +353,7 @@ class Partitioned(Formulation):
         if not done.converged:
             return alone(ts, Y)
         Q = done.aux
-        J = np.array([prob.phi_q(q, t) for q, t in zip(Q, ts)])       # (k, m, n)
+        J = prob.phi_q_many(Q, ts)                                       # (k, m, n)
         r = -(bs.JB(J) @ Zd[:, :, None])[:, :, 0]
         if self._rheonomic:
             r -= np.array([prob.phi_t(q, t) for q, t in zip(Q, ts)])

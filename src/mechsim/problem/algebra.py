@@ -31,6 +31,9 @@ CHAIN_REF = 0.1
 # with the dense algebra measures many states together by one stacked SVD). A larger one's
 # SVD costs milliseconds: there the rates seen bound the search.
 SMALL_ROWS = 60
+# The states whose J̃ the passage search keeps for its later questions about the same
+# states (`ConstraintAlgebra._scaled_at`: a step's grid and halvings).
+NODES = 64
 
 
 class ConstraintAlgebra:
@@ -152,14 +155,42 @@ class ConstraintAlgebra:
         return smin, smax, d_min, d_max, u_min, J, rate_norm
 
     def chords(self, times, Q):
-        J = np.array([sparse.dense(self.scaled_jacobian(q, tk)) for tk, q in zip(times, Q)])
-        return chord_bound(np.diff(J, axis=0))
+        return chord_bound(np.diff(self._scaled_at(times, Q), axis=0))
 
     def singular_extremes(self, times, Q, k):
-        J = np.array([sparse.dense(self.scaled_jacobian(q, tk)) for tk, q in zip(times, Q)])
-        sig = np.linalg.svd(J, compute_uv=False)
+        sig = np.linalg.svd(self._scaled_at(times, Q), compute_uv=False)
         low = sig[:, k] if 0 <= k < sig.shape[1] else np.zeros(len(sig))
         return np.column_stack([low, sig[:, 0]])
+
+    def _scaled_at(self, times, Q) -> np.ndarray:
+        """J̃ (dense) at each state (times[i], Q[i]), stacked. The passage search asks for
+        the same states' J̃ more than once (its chords, then the SVDs of some of them;
+        each halving's chords again at the interval's ends): the latest `NODES` states'
+        are kept, by their exact time and coordinates."""
+        memo = self.__dict__.setdefault("_nodes", {})
+        Q = [np.asarray(q, dtype=float) for q in Q]
+        keys = [(float(tk), q.tobytes()) for tk, q in zip(times, Q)]
+        new = list(dict.fromkeys(key for key in keys if key not in memo))
+        if len(memo) + len(new) > NODES:
+            memo.clear()
+            new = list(dict.fromkeys(keys))
+        if new:
+            at = {key: i for i, key in enumerate(keys)}
+            memo.update(zip(new, self._scaled_many([times[at[key]] for key in new],
+                                                   [Q[at[key]] for key in new])))
+        return np.array([memo[key] for key in keys])
+
+    def _scaled_many(self, times, Q) -> list:
+        """J̃ (dense) at each state: one evaluation of Φ_q for all of them where the model
+        takes many states at once and the mass is constant (`NumericProblem.phi_q_many`;
+        J̃ = Φ_q diag(s), as `scaled_jacobian` scales each), else one by one."""
+        prob = self.problem
+        if hasattr(prob.model, "phi_q_many") and not prob.sparse and prob.constant_mass:
+            factor = prob.mass_factor(Q[0])
+            if factor.Linv is None:
+                return list(sparse.scale_columns(prob.phi_q_many(np.array(Q), times),
+                                                 factor.s))
+        return [sparse.dense(self.scaled_jacobian(q, tk)) for tk, q in zip(times, Q)]
 
     def compiled_accelerations(self, t, q, v, Q, cut, bound, far):
         return None

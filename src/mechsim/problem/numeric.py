@@ -175,6 +175,20 @@ class NumericProblem:
     def phi_t(self, q, t):
         return self.model.phi_t(q, t, self.p)
 
+    def phi_many(self, Q, ts) -> np.ndarray:
+        """Φ at the states (ts[i], Q[i]), shape (k, m): each state's `phi`, in one call
+        where the model evaluates many states together (the assembled one)."""
+        if hasattr(self.model, "phi_many"):
+            return self.model.phi_many(Q, ts, self.p)
+        return np.array([self.phi(q, t) for q, t in zip(Q, ts)]).reshape(len(Q), self.m)
+
+    def phi_q_many(self, Q, ts) -> np.ndarray:
+        """Φ_q at the states (ts[i], Q[i]), shape (k, m, n), as `phi_many`."""
+        if hasattr(self.model, "phi_q_many"):
+            return self.model.phi_q_many(Q, ts, self.p)
+        return np.array([self.phi_q(q, t) for q, t in zip(Q, ts)]).reshape(
+            len(Q), self.m, self.n)
+
     def gamma(self, q, v, t):
         return self.model.gamma(q, v, t, self.p)
 
