@@ -350,7 +350,7 @@ class BandedAlgebra(DenseAlgebra):
     compiles = False
     # Its measurement (inverse iteration and Lanczos on the band, about a millisecond at
     # any length) is not cheap even under `SMALL_ROWS` rows: the singularity monitor bounds
-    # its search by the rates seen, as for any long chain (docs/benchmarks.md, session 30).
+    # its search by the rates seen, as for any long chain (docs/benchmarks.md).
     small = False
 
     def __init__(self, problem, band):
