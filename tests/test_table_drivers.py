@@ -66,6 +66,26 @@ def test_a_table_driven_simulation_follows_the_table():
     np.testing.assert_allclose(angle, theta(res.t), rtol=0, atol=1e-7)
 
 
+def test_a_table_s_law_is_scipy_s_spline_to_the_last_bit():
+    """The law's value, rate and acceleration (summed by the driver itself, as scipy sums a
+    piecewise polynomial) equal scipy's not-a-knot spline's and its derivatives' bitwise:
+    between the points, at each point and just past either end (the end pieces go on)."""
+    from scipy.interpolate import CubicSpline
+    rng = np.random.default_rng(5)
+    t = np.cumsum(rng.uniform(0.005, 0.05, 40))
+    values = theta(t) + rng.normal(scale=0.01, size=t.size)
+    law = ms.Driver(engine().joint("O"), table=(t, values), name="m").law
+    spline = CubicSpline(t, values, bc_type="not-a-knot")
+    span = t[-1] - t[0]
+    at = np.concatenate([rng.uniform(t[0], t[-1], 100), t,
+                         [t[0] - 0.5e-6 * span, t[-1] + 0.5e-6 * span]])
+    for x in at:
+        assert law.jet("t", x) == tuple(float(spline(x, k)) for k in range(3)), x
+        assert law.value(x) == float(spline(x))
+    with pytest.raises(ValueError, match="outside the table"):
+        law.value(t[-1] + 1e-3 * span)
+
+
 def test_a_table_round_trips_through_a_scene(tmp_path):
     t = np.linspace(0.0, 0.2, 21)
     mech = engine(table=(t, theta(t)))
