@@ -49,7 +49,19 @@ MECHANISMS = {
         np.random.default_rng(7), kind)[0]) for kind in examples.RANDOM_KINDS},
     "engine_sizing example": _engine_example,
     "cam through points": lambda: _spline_cam(),
+    "table-driven slider_crank": lambda: _table_driven(),
 }
+
+
+def _table_driven():
+    """The driven slider-crank whose crank follows a table of 41 points: the fused model
+    evaluates the table's spline by its own printers' calls, the assembled one by the law."""
+    mech = examples.slider_crank(driven=True, crank_speed=40.0)
+    pivot = mech.joint("O")
+    mech.drivers.clear()
+    t = np.linspace(-0.1, 0.7, 41)
+    mech.add(ms.Driver(pivot, table=(t, 40.0 * t + 0.3 * np.sin(25.0 * t)), name="motor"))
+    return mech
 
 
 def _spline_cam():

@@ -89,7 +89,7 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
     mass = mass_diagonal(mech)            # a point mass that can turn refused before a build
     mode = build_mode(build)
     if any(getattr(d, "evaluated", False) for d in mech.drivers):
-        mode = "assembled"                # a table or a function is evaluated, never generated
+        mode = "assembled"                # a function is evaluated, never generated
     model, from_cache = constraint_model(mech, items, mode)
     starts = body_starts(mech)
     exact = [x for item in items for x in item.parameter_values()] + \
@@ -129,10 +129,11 @@ def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]
 def sensitivity_model(mech):
     """The module of the constraints' derivatives in the model's parameters
     (`mechsim.symbolic.sensitivity`) for `mech`'s structure, from the cache or generated
-    by sympy into it. ModelError where a driver's law is evaluated (a table or a
-    function: sympy cannot differentiate it)."""
+    by sympy into it. ModelError where a driver follows a table or a function (the
+    derivatives' generation does not reach through them)."""
     from ..codegen import load_model
-    evaluated = [d.name for d in mech.drivers if getattr(d, "evaluated", False)]
+    evaluated = [d.name for d in mech.drivers
+                 if getattr(d, "evaluated", False) or getattr(d, "tabulated", False)]
     if evaluated:
         raise ModelError(f"sensitivities: driver '{evaluated[0]}' follows a table or a "
                          "function, which the derivatives cannot be generated through; give "

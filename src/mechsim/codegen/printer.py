@@ -21,6 +21,9 @@ class _Printer(PythonCodePrinter):
     def _print_PeriodicSpline(self, expr):
         return spline_call(self, expr, "_pspline", "_p[{0}:{1}]")
 
+    def _print_TableSpline(self, expr):
+        return spline_call(self, expr, "_tspline", "_p[{0}:{1}]")
+
 
 def spline_call(printer, expr, name, source) -> str:
     """A `PeriodicSpline` as a call `name(order, φ, k, source)`, `source` formatted with
@@ -30,8 +33,10 @@ def spline_call(printer, expr, name, source) -> str:
     return f"{name}({int(order)}, {printer.doprint(phi)}, {k}, {values})"
 
 
-# What a module whose equations hold a periodic spline imports to evaluate it.
+# What a module whose equations hold a periodic spline (a driver's table) imports to
+# evaluate it.
 SPLINE_IMPORT = "from mechsim.model.splines import evaluate as _pspline"
+TABLE_IMPORT = "from mechsim.model.splines import evaluate_table as _tspline"
 
 
 def spline_c() -> str:
@@ -53,6 +58,9 @@ def c_printer():
 
         def _print_PeriodicSpline(self, expr):
             return spline_call(self, expr, "mechsim_pspline", "&p[{0}]")
+
+        def _print_TableSpline(self, expr):
+            return spline_call(self, expr, "mechsim_tspline", "&p[{0}]")
 
     return Printer()
 
@@ -177,8 +185,11 @@ class _ModuleWriter:
                      for values, name in self.constants.items()]
         if any("_pspline(" in f for f in self.functions):
             header.insert(3, SPLINE_IMPORT)
+        if any("_tspline(" in f for f in self.functions):
+            header.insert(3, TABLE_IMPORT)
         if self.c_functions:
-            spline = spline_c() + "\n" if any("mechsim_pspline(" in f
+            spline = spline_c() + "\n" if any("mechsim_pspline(" in f or
+                                              "mechsim_tspline(" in f
                                               for f in self.c_functions) else ""
             c_source = "#include <math.h>\n\n" + spline + "\n\n".join(self.c_functions) + "\n"
             constants += ["", f"C_SOURCE = {c_source!r}",

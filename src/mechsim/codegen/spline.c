@@ -19,3 +19,23 @@ static double mechsim_pspline(int order, double phi, int k, const double *p) {
     default: return 6.0 * c[0];
   }
 }
+
+/* The table's cubic spline of mechsim.model.splines.evaluate_table: the order-th
+   derivative at t of the spline of k pieces whose k + 1 knots and 4 k coefficients are
+   p[0 .. 5 k], its end pieces going on past the ends. */
+static double mechsim_tspline(int order, double t, int k, const double *p) {
+  int lo = 0, hi = k - 1;               /* the last piece whose knot is at or below t */
+  while (lo < hi) {
+    int mid = (lo + hi + 1) / 2;
+    if (t >= p[mid]) lo = mid; else hi = mid - 1;
+  }
+  const double *c = p + k + 1 + 4 * lo;
+  const double u = t - p[lo];
+  switch (order) {
+    case 0: return ((c[0] * u + c[1]) * u + c[2]) * u + c[3];
+    case 1: return (3.0 * c[0] * u + 2.0 * c[1]) * u + c[2];
+    case 2: return 6.0 * c[0] * u + 2.0 * c[1];
+    case 3: return 6.0 * c[0];
+    default: return 0.0;
+  }
+}

@@ -112,9 +112,10 @@ class Driver:
 
     @property
     def evaluated(self) -> bool:
-        """Is its law evaluated in numbers only (a table, a Python function)? Such a driver
-        runs on the assembled build, which evaluates laws itself."""
-        return isinstance(self.law, (TableLaw, FunctionLaw))
+        """Is its law evaluated in numbers only (a Python function)? Such a driver runs on
+        the assembled build, which evaluates laws itself. A table is not: its spline's
+        knots and coefficients are numbers of the generated model (`TableLaw.constants`)."""
+        return isinstance(self.law, FunctionLaw)
 
     def value(self, t: float) -> float:
         """f(t), the prescribed change of the joint's coordinate (float arithmetic)."""
@@ -145,7 +146,10 @@ class Driver:
         return self.law.constants()
 
     def equations(self, ctx, p):
-        law = self.law.to_sympy({"t": ctx.t}, constants=ctx.law_constants(self))
+        if self.tabulated:
+            law = ctx.table(self.law.pieces, ctx.t, ctx.law_constants(self))
+        else:
+            law = self.law.to_sympy({"t": ctx.t}, constants=ctx.law_constants(self))
         return [self.displacement(ctx, p) - law]
 
     def displacement(self, ctx, p):
@@ -175,11 +179,13 @@ class TableLaw:
     smooth. Defined on [times[0], times[-1]] only: a run must stay inside it
     (`Mechanism.simulate` refuses one that does not, naming the driver), and a value
     asked for outside is a ValueError. It offers what a driver asks of a law: `text`,
-    `value(t=)`, `jet`, `constants()` (none: the table is data, not structure)."""
+    `value(t=)`, `jet`, `constants()`: the spline's knots and pieces' coefficients
+    (`mechsim.model.splines`' layout), numbers of the generated model, which evaluates the
+    spline itself (in C where it is compiled), so that tables of as many points share one
+    build; `template` names only their count."""
 
     MIN_POINTS = 4
     names = frozenset({"t"})
-    template = "table"
 
     def __init__(self, table, owner: str):
         data = number_array(table, owner, "(times, values) or rows (t, value) of numbers")
@@ -204,6 +210,8 @@ class TableLaw:
         self.times, self.values = times, values
         self.text = (f"a table of {times.size} points over [{times[0]:g}, {times[-1]:g}] s")
         self.canonical = self.text
+        self.pieces = times.size - 1
+        self.template = f"table of {self.pieces} cubic pieces"
         self._pieces = None          # (knots, each piece's cubic's coefficients), as lists
 
     @property
@@ -253,7 +261,10 @@ class TableLaw:
         return self._derivatives(self._at(float(value)), (0, 1, 2))
 
     def constants(self) -> list[float]:
-        return []
+        """The knots, then each piece's (a, b, c, d) of f = ((a u + b) u + c) u + d."""
+        self._at(float(self.times[0]))
+        knots, pieces = self._pieces
+        return list(knots) + [x for piece in pieces for x in piece]
 
     def __repr__(self):
         return f"TableLaw({self.text})"

@@ -1,4 +1,5 @@
-"""Closed curves given by points: the periodic cubic spline r(φ) of a cam's pitch curve.
+"""Curves given by points: the periodic cubic spline r(φ) of a cam's pitch curve, and a
+driver's table (`evaluate_table`, the same layout over time, not periodic).
 
 The spline is data, not structure: its knots and coefficients are parameters of the joint
 that uses it (`coefficients`), so a cam with other points but as many of them needs no new
@@ -13,6 +14,7 @@ c) u + d with u = φ − φ_i on [φ_i, φ_{i+1}].
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 
 import numpy as np
 
@@ -95,3 +97,33 @@ def evaluate(order, phi, k, parameters):
     if order == 3:
         return 6.0 * a
     raise ValueError(f"a cubic spline has no derivative of order {order}")
+
+
+def evaluate_table(order, t, k, parameters):
+    """The `order`-th derivative (0 to 3) of the (not periodic) cubic spline of k pieces
+    whose k + 1 knots and 4 k coefficients are `parameters` (the layout above) at t (a
+    number or an array): a driver's table (`mechsim.model.drivers.TableLaw`), the end
+    pieces going on past the ends."""
+    if np.ndim(t) == 0:
+        # One time (a generated model's call at every stage): the knot found by bisection
+        # in the parameters as given, plain floats.
+        i = bisect_right(parameters, float(t), 1, k) - 1
+        a, b, c, d = (float(x) for x in parameters[k + 1 + 4 * i:k + 5 + 4 * i])
+        u = float(t) - float(parameters[i])
+    else:
+        p = np.asarray(parameters, float)
+        knots = p[:k + 1]
+        x = np.asarray(t, float)
+        i = np.searchsorted(knots[1:k], x, side="right")  # the interior knots at or below t
+        j = k + 1 + 4 * i
+        a, b, c, d = p[j], p[j + 1], p[j + 2], p[j + 3]
+        u = x - knots[i]
+    if order == 0:
+        return ((a * u + b) * u + c) * u + d
+    if order == 1:
+        return (3.0 * a * u + 2.0 * b) * u + c
+    if order == 2:
+        return 6.0 * a * u + 2.0 * b
+    if order == 3:
+        return 6.0 * a
+    return np.zeros_like(u)[()]            # a cubic's higher derivatives

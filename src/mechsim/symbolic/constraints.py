@@ -32,6 +32,19 @@ class PeriodicSpline(sp.Function):
         return PeriodicSpline(order + 1, phi, k, first)
 
 
+class TableSpline(PeriodicSpline):
+    """The `order`-th derivative of a driver's table at t: TableSpline(order, t, k, first),
+    the (not periodic) cubic spline of k pieces whose knots and coefficients are the
+    parameters from index `first` on (`mechsim.model.splines.evaluate_table`; in C
+    `mechsim_tspline`); its derivative in t is the next order."""
+
+    def fdiff(self, argindex=2):
+        if argindex != 2:
+            raise sp.ArgumentIndexError(self, argindex)
+        order, t, k, first = self.args
+        return TableSpline(order + 1, t, k, first)
+
+
 class SymbolicContext(JointContext):
     """What a joint sees while writing its equations: the symbols of the bodies' frames and
     the parameter symbols of every constraint item.
@@ -87,6 +100,12 @@ class SymbolicContext(JointContext):
         if hasattr(law, "coefficients"):
             return PeriodicSpline(0, phi, law.k, self.p.index(parameters[0]))
         return law.to_sympy({"phi": phi})
+
+    def table(self, pieces: int, t, parameters):
+        """A driver's table f(t) as sympy: the spline of `pieces` cubic pieces whose knots
+        and coefficients are `parameters` (symbols of this context's parameter vector, in
+        order: `TableLaw.constants`)."""
+        return TableSpline(0, t, pieces, self.p.index(parameters[0]))
 
     def parameters(self, item) -> dict:
         return self._params[id(item)]
