@@ -234,8 +234,8 @@ class TableLaw:
 
     def _derivatives(self, t: float, orders) -> tuple[float, ...]:
         """The spline's derivatives of `orders` at t, its piece's cubic summed as scipy's
-        piecewise polynomials sum it (the same numbers; a solver asks at every stage, and
-        scipy's call costs ~30 µs a value). The end pieces go on past the ends."""
+        piecewise polynomials sum it (the same numbers, without a scipy call for each).
+        The end pieces go on past the ends."""
         knots, pieces = self._pieces
         i = min(max(bisect_right(knots, t) - 1, 0), len(knots) - 2)
         s, c = t - knots[i], pieces[i]

@@ -88,15 +88,9 @@ def evaluate(order, phi, k, parameters):
         cols = np.arange(knots.shape[1])
         a, b, c, d = (coefficients[i, j, cols] for j in range(4))
         u = x - knots[i, cols]
-    if order == 0:
-        return ((a * u + b) * u + c) * u + d
-    if order == 1:
-        return (3.0 * a * u + 2.0 * b) * u + c
-    if order == 2:
-        return 6.0 * a * u + 2.0 * b
-    if order == 3:
-        return 6.0 * a
-    raise ValueError(f"a cubic spline has no derivative of order {order}")
+    if order > 3:
+        raise ValueError(f"a cubic spline has no derivative of order {order}")
+    return _cubic(order, a, b, c, d, u)
 
 
 def evaluate_table(order, t, k, parameters):
@@ -118,6 +112,11 @@ def evaluate_table(order, t, k, parameters):
         j = k + 1 + 4 * i
         a, b, c, d = p[j], p[j + 1], p[j + 2], p[j + 3]
         u = x - knots[i]
+    return _cubic(order, a, b, c, d, u)
+
+
+def _cubic(order, a, b, c, d, u):
+    """The `order`-th derivative of ((a u + b) u + c) u + d (0 beyond the third)."""
     if order == 0:
         return ((a * u + b) * u + c) * u + d
     if order == 1:
@@ -126,4 +125,4 @@ def evaluate_table(order, t, k, parameters):
         return 6.0 * a * u + 2.0 * b
     if order == 3:
         return 6.0 * a
-    return np.zeros_like(u)[()]            # a cubic's higher derivatives
+    return np.zeros_like(u)[()]
