@@ -88,6 +88,24 @@ def test_a_table_s_law_is_scipy_s_spline_to_the_last_bit():
         law.value(t[-1] + 1e-3 * span)
 
 
+def test_a_long_table_is_evaluated_by_the_assembled_build():
+    """A table of more than `GENERATED_POINTS` stays out of the generated model (its
+    numbers would make every generated function's call and the module grow with it): the
+    assembled build evaluates it, and the crank follows its spline as a short one's does."""
+    from scipy.interpolate import CubicSpline
+    from mechsim.model.drivers import GENERATED_POINTS
+    t = np.linspace(0.0, 0.05, GENERATED_POINTS + 1)
+    mech = engine(table=(t, theta(t)))
+    assert mech.drivers[0].evaluated and mech.drivers[0].law_constants == []
+    assert getattr(mech.problem().model, "ASSEMBLED", False)
+    res = mech.kinematics(0.05, 1e-3)
+    assert res.success, res.message
+    np.testing.assert_allclose(res.coordinate("crank.angle"), CubicSpline(t, theta(t))(res.t),
+                               rtol=0, atol=1e-11)
+    short = engine(table=(t[::10], theta(t[::10])))
+    assert not short.drivers[0].evaluated and len(short.drivers[0].law_constants) == 5 * 100 + 1
+
+
 def test_a_table_round_trips_through_a_scene(tmp_path):
     t = np.linspace(0.0, 0.2, 21)
     mech = engine(table=(t, theta(t)))

@@ -22,7 +22,7 @@ class _Printer(PythonCodePrinter):
         return spline_call(self, expr, "_pspline", "_p[{0}:{1}]")
 
     def _print_TableSpline(self, expr):
-        return spline_call(self, expr, "_tspline", "_p[{0}:{1}]")
+        return spline_call(self, expr, "_tspline", "_p, {0}")       # no copy of the table
 
 
 def spline_call(printer, expr, name, source) -> str:

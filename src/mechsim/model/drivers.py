@@ -112,10 +112,12 @@ class Driver:
 
     @property
     def evaluated(self) -> bool:
-        """Is its law evaluated in numbers only (a Python function)? Such a driver runs on
-        the assembled build, which evaluates laws itself. A table is not: its spline's
-        knots and coefficients are numbers of the generated model (`TableLaw.constants`)."""
-        return isinstance(self.law, FunctionLaw)
+        """Is its law evaluated in numbers only (a Python function, a table of more than
+        `GENERATED_POINTS`)? Such a driver runs on the assembled build, which evaluates
+        laws itself. A smaller table is not: its spline's knots and coefficients are
+        numbers of the generated model (`TableLaw.constants`)."""
+        return isinstance(self.law, FunctionLaw) or \
+            (isinstance(self.law, TableLaw) and not self.law.generated)
 
     def value(self, t: float) -> float:
         """f(t), the prescribed change of the joint's coordinate (float arithmetic)."""
@@ -146,7 +148,7 @@ class Driver:
         return self.law.constants()
 
     def equations(self, ctx, p):
-        if self.tabulated:
+        if self.tabulated and self.law.generated:
             law = ctx.table(self.law.pieces, ctx.t, ctx.law_constants(self))
         else:
             law = self.law.to_sympy({"t": ctx.t}, constants=ctx.law_constants(self))
@@ -169,6 +171,11 @@ class Driver:
 
 # How far past its first and last time a table's spline is evaluated, in its span.
 REACH = 1e-6
+# Up to this many points a table's spline is part of the generated model; a longer one
+# is evaluated by the assembled build (a generated model's every Python function unpacks
+# all its numbers, and its source grows with them: past about this many the assembled
+# build costs less, docs/benchmarks.md).
+GENERATED_POINTS = 1000
 
 
 class TableLaw:
@@ -182,7 +189,8 @@ class TableLaw:
     `value(t=)`, `jet`, `constants()`: the spline's knots and pieces' coefficients
     (`mechsim.model.splines`' layout), numbers of the generated model, which evaluates the
     spline itself (in C where it is compiled), so that tables of as many points share one
-    build; `template` names only their count."""
+    build; `template` names only their count. A table of more than `GENERATED_POINTS`
+    (`generated` False) has no constants: the assembled build evaluates it."""
 
     MIN_POINTS = 4
     names = frozenset({"t"})
@@ -211,7 +219,8 @@ class TableLaw:
         self.text = (f"a table of {times.size} points over [{times[0]:g}, {times[-1]:g}] s")
         self.canonical = self.text
         self.pieces = times.size - 1
-        self.template = f"table of {self.pieces} cubic pieces"
+        self.generated = times.size <= GENERATED_POINTS
+        self.template = f"table of {self.pieces} cubic pieces" if self.generated else "table"
         self._pieces = None          # (knots, each piece's cubic's coefficients), as lists
 
     @property
@@ -261,7 +270,10 @@ class TableLaw:
         return self._derivatives(self._at(float(value)), (0, 1, 2))
 
     def constants(self) -> list[float]:
-        """The knots, then each piece's (a, b, c, d) of f = ((a u + b) u + c) u + d."""
+        """The knots, then each piece's (a, b, c, d) of f = ((a u + b) u + c) u + d (none
+        where the table is not `generated`)."""
+        if not self.generated:
+            return []
         self._at(float(self.times[0]))
         knots, pieces = self._pieces
         return list(knots) + [x for piece in pieces for x in piece]

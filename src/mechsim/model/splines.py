@@ -93,19 +93,20 @@ def evaluate(order, phi, k, parameters):
     return _cubic(order, a, b, c, d, u)
 
 
-def evaluate_table(order, t, k, parameters):
-    """The `order`-th derivative (0 to 3) of the (not periodic) cubic spline of k pieces
-    whose k + 1 knots and 4 k coefficients are `parameters` (the layout above) at t (a
-    number or an array): a driver's table (`mechsim.model.drivers.TableLaw`), the end
-    pieces going on past the ends."""
+def evaluate_table(order, t, k, parameters, first=0):
+    """The `order`-th derivative of the (not periodic) cubic spline of k pieces whose
+    k + 1 knots and 4 k coefficients are `parameters` from index `first` on (the layout
+    above) at t (a number or an array): a driver's table
+    (`mechsim.model.drivers.TableLaw`), the end pieces going on past the ends."""
     if np.ndim(t) == 0:
         # One time (a generated model's call at every stage): the knot found by bisection
-        # in the parameters as given, plain floats.
-        i = bisect_right(parameters, float(t), 1, k) - 1
-        a, b, c, d = (float(x) for x in parameters[k + 1 + 4 * i:k + 5 + 4 * i])
+        # in the parameters as given (the model's whole vector: no copy), plain floats.
+        i = bisect_right(parameters, float(t), first + 1, first + k) - 1
+        j = first + k + 1 + 4 * (i - first)
+        a, b, c, d = (float(x) for x in parameters[j:j + 4])
         u = float(t) - float(parameters[i])
     else:
-        p = np.asarray(parameters, float)
+        p = np.asarray(parameters[first:first + 5 * k + 1], float)
         knots = p[:k + 1]
         x = np.asarray(t, float)
         i = np.searchsorted(knots[1:k], x, side="right")  # the interior knots at or below t
