@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 
-from bisect import bisect_right
-
 import numpy as np
 
 from . import parameters as dual
 from .checks import ModelError, name_or_default, number_array, scalar
 from .expressions import parse
 from .joints import Joint, coordinate_joint
+from .splines import evaluate_table
 
 
 class Driver:
@@ -221,7 +220,7 @@ class TableLaw:
         self.pieces = times.size - 1
         self.generated = times.size <= GENERATED_POINTS
         self.template = f"table of {self.pieces} cubic pieces" if self.generated else "table"
-        self._pieces = None          # (knots, each piece's cubic's coefficients), as lists
+        self._pieces = None          # `spline`
 
     @property
     def domain(self) -> tuple[float, float]:
@@ -235,48 +234,32 @@ class TableLaw:
         slack = REACH * (t1 - t0)
         if not t0 - slack <= t <= t1 + slack:
             raise ValueError(f"t = {t:.9g} is outside the table's times [{t0:g}, {t1:g}]")
-        if self._pieces is None:
-            from scipy.interpolate import CubicSpline
-            spline = CubicSpline(self.times, self.values, bc_type="not-a-knot")
-            self._pieces = (self.times.tolist(), spline.c.T.tolist())
         return t
 
-    def _derivatives(self, t: float, orders) -> tuple[float, ...]:
-        """The spline's derivatives of `orders` at t, its piece's cubic summed as scipy's
-        piecewise polynomials sum it (the same numbers, without a scipy call for each).
-        The end pieces go on past the ends."""
-        knots, pieces = self._pieces
-        i = min(max(bisect_right(knots, t) - 1, 0), len(knots) - 2)
-        s, c = t - knots[i], pieces[i]
-        out = []
-        for order in orders:
-            total, z = 0.0, 1.0
-            for power in range(order, 4):
-                factor = 1.0
-                for k in range(power, power - order, -1):
-                    factor *= k
-                total = total + c[3 - power] * z * factor
-                if power < 3:
-                    z *= s
-            out.append(total)
-        return tuple(out)
+    @property
+    def spline(self) -> tuple:
+        """The spline's knots, then each piece's (a, b, c, d) of f = ((a u + b) u + c) u +
+        d (`mechsim.model.splines`' layout), computed once."""
+        if self._pieces is None:
+            from scipy.interpolate import CubicSpline
+            c = CubicSpline(self.times, self.values, bc_type="not-a-knot").c
+            self._pieces = tuple(self.times.tolist()) + tuple(c.T.ravel().tolist())
+        return self._pieces
 
     def value(self, t: float) -> float:
         """The spline's value at t (ValueError outside the table's times)."""
-        return self._derivatives(self._at(float(t)), (0,))[0]
+        return evaluate_table(0, self._at(float(t)), self.pieces, self.spline)
 
     def jet(self, name: str, value: float, **_) -> tuple[float, float, float]:
-        """(f, f', f'') at t = `value`, the spline's and its derivatives'."""
-        return self._derivatives(self._at(float(value)), (0, 1, 2))
+        """(f, f', f'') at t = `value`, the spline's and its derivatives', summed as the
+        generated model sums them (`mechsim.model.splines.evaluate_table`)."""
+        t = self._at(float(value))
+        return tuple(evaluate_table(k, t, self.pieces, self.spline) for k in range(3))
 
     def constants(self) -> list[float]:
         """The knots, then each piece's (a, b, c, d) of f = ((a u + b) u + c) u + d (none
         where the table is not `generated`)."""
-        if not self.generated:
-            return []
-        self._at(float(self.times[0]))
-        knots, pieces = self._pieces
-        return list(knots) + [x for piece in pieces for x in piece]
+        return list(self.spline) if self.generated else []
 
     def __repr__(self):
         return f"TableLaw({self.text})"
