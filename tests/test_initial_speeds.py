@@ -1,7 +1,6 @@
 """Initial speeds users can give: joint rates (Mechanism.set_speed) taken exactly, and a
 warning where assembly has to change a velocity the user gave."""
 
-import math
 
 import numpy as np
 import pytest

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import mechsim as ms
-from mechsim.linear.rotor import Bearing, Disk, Rotor, ShaftElement, Unbalance
+from mechsim.linear.rotor import Bearing, Disk, Rotor, ShaftElement
 
 E, RHO, NU = 2.0e11, 7800.0, 0.3
 

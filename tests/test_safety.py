@@ -353,7 +353,7 @@ def test_a_background_build_has_a_time_limit(tmp_path):
     and fifty factors kept sympy busy for over five minutes with no limit): the child's
     entry point sets RLIMIT_CPU before it reads its payload."""
     import pickle
-    resource = pytest.importorskip("resource")
+    pytest.importorskip("resource")
     from mechsim.build import background
     code = ("import resource, sys; from mechsim.build import background; "
             "background.build = lambda *a: print(resource.getrlimit(resource.RLIMIT_CPU), a); "

@@ -1,7 +1,6 @@
 """Structural tier: generated Φ_q, Φ_t and γ against finite differences of the generated Φ,
 on random configurations of a mechanism that uses every joint and driver type."""
 
-import math
 
 import numpy as np
 import pytest
