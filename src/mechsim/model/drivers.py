@@ -220,7 +220,7 @@ class TableLaw:
         self.pieces = times.size - 1
         self.generated = times.size <= GENERATED_POINTS
         self.template = f"table of {self.pieces} cubic pieces" if self.generated else "table"
-        self._pieces = None          # `spline`
+        self._spline = None          # `spline`
 
     @property
     def domain(self) -> tuple[float, float]:
@@ -240,11 +240,11 @@ class TableLaw:
     def spline(self) -> tuple:
         """The spline's knots, then each piece's (a, b, c, d) of f = ((a u + b) u + c) u +
         d (`mechsim.model.splines`' layout), computed once."""
-        if self._pieces is None:
+        if self._spline is None:
             from scipy.interpolate import CubicSpline
             c = CubicSpline(self.times, self.values, bc_type="not-a-knot").c
-            self._pieces = tuple(self.times.tolist()) + tuple(c.T.ravel().tolist())
-        return self._pieces
+            self._spline = tuple(self.times.tolist()) + tuple(c.T.ravel().tolist())
+        return self._spline
 
     def value(self, t: float) -> float:
         """The spline's value at t (ValueError outside the table's times)."""

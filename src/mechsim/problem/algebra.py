@@ -105,6 +105,7 @@ class ConstraintAlgebra:
 
     def __init__(self, problem):
         self.problem = problem
+        self._nodes = {}               # J̃ of the passage search's latest states (`_scaled_at`)
 
     @property
     def small(self) -> bool:
@@ -167,7 +168,7 @@ class ConstraintAlgebra:
         the same states' J̃ more than once (its chords, then the SVDs of some of them;
         each halving's chords again at the interval's ends): the latest `NODES` states'
         are kept, by their exact time and coordinates."""
-        memo = self.__dict__.setdefault("_nodes", {})
+        memo = self._nodes
         Q = [np.asarray(q, dtype=float) for q in Q]
         keys = [(float(tk), q.tobytes()) for tk, q in zip(times, Q)]
         new = list(dict.fromkeys(key for key in keys if key not in memo))
