@@ -326,11 +326,13 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
    Lam solves (J W J^T) lam = J W F - gamma at (ts[s], row s of Qs and Vs) under the applied
    forces in row s of Fs, by the Cholesky factor where LAPACK's estimate of 1/cond_1 is
    above min_rcond (min_rcond < 0: not estimated) and every pivot is above min_pivot
-   max S_ii; done[s] says whether it did (elsewhere Python decides). Returns the number
-   done. */
+   max S_ii; done[s] says whether it did (elsewhere Python decides). Phit, unless NULL,
+   gets Phi_t at each state in its row s (k x m; a driver's power is lam^T Phi_t over its
+   rows). Returns the number done. */
 int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
                             const double *Qs, const double *Vs, const double *Fs,
-                            double min_rcond, double min_pivot, double *Lam, int64_t *done) {
+                            double min_rcond, double min_pivot, double *Lam, int64_t *done,
+                            double *Phit) {
   const int64_t n = c->n, m = c->m;
   const double *winv = c->winv;
   double *J = c->J, *g = c->g, *wq = c->wq, *S = c->S;
@@ -340,6 +342,10 @@ int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
   for (int64_t s = 0; s < k; s++) {
     const double *q = Qs + s * n, *v = Vs + s * n, *F = Fs + s * n;
     double *lam = Lam + s * m;
+    if (Phit) {
+      memset(Phit + s * m, 0, m * sizeof(double));
+      mechsim_phi_t(q, ts[s], c->p, Phit + s * m);
+    }
     memset(J, 0, m * n * sizeof(double));
     mechsim_phi_q(q, ts[s], c->p, J);
     memset(g, 0, m * sizeof(double));

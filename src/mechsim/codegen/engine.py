@@ -175,7 +175,7 @@ def library(model):
         fn.restype = ctypes.c_int
         fn = lib.mechsim_multipliers
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 4 + \
-            [ctypes.c_double] * 2 + [ctypes.c_void_p] * 2
+            [ctypes.c_double] * 2 + [ctypes.c_void_p] * 3
         fn.restype = ctypes.c_int64
     except (OSError, AttributeError, KeyError):
         return None
@@ -403,18 +403,19 @@ class ProjectionEngine:
             return None
         return out
 
-    def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam):
+    def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam, phi_t=None):
         """λ at the states (T[i], Q[i], V[i]) under the applied forces F[i] into the rows
         of `lam` (N, m), where the Cholesky factor of S = J W Jᵀ has a condition estimate
         above min_rcond (min_rcond < 0: not estimated) and every pivot is above min_pivot
-        max Sᵢᵢ; returns (N,) bool, where it did (`mechsim.problem.multipliers`)."""
+        max Sᵢᵢ; returns (N,) bool, where it did (`mechsim.problem.multipliers`). `phi_t`
+        (N, m, C-contiguous floats), if given, gets Φ_t at every state."""
         T = np.ascontiguousarray(T, dtype=float)
         Q, V, F = (np.ascontiguousarray(x, dtype=float) for x in (Q, V, F))
         out = np.zeros(lam.shape)
         done = np.zeros(len(T), dtype=np.int64)
         self._multipliers(self.context, len(T), T.ctypes.data, Q.ctypes.data, V.ctypes.data,
                           F.ctypes.data, min_rcond, min_pivot, out.ctypes.data,
-                          done.ctypes.data)
+                          done.ctypes.data, None if phi_t is None else phi_t.ctypes.data)
         ok = done.astype(bool)
         lam[ok] = out[ok]
         return ok

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..options import Option
+from ..problem.numeric import velocities_hold
 from .base import Correction, Formulation
 from .basis import ConstraintSolveError
 
@@ -162,13 +163,16 @@ def _settle_together(problem, ts, Q, V, phis, floors, off):
         return off
     idx, q_new, tk = off[landed], q_new[landed], tk[landed]
     J = problem.phi_q_many(q_new, tk)
-    r = np.einsum("smn,sn->sm", J, V[idx])
-    if problem.rheonomic_rows:
-        r += np.array([problem.phi_t(q, t) for q, t in zip(q_new, tk)])
+    phi_t = np.array([problem.phi_t(q, t) for q, t in zip(q_new, tk)]) \
+        if problem.rheonomic_rows else np.zeros((len(idx), problem.m))
+    r = np.einsum("smn,sn->sm", J, V[idx]) + phi_t
     try:
         mu = np.linalg.solve((J * w) @ J.transpose(0, 2, 1), r[..., None])[..., 0]
     except np.linalg.LinAlgError:
         return off
-    Q[idx] = q_new
-    V[idx] = V[idx] - w * np.einsum("smn,sm->sn", J, mu)
-    return off[~landed]
+    v_new = V[idx] - w * np.einsum("smn,sm->sn", J, mu)
+    # A rank-deficient complement (redundant rows) solves to garbage without an error:
+    # velocities that do not hold their constraints go on to the sample's own projection.
+    held = np.array([velocities_hold(*args) for args in zip(J, v_new, phi_t)], dtype=bool)
+    Q[idx[held]], V[idx[held]] = q_new[held], v_new[held]
+    return np.sort(np.concatenate([off[~landed], idx[~held]]))

@@ -89,11 +89,12 @@ class ConstraintAlgebra:
     - ``lu_condition(t, q)``: cond₁ of Φ_q D for the dependent set `pivots` picks at
       (q, t), Φ_q of full row rank, inf where that block is singular; None where nothing
       is compiled (the caller factors the block itself)
-    - ``multipliers(T, Q, V, F, min_rcond, min_pivot, lam)``: λ at the states (T[i], Q[i],
-      V[i]) under the applied forces F[i] into the rows of `lam`, where the Cholesky
-      factor of Φ_q M⁻¹ Φ_qᵀ has a condition estimate above min_rcond (< 0: not
+    - ``multipliers(T, Q, V, F, min_rcond, min_pivot, lam, phi_t=None)``: λ at the states
+      (T[i], Q[i], V[i]) under the applied forces F[i] into the rows of `lam`, where the
+      Cholesky factor of Φ_q M⁻¹ Φ_qᵀ has a condition estimate above min_rcond (< 0: not
       estimated) and every pivot above min_pivot times its largest diagonal: (N,) bool,
-      where it did; None where nothing is compiled (`mechsim.problem.multipliers`)
+      where it did; None where nothing is compiled (`mechsim.problem.multipliers`).
+      `phi_t` (N, m), if given, gets Φ_t at every state (the drivers' powers)
     - ``engine``: the compiled engine (`mechsim.codegen.engine.ProjectionEngine`) that
       serves in the algebra's place where it takes the problem, one per problem; None
     """
@@ -212,7 +213,7 @@ class ConstraintAlgebra:
     def lu_condition(self, t, q):
         return None
 
-    def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam):
+    def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam, phi_t=None):
         return None
 
 
@@ -315,10 +316,10 @@ class DenseAlgebra(ConstraintAlgebra):
     def lu_condition(self, t, q):
         return None if self.engine is None else self.engine.lu_condition(t, q)
 
-    def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam):
+    def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam, phi_t=None):
         if self.engine is None:
             return None
-        return self.engine.multipliers(T, Q, V, F, min_rcond, min_pivot, lam)
+        return self.engine.multipliers(T, Q, V, F, min_rcond, min_pivot, lam, phi_t)
 
     def clear_solver(self, J, f, cut, bound):
         Jt = f.cols(sparse.dense(J))

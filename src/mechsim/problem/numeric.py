@@ -16,8 +16,26 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..linalg.newton import newton
+from ..linalg.sparse import dense as as_dense
 from .loads import Loads
 from .mass import MassFactor, MassModel, SchurSolver, dense
+from .multipliers import minimum_norm
+
+
+# Velocities projected by a Cholesky factor of Φ_q M⁻¹ Φ_qᵀ are kept where ‖Φ_q v + Φ_t‖∞
+# ends below this, relative to ‖Φ_q v‖∞ + ‖Φ_t‖∞ (at least 1); elsewhere the factor was
+# of a rank-deficient complement (redundant rows: it solves to garbage without an error)
+# or of another configuration, and the velocities' own projection serves.
+VELOCITY_RESIDUAL = 1e-8
+
+
+def velocities_hold(J, v, phi_t) -> bool:
+    """Does v hold Φ_q v + Φ_t = 0 to `VELOCITY_RESIDUAL` (J = Φ_q, dense or sparse)?"""
+    if not len(phi_t):
+        return True
+    Jv = J @ v
+    scale = max(np.abs(Jv).max() + np.abs(phi_t).max(), 1.0)
+    return bool(np.abs(Jv + phi_t).max() <= VELOCITY_RESIDUAL * scale)
 
 
 @dataclass
@@ -341,6 +359,36 @@ class NumericProblem:
                                      if self.constraint_owners[i] == owner)))
         return np.array(out, float)
 
+    def work_rates_many(self, T, Q, V) -> np.ndarray:
+        """`work_rates` at the consistent states (T[i], Q[i], V[i]), shape (N, k). The
+        drivers' λ and Φ_t come from the compiled engine for all states in one call where
+        it takes them (the states whose Φ_q M⁻¹ Φ_qᵀ has a Cholesky factor, the same test
+        as `accelerations`); the other states, and every state of a mechanism with
+        friction acting, take `work_rates`."""
+        T = np.asarray(T, float)
+        N, k = len(T), len(self.work_channels)
+        owners = self._driver_owners()
+        acting = self.friction is not None and not self.friction.idle
+        lam = phi_t = ok = None
+        if owners and not acting and N:
+            lam, phi_t = np.zeros((N, self.m)), np.zeros((N, self.m))
+            ok = self.algebra.multipliers(T, Q, V, self.load_model.forces_at(T, Q, V), -1.0,
+                                          0.0, lam, phi_t)
+        if ok is None:
+            return np.array([self.work_rates(t, q, v) for t, q, v in zip(T, Q, V)]).reshape(
+                N, k)
+        rheonomic = self.rheonomic_rows
+        P = lam * phi_t
+        drivers = np.column_stack([
+            P[:, [i for i in rheonomic if self.constraint_owners[i] == owner]].sum(axis=1)
+            for owner in owners])
+        idle = [0.0] * (len(self.friction.frictions) if self.friction is not None else 0)
+        out = np.empty((N, k))
+        for i in range(N):
+            out[i] = self.load_model.powers(T[i], Q[i], V[i]) + idle + list(drivers[i]) \
+                if ok[i] else self.work_rates(T[i], Q[i], V[i])
+        return out
+
     def rows_of(self, owner: str) -> list[int]:
         """The rows of Φ that the joint or driver named `owner` wrote."""
         return [i for i, o in enumerate(self.constraint_owners) if o == owner]
@@ -391,7 +439,9 @@ class NumericProblem:
         which Φ_q moves, and the one factor does the work of the three or four that
         `project_positions` and `project_velocities` form. `solve`: the factor's solve
         (`complement_solver`) if the caller has it. None where the complement cannot be
-        factored or the chord does not converge; the full projections serve there."""
+        factored or the chord does not converge; the full projections serve there. The
+        velocities are projected again at the new q (`project_velocities`) where the
+        chord's factor leaves them off their constraints (`velocities_hold`)."""
         f = self.mass_factor(q)
         phi, J = self.solver_position_terms(q, t)
         if solve is None:
@@ -415,19 +465,33 @@ class NumericProblem:
         q = done.x
         J = self.solver_phi_q(q, t)
         f = self.mass_factor(q)
-        r = J @ v + self.phi_t(q, t)
-        return q, v - f.right(f.cols(J).T @ solve(r))
+        phi_t = self.phi_t(q, t)
+        moved = v - f.right(f.cols(J).T @ solve(J @ v + phi_t))
+        if velocities_hold(J, moved, phi_t):
+            return q, moved
+        # The factor at the given q leaves J v off by |ΔJ| |Δv| at the new q (a long step's
+        # sample), or it was of a singular complement (redundant rows): the velocities'
+        # own projection at the new q.
+        return q, self.project_velocities(q, v, t)
 
     def project_velocities(self, q, v, t, extra=None):
         """v − W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ (Φ_q v + Φ_t): the nearest consistent velocity in the
-        mass metric. `extra` = (G, r): also G v = r (prescribed joint rates), the same way
-        with [Φ_q; G] (least squares where the rows cannot all hold)."""
+        mass metric (the least-norm correction where Φ_q has redundant rows). `extra` =
+        (G, r): also G v = r (prescribed joint rates), the same way with [Φ_q; G] (least
+        squares where the rows cannot all hold)."""
         J = self.solver_phi_q(q, t) if extra is None else self.phi_q(q, t)
-        r = J @ v + self.phi_t(q, t)
+        phi_t = self.phi_t(q, t)
+        r = J @ v + phi_t
         f = self.mass_factor(q)
         if extra is not None:
             G, rates = extra
             A, r = np.vstack([J, G]), np.concatenate([r, G @ v - rates])
             At = f.cols(A)
             return v - f.right(At.T @ dense().solve_psd(At @ At.T, r))
-        return v - f.right(f.cols(J).T @ self.solver.solve(J, r, f))
+        out = v - f.right(f.cols(J).T @ self.solver.solve(J, r, f))
+        if velocities_hold(J, out, phi_t):
+            return out
+        # Redundant rows: a Cholesky factor of the singular complement solved to garbage
+        # without an error; the least-norm correction leaves their directions out.
+        Jt = f.cols(as_dense(J))
+        return v - f.right(Jt.T @ minimum_norm(Jt, r)[0])

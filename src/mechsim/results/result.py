@@ -398,14 +398,12 @@ class SimulationResult:
                 # The samples past the end of the integral (a run that failed inside a step)
                 # go on from the output samples.
                 rest = self.t[done - 1:]
-                rates = np.array([p.work_rates(t, q, v) for t, q, v in
-                                  zip(rest, self.q[done - 1:], self.v[done - 1:])])
+                rates = p.work_rates_many(rest, self.q[done - 1:], self.v[done - 1:])
                 W[done:] = W[done - 1] + _cumulative_integral(rates, rest)[1:]
                 how += (f"; after t = {self.t[done - 1]:.9g} from the output samples "
                         "(Simpson)")
         else:
-            rates = np.array([p.work_rates(t, q, v) for t, q, v in
-                              zip(self.t, self.q, self.v)]).reshape(n, len(channels))
+            rates = p.work_rates_many(self.t, self.q, self.v)
             W = _cumulative_integral(rates, self.t) if n > 1 else np.zeros((n, len(channels)))
             how = ("from the power at the output samples (Simpson): its accuracy follows "
                    "their spacing; simulate with work=True to integrate it with the motion")

@@ -34,7 +34,8 @@ _WEIGHTS = cheb.chebval(1.0, _INTEGRAL)
 class WorkIntegral:
     """W(t) of each of `channels`, from t₀, along the steps of a run.
 
-    `rates(t, q, v)` is the power of every channel at one consistent state (shape (k,));
+    `rates(T, Q, V)` is the power of every channel at consistent states (rows; shape
+    (N, k));
     `add(a, b, states, times)` integrates over the accepted step [a, b] whose interpolant
     gives `states(ts) -> (Q, V)` (rows: the times `ts`), and returns W at each of `times`
     in (a, b] (the output samples the step recorded). A step whose states or powers cannot
@@ -76,8 +77,7 @@ class WorkIntegral:
     def _piece(self, a, b, states, times, halvings):
         ts = 0.5 * (a + b) + 0.5 * (b - a) * _NODES
         Q, V = states(ts)
-        P = np.array([self.rates(t, q, v) for t, q, v in zip(ts, Q, V)]).reshape(
-            len(ts), len(self.channels))
+        P = np.asarray(self.rates(ts, Q, V), float).reshape(len(ts), len(self.channels))
         self.evaluations += len(ts)
         if not np.all(np.isfinite(P)):
             raise ArithmeticError("a non-finite power inside the step")

@@ -119,7 +119,7 @@ class Run:
         if channels:
             energy = (problem.kinetic_energy(q0, v0) + abs(problem.potential_energy(q0))
                       + problem.strain_energy(q0))
-            self.work = WorkIntegral(channels, problem.work_rates, form.tol.work,
+            self.work = WorkIntegral(channels, problem.work_rates_many, form.tol.work,
                                      float(energy), settings.t_end - settings.t_start)
         self.out = Recorder(problem, settings.ts, channels, settings.stream, form.extras,
                             form.width)

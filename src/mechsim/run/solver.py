@@ -330,10 +330,13 @@ def locked(problem, q, t) -> str:
     1e-4 of the coordinates' size projected back onto the constraints. A mechanism held
     straight between fixed pivots (a toggle at its dead point) has instantaneous motions
     but no finite one: every projection comes back to where it began. (Its runs ground
-    at a second a step to no end.)"""
+    at a second a step to no end.) A mechanism with no instantaneous motion left and
+    drivers (fully driven, with redundant rows) is not locked: its drivers move it."""
     J = sparse.dense(problem.phi_q(q, t))
     U, _, Vt = np.linalg.svd(J)
     rank = problem.rank(J)
+    if rank == len(Vt) and problem.rheonomic_rows:
+        return ""
     eps = 1e-4 * max(1.0, float(np.max(np.abs(q), initial=0.0)))
     for direction in Vt[rank:]:
         for sign in (1.0, -1.0):
