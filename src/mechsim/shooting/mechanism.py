@@ -47,6 +47,11 @@ class MechanismPeriodicProblem(PeriodicProblem):
                              ) from None
         return q, reduced.velocities(q, u[f:])
 
+    def period_map(self, u):
+        """x(T) from x(0) = u: a flow recording its end alone (the differences of the
+        Jacobians and the monodromy need no samples inside the period)."""
+        return self.flow(u, samples=1).x[-1]
+
     def flow(self, u, samples=200):
         from ..run.solver import simulate
         q, v = self.initial_state(u)

@@ -65,8 +65,8 @@ def central_jacobian(end, u, rel_step=1e-6):
 
 
 def monodromy(problem, u, rel_step=1e-6):
-    """∂x(T)/∂u by central differences of the problem's flow."""
-    return central_jacobian(lambda x: problem.flow(x).x[-1], u, rel_step)
+    """∂x(T)/∂u by central differences of the problem's period map (its flow's end)."""
+    return central_jacobian(problem.period_map, u, rel_step)
 
 
 def _residual_or_none(problem, x):
