@@ -586,6 +586,7 @@ def pristine(tmp_path_factory):
 
 
 @needs_compiler
+@pytest.mark.xdist_group("pristine caches")     # one worker builds them (a minute of builds)
 @pytest.mark.parametrize("n, other, pattern", [(1, 2, "*.evaluations-*.so"), (10, 11, "*[0-9a-f].so"),
                                                (1, 2, "*.py")],
                          ids=["engine library", "kernel library", "module"])
