@@ -1,5 +1,6 @@
 """Test setup: a private model cache per test session, so runs neither read nor pollute the
-user's cache, the fused build, and tolerance-scaled error helpers."""
+user's cache (shared by the session's workers: each model is built once, as the cache's
+concurrent builds are safe), the fused build, and tolerance-scaled error helpers."""
 
 import os
 import tempfile
@@ -7,7 +8,9 @@ import tempfile
 import numpy as np
 import pytest
 
-os.environ["MECHSIM_CACHE_DIR"] = tempfile.mkdtemp(prefix="mechsim-test-cache-")
+# The controlling process makes the directory; the workers it starts inherit it.
+os.environ.setdefault("MECHSIM_TEST_SESSION_CACHE", tempfile.mkdtemp(prefix="mechsim-test-cache-"))
+os.environ["MECHSIM_CACHE_DIR"] = os.environ["MECHSIM_TEST_SESSION_CACHE"]
 # The suite runs the fused models (compiled where small) it was written against, built in
 # its own process: no test depends on when a background build finishes. The assembled
 # models and the "auto" choice between the two are tested in test_assembly.py.
