@@ -141,3 +141,41 @@ def test_many_states_powers_equal_each_state_s_through_a_singular_configuration(
     with pytest.warns(UserWarning, match="initial velocit"):
         difference, peak = _powers_alike(mech, 2.0)
     assert peak > 1.0 and difference <= 1e-12 * peak
+
+
+def _loaded_four_bar(function_load=False):
+    """A crank-rocker carrying a damped and an undamped spring, a damped torsion spring,
+    a point force and a torque (and, with `function_load`, a force given as a function)."""
+    mech = ms.examples.general_four_bar(0.2, 0.6, 0.5, 0.7, 0.3, name="loaded four-bar")
+    crank, coupler, rocker = (mech.body(n) for n in ("crank", "coupler", "rocker"))
+    mech.add(ms.Spring(mech.ground, coupler, at_a=(0.4, 0.8), at_b=mech.joint("A").at,
+                       stiffness=30.0, damping=0.5, name="damper"))
+    mech.add(ms.Spring(crank, rocker, at_a=mech.joint("A").at, at_b=mech.joint("B").at,
+                       stiffness=20.0, name="spring"))
+    mech.add(ms.RotationalSpring(coupler, rocker, 2.0, damping=0.1))
+    mech.add(ms.Force(coupler, (1.5, -2.0), at=mech.joint("B").at))
+    mech.add(ms.Torque(crank, 0.7, name="motor"))
+    if function_load:
+        mech.add(ms.Force(rocker, lambda t: (math.sin(t), 0.0), at=mech.joint("B").at))
+    return mech
+
+
+@pytest.mark.parametrize("function_load", [False, True])
+def test_the_loads_of_many_states_equal_each_state_s(function_load):
+    """Q and the loads' powers at a run's samples in one call (springs, torsion spring,
+    constant force and torque: vectorized; with a function load: state by state) against
+    `forces` and `powers` state by state."""
+    mech = _loaded_four_bar(function_load)
+    res = mech.simulate(t_end=1.0, rtol=1e-8, atol=1e-10, output_step=1e-2)
+    assert res.success, res.message
+    loads = mech.problem().load_model
+    assert loads.rigid_only is not function_load
+    F = loads.forces_at(res.t, res.q, res.v)
+    P = loads.powers_at(res.t, res.q, res.v)
+    F1 = np.array([loads.forces(t, q, v) for t, q, v in zip(res.t, res.q, res.v)])
+    P1 = np.array([loads.powers(t, q, v) for t, q, v in zip(res.t, res.q, res.v)])
+    assert P.shape == P1.shape == (len(res.t), len(loads.work_channels)) == \
+        (len(res.t), 4 + function_load)
+    np.testing.assert_allclose(F, F1, rtol=0, atol=1e-13 * np.max(np.abs(F1)))
+    np.testing.assert_allclose(P, P1, rtol=0, atol=1e-13 * np.max(np.abs(P1)))
+    assert np.max(np.abs(P1)) > 0.1 and np.all(P1[:, 0] <= 0.0)     # the damper dissipates

@@ -76,6 +76,19 @@ class FlexibleData:
         self.slice = slice(start, start + 3 + invariants.n_modes)
 
 
+def _add_point_forces(F, Q, start, s, f) -> None:
+    """`add_point_force` for the states in the rows of Q (rigid bodies): the forces f
+    (N, 2) at body point `s` into the rows of F."""
+    if start is None:
+        return
+    th = Q[:, start + 2]
+    c, sn = np.cos(th), np.sin(th)
+    rx, ry = c * s[0] - sn * s[1], sn * s[0] + c * s[1]
+    F[:, start] += f[:, 0]
+    F[:, start + 1] += f[:, 1]
+    F[:, start + 2] += rx * f[:, 1] - ry * f[:, 0]
+
+
 class Loads:
     """Q(t, q, v) and the loads' energies and powers.
 
@@ -114,14 +127,57 @@ class Loads:
         """Is Q gravity's constant force alone (no beam, spring or load)?"""
         return not (self.flexible or self.springs or self.loads or self.torsion)
 
+    @property
+    def rigid_only(self) -> bool:
+        """Do the loads act on rigid bodies alone, with constant values (no beam, no spring
+        or load on a beam, no load given as a function)? Then `forces_at` and `powers_at`
+        evaluate all states at once."""
+        return not self.flexible and \
+            all(sp.modal_a is None and sp.modal_b is None for sp in self.springs) and \
+            all(load.modal is None and not callable(load.value) for load in self.loads)
+
     def forces_at(self, T, Q, V) -> np.ndarray:
-        """`forces` at many states (rows), shape (N, n): gravity's constant share at once,
-        the rest state by state."""
+        """`forces` at many states (rows), shape (N, n): all states at once where the loads
+        are `rigid_only`, state by state elsewhere."""
         T = np.asarray(T, float)
-        if self.gravity_only:
-            return np.broadcast_to(self.gravity_force, (len(T), self.n)).copy()
+        if self.gravity_only or self.rigid_only:
+            F = np.broadcast_to(self.gravity_force, (len(T), self.n)).copy()
+            if not self.gravity_only:
+                self._add_many(np.asarray(Q, float), np.asarray(V, float), F)
+            return F
         return np.array([self.forces(t, q, v) for t, q, v in zip(T, Q, V)]).reshape(
             len(T), self.n)
+
+    def _add_many(self, Q, V, F) -> None:
+        """`_add` (elastic) of `rigid_only` loads for the states in the rows of Q and V,
+        into the rows of F."""
+        for sp in self.springs:
+            d = frame_point(Q, sp.b, sp.sb) - frame_point(Q, sp.a, sp.sa)
+            length = np.hypot(d[:, 0], d[:, 1])
+            held = length != 0.0          # a zero-length spring carries no force
+            e = d / np.where(held, length, 1.0)[:, None]
+            tension = sp.stiffness * (length - sp.rest_length)
+            if sp.damping:
+                rate = frame_point_velocity(Q, V, sp.b, sp.sb) - \
+                    frame_point_velocity(Q, V, sp.a, sp.sa)
+                tension = tension + sp.damping * (rate[:, 0] * e[:, 0] + rate[:, 1] * e[:, 1])
+            f = np.where(held, tension, 0.0)[:, None] * e
+            _add_point_forces(F, Q, sp.a, sp.sa, f)
+            _add_point_forces(F, Q, sp.b, sp.sb, -f)
+        for rs in self.torsion:
+            torque = -rs.stiffness * (rs.angles(Q) - rs.rest)
+            if rs.damping:
+                torque = torque - rs.damping * rs.angles(V)
+            if rs.b is not None:
+                F[:, rs.b + 2] += torque
+            if rs.a is not None:
+                F[:, rs.a + 2] -= torque
+        for load in self.loads:
+            if load.is_torque:
+                F[:, load.body + 2] += load.value
+            else:
+                _add_point_forces(F, Q, load.body, load.s,
+                                  np.broadcast_to(np.asarray(load.value, float), (len(F), 2)))
 
     def nonconservative_forces(self, t, q, v) -> np.ndarray:
         """The part of Q with no potential: spring damping, point forces and torques, and
@@ -315,6 +371,38 @@ class Loads:
                 rates = v[fb.start + 3:fb.slice.stop]
                 out.append(-float(np.sum(d * rates * rates)))
         return out
+
+    def powers_at(self, T, Q, V) -> np.ndarray:
+        """`powers` at many states (rows), shape (N, k): all states at once where the loads
+        are `rigid_only`, state by state elsewhere."""
+        T = np.asarray(T, float)
+        if not self.rigid_only:
+            return np.array([self.powers(t, q, v) for t, q, v in zip(T, Q, V)]).reshape(
+                len(T), len(self.work_channels))
+        Q, V = np.asarray(Q, float), np.asarray(V, float)
+        out = []
+        for sp in self.springs:
+            if not sp.damping:
+                continue
+            d = frame_point(Q, sp.b, sp.sb) - frame_point(Q, sp.a, sp.sa)
+            length = np.hypot(d[:, 0], d[:, 1])
+            held = length != 0.0
+            velocity = frame_point_velocity(Q, V, sp.b, sp.sb) - \
+                frame_point_velocity(Q, V, sp.a, sp.sa)
+            rate = (velocity[:, 0] * d[:, 0] + velocity[:, 1] * d[:, 1]) / \
+                np.where(held, length, 1.0)
+            out.append(np.where(held, -sp.damping * rate * rate, 0.0))
+        for rs in self.torsion:
+            if rs.damping:
+                rate = rs.angles(V)
+                out.append(-rs.damping * rate * rate)
+        for load in self.loads:
+            if load.is_torque:
+                out.append(load.value * V[:, load.body + 2])
+            else:
+                out.append(frame_point_velocity(Q, V, load.body, load.s) @
+                           np.asarray(load.value, float))
+        return np.column_stack(out) if out else np.zeros((len(T), 0))
 
     # --- energies (vectorized over leading dimensions) -------------------------------------
     def gravity_potential(self, q) -> np.ndarray:

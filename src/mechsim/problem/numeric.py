@@ -382,11 +382,10 @@ class NumericProblem:
         drivers = np.column_stack([
             P[:, [i for i in rheonomic if self.constraint_owners[i] == owner]].sum(axis=1)
             for owner in owners])
-        idle = [0.0] * (len(self.friction.frictions) if self.friction is not None else 0)
-        out = np.empty((N, k))
-        for i in range(N):
-            out[i] = self.load_model.powers(T[i], Q[i], V[i]) + idle + list(drivers[i]) \
-                if ok[i] else self.work_rates(T[i], Q[i], V[i])
+        idle = np.zeros((N, len(self.friction.frictions) if self.friction is not None else 0))
+        out = np.hstack([self.load_model.powers_at(T, Q, V), idle, drivers])
+        for i in np.flatnonzero(~ok):
+            out[i] = self.work_rates(T[i], Q[i], V[i])
         return out
 
     def rows_of(self, owner: str) -> list[int]:
