@@ -76,6 +76,21 @@ class FlexibleData:
         self.slice = slice(start, start + 3 + invariants.n_modes)
 
 
+def _spring_states(sp, Q, V):
+    """(length, held, e, rate) of a spring between rigid bodies at the states in the rows
+    of Q and V: its length, where it is not zero (a zero-length spring has no direction
+    and carries no force), the unit vector e from a to b (N, 2) and the rate of extension
+    (the relative velocity along e; 0 where the spring has no damping)."""
+    d = frame_point(Q, sp.b, sp.sb) - frame_point(Q, sp.a, sp.sa)
+    length = np.hypot(d[:, 0], d[:, 1])
+    held = length != 0.0
+    e = d / np.where(held, length, 1.0)[:, None]
+    if not sp.damping:
+        return length, held, e, 0.0
+    velocity = frame_point_velocity(Q, V, sp.b, sp.sb) - frame_point_velocity(Q, V, sp.a, sp.sa)
+    return length, held, e, velocity[:, 0] * e[:, 0] + velocity[:, 1] * e[:, 1]
+
+
 def _add_point_forces(F, Q, start, s, f) -> None:
     """`add_point_force` for the states in the rows of Q (rigid bodies): the forces f
     (N, 2) at body point `s` into the rows of F."""
@@ -152,15 +167,10 @@ class Loads:
         """`_add` (elastic) of `rigid_only` loads for the states in the rows of Q and V,
         into the rows of F."""
         for sp in self.springs:
-            d = frame_point(Q, sp.b, sp.sb) - frame_point(Q, sp.a, sp.sa)
-            length = np.hypot(d[:, 0], d[:, 1])
-            held = length != 0.0          # a zero-length spring carries no force
-            e = d / np.where(held, length, 1.0)[:, None]
+            length, held, e, rate = _spring_states(sp, Q, V)
             tension = sp.stiffness * (length - sp.rest_length)
             if sp.damping:
-                rate = frame_point_velocity(Q, V, sp.b, sp.sb) - \
-                    frame_point_velocity(Q, V, sp.a, sp.sa)
-                tension = tension + sp.damping * (rate[:, 0] * e[:, 0] + rate[:, 1] * e[:, 1])
+                tension = tension + sp.damping * rate
             f = np.where(held, tension, 0.0)[:, None] * e
             _add_point_forces(F, Q, sp.a, sp.sa, f)
             _add_point_forces(F, Q, sp.b, sp.sb, -f)
@@ -384,13 +394,7 @@ class Loads:
         for sp in self.springs:
             if not sp.damping:
                 continue
-            d = frame_point(Q, sp.b, sp.sb) - frame_point(Q, sp.a, sp.sa)
-            length = np.hypot(d[:, 0], d[:, 1])
-            held = length != 0.0
-            velocity = frame_point_velocity(Q, V, sp.b, sp.sb) - \
-                frame_point_velocity(Q, V, sp.a, sp.sa)
-            rate = (velocity[:, 0] * d[:, 0] + velocity[:, 1] * d[:, 1]) / \
-                np.where(held, length, 1.0)
+            _, held, _, rate = _spring_states(sp, Q, V)
             out.append(np.where(held, -sp.damping * rate * rate, 0.0))
         for rs in self.torsion:
             if rs.damping:
