@@ -1,6 +1,7 @@
 """Test setup: a private model cache per test session, so runs neither read nor pollute the
 user's cache (shared by the session's workers: each model is built once, as the cache's
-concurrent builds are safe), the fused build, and tolerance-scaled error helpers."""
+concurrent builds are safe), the fused build, one BLAS thread per worker, and
+tolerance-scaled error helpers."""
 
 import os
 import tempfile
@@ -15,6 +16,16 @@ os.environ["MECHSIM_CACHE_DIR"] = os.environ["MECHSIM_TEST_SESSION_CACHE"]
 # its own process: no test depends on when a background build finishes. The assembled
 # models and the "auto" choice between the two are tested in test_assembly.py.
 os.environ.setdefault("MECHSIM_BUILD", "fused")
+
+# The workers share the cores (one each): each holds its BLAS libraries to one thread, as a
+# run does (`mechsim.threads`), also around the tests' own arithmetic and the analyses that
+# are not runs. A multithreaded BLAS in two workers on two cores spins for each small
+# product (the design tests took 1.5× their CPU time so). test_threads.py raises the limit
+# where it checks what a run does with more threads.
+import scipy.linalg  # noqa: E402,F401  (its BLAS among the libraries limited)
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+_ONE_THREAD = threadpool_limits(limits=1, user_api="blas")
 
 
 def scaled_error(y, y_ref, rtol, atol):

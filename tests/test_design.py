@@ -113,11 +113,20 @@ def test_the_torque_norm_s_gradient_is_exact():
         assert grad[j] == pytest.approx(fd, rel=1e-6, abs=1e-9 * value), name
 
 
-def test_a_counterweight_sized_on_exact_gradients_flattens_the_torque():
+@pytest.fixture(scope="module")
+def sized():
+    """The example's counterweight sized on exact gradients (design, history, mechanism),
+    once for the tests that compare with it."""
+    return counterweight.size("exact")
+
+
+# (one worker sizes the counterweight for all of them)
+@pytest.mark.xdist_group("counterweight")
+def test_a_counterweight_sized_on_exact_gradients_flattens_the_torque(sized):
     """From a 1 kg counterweight at 5 cm, the search ends where the objective's slope in
     each parameter off its bound vanishes (checked by differences, independently of the
     gradients it used), and the peak torque over a turn falls from 9.0 to under 1.5 N·m."""
-    design, _, mech = counterweight.size("exact")
+    design, _, mech = sized
     assert design.success
     objective = counterweight.objective()
     for name, (low, high) in counterweight.BOUNDS.items():
@@ -164,7 +173,9 @@ def _design_file(tmp_path, **changes):
     return path
 
 
-def test_mechsim_optimize_finds_the_design_the_python_interface_finds(tmp_path, monkeypatch):
+@pytest.mark.xdist_group("counterweight")
+def test_mechsim_optimize_finds_the_design_the_python_interface_finds(tmp_path, monkeypatch,
+                                                                      sized):
     """`mechsim optimize` on the pump scene (its numbers written as scene parameters and
     expressions) and `ms.optimize` on the example's Python model (the same pump) reach
     the same counterweight, and the design file written holds it."""
@@ -174,7 +185,7 @@ def test_mechsim_optimize_finds_the_design_the_python_interface_finds(tmp_path, 
     assert main(["optimize", str(_design_file(tmp_path)), "--quiet"]) == 0
     with open(tmp_path / "out" / "pump_counterweight.toml", "rb") as fh:
         written = tomllib.load(fh)
-    design, _, _ = counterweight.size("exact")
+    design, _, _ = sized
     assert written["parameters"]["m_cw"] == pytest.approx(design.parameters["m_cw"], rel=1e-5)
     assert written["parameters"]["r_cw"] == pytest.approx(design.parameters["r_cw"], rel=1e-5)
     assert abs(written["parameters"]["offset"] - design.parameters["e"]) < 1e-7
@@ -281,7 +292,8 @@ def test_a_multistart_spreads_its_searches_and_keeps_the_best():
         ms.multistart(synthesis.path_four_bar, objective, bounds, starts=0)
 
 
-def test_a_design_file_s_constraint_holds_at_the_design(tmp_path, monkeypatch):
+@pytest.mark.xdist_group("counterweight")
+def test_a_design_file_s_constraint_holds_at_the_design(tmp_path, monkeypatch, sized):
     """[[constraint]] transmission_angle between the pump's rod and plunger (at least 65°:
     the offset may not tilt the rod far): the design found keeps it at every sample of
     the analysis, and reaches the unconstrained design's torque (the constraint does not
@@ -298,7 +310,7 @@ def test_a_design_file_s_constraint_holds_at_the_design(tmp_path, monkeypatch):
     kin = mech.kinematics(over=("motor", np.radians(np.arange(0.0, 361.0, 2.0))))
     mu = kin.coordinate("plunger.angle") - kin.coordinate("rod.angle")
     assert np.degrees(np.arcsin(np.abs(np.sin(mu)))).min() >= 65.0 - 1e-6
-    design, _, _ = counterweight.size("exact")
+    design, _, _ = sized
     assert written["value"] == pytest.approx(design.value, rel=1e-6)
 
 

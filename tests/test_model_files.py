@@ -81,45 +81,60 @@ def test_what_a_scene_cannot_hold_is_refused_naming_it(tmp_path):
 
 _REPLAY = """
 import sys, numpy as np, mechsim as ms
-res = ms.load_result(sys.argv[1])
-joint = res.mechanism.joints[0].name
-ext = res.extend(res.t[-1] + 0.02)
-fig = res.plot_motion()
-lines = [np.asarray(l.get_xydata()) for l in fig.axes[0].get_lines()]
-np.savez(sys.argv[2], force=res.joint_force(joint), ext_q=ext.q, ext_t=ext.t,
-         **{f"line{k}": l for k, l in enumerate(lines)})
-res.animate(sys.argv[3], fps=4)
-"""
-
-
-@pytest.mark.parametrize("scene", sorted(p.name for p in
-                                         (ROOT / "mechanisms").glob("*.toml")))
-def test_a_saved_result_replays_in_a_fresh_process(scene, tmp_path):
-    """Each shipped scene, run briefly and saved: loaded in a new process it has its
-    mechanism, and its joint force, its extension, its motion plot and its animation are
-    those of the result before saving (arrays to 1e-12, the GIF byte for byte)."""
-    import subprocess
-    import sys
-    sc = ms.load_scene(ROOT / "mechanisms" / scene)
-    res = sc.simulate(t_end=0.03, output_step=0.005)
-    assert res.status == "success", res.message
-    saved = res.save(tmp_path / "run.npz")
+for saved, after, gif in zip(*[iter(sys.argv[1:])] * 3):
+    res = ms.load_result(saved)
     joint = res.mechanism.joints[0].name
     ext = res.extend(res.t[-1] + 0.02)
     fig = res.plot_motion()
-    lines = [np.asarray(line.get_xydata()) for line in fig.axes[0].get_lines()]
-    res.animate(tmp_path / "before.gif", fps=4)
-    done = subprocess.run([sys.executable, "-c", _REPLAY, str(saved), str(tmp_path / "after"),
-                           str(tmp_path / "after.gif")], capture_output=True, text=True,
-                          timeout=120)
+    lines = [np.asarray(l.get_xydata()) for l in fig.axes[0].get_lines()]
+    np.savez(after, force=res.joint_force(joint), ext_q=ext.q, ext_t=ext.t,
+             **{f"line{k}": l for k, l in enumerate(lines)})
+    res.animate(gif, fps=4)
+"""
+SCENES = sorted(p.name for p in (ROOT / "mechanisms").glob("*.toml"))
+
+
+@pytest.fixture(scope="module")
+def replayed(tmp_path_factory):
+    """Each shipped scene run briefly, saved, and what is compared after (its joint force,
+    extension, motion plot, animation); then every saved result loaded in one new process
+    (its answers beside each): {scene: (result, extension, plot lines, directory)}."""
+    import subprocess
+    import sys
+    runs, arguments = {}, []
+    for scene in SCENES:
+        where = tmp_path_factory.mktemp(scene.replace(".", "_"))
+        res = ms.load_scene(ROOT / "mechanisms" / scene).simulate(t_end=0.03,
+                                                                 output_step=0.005)
+        assert res.status == "success", (scene, res.message)
+        saved = res.save(where / "run.npz")
+        ext = res.extend(res.t[-1] + 0.02)
+        fig = res.plot_motion()
+        lines = [np.asarray(line.get_xydata()) for line in fig.axes[0].get_lines()]
+        res.animate(where / "before.gif", fps=4)
+        runs[scene] = (res, ext, lines, where)
+        arguments += [str(saved), str(where / "after"), str(where / "after.gif")]
+    done = subprocess.run([sys.executable, "-c", _REPLAY, *arguments], capture_output=True,
+                          text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
-    after = np.load(tmp_path / "after.npz")
+    return runs
+
+
+@pytest.mark.xdist_group("replays")          # the fixture's one process serves them all
+@pytest.mark.parametrize("scene", SCENES)
+def test_a_saved_result_replays_in_a_fresh_process(scene, replayed):
+    """Each shipped scene, run briefly and saved: loaded in a new process it has its
+    mechanism, and its joint force, its extension, its motion plot and its animation are
+    those of the result before saving (arrays to 1e-12, the GIF byte for byte)."""
+    res, ext, lines, where = replayed[scene]
+    joint = res.mechanism.joints[0].name
+    after = np.load(where / "after.npz")
     np.testing.assert_allclose(after["force"], res.joint_force(joint), rtol=0, atol=1e-12)
     np.testing.assert_array_equal(after["ext_t"], ext.t)
     np.testing.assert_allclose(after["ext_q"], ext.q, rtol=0, atol=1e-12)
     for k, line in enumerate(lines):
         np.testing.assert_allclose(after[f"line{k}"], line, rtol=0, atol=1e-12)
-    assert (tmp_path / "after.gif").read_bytes() == (tmp_path / "before.gif").read_bytes()
+    assert (where / "after.gif").read_bytes() == (where / "before.gif").read_bytes()
 
 
 def test_a_result_whose_mechanism_a_scene_cannot_hold_says_why_when_loaded(tmp_path):

@@ -1,9 +1,24 @@
-"""A run holds the BLAS libraries to one thread while it works, unless the user chose."""
+"""A run holds the BLAS libraries to one thread while it works, unless the user chose.
 
-from threadpoolctl import threadpool_info
+The suite's workers hold BLAS to one thread (conftest.py): each test here raises it to
+`MANY` first, so that what a run does with more threads is seen on any machine."""
+
+import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
 
 import mechsim as ms
 from mechsim.threads import USER_VARIABLES
+
+
+MANY = 3
+
+
+@pytest.fixture(autouse=True)
+def many_threads():
+    """BLAS with `MANY` threads around each test (the suite's one restored after)."""
+    with threadpool_limits(limits=MANY, user_api="blas"):
+        assert all(n == MANY for n in blas_threads())
+        yield
 
 
 def blas_threads():
@@ -63,3 +78,24 @@ def test_nested_runs_hold_one_thread_and_the_outermost_gives_them_back(monkeypat
             assert all(n == 1 for n in blas_threads())
         assert all(n == 1 for n in blas_threads())
     assert blas_threads()[:len(before)] == before
+
+
+def test_a_design_search_uses_one_blas_thread_and_gives_them_back(monkeypatch):
+    """`ms.optimize` evaluates its objective with one BLAS thread (its objectives' runs and
+    scipy's own arithmetic between them), and the threads come back after it."""
+    for name in USER_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    mech = ms.Mechanism("rod")
+    rod = mech.add(ms.RigidBody.rod("rod", (0, 0), (1, 0), ms.Parameter("m", 1.0)))
+    mech.add(ms.Revolute(mech.ground, rod, at=(0, 0)))
+    seen = []
+
+    def objective(mech, names):
+        seen.append(blas_threads())
+        m = mech.parameter_values()["m"]
+        return (m - 2.0) ** 2, [2.0 * (m - 2.0)]
+
+    design = ms.optimize(mech, objective, ["m"], bounds={"m": (0.5, 3.0)})
+    assert design.parameters["m"] == pytest.approx(2.0, abs=1e-6)
+    assert seen and all(n == 1 for counts in seen for n in counts)
+    assert all(n == MANY for n in blas_threads())

@@ -577,26 +577,49 @@ needs_compiler = pytest.mark.skipif(
     not ms.examples.four_bar().compilation().serves, reason="no working C compiler")
 
 
+class _Pristine(dict):
+    """Caches built on first use for the damage cases: {n windows: (directory, probe
+    result)}; a case's model and the other model it borrows an entry from built together."""
+
+    def __init__(self, factory):
+        super().__init__()
+        self.factory = factory
+
+    def built(self, *sizes):
+        new = [n for n in sizes if n not in self]
+        directories = {n: self.factory.mktemp(f"cache{n}") for n in new}
+        started = {n: _start_probe(d, n) for n, d in directories.items()}
+        self.update({n: (directories[n], _probed(p)) for n, p in started.items()})
+        return self
+
+
 @pytest.fixture(scope="module")
 def pristine(tmp_path_factory):
-    """Caches built once for the damage cases: {n windows: (directory, probe result)}."""
-    directories = {n: tmp_path_factory.mktemp(f"cache{n}") for n in (1, 2, 10, 11)}
-    started = {n: _start_probe(d, n) for n, d in directories.items()}     # built together
-    return {n: (directories[n], _probed(p)) for n, p in started.items()}
+    return _Pristine(tmp_path_factory)
+
+
+# The kind of entry: (its model's windows, another model's, the entry's file pattern).
+_ENTRIES = {"engine library": (1, 2, "*.evaluations-*.so"),
+            "kernel library": (10, 11, "*[0-9a-f].so"), "module": (1, 2, "*.py")}
+# Each damage and each kind of entry once in the default suite (the small models); the
+# rest of the matrix, and the larger models' other damages, in the slow one.
+_DEFAULT_DAMAGE = {("truncated", "engine library"), ("foreign", "engine library"),
+                   ("zero bytes", "module"), ("edited", "module"), ("truncated", "kernel library")}
 
 
 @needs_compiler
 @pytest.mark.xdist_group("pristine caches")     # one worker builds them (a minute of builds)
-@pytest.mark.parametrize("n, other, pattern", [(1, 2, "*.evaluations-*.so"), (10, 11, "*[0-9a-f].so"),
-                                               (1, 2, "*.py")],
-                         ids=["engine library", "kernel library", "module"])
-@pytest.mark.parametrize("damage", ["truncated", "zero bytes", "foreign", "edited"])
-def test_a_damaged_cache_entry_is_rebuilt_with_the_right_answer(tmp_path, pristine, n, other,
-                                                                 pattern, damage):
+@pytest.mark.parametrize("damage, kind", [
+    pytest.param(damage, kind, id=f"{damage}-{kind}",
+                 marks=() if (damage, kind) in _DEFAULT_DAMAGE else pytest.mark.slow)
+    for kind in _ENTRIES for damage in ("truncated", "zero bytes", "foreign", "edited")])
+def test_a_damaged_cache_entry_is_rebuilt_with_the_right_answer(tmp_path, pristine, damage,
+                                                                 kind):
     """Each kind of entry damaged each way: the next run (a new process: a truncated library
     used to kill it with SIGBUS) rebuilds the entry and gets the same answer."""
     import shutil
-    source, first = pristine[n]
+    n, other, pattern = _ENTRIES[kind]
+    source, first = pristine.built(*((n, other) if damage == "foreign" else (n,)))[n]
     assert first[0] == "success" and first[1] < 1e-6
     cache = tmp_path / "cache"
     shutil.copytree(source, cache)

@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .model.parameters import Parameter
+from .threads import in_run_threads
 # The ready objectives and constraints live in `mechsim.objectives`; found here too.
 from .objectives import (DesignError, EffortNorm, FunctionPoints,  # noqa: F401
                          GrashofCrank, JointForceNorm, PathPoints, TransmissionAngle)
@@ -77,11 +78,13 @@ class Design:
         return "success" if self.success else "not converged"
 
 
+@in_run_threads
 def optimize(mech, objective, parameters, bounds=None, constraints=(), *,
              gradient: str = "exact", method: str | None = None, tol: float | None = None,
              options: dict | None = None) -> Design:
     """Minimise `objective(mech, names)` over the Parameters named in `parameters`, from
-    their present values, with `scipy.optimize.minimize`.
+    their present values, with `scipy.optimize.minimize`. The search holds BLAS to one
+    thread, as a run does (`mechsim.threads`).
 
     Parameters
     ----------
