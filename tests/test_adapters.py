@@ -53,6 +53,8 @@ def _lowest(requirement_name):
     raise AssertionError(f"pyproject gives no lower bound for {requirement_name}")
 
 
+# A study (installs the oldest allowed numpy and scipy): run it when their ranges change.
+@pytest.mark.slow
 def test_a_moved_state_carries_over_on_the_oldest_allowed_scipy(tmp_path):
     """The lowest numpy and scipy of pyproject's ranges installed into a directory of their
     own, ahead of this environment's on the import path, with a copy of this mechsim

@@ -189,6 +189,8 @@ def test_a_block_breaking_away_on_a_sprung_cart_agrees_with_central_differences(
         ("slipping backwards", "stuck") in kinds and ("slipping forwards", "stuck") in kinds
 
 
+# A study: the Stribeck curve's slope is checked on the pin above in the default suite.
+@pytest.mark.slow
 def test_a_block_on_a_sprung_cart_with_a_stribeck_curve_agrees_with_central_differences():
     """μ(ṡ) = μ + (μ_s − μ) exp(−(ṡ/v_t)²): its slope in the speed and the transition
     velocity's own derivative enter the sliding block's."""

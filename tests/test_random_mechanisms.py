@@ -62,7 +62,9 @@ CASES = {f"{kind} {k}": (kind, *random_mechanism(rng, kind))
          for kind in RANDOM_KINDS for k in range(2)}
 
 
-@pytest.mark.parametrize("case", CASES)
+# The second mechanism of each kind runs in the slow suite (a sweep).
+@pytest.mark.parametrize("case", [pytest.param(case, marks=pytest.mark.slow)
+                                  if case.endswith(" 1") else case for case in CASES])
 def test_every_method_follows_a_random_mechanism(case):
     kind, mech, params = CASES[case]
     branch, aligned = branch_and_passages(kind, params)

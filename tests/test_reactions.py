@@ -321,6 +321,8 @@ def test_a_fully_driven_mechanism_with_a_redundant_bar_runs_and_balances_its_ene
     assert np.max(np.abs(res.energy.work)) > 0.1 * res.energy_scale
 
 
+# A study: a stiff beam's convergence to the rigid limit.
+@pytest.mark.slow
 def test_a_flexible_coupler_approaches_the_rigid_limit():
     """The flexible four-bar with a coupler 1000 times stiffer than copper (lowest bending
     mode 3300 rad/s, 5 % modal damping) against the same four-bar with a rigid coupler of

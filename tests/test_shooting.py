@@ -432,6 +432,8 @@ def test_regime_map_finds_periodic_states_that_scale_with_frequency():
     assert np.all(rm.periods[found] == 1)
 
 
+# A study (14 flows of the flexible model): shooting is checked on the driven pendulum above.
+@pytest.mark.slow
 def test_flexible_slider_crank_steady_state_and_its_modal_floquet_multipliers():
     """The seed's flexible slider-crank, crank driven at 150 rad/s, rod with 2 % modal
     damping: shooting on the modal coordinates finds the periodic steady state without the
