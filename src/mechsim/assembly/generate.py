@@ -25,7 +25,7 @@ from sympy.printing.numpy import NumPyPrinter
 
 from ..codegen.printer import SPLINE_IMPORT, shared_terms, spline_call
 from ..model import Driver
-from ..symbolic import SymbolicContext
+from ..symbolic import SymbolicContext, second_derivative_along
 
 
 def kernel_source(item, key: str) -> str:
@@ -40,7 +40,7 @@ def kernel_source(item, key: str) -> str:
     q, v = sp.Matrix(ctx.q), sp.Matrix(ctx.v)
     phi = sp.Matrix(rows)
     J = phi.jacobian(q)
-    gamma = -((J * v).jacobian(q) * v)
+    gamma = -second_derivative_along(phi, q, v)
     writer = _Writer(ctx)
     writer.function("phi", ("Q", "P"), [phi])
     writer.function("jacobian", ("Q", "P"), [J])

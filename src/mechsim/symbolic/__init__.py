@@ -4,6 +4,6 @@ Importing this package imports sympy; nothing else in mechsim does so at import 
 mechanism whose compiled model is in the cache never reaches it.
 """
 
-from .constraints import SymbolicContext, SymbolicSystem, build_system
+from .constraints import SymbolicContext, SymbolicSystem, build_system, second_derivative_along
 
-__all__ = ["SymbolicContext", "SymbolicSystem", "build_system"]
+__all__ = ["SymbolicContext", "SymbolicSystem", "build_system", "second_derivative_along"]

@@ -137,12 +137,43 @@ class SymbolicSystem:
 
     @cached_property
     def gamma(self) -> sp.Matrix:
-        qd = sp.Matrix(self.v)
-        if not self.q:
-            return -self.phi_t.diff(self.t)
-        jv = self.phi_q * qd
-        return -(jv.jacobian(self.q) * qd) - 2 * (self.phi_t.jacobian(self.q) * qd) \
-            - self.phi_t.diff(self.t)
+        return -second_derivative_along(self.phi, self.q, self.v, self.t)
+
+
+def second_derivative_along(phi: sp.Matrix, q, v, t=None) -> sp.Matrix:
+    """d²/dε² Φ(q + ε v, t + ε) at ε = 0, that is (Φ_q v)_q v + 2 Φ_qt v + Φ_tt (t held
+    where None: (Φ_q v)_q v), row by row. A row built of rotations (sines and cosines of
+    angles times polynomials: pins, guides, gears, drivers) takes the Jacobian of Φ_q v,
+    whose terms the code shares with Φ_q's; any other (a root, a quotient, an atan2: a
+    curve's contact point in its body's frame) the directional derivative of the row
+    itself, not multiplied out over the coordinates: on a cam's polar curve its shared
+    terms take a third of the operations and sympy.cse a fifth of the time
+    (docs/benchmarks.md)."""
+    q, v = list(q), list(v)
+    eps = sp.Dummy("eps")
+    shift = {qi: qi + eps * vi for qi, vi in zip(q, v)}
+    if t is not None:
+        shift[t] = t + eps
+    rows = []
+    for row in phi:
+        if _of_rotations(row):
+            jv = sp.Add(*[row.diff(qj) * vj for qj, vj in zip(q, v)])
+            second = sp.Add(*[jv.diff(qk) * vk for qk, vk in zip(q, v)])
+            if t is not None:
+                rate = row.diff(t)
+                second += 2 * sp.Add(*[rate.diff(qk) * vk for qk, vk in zip(q, v)]) + \
+                    rate.diff(t)
+        else:
+            second = row.xreplace(shift).diff(eps, 2).xreplace({eps: 0})
+        rows.append(second)
+    return sp.Matrix(rows) if rows else sp.zeros(0, 1)
+
+
+def _of_rotations(expr) -> bool:
+    """Whether `expr` is a polynomial in symbols, sines and cosines (no roots, quotients or
+    other functions)."""
+    return all(isinstance(f, (sp.sin, sp.cos)) for f in expr.atoms(sp.Function)) and \
+        all(p.exp.is_Integer and p.exp > 0 for p in expr.atoms(sp.Pow))
 
 
 def build_system(bodies, items) -> SymbolicSystem:
