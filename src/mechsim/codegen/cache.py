@@ -32,7 +32,7 @@ from pathlib import Path
 from types import ModuleType
 
 # Bump when the generated code changes meaning, so stale cache entries are not used.
-CODEGEN_VERSION = 11                # 11: γ as one directional derivative
+CODEGEN_VERSION = 12          # 12: γ of rows not of rotations differentiated forward
 
 
 def cache_dir() -> Path:

@@ -143,17 +143,15 @@ class SymbolicSystem:
 def second_derivative_along(phi: sp.Matrix, q, v, t=None) -> sp.Matrix:
     """d²/dε² Φ(q + ε v, t + ε) at ε = 0, that is (Φ_q v)_q v + 2 Φ_qt v + Φ_tt (t held
     where None: (Φ_q v)_q v), row by row. A row built of rotations (sines and cosines of
-    angles times polynomials: pins, guides, gears, drivers) takes the Jacobian of Φ_q v,
-    whose terms the code shares with Φ_q's; any other (a root, a quotient, an atan2: a
-    curve's contact point in its body's frame) the directional derivative of the row
-    itself, not multiplied out over the coordinates: on a cam's polar curve its shared
-    terms take a third of the operations and sympy.cse a fifth of the time
-    (docs/benchmarks.md)."""
+    angles times polynomials: pins, guides, drivers) takes the Jacobian of Φ_q v, whose
+    terms the code shares with Φ_q's; any other (a root, a quotient, an atan2: a curve's
+    contact point in its body's frame, a gear's) is differentiated forward along the path
+    through its shared terms (`_along`): on a cam's polar curve a third of the operations
+    after cse, in a thirtieth of the time (docs/benchmarks.md)."""
     q, v = list(q), list(v)
-    eps = sp.Dummy("eps")
-    shift = {qi: qi + eps * vi for qi, vi in zip(q, v)}
+    rates = dict(zip(q, v))
     if t is not None:
-        shift[t] = t + eps
+        rates[t] = sp.Integer(1)
     rows = []
     for row in phi:
         if _of_rotations(row):
@@ -164,9 +162,42 @@ def second_derivative_along(phi: sp.Matrix, q, v, t=None) -> sp.Matrix:
                 second += 2 * sp.Add(*[rate.diff(qk) * vk for qk, vk in zip(q, v)]) + \
                     rate.diff(t)
         else:
-            second = row.xreplace(shift).diff(eps, 2).xreplace({eps: 0})
+            second = _along(row, rates)
         rows.append(second)
     return sp.Matrix(rows) if rows else sp.zeros(0, 1)
+
+
+def _along(expr, rates: dict):
+    """d²/dε² expr(x + ε ẋ) at ε = 0 for the symbols x of `rates` ({x: ẋ}; others held):
+    forward through the shared terms of `expr` (sympy.cse), each term's first and second
+    derivatives along the path from its arguments' (the gradient and Hessian of one small
+    term), the chain put back together at the end (its terms shared, as cse finds them
+    again). Differentiating the whole expression twice took 2.7 s on a cam's polar curve,
+    this 0.1 s."""
+    terms, (reduced,) = sp.cse([expr], symbols=sp.numbered_symbols(cls=sp.Dummy))
+    first, second, chain = dict(rates), {}, []
+
+    def derivatives(e):
+        free = sorted((u for u in e.free_symbols if u in first), key=sp.default_sort_key)
+        grad = [e.diff(u) for u in free]
+        d1 = sp.Add(*[g * first[u] for g, u in zip(grad, free)])
+        d2 = sp.Add(*[g * second[u] for g, u in zip(grad, free) if u in second])
+        for i, (g, a) in enumerate(zip(grad, free)):
+            for b in free[i:]:
+                h = g.diff(b)
+                if h != 0:
+                    d2 += (1 if a == b else 2) * h * first[a] * first[b]
+        return d1, d2
+
+    for x, e in terms:
+        d1, d2 = derivatives(e)
+        first[x], second[x] = sp.Dummy(), sp.Dummy()
+        chain += [(x, e), (first[x], d1), (second[x], d2)]
+    _, d2 = derivatives(reduced)
+    whole = {}
+    for x, e in chain:
+        whole[x] = e.xreplace(whole)
+    return d2.xreplace(whole)
 
 
 def _of_rotations(expr) -> bool:
