@@ -146,8 +146,8 @@ def second_derivative_along(phi: sp.Matrix, q, v, t=None) -> sp.Matrix:
     angles times polynomials: pins, guides, drivers) takes the Jacobian of Φ_q v, whose
     terms the code shares with Φ_q's; any other (a root, a quotient, an atan2: a curve's
     contact point in its body's frame, a gear's) is differentiated forward along the path
-    through its shared terms (`_along`): on a cam's polar curve a third of the operations
-    after cse, in a thirtieth of the time (docs/benchmarks.md)."""
+    through its shared terms (`_along`), whose result is smaller there and found faster
+    (docs/benchmarks.md has the measurements)."""
     q, v = list(q), list(v)
     rates = dict(zip(q, v))
     if t is not None:
@@ -172,8 +172,7 @@ def _along(expr, rates: dict):
     forward through the shared terms of `expr` (sympy.cse), each term's first and second
     derivatives along the path from its arguments' (the gradient and Hessian of one small
     term), the chain put back together at the end (its terms shared, as cse finds them
-    again). Differentiating the whole expression twice took 2.7 s on a cam's polar curve,
-    this 0.1 s."""
+    again): each differentiation is of one small term, not of the whole expression."""
     terms, (reduced,) = sp.cse([expr], symbols=sp.numbered_symbols(cls=sp.Dummy))
     first, second, chain = dict(rates), {}, []
 
