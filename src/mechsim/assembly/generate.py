@@ -40,7 +40,7 @@ def kernel_source(item, key: str) -> str:
     q, v = sp.Matrix(ctx.q), sp.Matrix(ctx.v)
     phi = sp.Matrix(rows)
     J = phi.jacobian(q)
-    gamma = -second_derivative_along(phi, q, v)
+    gamma = -second_derivative_along(phi, q, v, jacobian=J)
     writer = _Writer(ctx)
     writer.function("phi", ("Q", "P"), [phi])
     writer.function("jacobian", ("Q", "P"), [J])

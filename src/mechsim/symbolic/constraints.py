@@ -137,25 +137,26 @@ class SymbolicSystem:
 
     @cached_property
     def gamma(self) -> sp.Matrix:
-        return -second_derivative_along(self.phi, self.q, self.v, self.t)
+        return -second_derivative_along(self.phi, self.q, self.v, self.t, self.phi_q)
 
 
-def second_derivative_along(phi: sp.Matrix, q, v, t=None) -> sp.Matrix:
+def second_derivative_along(phi: sp.Matrix, q, v, t=None, jacobian=None) -> sp.Matrix:
     """d²/dε² Φ(q + ε v, t + ε) at ε = 0, that is (Φ_q v)_q v + 2 Φ_qt v + Φ_tt (t held
     where None: (Φ_q v)_q v), row by row. A row built of rotations (sines and cosines of
     angles times polynomials: pins, guides, drivers) takes the Jacobian of Φ_q v, whose
     terms the code shares with Φ_q's; any other (a root, a quotient, an atan2: a curve's
     contact point in its body's frame, a gear's) is differentiated forward along the path
     through its shared terms (`_along`), whose result is smaller there and found faster
-    (docs/benchmarks.md has the measurements)."""
+    (docs/benchmarks.md has the measurements). `jacobian`: Φ_q where it is at hand."""
     q, v = list(q), list(v)
     rates = dict(zip(q, v))
     if t is not None:
         rates[t] = sp.Integer(1)
     rows = []
-    for row in phi:
+    for i, row in enumerate(phi):
         if _of_rotations(row):
-            jv = sp.Add(*[row.diff(qj) * vj for qj, vj in zip(q, v)])
+            gradient = [row.diff(qj) for qj in q] if jacobian is None else jacobian[i, :]
+            jv = sp.Add(*[g * vj for g, vj in zip(gradient, v)])
             second = sp.Add(*[jv.diff(qk) * vk for qk, vk in zip(q, v)])
             if t is not None:
                 rate = row.diff(t)
