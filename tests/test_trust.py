@@ -608,7 +608,7 @@ _DEFAULT_DAMAGE = {("truncated", "engine library"), ("foreign", "engine library"
 
 
 @needs_compiler
-@pytest.mark.xdist_group("pristine caches")     # one worker builds them (a minute of builds)
+@pytest.mark.xdist_group("pristine caches")     # one worker builds each model once
 @pytest.mark.parametrize("damage, kind", [
     pytest.param(damage, kind, id=f"{damage}-{kind}",
                  marks=() if (damage, kind) in _DEFAULT_DAMAGE else pytest.mark.slow)
