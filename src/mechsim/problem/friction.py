@@ -68,55 +68,60 @@ def _newton(elements, active, equations):
     """The friction forces x (one per active joint) solving each joint's equation
     (`equations[i]`: (σμ, its wrench's affine map, None) for a sliding joint, x_i + σμ L = 0;
     (None, constant, row) for a held one, constant + row · x = 0), by Newton's method with
-    the exact Jacobian; None where it is singular or does not converge."""
+    the exact Jacobian; None where it is singular or does not converge. The residuals and
+    the Jacobian are built in floats (a few joints: numpy's per-call cost would dominate)."""
     size = len(active)
-    if size == 1 and equations[0][0] is not None:
-        return _newton_one(elements[active[0]], *equations[0][:2])
-    x = np.zeros(size)
-    for _ in range(MAX_ITERATIONS):
-        r = np.empty(size)
-        D = np.zeros((size, size))
-        for i, (k, (slide, affine, row)) in enumerate(zip(active, equations)):
-            if slide is None:
-                r[i], D[i] = affine + row @ x, row
-                continue
-            F0, DF, M0, DM = affine
-            L, dF, dM = elements[k].load(F0 + x @ DF, M0 + x @ DM)
-            r[i] = x[i] + slide * L
-            D[i] = slide * (DF @ dF + DM * dM)
-            D[i, i] += 1.0
-        if size == 1:
-            step = r / D[0] if abs(D[0, 0]) > SINGULAR else None
+    terms = []
+    for k, (slide, affine, row) in zip(active, equations):
+        if slide is None:
+            terms.append((None, float(affine), [float(a) for a in row]))
         else:
-            singular = np.linalg.svd(D, compute_uv=False)
-            step = np.linalg.solve(D, r) if singular[-1] > SINGULAR * max(1.0, singular[0]) \
-                else None
-        if step is None or not np.all(np.isfinite(step)):
-            return None
-        x = x - step
-        if np.max(np.abs(step)) <= TOLERANCE * max(1.0, np.max(np.abs(x))):
-            return x
-    return None
-
-
-def _newton_one(element, slide, affine):
-    """`_newton` for one sliding joint alone, in floats: x + σμ L(F₀ + x DF, M₀ + x DM) = 0."""
-    F0, DF, M0, DM = affine
-    fx, fy, dfx, dfy = float(F0[0]), float(F0[1]), float(DF[0, 0]), float(DF[0, 1])
-    m0, dm = float(M0), float(DM[0])
-    x = 0.0
+            F0, DF, M0, DM = affine
+            terms.append((float(slide), elements[k].shape, float(F0[0]), float(F0[1]),
+                          [float(a) for a in DF[:, 0]], [float(a) for a in DF[:, 1]],
+                          float(M0), [float(a) for a in DM]))
+    x = [0.0] * size
     for _ in range(MAX_ITERATIONS):
-        L, dF, dM = element.load(np.array([fx + x * dfx, fy + x * dfy]), m0 + x * dm)
-        slope = 1.0 + slide * (dfx * dF[0] + dfy * dF[1] + dm * dM)
-        if not abs(slope) > SINGULAR:
+        r, D = [0.0] * size, []
+        for i, term in enumerate(terms):
+            if term[0] is None:
+                _, constant, row = term
+                r[i] = constant + sum(a * b for a, b in zip(row, x))
+                D.append(row)
+                continue
+            slide, shape, fx, fy, dfx, dfy, m, dm = term
+            for j, xj in enumerate(x):
+                fx, fy, m = fx + xj * dfx[j], fy + xj * dfy[j], m + xj * dm[j]
+            L, gx, gy, gm = _load(*shape, fx, fy, m)
+            r[i] = x[i] + slide * L
+            D.append([slide * (dfx[j] * gx + dfy[j] * gy + dm[j] * gm) + (j == i)
+                      for j in range(size)])
+        if size == 1:
+            step = [r[0] / D[0][0]] if abs(D[0][0]) > SINGULAR else None
+        else:                           # one SVD: the singularity test and the step
+            U, singular, Vt = np.linalg.svd(np.array(D))
+            step = list(Vt.T @ ((U.T @ np.array(r)) / singular)) \
+                if singular[-1] > SINGULAR * max(1.0, singular[0]) else None
+        if step is None or not all(map(math.isfinite, step)):
             return None
-        step = (x + slide * L) / slope
-        x -= step
-        if not math.isfinite(x):
-            return None
-        if abs(step) <= TOLERANCE * max(1.0, abs(x)):
-            return np.array([x])
+        x = [a - b for a, b in zip(x, step)]
+        if max(map(abs, step)) <= TOLERANCE * max(1.0, max(map(abs, x))):
+            return np.array(x)
     return None
+
+
+def _load(radius, length, preload, fx, fy, m):
+    """(L, ∂L/∂F_x, ∂L/∂F_y, ∂L/∂M) of an element of `radius`, `length` (NaN where it has
+    none) and `preload` under the joint force (fx, fy) and moment m, in floats: a pin's
+    μ-less load r (‖F‖ + preload), a guide's ‖F‖ + preload, or 2|M|/length + preload where
+    its block's couple outweighs ‖F‖ (the contact at its two ends)."""
+    size = math.hypot(fx, fy)
+    ux, uy = (fx / size, fy / size) if size > 0.0 else (0.0, 0.0)
+    if radius == radius:
+        return radius * (size + preload), radius * ux, radius * uy, 0.0
+    if 2.0 * abs(m) / length > size:                    # (False where no length)
+        return 2.0 * abs(m) / length + preload, 0.0, 0.0, math.copysign(2.0, m) / length
+    return size + preload, ux, uy, 0.0
 
 
 class FrictionError(RuntimeError):
@@ -140,17 +145,17 @@ class FrictionElement:
         """"friction" or "stop"."""
         return self.friction.kind
 
+    @property
+    def shape(self) -> tuple:
+        """(radius, length, preload) as floats, NaN where the element has none (`_load`)."""
+        fr = self.friction
+        return (math.nan if fr.radius is None else float(fr.radius),
+                math.nan if fr.length is None else float(fr.length), float(fr.preload))
+
     def load(self, F, M):
         """(L, ∂L/∂F (2,), ∂L/∂M) of the joint force F (2,) and moment M: what μ multiplies."""
-        fr = self.friction
-        size = float(np.hypot(F[0], F[1]))
-        unit = F / size if size > 0.0 else np.zeros(2)
-        if fr.radius is not None:                          # a pin: μ r (‖F‖ + preload)
-            return fr.radius * (size + fr.preload), fr.radius * unit, 0.0
-        if fr.length is not None and 2.0 * abs(M) / fr.length > size:
-            return 2.0 * abs(M) / fr.length + fr.preload, np.zeros(2), \
-                2.0 * np.sign(M) / fr.length
-        return size + fr.preload, unit, 0.0
+        L, gx, gy, gm = _load(*self.shape, float(F[0]), float(F[1]), float(M))
+        return L, np.array([gx, gy]), gm
 
 
 @dataclass(frozen=True)

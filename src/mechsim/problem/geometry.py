@@ -124,6 +124,13 @@ def derivative(a, shape):
     return a.d if isinstance(a, Dual) else np.zeros(shape)
 
 
+def _over_states(seeds, shape):
+    """Seeds (n, k) or (N or 1, n, k) as a read-only (N, n, k) view, for states of `shape`
+    (N, n)."""
+    seeds = np.asarray(seeds, float)
+    return np.broadcast_to(seeds, shape + seeds.shape[-1:])
+
+
 class NumericContext(JointContext):
     """What a joint sees while writing its equations (`JointContext`), in dual numbers.
 
@@ -138,14 +145,14 @@ class NumericContext(JointContext):
     def __init__(self, starts, q, seeds=None):
         self.starts = starts
         self.q = np.atleast_2d(np.asarray(q, float))
-        self.seeds = seeds
+        # The seeds over every state, broadcast once (a coordinate takes a view of them).
+        self.seeds = None if seeds is None else _over_states(seeds, self.q.shape)
 
     def coordinate(self, i):
         x = self.q[:, i]
         if self.seeds is None:
             return x
-        d = self.seeds[..., i, :]
-        return Dual(x, np.broadcast_to(d, x.shape + d.shape[-1:]))
+        return Dual(x, self.seeds[:, i, :])
 
     def frame(self, body):
         start = self.starts.get(id(body))
@@ -244,13 +251,12 @@ class DualJetContext(NumericContext):
     def __init__(self, starts, q, v, a, dq, dv):
         super().__init__(starts, q)
         self.v, self.a = np.atleast_2d(v), np.atleast_2d(a)
-        self.dq, self.dv = dq, dv
+        self.dq, self.dv = _over_states(dq, self.q.shape), _over_states(dv, self.q.shape)
 
     def coordinate(self, i):
         x = self.q[:, i]
         k = self.dq.shape[-1]
-        return Jet(Dual(x, np.broadcast_to(self.dq[..., i, :], x.shape + (k,))),
-                   Dual(self.v[:, i], np.broadcast_to(self.dv[..., i, :], x.shape + (k,))),
+        return Jet(Dual(x, self.dq[:, i, :]), Dual(self.v[:, i], self.dv[:, i, :]),
                    Dual(self.a[:, i], np.zeros(x.shape + (k,))))
 
     cos, sin = staticmethod(_jet_cos), staticmethod(_jet_sin)
