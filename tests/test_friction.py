@@ -437,3 +437,47 @@ def test_friction_coefficients_take_parameters_set_without_a_build():
     with pytest.raises(ms.ModelError, match="friction 'rub'.*must not be below"):
         mech.set_parameters(mu_s=0.1)
     assert mech.frictions[0].mu_static == 0.7
+
+
+def test_friction_at_many_states_at_once_is_friction_at_each_alone():
+    """`FrictionModel.solve_many` (each joint's geometry over all states in one pass, as
+    the work integral asks for nine states a step) gives at every state what `solve` gives
+    there alone: on a slider-crank turning freely with friction in all four joints (a
+    Newton of four unknowns), with joints sliding as they move, all forwards, and one held
+    still, and with states whose joints move different ways in one call (reversed rows)."""
+    from mechsim.problem.friction import FORWARD, STUCK
+    mech = ms.examples.slider_crank(crank_speed=100.0)
+    for j in mech.joints:
+        size = {"radius": 0.01} if j.kind == "revolute" else {"length": 0.02}
+        mech.add(ms.Friction(j, mu=0.15, **size))
+    res = mech.simulate(0.02, rtol=1e-8, output_step=0.002)      # (before its dead centre)
+    p = mech.problem()
+    T, Q, V = res.t[1:], res.q[1:], res.v[1:] * np.where(np.arange(len(res.t) - 1) % 2, 1.0,
+                                                          -1.0)[:, None]
+    F = p.load_model.forces_at(T, Q, V)
+    K = len(p.friction.elements)
+    for modes in (None, [FORWARD] * K, [FORWARD, FORWARD, STUCK, FORWARD]):   # B held
+        together = p.friction.solve_many(p, T, Q, V, F, modes)
+        for t, q, v, f, one in zip(T, Q, V, F, together):
+            alone = p.friction.solve(p, t, q, v, f, modes)
+            for name in ("forces", "loads", "rates", "gradients", "modes"):
+                a, b = getattr(one, name), getattr(alone, name)
+                np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max(),
+                                           err_msg=f"{name} at t = {t} (modes {modes})")
+            assert np.abs(one.forces).max() > 0.0
+        if modes is None:           # joints moving different ways: several groups
+            assert len({tuple(s.modes) for s in together}) > 1
+
+
+@pytest.mark.parametrize("size", [1, 2, 3])
+def test_friction_s_newton_solves_small_systems_as_numpy_and_refuses_singular_ones(size, rng):
+    """The float solve of friction's Newton (closed forms up to 2 × 2) against numpy's
+    solve, and a matrix of rank one less counted singular."""
+    from mechsim.problem.friction import _solve_small
+    for _ in range(20):
+        D, r = rng.normal(size=(size, size)), rng.normal(size=size)
+        np.testing.assert_allclose(_solve_small(D.tolist(), r.tolist()),
+                                   np.linalg.solve(D, r), rtol=1e-9 * np.linalg.cond(D))
+        U, s, Vt = np.linalg.svd(D)
+        s[-1] = 1e-12 * s[0]
+        assert _solve_small(((U * s) @ Vt).tolist(), r.tolist()) is None

@@ -713,9 +713,17 @@ def test_a_compile_that_ran_out_of_disk_is_tried_again_and_leftovers_go(tmp_path
         assert _probe(cache)[3]                       # space back: compiled
 
 
-@pytest.mark.parametrize("value, compiled", [("0", True), ("false", True), ("1", False),
-                                              ("yes", False)])
-def test_mechsim_no_compile_reads_as_a_switch(tmp_path, value, compiled):
+@pytest.mark.parametrize("value, on", [("0", False), ("false", False), (" Off ", False),
+                                       ("", False), ("1", True), ("yes", True), ("TRUE", True)])
+def test_mechsim_no_compile_reads_as_a_switch(monkeypatch, value, on):
+    from mechsim.codegen.cache import env_flag
+    monkeypatch.setenv("MECHSIM_NO_COMPILE", value)
+    assert env_flag("MECHSIM_NO_COMPILE") is on
+
+
+@pytest.mark.parametrize("value, compiled", [("false", True), ("yes", False)])
+def test_a_new_process_compiles_as_mechsim_no_compile_says(tmp_path, value, compiled):
+    """The switch end to end, one value each way (how each value reads: above)."""
     if compiled and not ms.examples.four_bar().compilation().serves:
         pytest.skip("no working C compiler")
     status, _, _, engine, _ = _probe(tmp_path / "cache", MECHSIM_NO_COMPILE=value)

@@ -33,7 +33,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .geometry import joint_gradient, joint_path_rates, joint_wrench
+from .geometry import joint_gradients, joint_path_rates, joint_wrench
 
 # What an element is doing: sliding forwards or backwards, held at zero rate, or nothing (a
 # stop its joint does not rest on; a joint's friction while its stop holds it).
@@ -96,18 +96,34 @@ def _newton(elements, active, equations):
             r[i] = x[i] + slide * L
             D.append([slide * (dfx[j] * gx + dfy[j] * gy + dm[j] * gm) + (j == i)
                       for j in range(size)])
-        if size == 1:
-            step = [r[0] / D[0][0]] if abs(D[0][0]) > SINGULAR else None
-        else:                           # one SVD: the singularity test and the step
-            U, singular, Vt = np.linalg.svd(np.array(D))
-            step = list(Vt.T @ ((U.T @ np.array(r)) / singular)) \
-                if singular[-1] > SINGULAR * max(1.0, singular[0]) else None
+        step = _solve_small(D, r)
         if step is None or not all(map(math.isfinite, step)):
             return None
         x = [a - b for a, b in zip(x, step)]
         if max(map(abs, step)) <= TOLERANCE * max(1.0, max(map(abs, x))):
             return np.array(x)
     return None
+
+
+def _solve_small(D, r):
+    """D⁻¹ r for a small square D (lists), None where D counts as singular: σ_min ≤
+    `SINGULAR` max(1, σ_max). Sizes 1 and 2 in floats (σ of a 2 × 2 in closed form: σ₁² +
+    σ₂² = ‖D‖², σ₁σ₂ = |det D|), larger ones by one SVD (the test and the solve)."""
+    if len(D) == 1:
+        return [r[0] / D[0][0]] if abs(D[0][0]) > SINGULAR else None
+    if len(D) == 2:
+        (a, b), (c, d) = D
+        det = a * d - b * c
+        norm2 = a * a + b * b + c * c + d * d
+        largest = math.sqrt(0.5 * (norm2 + math.sqrt(max(norm2 * norm2 - 4.0 * det * det,
+                                                             0.0))))
+        if not abs(det) > SINGULAR * largest * max(1.0, largest):   # σ_min = |det| / σ_max
+            return None
+        return [(d * r[0] - b * r[1]) / det, (a * r[1] - c * r[0]) / det]
+    U, singular, Vt = np.linalg.svd(np.array(D))
+    if not singular[-1] > SINGULAR * max(1.0, singular[0]):
+        return None
+    return list(Vt.T @ ((U.T @ np.array(r)) / singular))
 
 
 def _load(radius, length, preload, fx, fy, m):
@@ -222,56 +238,93 @@ class FrictionModel:
         """The friction forces at the state (t, q, v) under the applied forces Q (n,)
         (`modes` overrides the model's). A joint following its rate's sign (modes None)
         at zero rate carries none, nor does a stop."""
+        return self.solve_many(problem, [t], np.asarray(q, float)[None],
+                               np.asarray(v, float)[None], np.asarray(Q, float)[None], modes)[0]
+
+    def solve_many(self, problem, T, Q, V, F, modes=None) -> list[FrictionState]:
+        """`solve` at the states (T[i], Q[i], V[i]) under the applied forces F[i] (rows):
+        each joint's geometry (its gradient, the wrenches its multipliers apply, its path
+        rates) evaluated over all of them in one pass, each state's saddle-point responses
+        and Newton on its own. A state with no solution raises `FrictionError`."""
+        T = np.atleast_1d(np.asarray(T, float))
+        N, n = len(T), Q.shape[1]
         K = len(self.elements)
-        if modes is None:
-            modes = self.modes_at(t)
-        G = np.zeros((K, len(q)))
+        given = [modes if modes is not None else self.modes_at(t) for t in T]
+        G = np.zeros((N, K, n))
         for k, e in enumerate(self.elements):           # a free stop needs no gradient
-            if e.kind == "friction" or (modes is not None and modes[k] != FREE):
-                G[k] = joint_gradient(e.geometry, q)
-        rates = G @ v
-        if modes is None:
-            modes = np.array([int(np.sign(r)) if e.kind == "friction" and r != 0.0 else FREE
-                              for e, r in zip(self.elements, rates)])
-        active = [k for k in range(K) if modes[k] != FREE]
-        f = np.zeros(K)
-        loads = np.zeros(K)
-        if not active:
-            return FrictionState(f, loads, rates, G, np.asarray(modes, int))
-        J, gamma = problem.dynamics_terms(q, v, t)
-        A, Lam = _responses(problem, J, gamma, q, np.column_stack([Q, G[active].T]))
-        a0, lam0, A, Lam = A[:, 0], Lam[:, 0], A[:, 1:], Lam[:, 1:]     # (n, a), (m, a)
-        linear = {}
+            moving = [i for i, m in enumerate(given)
+                      if e.kind == "friction" or (m is not None and m[k] != FREE)]
+            if moving:
+                G[moving, k] = joint_gradients(e.geometry, Q[moving])
+        rates = np.einsum("ikn,in->ik", G, V)
+        chosen = [np.asarray(m, int) if m is not None else np.array(
+            [int(np.sign(r)) if e.kind == "friction" and r != 0.0 else FREE
+             for e, r in zip(self.elements, rates[i])]) for i, m in enumerate(given)]
+        f, loads = np.zeros((N, K)), np.zeros((N, K))
+        groups = {}                                     # the states of each active set
+        for i, m in enumerate(chosen):
+            active = tuple(k for k in range(K) if m[k] != FREE)
+            if active:
+                groups.setdefault(active, []).append(i)
+        for active, states in groups.items():
+            self._solve_group(problem, list(active), states, (T, Q, V, F, G, rates, chosen),
+                              f, loads)
+        return [FrictionState(f[i], loads[i], rates[i], G[i], chosen[i]) for i in range(N)]
+
+    def _solve_group(self, problem, active, states, at, f, loads):
+        """Fill f and loads (N, K) at the `states` (indices into `at`: T, Q, V, F, G,
+        rates, modes) whose elements `active` act."""
+        T, Q, V, F, G, rates, chosen = at
+        a = len(active)
+        responses = []                                  # each state's (Φ_q, q̈ (n, 1 + a), λ)
+        for i in states:
+            J, gamma = problem.dynamics_terms(Q[i], V[i], T[i])
+            responses.append((J, *_responses(problem, J, gamma, Q[i],
+                                             np.column_stack([F[i], G[i, active].T]))))
+        linear = {}                     # a rubbing joint's wrench, affine in x: (F, M) per state
         for k in active:
             e = self.elements[k]
             if e.kind != "friction":
                 continue
             rows = list(e.rows)
-            lam = np.column_stack([lam0[rows], Lam[rows]]).T      # (1 + a, rows)
-            F, M = joint_wrench(e.geometry, np.repeat(q[None], len(lam), axis=0), lam,
-                                jacobian=J[rows])
-            linear[k] = (F[0], F[1:], M[0], M[1:])
-        W = problem.inverse_mass_diagonal
-        equations = []
-        for k in active:
-            if modes[k] == STUCK:
-                # s̈_k = g q̈ + vᵀ(∂²s/∂q²)v = 0, scaled by g M⁻¹ g (the joint's own
-                # mobility) so that a joint its own force cannot move shows as a zero row.
-                scale = 1.0 / float(G[k] @ (W * G[k]))
-                path = joint_path_rates(self.elements[k].geometry, q, v)[2][0]
-                equations.append((None, scale * (G[k] @ a0 + path), scale * (G[k] @ A)))
+            if len(states) == 1:                    # (the right-hand side's case)
+                (J, _, Lam), = responses
+                lam, jacobian = Lam[rows].T, J[rows]
             else:
-                mu = self.elements[k].friction.coefficient(abs(rates[k]))
-                equations.append((modes[k] * mu, linear[k], None))
-        x = _newton(self.elements, active, equations)
-        if x is None:
-            raise FrictionError(self._why(active, modes, t))
-        for i, k in enumerate(active):
-            f[k] = x[i]
-            if self.elements[k].kind == "friction":
-                F0, DF, M0, DM = linear[k]
-                loads[k] = self.elements[k].load(F0 + x @ DF, M0 + x @ DM)[0]
-        return FrictionState(f, loads, rates, G, np.asarray(modes, int))
+                lam = np.concatenate([Lam[rows].T for _, _, Lam in responses])  # (S (1+a), rows)
+                jacobian = np.concatenate([np.broadcast_to(J[rows], (1 + a,) + J[rows].shape)
+                                           for J, _, _ in responses])
+            Fk, Mk = joint_wrench(e.geometry, np.repeat(Q[states], 1 + a, axis=0), lam,
+                                  jacobian=jacobian)
+            linear[k] = (Fk.reshape(len(states), 1 + a, 2), Mk.reshape(len(states), 1 + a))
+        held = [k for k in active if any(chosen[i][k] == STUCK for i in states)]
+        paths = {k: joint_path_rates(self.elements[k].geometry, Q[states], V[states])[2]
+                 for k in held}
+        W = problem.inverse_mass_diagonal
+        for s, i in enumerate(states):
+            _, A, _ = responses[s]
+            a0, A = A[:, 0], A[:, 1:]
+            equations = []
+            for k in active:
+                if chosen[i][k] == STUCK:
+                    # s̈_k = g q̈ + vᵀ(∂²s/∂q²)v = 0, scaled by g M⁻¹ g (the joint's own
+                    # mobility) so that a joint its own force cannot move shows as a zero row.
+                    g = G[i, k]
+                    scale = 1.0 / float(g @ (W * g))
+                    equations.append((None, scale * (g @ a0 + paths[k][s]), scale * (g @ A)))
+                else:
+                    mu = self.elements[k].friction.coefficient(abs(rates[i, k]))
+                    Fk, Mk = linear[k]
+                    equations.append((chosen[i][k] * mu, (Fk[s, 0], Fk[s, 1:], Mk[s, 0],
+                                                          Mk[s, 1:]), None))
+            x = _newton(self.elements, active, equations)
+            if x is None:
+                raise FrictionError(self._why(active, chosen[i], T[i]))
+            f[i, active] = x
+            for k in linear:
+                Fk, Mk = linear[k]
+                loads[i, k] = self.elements[k].load(Fk[s, 0] + x @ Fk[s, 1:],
+                                                    Mk[s, 0] + x @ Mk[s, 1:])[0]
 
     def _why(self, active, modes, t) -> str:
         stuck = [self.elements[k].name for k in active if modes[k] == STUCK]

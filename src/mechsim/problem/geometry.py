@@ -352,10 +352,17 @@ def _attachment(geometry: JointGeometry, q, role: str) -> np.ndarray:
 
 def joint_gradient(geometry: JointGeometry, q) -> np.ndarray:
     """∂s/∂q of the joint's coordinate s at the state q (n,): shape (n,) (its rate is ∂s/∂q v)."""
-    q = np.asarray(q, float)
-    ctx = NumericContext(geometry.starts, q[None], np.eye(q.size))
-    c = geometry.joint.coordinate(ctx, geometry.parameters)
-    return np.broadcast_to(derivative(c, (1, q.size)), (1, q.size))[0].copy()
+    return joint_gradients(geometry, np.asarray(q, float)[None])[0]
+
+
+def joint_gradients(geometry: JointGeometry, q) -> np.ndarray:
+    """`joint_gradient` at the states q (N, n) in one pass: shape (N, n)."""
+    q = np.atleast_2d(np.asarray(q, float))
+    shape = q.shape
+    c = geometry.joint.coordinate(NumericContext(geometry.starts, q, np.eye(shape[1])),
+                                  geometry.parameters)
+    d = derivative(c, shape)
+    return np.array(d if d.shape == shape else np.broadcast_to(d, shape))
 
 
 def joint_path_rates(geometry: JointGeometry, q, v):

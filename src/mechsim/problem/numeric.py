@@ -288,10 +288,10 @@ class NumericProblem:
 
     def forces_at(self, T, Q, V) -> np.ndarray:
         """`forces` at many states (rows), shape (N, n)."""
-        if self.friction is None or self.friction.idle:
-            return self.load_model.forces_at(T, Q, V)
-        return np.array([self.forces(t, q, v) for t, q, v in zip(T, Q, V)]).reshape(
-            len(T), self.n)
+        F = self.load_model.forces_at(T, Q, V)
+        if self.friction is None or self.friction.idle or not len(F):
+            return F
+        return F + [s.generalized() for s in self.friction.solve_many(self, T, Q, V, F)]
 
     def friction_state(self, t, q, v, modes=None):
         """The joints' friction forces at (t, q, v) with the reactions that load them: a
@@ -351,25 +351,37 @@ class NumericProblem:
             Q = Q + state.generalized()
         elif self.friction is not None:               # every friction free: no power
             out += [0.0] * len(self.friction.frictions)
-        if owners:
-            _, J, phi_t, gamma = self.terms(q, v, t)
-            _, lam = self.accelerations(J, Q, gamma, q)
-            for owner in owners:
-                out.append(float(sum(lam[i] * phi_t[i] for i in self.rheonomic_rows
-                                     if self.constraint_owners[i] == owner)))
-        return np.array(out, float)
+        return np.array(out + self._driver_powers(t, q, v, Q, owners), float)
+
+    def _driver_powers(self, t, q, v, Q, owners) -> list[float]:
+        """λᵀ Φ_t over each driver's rows of `owners` at (t, q, v) under the forces Q."""
+        if not owners:
+            return []
+        _, J, phi_t, gamma = self.terms(q, v, t)
+        _, lam = self.accelerations(J, Q, gamma, q)
+        return [float(sum(lam[i] * phi_t[i] for i in self.rheonomic_rows
+                          if self.constraint_owners[i] == owner)) for owner in owners]
 
     def work_rates_many(self, T, Q, V) -> np.ndarray:
         """`work_rates` at the consistent states (T[i], Q[i], V[i]), shape (N, k). The
         drivers' λ and Φ_t come from the compiled engine for all states in one call where
         it takes them (the states whose Φ_q M⁻¹ Φ_qᵀ has a Cholesky factor, the same test
-        as `accelerations`); the other states, and every state of a mechanism with
-        friction acting, take `work_rates`."""
+        as `accelerations`); the other states take `work_rates`. With friction acting, its
+        forces at all states come from one `FrictionModel.solve_many`."""
         T = np.asarray(T, float)
         N, k = len(T), len(self.work_channels)
         owners = self._driver_owners()
         acting = self.friction is not None and not self.friction.idle
         lam = phi_t = ok = None
+        if acting and N:                # friction's states solved together
+            F = self.load_model.forces_at(T, Q, V)
+            states = self.friction.solve_many(self, T, Q, V, F)
+            rubbing = self.friction.frictions
+            return np.hstack([
+                self.load_model.powers_at(T, Q, V),
+                np.array([(s.forces * s.rates)[rubbing] for s in states]).reshape(N, -1),
+                np.array([self._driver_powers(t, q, v, f + s.generalized(), owners) for
+                          t, q, v, f, s in zip(T, Q, V, F, states)]).reshape(N, -1)])
         if owners and not acting and N:
             lam, phi_t = np.zeros((N, self.m)), np.zeros((N, self.m))
             ok = self.algebra.multipliers(T, Q, V, self.load_model.forces_at(T, Q, V), -1.0,
