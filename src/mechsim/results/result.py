@@ -332,8 +332,9 @@ class SimulationResult:
             raise KeyError(f"this result has no {kind} named {name!r}; {kind}s: "
                            f"{', '.join(names) or '(none)'}")
         k = next(i for i, e in enumerate(p.friction.elements) if e.name == name)
-        return np.array([p.friction_state(t, q, v).forces[k]
-                         for t, q, v in zip(self.t, self.q, self.v)])
+        F = p.load_model.forces_at(self.t, self.q, self.v)
+        states = p.friction.solve_many(p, self.t, self.q, self.v, F)
+        return np.array([s.forces[k] for s in states]).reshape(len(self.t))
 
     def driver_power(self, driver) -> np.ndarray:
         """The power [W] the driver delivers, effort × the rate of its joint, shape (n,)."""
