@@ -3,6 +3,7 @@ work (or a failed result naming it), nothing a user writes runs as code, and the
 cannot crash or poison a run."""
 
 import cmath
+import functools
 import math
 import os
 import signal
@@ -573,8 +574,20 @@ def _probed(process):
     return status, float(error), kernels == "True", engine == "True", err
 
 
-needs_compiler = pytest.mark.skipif(
-    not ms.examples.four_bar().compilation().serves, reason="no working C compiler")
+@functools.cache
+def _compiler_serves() -> bool:
+    """Whether compiled C serves the four-bar here (asked on first use, not while the
+    tests are collected)."""
+    return ms.examples.four_bar().compilation().serves
+
+
+@pytest.fixture
+def compiler():
+    if not _compiler_serves():
+        pytest.skip("no working C compiler")
+
+
+needs_compiler = pytest.mark.usefixtures("compiler")
 
 
 class _Pristine(dict):
@@ -709,7 +722,7 @@ def test_a_compile_that_ran_out_of_disk_is_tried_again_and_leftovers_go(tmp_path
     _probe(cache, CC=str(cc))
     assert log.read_text().count("called") > calls
     assert not stale.exists()
-    if ms.examples.four_bar().compilation().serves:
+    if _compiler_serves():
         assert _probe(cache)[3]                       # space back: compiled
 
 
@@ -724,7 +737,7 @@ def test_mechsim_no_compile_reads_as_a_switch(monkeypatch, value, on):
 @pytest.mark.parametrize("value, compiled", [("false", True), ("yes", False)])
 def test_a_new_process_compiles_as_mechsim_no_compile_says(tmp_path, value, compiled):
     """The switch end to end, one value each way (how each value reads: above)."""
-    if compiled and not ms.examples.four_bar().compilation().serves:
+    if compiled and not _compiler_serves():
         pytest.skip("no working C compiler")
     status, _, _, engine, _ = _probe(tmp_path / "cache", MECHSIM_NO_COMPILE=value)
     assert status == "success" and engine is compiled
