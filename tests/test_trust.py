@@ -764,6 +764,30 @@ def test_the_expression_parser_refuses_anything_but_arithmetic(text):
         pass
 
 
+@pytest.mark.parametrize("text", [
+    "sin(t) + cos(2*t)*tan(t/3)", "asin(t/4) - acos(t/5) + atan(t)",
+    "atan2(t, 1 - t) + hypot(t, 2)", "sinh(t)/cosh(t) - tanh(t)",
+    "exp(-t)*log(1 + t)*sqrt(t)", "abs(t - 1)**1.5 + radians(30*t) - degrees(t)/100",
+    "step(t, 0.5, 0, 2, 3*pi)", "-t**3 + 2**t - e*pi + 7"])
+def test_an_expression_over_an_array_has_its_value_at_each_point(text):
+    """`Expression.values` (numpy, what a kinematic analysis scans a driver's law with)
+    against `value` point by point, every function once; NaN, not an error, where the
+    expression is undefined, and a driver's `values_at` there takes `value`'s error."""
+    e = parse(text, {"t"}, "driver 'x'")
+    ts = np.linspace(0.0, 3.0, 301)
+    np.testing.assert_allclose(e.values(t=ts), [e.value(t=t) for t in ts], rtol=1e-14,
+                               atol=1e-14)
+    assert e.values(t=np.array(1.25)).shape == ()
+    undefined = parse("log(t - 1)", {"t"}, "driver 'x'")
+    got = undefined.values(t=ts)
+    assert np.all(np.isnan(got[ts < 1.0])) and np.isfinite(got[ts > 1.0]).all()
+    mech = ms.examples.four_bar()
+    driver = mech.add(ms.Driver(mech.joints[0], "log(t - 1)", name="motor"))
+    with pytest.raises(ValueError, match="math domain error"):
+        driver.values_at(ts)
+    assert driver.values_at(ts[ts > 1.0]) == pytest.approx(got[ts > 1.0], rel=1e-14)
+
+
 ATOMS = st.sampled_from(["t", "pi", "e", "1", "2.5", "1e3", "0", "-", "+", "*", "/", "**", "(",
                          ")", "sin(", "exp(", "log(", "sqrt(", "abs(", "atan2(", ",", " ", "^",
                          "9", "99", "x", "__", ".", "[", "]", "lambda", "'", "%", "1e308"])

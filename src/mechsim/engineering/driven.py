@@ -228,11 +228,10 @@ def times_of(mech, driver, values, t_start=0.0, horizon=1e6) -> np.ndarray:
             not (np.all(np.diff(values) > 0) or np.all(np.diff(values) < 0)):
         raise KinematicsError("kinematics: `over` needs at least two finite values, "
                               "strictly increasing or decreasing")
-    f = np.vectorize(driver.value, otypes=[float])
     span = 1.0
     while True:
         grid = t_start + np.linspace(0.0, span, 4097)
-        law = f(grid)
+        law = driver.values_at(grid)
         rising = np.diff(law)
         if not (np.all(rising >= 0) or np.all(rising <= 0)):
             raise KinematicsError(f"kinematics: driver '{driver.name}' ({driver.expression}) "
@@ -246,8 +245,16 @@ def times_of(mech, driver, values, t_start=0.0, horizon=1e6) -> np.ndarray:
     out, sign = [], 1.0 if law[-1] >= law[0] else -1.0
     for target in values:
         k = int(np.clip(np.searchsorted(sign * law, sign * target), 1, len(grid) - 1))
+        # The bracket in `value`'s own arithmetic (the grid's values may differ from it in
+        # the last bit): the neighbouring interval where that puts the target there.
+        fa, fb = driver.value(grid[k - 1]) - target, driver.value(grid[k]) - target
+        while sign * fa > 0.0 and k > 1:
+            k -= 1
+            fa, fb = driver.value(grid[k - 1]) - target, fa
+        while sign * fb < 0.0 and k < len(grid) - 1:
+            k += 1
+            fa, fb = fb, driver.value(grid[k]) - target
         a, b = grid[k - 1], grid[k]
-        fa, fb = law[k - 1] - target, law[k] - target
         out.append(a if fa == 0 else b if fb == 0 else
                    brentq(lambda x: driver.value(x) - target, a, b, xtol=1e-14, rtol=1e-15))
     return np.array(out)

@@ -7,7 +7,7 @@ import numpy as np
 
 from . import parameters as dual
 from .checks import ModelError, name_or_default, number_array, scalar
-from .expressions import parse
+from .expressions import Expression, parse
 from .joints import Joint, coordinate_joint
 from .splines import evaluate_table
 
@@ -121,6 +121,17 @@ class Driver:
     def value(self, t: float) -> float:
         """f(t), the prescribed change of the joint's coordinate (float arithmetic)."""
         return self.law.value(t=t)
+
+    def values_at(self, ts) -> np.ndarray:
+        """f at the times `ts` (an array): an expression's law in numpy at once (its values
+        may differ from `value`'s in the last bit), any other law, and an expression not
+        finite everywhere there, one `value` at a time (whose errors say why)."""
+        ts = np.asarray(ts, float)
+        if isinstance(self.law, Expression):
+            out = self.law.values(t=ts)
+            if np.all(np.isfinite(out)):
+                return out
+        return np.array([self.value(t) for t in ts.ravel()], float).reshape(ts.shape)
 
     @property
     def n_equations(self) -> int:

@@ -22,6 +22,8 @@ import ast
 import math
 import numbers
 
+import numpy as np
+
 from . import parameters as dual
 from .checks import ModelError
 
@@ -47,6 +49,21 @@ def _step(x, x0, h0, x1, h1):
     u = (x - x0) / (x1 - x0)
     return h0 + (h1 - h0) * u * u * (3.0 - 2.0 * u)
 
+
+def _steps(x, x0, h0, x1, h1):
+    """`_step` at an array x (x0 < x1 numbers)."""
+    if not x0 < x1:
+        raise ValueError(f"step needs x0 < x1, got {x0:g} and {x1:g}")
+    u = (x - x0) / (x1 - x0)
+    return np.where(x < x0, h0, np.where(x >= x1, h1, h0 + (h1 - h0) * u * u * (3.0 - 2.0 * u)))
+
+
+# The functions over numpy arrays (`Expression.values`).
+_ARRAYS = {"sin": np.sin, "cos": np.cos, "tan": np.tan, "asin": np.arcsin,
+           "acos": np.arccos, "atan": np.arctan, "atan2": np.arctan2, "sinh": np.sinh,
+           "cosh": np.cosh, "tanh": np.tanh, "exp": np.exp, "log": np.log, "sqrt": np.sqrt,
+           "abs": np.abs, "hypot": np.hypot, "radians": np.radians, "degrees": np.degrees,
+           "step": _steps}
 
 # name: (number of arguments, float function, sympy function name)
 FUNCTIONS = {
@@ -95,6 +112,16 @@ class Expression:
         """The float value with the free names bound to `values`; ArithmeticError or
         ValueError where it is undefined (log of a negative number, overflow)."""
         return float(_evaluate(self.tree, values))
+
+    def values(self, **arrays) -> np.ndarray:
+        """`value` at arrays of the free names (broadcast together), in numpy: NaN or ±inf
+        where it is undefined (no error). Its values may differ from `value`'s in the last
+        bit (numpy's and the math module's functions)."""
+        with np.errstate(all="ignore"):
+            out = _evaluate_arrays(self.tree, {k: np.asarray(a, float) for k, a in
+                                               arrays.items()})
+        shape = np.broadcast_shapes(*(np.shape(a) for a in arrays.values()))
+        return np.array(np.broadcast_to(out, shape), float)
 
     def exact_value(self, **values):
         """`value`, with Parameters among `values` carried (`mechsim.model.parameters`):
@@ -441,6 +468,32 @@ def _evaluate(tree, values):
         return _DUALS[tree[1]](*(dual.lift(a) if tree[1] in ("atan2", "hypot") else a
                                  for a in args))
     return FUNCTIONS[tree[1]][1](*args)
+
+
+def _evaluate_arrays(tree, values):
+    """`_evaluate` over numpy arrays (see `Expression.values`)."""
+    kind = tree[0]
+    if kind == "num":
+        return float(tree[1])
+    if kind == "const":
+        return CONSTANTS[tree[1]]
+    if kind == "name":
+        return values[tree[1]]
+    if kind == "neg":
+        return -_evaluate_arrays(tree[1], values)
+    if kind == "op":
+        a, b = _evaluate_arrays(tree[2], values), _evaluate_arrays(tree[3], values)
+        op = tree[1]
+        if op == "+":
+            return a + b
+        if op == "-":
+            return a - b
+        if op == "*":
+            return a * b
+        if op == "/":
+            return np.divide(a, b)
+        return np.power(a, b)
+    return _ARRAYS[tree[1]](*(_evaluate_arrays(a, values) for a in tree[2:]))
 
 
 def _structural(tree, parent) -> bool:
