@@ -213,6 +213,9 @@ print(json.dumps(dict(kind=type(prob.model).__name__, from_cache=mech.from_cache
                       sympy="sympy" in sys.modules, engine=mech.compilation().engine)))
 """
 
+# What a process says of the background builds it started.
+_STARTED = "from mechsim.build import background\nprint(len(background._started))\n"
+
 
 def test_auto_build_fuses_small_mechanisms_at_once_and_larger_ones_in_the_background(
         tmp_path):
@@ -226,8 +229,10 @@ def test_auto_build_fuses_small_mechanisms_at_once_and_larger_ones_in_the_backgr
     assert small == dict(kind="module", from_cache=False, sympy=True, engine=True)
     again = json.loads(_python(_BUILD.format(n=2), tmp_path))
     assert again == dict(kind="module", from_cache=True, sympy=False, engine=True)
-    first = json.loads(_python(_BUILD.format(n=4), tmp_path))
-    assert first == dict(kind="AssembledModel", from_cache=False, sympy=True, engine=False)
+    first, started = _python(_BUILD.format(n=4) + _STARTED, tmp_path).splitlines()
+    assert json.loads(first) == dict(kind="AssembledModel", from_cache=False, sympy=True,
+                                     engine=False)
+    assert started == "1"                       # the fused build, in the background
     deadline = time.monotonic() + 120
     while True:
         later = json.loads(_python(_BUILD.format(n=4), tmp_path))
@@ -259,8 +264,12 @@ def test_a_small_mechanism_runs_bitwise_alike_in_every_process(tmp_path):
 
 
 def test_background_builds_can_be_switched_off(tmp_path):
-    _python(_BUILD.format(n=4), tmp_path, MECHSIM_BACKGROUND="0")
-    time.sleep(3.0)
+    """With MECHSIM_BACKGROUND false a larger mechanism's first build runs assembled and
+    starts no background build (the process's record of the builds it started, one by
+    default: above), so only the joint types' kernels are cached."""
+    kind, count = _python(_BUILD.format(n=4) + _STARTED, tmp_path,
+                          MECHSIM_BACKGROUND="0").splitlines()
+    assert json.loads(kind)["kind"] == "AssembledModel" and count == "0"
     assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 2   # the kernels only
 
 
