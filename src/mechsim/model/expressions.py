@@ -118,8 +118,8 @@ class Expression:
         where it is undefined (no error). Its values may differ from `value`'s in the last
         bit (numpy's and the math module's functions)."""
         with np.errstate(all="ignore"):
-            out = _evaluate_arrays(self.tree, {k: np.asarray(a, float) for k, a in
-                                               arrays.items()})
+            out = _evaluate(self.tree, {k: np.asarray(a, float) for k, a in arrays.items()},
+                            arrays=True)
         shape = np.broadcast_shapes(*(np.shape(a) for a in arrays.values()))
         return np.array(np.broadcast_to(out, shape), float)
 
@@ -432,18 +432,21 @@ def _is_constant(tree) -> bool:
     return all(_is_constant(a) for a in tree[2:])
 
 
-def _evaluate(tree, values):
+def _evaluate(tree, values, arrays=False):
+    """The value of `tree` with its free names bound to `values`: floats (or `Jet`s, Duals
+    of Parameters); with `arrays`, numpy arrays, whose numbers are numpy floats (what is
+    undefined comes out NaN or ±inf, not an error) and whose functions numpy's (`_ARRAYS`)."""
     kind = tree[0]
     if kind == "num":
-        return float(tree[1])
+        return np.float64(tree[1]) if arrays else float(tree[1])
     if kind == "const":
-        return CONSTANTS[tree[1]]
+        return np.float64(CONSTANTS[tree[1]]) if arrays else CONSTANTS[tree[1]]
     if kind == "name":
         return values[tree[1]]
     if kind == "neg":
-        return -_evaluate(tree[1], values)
+        return -_evaluate(tree[1], values, arrays)
     if kind == "op":
-        a, b = _evaluate(tree[2], values), _evaluate(tree[3], values)
+        a, b = _evaluate(tree[2], values, arrays), _evaluate(tree[3], values, arrays)
         op = tree[1]
         if op == "+":
             return a + b
@@ -459,7 +462,9 @@ def _evaluate(tree, values):
         if isinstance(out, complex):
             raise ValueError(f"({a:g})**({b:g}) is not real")
         return out
-    args = [_evaluate(a, values) for a in tree[2:]]
+    args = [_evaluate(a, values, arrays) for a in tree[2:]]
+    if arrays:
+        return _ARRAYS[tree[1]](*args)
     if any(isinstance(a, Jet) for a in args):
         return _JETS[tree[1]](*(Jet.of(a) for a in args))
     if any(isinstance(a, dual.Dual) for a in args):
@@ -468,32 +473,6 @@ def _evaluate(tree, values):
         return _DUALS[tree[1]](*(dual.lift(a) if tree[1] in ("atan2", "hypot") else a
                                  for a in args))
     return FUNCTIONS[tree[1]][1](*args)
-
-
-def _evaluate_arrays(tree, values):
-    """`_evaluate` over numpy arrays (see `Expression.values`)."""
-    kind = tree[0]
-    if kind == "num":
-        return float(tree[1])
-    if kind == "const":
-        return CONSTANTS[tree[1]]
-    if kind == "name":
-        return values[tree[1]]
-    if kind == "neg":
-        return -_evaluate_arrays(tree[1], values)
-    if kind == "op":
-        a, b = _evaluate_arrays(tree[2], values), _evaluate_arrays(tree[3], values)
-        op = tree[1]
-        if op == "+":
-            return a + b
-        if op == "-":
-            return a - b
-        if op == "*":
-            return a * b
-        if op == "/":
-            return np.divide(a, b)
-        return np.power(a, b)
-    return _ARRAYS[tree[1]](*(_evaluate_arrays(a, values) for a in tree[2:]))
 
 
 def _structural(tree, parent) -> bool:
