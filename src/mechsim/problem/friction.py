@@ -247,6 +247,7 @@ class FrictionModel:
         rates) evaluated over all of them in one pass, each state's saddle-point responses
         and Newton on its own. A state with no solution raises `FrictionError`."""
         T = np.atleast_1d(np.asarray(T, float))
+        Q, V, F = (np.atleast_2d(np.asarray(x, float)) for x in (Q, V, F))
         N, n = len(T), Q.shape[1]
         K = len(self.elements)
         given = [modes if modes is not None else self.modes_at(t) for t in T]
