@@ -94,3 +94,31 @@ def test_spring_forces_match_the_gradient_of_the_potential(rng):
     grad = np.array([(p.potential_energy(q + h * e) - p.potential_energy(q - h * e)) / (2 * h)
                      for e in np.eye(6)])
     np.testing.assert_allclose(p.forces(0.0, q, np.zeros(6)), -grad, rtol=1e-7, atol=1e-7)
+
+
+def test_jacobian_and_second_derivative_of_rows_not_of_rotations_are_sympys(rng):
+    """`jacobian_of` (reverse accumulation through a row's shared terms where the row is
+    not built of rotations) and `second_derivative_along` (forward along the path there)
+    against sympy's plain derivatives of each row, at random points: a pin's row, a curve's
+    contact with a root, a quotient and an atan2 sharing terms, a gear's quotient with t."""
+    import sympy as sp
+    from mechsim.symbolic import jacobian_of, second_derivative_along
+    x, y, th, t = sp.symbols("x y th t")
+    q, v = [x, y, th], list(sp.symbols("u w r"))
+    s = sp.sqrt((x - sp.cos(th)) ** 2 + (y + t) ** 2)
+    rows = sp.Matrix([x + 0.3 * sp.cos(th) - y * sp.sin(th) ** 2,
+                      s * sp.atan2(y - s, x + 2) + (x * y) / (1 + s) - sp.exp(th / s),
+                      (x + t * th) / (2 + sp.sin(th) ** 2) - y ** 3 / s])
+    J = jacobian_of(rows, q)
+    path = second_derivative_along(rows, q, v, t, J)
+    plain = rows.jacobian(q)
+    qd = sp.Matrix(v)
+    plain_path = (plain * qd).jacobian(q) * qd + 2 * rows.diff(t).jacobian(q) * qd + \
+        rows.diff(t, 2)
+    fast = sp.lambdify([q, v, t], [J, path])
+    slow = sp.lambdify([q, v, t], [plain, plain_path])
+    for _ in range(20):
+        point = (rng.normal(size=3), rng.normal(size=3), float(rng.normal()))
+        for a, b in zip(fast(*point), slow(*point)):
+            a, b = np.array(a, float), np.array(b, float)
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())

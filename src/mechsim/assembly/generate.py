@@ -25,7 +25,7 @@ from sympy.printing.numpy import NumPyPrinter
 
 from ..codegen.printer import SPLINE_IMPORT, shared_terms, spline_call
 from ..model import Driver
-from ..symbolic import SymbolicContext, second_derivative_along
+from ..symbolic import SymbolicContext, jacobian_of, second_derivative_along
 
 
 def kernel_source(item, key: str) -> str:
@@ -39,7 +39,7 @@ def kernel_source(item, key: str) -> str:
     rows = [item.displacement(ctx, p)] if isinstance(item, Driver) else item.equations(ctx, p)
     q, v = sp.Matrix(ctx.q), sp.Matrix(ctx.v)
     phi = sp.Matrix(rows)
-    J = phi.jacobian(q)
+    J = jacobian_of(phi, q)
     gamma = -second_derivative_along(phi, q, v, jacobian=J)
     writer = _Writer(ctx)
     writer.function("phi", ("Q", "P"), [phi])

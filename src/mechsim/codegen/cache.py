@@ -32,7 +32,7 @@ from pathlib import Path
 from types import ModuleType
 
 # Bump when the generated code changes meaning, so stale cache entries are not used.
-CODEGEN_VERSION = 12          # 12: γ of rows not of rotations differentiated forward
+CODEGEN_VERSION = 13          # 13: Φ_q of rows not of rotations by reverse accumulation
 
 
 def cache_dir() -> Path:

@@ -4,6 +4,8 @@ Importing this package imports sympy; nothing else in mechsim does so at import 
 mechanism whose compiled model is in the cache never reaches it.
 """
 
-from .constraints import SymbolicContext, SymbolicSystem, build_system, second_derivative_along
+from .constraints import (SymbolicContext, SymbolicSystem, build_system, jacobian_of,
+                          second_derivative_along)
 
-__all__ = ["SymbolicContext", "SymbolicSystem", "build_system", "second_derivative_along"]
+__all__ = ["SymbolicContext", "SymbolicSystem", "build_system", "jacobian_of",
+           "second_derivative_along"]

@@ -129,7 +129,7 @@ class SymbolicSystem:
 
     @cached_property
     def phi_q(self) -> sp.Matrix:
-        return self.phi.jacobian(self.q) if self.q else sp.zeros(self.phi.rows, 0)
+        return jacobian_of(self.phi, self.q)
 
     @cached_property
     def phi_t(self) -> sp.Matrix:
@@ -138,6 +138,45 @@ class SymbolicSystem:
     @cached_property
     def gamma(self) -> sp.Matrix:
         return -second_derivative_along(self.phi, self.q, self.v, self.t, self.phi_q)
+
+
+def jacobian_of(phi: sp.Matrix, q) -> sp.Matrix:
+    """Φ_q, row by row: a row built of rotations (`second_derivative_along` says which) by
+    sympy's derivative in each coordinate, any other by reverse accumulation through its
+    shared terms (`_gradient`), whose result is smaller there and found faster
+    (docs/benchmarks.md has the measurements)."""
+    q = list(q)
+    if not q:
+        return sp.zeros(phi.rows, 0)
+    return sp.Matrix([[row.diff(x) for x in q] if _of_rotations(row) else _gradient(row, q)
+                      for row in phi]) if phi.rows else sp.zeros(0, len(q))
+
+
+def _gradient(expr, xs) -> list:
+    """[∂expr/∂x for x in xs] by reverse accumulation through the shared terms of `expr`
+    (sympy.cse): each term's partial derivatives in its own arguments, weighted by the
+    term's adjoint (a symbol, complete once every term using it is done: the terms are
+    visited last to first), the chain put back together at the end."""
+    terms, (reduced,) = sp.cse([expr], symbols=sp.numbered_symbols(cls=sp.Dummy))
+    wanted = set(xs) | {x for x, _ in terms}
+    adjoint, chain = {}, []
+
+    def spread(e, weight):
+        for u in sorted(e.free_symbols & wanted, key=sp.default_sort_key):
+            d = e.diff(u)
+            if d != 0:
+                adjoint[u] = adjoint.get(u, sp.Integer(0)) + weight * d
+
+    spread(reduced, sp.Integer(1))
+    for x, e in reversed(terms):
+        if x in adjoint:
+            weight = sp.Dummy()
+            chain.append((weight, adjoint.pop(x)))
+            spread(e, weight)
+    whole = {}
+    for x, e in terms + chain:
+        whole[x] = e.xreplace(whole)
+    return [adjoint.get(x, sp.Integer(0)).xreplace(whole) for x in xs]
 
 
 def second_derivative_along(phi: sp.Matrix, q, v, t=None, jacobian=None) -> sp.Matrix:
