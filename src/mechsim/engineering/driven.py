@@ -255,8 +255,13 @@ def times_of(mech, driver, values, t_start=0.0, horizon=1e6) -> np.ndarray:
             k += 1
             fa, fb = fb, driver.value(grid[k]) - target
         a, b = grid[k - 1], grid[k]
-        out.append(a if fa == 0 else b if fb == 0 else
-                   brentq(lambda x: driver.value(x) - target, a, b, xtol=1e-14, rtol=1e-15))
+        if sign * fa >= 0.0:          # at a (or, by round-off, just before the grid's start)
+            out.append(a)
+        elif sign * fb <= 0.0:        # at b (or just after the grid's end)
+            out.append(b)
+        else:
+            out.append(brentq(lambda x: driver.value(x) - target, a, b, xtol=1e-14,
+                              rtol=1e-15))
     return np.array(out)
 
 
