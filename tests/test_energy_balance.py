@@ -143,6 +143,18 @@ def test_many_states_powers_equal_each_state_s_through_a_singular_configuration(
     assert peak > 1.0 and difference <= 1e-12 * peak
 
 
+def test_many_states_powers_with_friction_equal_each_state_s():
+    """A driven slider-crank with friction in all four joints: the frictions' and the
+    driver's powers of all samples at once (friction solved at all states together,
+    `FrictionModel.solve_many`) equal each sample's alone."""
+    mech = ms.examples.slider_crank(driven=True, crank_speed=100.0)
+    for j in mech.joints:
+        size = {"radius": 0.01} if j.kind == "revolute" else {"length": 0.02}
+        mech.add(ms.Friction(j, mu=0.15, **size))
+    difference, peak = _powers_alike(mech, 0.03)
+    assert peak > 100.0 and difference <= 1e-12 * peak          # (3.5 kW at the motor)
+
+
 def _loaded_four_bar(function_load=False):
     """A crank-rocker carrying a damped and an undamped spring, a damped torsion spring,
     a point force and a torque (and, with `function_load`, a force given as a function)."""
