@@ -74,12 +74,11 @@ def _newton(elements, active, equations):
     terms = []
     for k, (slide, affine, row) in zip(active, equations):
         if slide is None:
-            terms.append((None, float(affine), [float(a) for a in row]))
+            terms.append((None, float(affine), np.asarray(row, float).tolist()))
         else:
             F0, DF, M0, DM = affine
             terms.append((float(slide), elements[k].shape, float(F0[0]), float(F0[1]),
-                          [float(a) for a in DF[:, 0]], [float(a) for a in DF[:, 1]],
-                          float(M0), [float(a) for a in DM]))
+                          DF[:, 0].tolist(), DF[:, 1].tolist(), float(M0), DM.tolist()))
     x = [0.0] * size
     for _ in range(MAX_ITERATIONS):
         r, D = [0.0] * size, []
@@ -247,7 +246,7 @@ class FrictionModel:
         rates) evaluated over all of them in one pass, each state's saddle-point responses
         and Newton on its own. A state with no solution raises `FrictionError`."""
         T = np.atleast_1d(np.asarray(T, float))
-        Q, V, F = (np.atleast_2d(np.asarray(x, float)) for x in (Q, V, F))
+        Q, V, F = np.atleast_2d(np.asarray(Q, float), np.asarray(V, float), np.asarray(F, float))
         N, n = len(T), Q.shape[1]
         K = len(self.elements)
         given = [modes if modes is not None else self.modes_at(t) for t in T]
