@@ -7,8 +7,12 @@ millisecond). So W is integrated step by step along each accepted step's interpo
 integrator's dense output, or a passage bridge's polynomial), which carries the step's
 accuracy: the power of every channel is sampled at Chebyshev points of the step, its
 Chebyshev interpolant integrated exactly, and the step is halved where the interpolant's
-last coefficients say it is not resolved to a tenth of rtol of the run's peak power. The
-work at an output sample inside a step comes from the same interpolant.
+last coefficients say its integral is not resolved to a tenth of rtol of the run's peak
+power times the step's half-length. The work at an output sample inside a step comes from
+the same interpolant. The test is on W, not on the power: a neglected term c T_k of the
+power moves W anywhere in the piece by at most |c| max |∫₋₁ˣ T_k| of the half-length
+(0.118 for k = 9). (Tested on the power itself it halved most steps of a driven
+slider-crank at rtol 1e-8: 23 evaluations a step, 40 % of its run.)
 """
 
 from __future__ import annotations
@@ -29,6 +33,10 @@ _TO_COEFFICIENTS = np.linalg.inv(cheb.chebvander(_NODES, POINTS - 1))
 # and its integral over [−1, 1] (Fejér's first rule).
 _INTEGRAL = cheb.chebint(_TO_COEFFICIENTS, lbnd=-1.0)
 _WEIGHTS = cheb.chebval(1.0, _INTEGRAL)
+# The most a neglected term T_POINTS of unit coefficient moves the integral from −1 to any
+# x in [−1, 1]: max |T_{k+1}/2(k+1) − T_{k−1}/2(k−1) − its value at −1|, k = POINTS.
+_SPREAD = float(np.max(np.abs(cheb.chebval(
+    np.linspace(-1.0, 1.0, 4001), cheb.chebint(np.eye(POINTS + 1)[POINTS], lbnd=-1.0)))))
 
 
 class WorkIntegral:
@@ -82,7 +90,8 @@ class WorkIntegral:
         if not np.all(np.isfinite(P)):
             raise ArithmeticError("a non-finite power inside the step")
         self.peak = max(self.peak, float(np.max(np.abs(P), initial=0.0)))
-        resolved = _tail(P) <= self.tolerance * max(self.peak, self.energy / self.span)
+        resolved = (_SPREAD * _tail(P)
+                    <= self.tolerance * max(self.peak, self.energy / self.span))
         if not resolved and halvings > 0 and b - a > 1e-12 * max(abs(a), abs(b)):
             mid = 0.5 * (a + b)
             left = times <= mid
