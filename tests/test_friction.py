@@ -481,3 +481,29 @@ def test_friction_s_newton_solves_small_systems_as_numpy_and_refuses_singular_on
         U, s, Vt = np.linalg.svd(D)
         s[-1] = 1e-12 * s[0]
         assert _solve_small(((U * s) @ Vt).tolist(), r.tolist()) is None
+
+
+def test_a_pin_s_gradient_kept_once_is_its_coordinate_s_at_every_state(rng):
+    """A revolute's coordinate (θ_b − θ_a with the beam nodes' modal rotations) is linear
+    in q, so its gradient is evaluated once (`JointGeometry.constant_gradient`): on the
+    flexible four-bar, at random states, it equals central differences of the coordinate
+    itself (which would show any curvature) for every pin, modal ones included."""
+    from mechsim.problem.geometry import joint_coordinates, joint_gradients
+    mech = ms.examples.flexible_four_bar()
+    problem = mech.problem()
+    n = problem.n
+    modal = [i for i, c in enumerate(problem.coordinate_names) if ".eta" in c]
+    Q = rng.normal(size=(3, n))
+    turned_by_nodes = set()
+    for name, geometry in problem.joints.items():
+        assert geometry.joint.linear_coordinate == (geometry.joint.kind == "revolute")
+        G = joint_gradients(geometry, Q)
+        h = 1e-6
+        for q, g in zip(Q, G):
+            steps = np.eye(n) * h
+            s = lambda x: joint_coordinates(geometry, x, np.zeros_like(x))[0]  # noqa: E731
+            fd = (s(q + steps) - s(q - steps)) / (2 * h)
+            np.testing.assert_allclose(g, fd, rtol=0, atol=1e-8, err_msg=name)
+        if np.any(np.abs(G[:, modal]) > 0.1):
+            turned_by_nodes.add(name)
+    assert turned_by_nodes == {"B", "C"}           # the coupler's two end nodes

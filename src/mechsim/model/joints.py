@@ -116,6 +116,8 @@ class Joint:
     # Does it carry the derivatives of Parameters in its geometry and its bodies' frames
     # into its equations' parameters (`parameter_values`)?
     carries_parameters = False
+    # Is its `coordinate` linear in q (its gradient the same at every state)?
+    linear_coordinate = False
 
     def moved_by(self, names):
         """The first of the Parameters `names` that moves this joint's coordinate (through
@@ -159,6 +161,7 @@ class Revolute(Joint):
 
     kind = "revolute"
     carries_parameters = True
+    linear_coordinate = True            # θ_b − θ_a, with a beam node's modal rotations
     parameter_names = ("ax", "ay", "bx", "by")
     equation_labels = ("x", "y")
 

@@ -18,6 +18,7 @@ No new joint needs anything else: what a joint can write for sympy it can write 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -282,6 +283,22 @@ class JointGeometry:
     def start_b(self):
         return self.starts.get(id(self.joint.body_b))
 
+    @cached_property
+    def _gradients(self) -> dict:
+        return {}
+
+    def constant_gradient(self, n: int) -> np.ndarray:
+        """∂s/∂q (n,) of a joint whose coordinate is linear in q (`linear_coordinate`: a
+        revolute's θ_b − θ_a with its nodes' modal rotations), evaluated once (read-only)."""
+        row = self._gradients.get(n)
+        if row is None:
+            c = self.joint.coordinate(NumericContext(self.starts, np.zeros((1, n)), np.eye(n)),
+                                      self.parameters)
+            row = np.array(np.broadcast_to(derivative(c, (1, n)), (1, n))[0])
+            row.flags.writeable = False
+            self._gradients[n] = row
+        return row
+
 
 def _broadcast(a, n):
     return np.broadcast_to(value(a), (n,))
@@ -312,16 +329,18 @@ def joint_wrench(geometry: JointGeometry, q, lam, jacobian=None):
     n = q.shape[0]
     on_b = geometry.start_b is not None
     start = geometry.start_b if on_b else geometry.start_a
-    if jacobian is not None:
-        grad = np.broadcast_to(np.asarray(jacobian)[..., start:start + 3],
-                               (n, len(lam[0]), 3))
+    if jacobian is not None and np.ndim(jacobian) == 2:     # the same rows at every state
+        generalized = -(np.asarray(lam) @ np.asarray(jacobian)[:, start:start + 3])
+    elif jacobian is not None:
+        grad = np.broadcast_to(np.asarray(jacobian)[..., start:start + 3], (n, len(lam[0]), 3))
+        generalized = -np.einsum("nr,nrc->nc", lam, grad)
     else:
         seeds = np.zeros((q.shape[1], 3))
         seeds[start:start + 3] = np.eye(3)
         rows = geometry.joint.equations(NumericContext(geometry.starts, q, seeds),
                                         geometry.parameters)
         grad = np.stack([np.broadcast_to(derivative(r, (n, 3)), (n, 3)) for r in rows], axis=1)
-    generalized = -np.einsum("nr,nrc->nc", lam, grad)      # on (x, y, θ) of the body
+        generalized = -np.einsum("nr,nrc->nc", lam, grad)      # on (x, y, θ) of the body
     force = generalized[:, :2]
     if geometry.joint.kind == "revolute":       # a pin carries no moment about its point
         return (force if on_b else -force), np.zeros(n)
@@ -359,6 +378,8 @@ def joint_gradients(geometry: JointGeometry, q) -> np.ndarray:
     """`joint_gradient` at the states q (N, n) in one pass: shape (N, n)."""
     q = np.atleast_2d(np.asarray(q, float))
     shape = q.shape
+    if geometry.joint.linear_coordinate:
+        return np.tile(geometry.constant_gradient(shape[1]), (shape[0], 1))
     c = geometry.joint.coordinate(NumericContext(geometry.starts, q, np.eye(shape[1])),
                                   geometry.parameters)
     d = derivative(c, shape)
