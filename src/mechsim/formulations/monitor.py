@@ -446,21 +446,24 @@ def _uncleared(times, chords, anchors, enter, apart, h) -> list:
     `apart` from a value under `enter`."""
     count = len(times) - 1
     lows = [tk for tk, (smin, smax) in anchors.items() if smin < enter * smax]
+    marks = [anchors.get(tk) for tk in times]
     low = [-np.inf] * count
-    for order in (range(count), range(count - 1, -1, -1)):
-        forward = order.step == 1
+    # (Plain loops over the few nodes of a step: the search asks this several times a
+    # step, and numpy's per-call cost on arrays this short is larger.)
+    for order, side in ((range(count), 0), (range(count - 1, -1, -1), 1)):
         anchor, reach = None, 0.0
         for j in order:
-            near = times[j] if forward else times[j + 1]
-            if near in anchors:
-                anchor, reach = anchors[near], 0.0
+            mark = marks[j + side]
+            if mark is not None:
+                anchor, reach = mark, 0.0
             reach += chords[j]
             if anchor is not None:
-                smin, smax = anchor
-                low[j] = max(low[j], (smin - reach) / (smax + reach))
-    return [j for j in range(count) if low[j] < enter and
-            times[j + 1] - times[j] >= 1e-9 * h and
-            not _covered(times[j], times[j + 1], lows, apart)]
+                bound = (anchor[0] - reach) / (anchor[1] + reach)
+                if bound > low[j]:
+                    low[j] = bound
+    shortest = 1e-9 * h
+    return [j for j in range(count) if low[j] < enter and times[j + 1] - times[j] >= shortest
+            and not (lows and _covered(times[j], times[j + 1], lows, apart))]
 
 
 def _covered(ta, tb, lows, reach) -> bool:
