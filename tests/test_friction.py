@@ -4,6 +4,7 @@ mechanism, a slider-crank with friction in every joint, against closed forms, th
 oscillator module and independent integrations."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,6 +12,8 @@ from scipy.integrate import solve_ivp
 
 import mechsim as ms
 from mechsim.shooting.oscillators import CoulombOscillator
+
+ROOT = Path(__file__).resolve().parents[1]
 
 G = 9.81
 
@@ -507,3 +510,29 @@ def test_a_pin_s_gradient_kept_once_is_its_coordinate_s_at_every_state(rng):
         if np.any(np.abs(G[:, modal]) > 0.1):
             turned_by_nodes.add(name)
     assert turned_by_nodes == {"B", "C"}           # the coupler's two end nodes
+
+
+def test_a_joint_at_one_state_is_the_same_joint_among_many(rng):
+    """A joint's gradient and attachment points at one state (`geometry.OneState`: floats,
+    the right-hand side's case) equal, to the bit, the same state's among five evaluated
+    together, for every joint of the cam, the slider-crank (its guide), the pump and the
+    flexible four-bar (modal points)."""
+    from mechsim.problem.geometry import _attachment, joint_gradients
+    scenes = [ms.load_scene(ROOT / "mechanisms" / f"{name}.toml").mechanism
+              for name in ("cam_follower", "pump")]
+    kinds = set()
+    for mech in scenes + [ms.examples.slider_crank(driven=True),
+                          ms.examples.flexible_four_bar()]:
+        problem = mech.problem()
+        Q = rng.normal(size=(5, problem.n))
+        for geometry in problem.joints.values():
+            for role in "ab":
+                together = _attachment(geometry, Q, role)
+                alone = [_attachment(geometry, Q[i:i + 1], role)[0] for i in range(5)]
+                assert np.array_equal(together, alone), geometry.joint.name
+            if type(geometry.joint).coordinate is not ms.Joint.coordinate:
+                kinds.add(geometry.joint.kind)
+                together = joint_gradients(geometry, Q)
+                alone = [joint_gradients(geometry, Q[i:i + 1])[0] for i in range(5)]
+                assert np.array_equal(together, alone), geometry.joint.name
+    assert {"revolute", "prismatic"} <= kinds

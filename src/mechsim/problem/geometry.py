@@ -75,13 +75,13 @@ def _col(x):
 
 def cos(a):
     if isinstance(a, Dual):
-        return Dual(np.cos(a.x), -np.sin(a.x)[..., None] * a.d)
+        return Dual(np.cos(a.x), -_col(np.sin(a.x)) * a.d)
     return np.cos(a)
 
 
 def sin(a):
     if isinstance(a, Dual):
-        return Dual(np.sin(a.x), np.cos(a.x)[..., None] * a.d)
+        return Dual(np.sin(a.x), _col(np.cos(a.x)) * a.d)
     return np.sin(a)
 
 
@@ -170,6 +170,23 @@ class NumericContext(JointContext):
 
     cos, sin = staticmethod(cos), staticmethod(sin)
     sqrt, atan2, curve = staticmethod(sqrt), staticmethod(atan2), staticmethod(curve)
+
+
+class OneState(NumericContext):
+    """`NumericContext` at one state q (n,): values are floats and derivatives rows (k,),
+    so a joint's few dozen operations cost Python arithmetic, not numpy's per-call
+    bookkeeping on arrays of one element (a friction joint's gradient and wrench at each
+    right-hand side). The same functions of the same numbers as the context over states."""
+
+    def __init__(self, starts, q, seeds=None):
+        self.starts = starts
+        self.q = np.asarray(q, float).tolist()
+        self.seeds = None if seeds is None else np.asarray(seeds, float)
+
+    def coordinate(self, i):
+        if self.seeds is None:
+            return self.q[i]
+        return Dual(self.q[i], self.seeds[i])
 
 
 class Jet:
@@ -364,6 +381,10 @@ def _attachment(geometry: JointGeometry, q, role: str) -> np.ndarray:
     "b") at the states q (N, n)."""
     body, local = ((geometry.joint.body_b, geometry.local_b) if role == "b"
                    else (geometry.joint.body_a, geometry.local_a))
+    if q.shape[0] == 1:
+        x, y = OneState(geometry.starts, q[0]).point(body, local[0], local[1],
+                                                     geometry.parameters, role)
+        return np.array([[x, y]], float)
     x, y = NumericContext(geometry.starts, q).point(body, local[0], local[1],
                                                     geometry.parameters, role)
     return np.column_stack([_broadcast(x, q.shape[0]), _broadcast(y, q.shape[0])])
@@ -380,6 +401,10 @@ def joint_gradients(geometry: JointGeometry, q) -> np.ndarray:
     shape = q.shape
     if geometry.joint.linear_coordinate:
         return np.tile(geometry.constant_gradient(shape[1]), (shape[0], 1))
+    if shape[0] == 1:
+        c = geometry.joint.coordinate(OneState(geometry.starts, q[0], np.eye(shape[1])),
+                                      geometry.parameters)
+        return np.reshape(derivative(c, shape[1:]), shape).copy()
     c = geometry.joint.coordinate(NumericContext(geometry.starts, q, np.eye(shape[1])),
                                   geometry.parameters)
     d = derivative(c, shape)
