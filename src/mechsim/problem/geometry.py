@@ -309,9 +309,9 @@ class JointGeometry:
         revolute's θ_b − θ_a with its nodes' modal rotations), evaluated once (read-only)."""
         row = self._gradients.get(n)
         if row is None:
-            c = self.joint.coordinate(NumericContext(self.starts, np.zeros((1, n)), np.eye(n)),
+            c = self.joint.coordinate(OneState(self.starts, np.zeros(n), np.eye(n)),
                                       self.parameters)
-            row = np.array(np.broadcast_to(derivative(c, (1, n)), (1, n))[0])
+            row = np.array(derivative(c, (n,)), float)
             row.flags.writeable = False
             self._gradients[n] = row
         return row
