@@ -194,3 +194,28 @@ def test_a_bridge_never_carries_a_run_past_its_end(t_end):
     res = mech.simulate(t_end, rtol=1e-8, atol=1e-10)
     assert res.status == "success" and res.t[-1] == t_end
     assert abs(res.coordinate("crank1.angle")[-1] - (math.pi / 2 - t_end)) < 1e-6
+
+
+@pytest.mark.parametrize("at, chords, open_at_start, expected", [
+    # s = σ_k/σ_max at four nodes (σ_max = 1), enter 0.07, leave 0.14: the first two
+    # intervals cannot rise to `leave` (0.071 and 0.102 at most) and touch the value 0.05
+    # under `enter`; the last is kept above `enter` (0.27 at least).
+    ((0.05, 0.08, 0.09, 0.3), (0.02, 0.02, 0.02), False, []),
+    # No value under `enter`: both are searched, as without the rule.
+    ((0.075, 0.08, 0.09, 0.3), (0.02, 0.02, 0.02), False, [0, 1]),
+    # ... unless the passage open at the step's start reaches them.
+    ((0.075, 0.08, 0.09, 0.3), (0.02, 0.02, 0.02), True, []),
+    # The middle interval may rise to 0.149 > `leave`: a dip beyond it may be a passage of
+    # its own, and that interval is searched.
+    ((0.05, 0.08, 0.09, 0.3), (0.02, 0.06, 0.02), False, [1]),
+])
+def test_the_search_skips_intervals_joined_to_a_passage_it_has_found(at, chords, open_at_start,
+                                                                     expected):
+    """Weyl's bounds from the nodes (σ_k ∓ path, σ_max ± path) decide: an interval whose s
+    may dip under `enter` is searched unless s stays under `leave` all the way from it to
+    a value under `enter`, where any dip it hides belongs to that value's passage."""
+    from mechsim.formulations.monitor import _uncleared
+    times = [0.0, 1.0, 2.0, 3.0]
+    anchors = {tk: (s, 1.0) for tk, s in zip(times, at)}
+    assert _uncleared(times, list(chords), anchors, 0.07, 0.14, 0.0, 3.0,
+                      open_at_start) == expected

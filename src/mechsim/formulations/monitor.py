@@ -344,7 +344,8 @@ class SingularityMonitor:
         within ‖J̃(t) − J̃ₐ‖₂, at most the length of J̃'s path from a to t, which a grid of
         the step bounds by the sum of its chords (J̃ at the nodes, no SVD: the problem's
         algebra's `chords`), each enlarged by `CHORD` for the arc. An interval that neither
-        neighbouring anchor keeps above `enter` has its nodes measured, then is halved;
+        neighbouring anchor keeps above `enter`, and that is not joined to a passage found
+        (`_uncleared`), has its nodes measured, then is halved;
         near a value under `enter` the search stops as `_bisect`'s does (`apart`). At most
         `budget` SVDs; `known`: time -> (σ_k, σ_max) measured already (the step's ends)."""
         t0, t1 = ends
@@ -366,8 +367,10 @@ class SingularityMonitor:
                 anchors[times[i]] = known[times[i]]
         measure([i for i in (0, GRID) if times[i] not in anchors])
         spent = 2
+        joined = self.open_passage is not None
         while spent < budget:
-            todo = _uncleared(times, chords, anchors, self.enter * self.peak, apart, t1 - t0)
+            todo = _uncleared(times, chords, anchors, self.enter * self.peak,
+                              self.leave * self.peak, apart, t1 - t0, joined)
             if not todo:
                 break
             fresh = sorted({i for j in todo for i in (j, j + 1) if times[i] not in anchors})
@@ -439,15 +442,21 @@ class SingularityMonitor:
             self.open_passage = None
 
 
-def _uncleared(times, chords, anchors, enter, apart, h) -> list:
+def _uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=False) -> list:
     """The grid intervals (indices j of [times[j], times[j+1]]) that neither the nearest
     anchor before nor the one after keeps above `enter` (its σ_k less, its σ_max plus, the
-    path length `chords` from it to the interval's far end), and that lie farther than
-    `apart` from a value under `enter`."""
+    path length `chords` from it to the interval's far end), that lie farther than `apart`
+    from a value under `enter`, and that are not joined to one.
+
+    Joined: the same anchors keep s under `leave` in the interval (σ_k plus, σ_max less)
+    and in every interval between it and a value under `enter` (or the step's start, with
+    `open_at_start`: a passage open there). A dip hidden there is part of that value's
+    passage, as no value above `leave` can part them (the monitor's hysteresis, `_dips`),
+    so it adds no passage; the passage's minimum is refined from its lowest value found."""
     count = len(times) - 1
-    lows = [tk for tk, (smin, smax) in anchors.items() if smin < enter * smax]
     marks = [anchors.get(tk) for tk in times]
-    low = [-np.inf] * count
+    lows = [tk for tk, mark in zip(times, marks) if mark is not None and mark[0] < enter * mark[1]]
+    low, high = [-np.inf] * count, [np.inf] * count
     # (Plain loops over the few nodes of a step: the search asks this several times a
     # step, and numpy's per-call cost on arrays this short is larger.)
     for order, side in ((range(count), 0), (range(count - 1, -1, -1), 1)):
@@ -461,8 +470,24 @@ def _uncleared(times, chords, anchors, enter, apart, h) -> list:
                 bound = (anchor[0] - reach) / (anchor[1] + reach)
                 if bound > low[j]:
                     low[j] = bound
+                if anchor[1] > reach:
+                    top = (anchor[0] + reach) / (anchor[1] - reach)
+                    if top < high[j]:
+                        high[j] = top
+    joined = [False] * count
+    j = 0
+    while j < count:
+        k = j
+        while k < count and high[k] < leave:
+            k += 1
+        if k > j and ((open_at_start and j == 0) or
+                      any(mark is not None and mark[0] < enter * mark[1]
+                          for mark in marks[j:k + 1])):
+            joined[j:k] = [True] * (k - j)
+        j = k + 1
     shortest = 1e-9 * h
-    return [j for j in range(count) if low[j] < enter and times[j + 1] - times[j] >= shortest
+    return [j for j in range(count) if low[j] < enter and not joined[j]
+            and times[j + 1] - times[j] >= shortest
             and not (lows and _covered(times[j], times[j + 1], lows, apart))]
 
 
