@@ -395,6 +395,31 @@ def test_compiled_fresh_newton_agrees_with_the_python_path():
     assert fresh >= 3                # the compiled fresh iterations were exercised
 
 
+def test_the_step_s_interpolant_is_scipy_s_to_the_bit():
+    """`Interpolant` at a time and at many times equals scipy's DOP853 dense output to the
+    last bit (signs of zero included), on a real step of the crank-rocker's integrator
+    and on coefficients with zeros of both signs; from scipy's stages the same."""
+    from scipy.integrate._ivp.rk import Dop853DenseOutput
+    from mechsim.integrators.compiled import Interpolant
+    rng = np.random.default_rng(11)
+    F = rng.standard_normal((7, 9)) * 10.0 ** rng.integers(-8, 3, (7, 9))
+    F[:, 0], F[:, 1], F[-1, 2] = 0.0, -0.0, -0.0
+    y_old = np.concatenate([[0.0, -0.0], rng.standard_normal(7)])
+    cases = [(Dop853DenseOutput(0.25, 0.25 + 3e-3, y_old, F),
+              Interpolant(0.25, 0.25 + 3e-3, y_old, F))]
+    solver = DOP853(lambda t, y: np.array([y[1], -np.sin(y[0])]), 0.0, [1.0, 0.0], 5.0)
+    solver.step()
+    solver.step()
+    scipy_dense = DOP853.dense_output(solver)
+    cases.append((scipy_dense, Interpolant.of(scipy_dense)))
+    for ref, lean in cases:
+        times = np.concatenate([[ref.t_old, ref.t], rng.uniform(ref.t_old, ref.t, 30)])
+        assert lean(times).tobytes() == ref(times).tobytes()
+        for t in times:
+            assert lean(t).tobytes() == ref(t).tobytes()
+            assert lean(float(t)).tobytes() == ref(float(t)).tobytes()
+
+
 @needs_compiler
 @pytest.mark.parametrize("method", ["projection", "lu"])
 def test_compiled_dop853_steps_are_scipy_s_steps(method, monkeypatch):

@@ -22,6 +22,7 @@ import functools
 
 import numpy as np
 from scipy.integrate import DOP853
+from scipy.integrate._ivp.rk import Dop853DenseOutput
 
 try:            # scipy's step-size controller's constants (scipy 1.12 to 1.17 keep them here)
     from scipy.integrate._ivp.rk import MAX_FACTOR, MIN_FACTOR, SAFETY
@@ -126,12 +127,12 @@ class CompiledDOP853(DOP853):
         return None
 
     def dense_output(self):
-        """scipy's interpolant of the step just taken, its three extra stages evaluated
-        in the engine where that step was (on its rate), then scipy's own construction
-        from the stages (`_from_stages`)."""
+        """scipy's interpolant of the step just taken (`Interpolant`: the same numbers to
+        the bit), its three extra stages evaluated in the engine where that step was (on
+        its rate), by scipy's own construction where not."""
         compiled = self._taken
         if compiled is None or self.t == self.t_old:
-            return super().dense_output()
+            return Interpolant.of(super().dense_output())
         extra = _extra_coefficients()
         rows, width = np.asarray(DOP853.A_EXTRA).shape
         self._extra_in[:] = (self.n_stages + 1, rows, width, self.t_old, self.h_previous,
@@ -143,19 +144,53 @@ class CompiledDOP853(DOP853):
                                 ctypes.cast(self._fallback, ctypes.c_void_p))
         self._after(int(self._out[0]), compiled)
         if failed:
-            return super().dense_output()
+            return Interpolant.of(super().dense_output())
         return self._from_stages()
 
     def _from_stages(self):
-        """scipy's `dense_output` with its extra stages in K_extended already: the rate it
-        calls for them returns those rows."""
-        stages = iter(self.K_extended[self.n_stages + 1:].copy())
-        fun = self.fun
-        self.fun = lambda t, y: next(stages)
-        try:
-            return super().dense_output()
-        finally:
-            self.fun = fun
+        """scipy's DOP853 interpolant from the stages in K_extended (the extra ones
+        included): its coefficients F as scipy's `_dense_output_impl` computes them."""
+        K, h = self.K_extended, self.h_previous
+        f_old, delta_y = K[0], self.y - self.y_old
+        F = np.empty((self.D.shape[0] + 3, self.n))
+        F[0] = delta_y
+        F[1] = h * f_old - delta_y
+        F[2] = 2 * delta_y - h * (self.f + f_old)
+        F[3:] = h * np.dot(self.D, K)
+        return Interpolant(self.t_old, self.t, self.y_old, F)
+
+
+class Interpolant(Dop853DenseOutput):
+    """scipy's DOP853 interpolant, evaluated in the same operations in the same order (the
+    same numbers to the bit) without its per-call dispatch: the samples, the work
+    integral, the passage search and the bridge's history call it several times a step."""
+
+    @classmethod
+    def of(cls, dense):
+        """The interpolant `dense` (scipy's DOP853 one as `Interpolant`; any other as is)."""
+        if type(dense) is not Dop853DenseOutput:
+            return dense
+        return cls(dense.t_old, dense.t, dense.y_old, dense.F)
+
+    def __init__(self, t_old, t, y_old, F):
+        super().__init__(t_old, t, y_old, F)
+        self._reversed = F[::-1]
+
+    def __call__(self, t):
+        """y at t (a float: shape (n,)) or at each of the times t (shape (n, len(t)))."""
+        t = np.asarray(t)
+        x = (t - self.t_old) / self.h
+        if t.ndim == 1:
+            x = x[:, None]
+        elif t.ndim:
+            raise ValueError("`t` must be a float or a 1-D array.")
+        u, R = 1 - x, self._reversed
+        y = (R[0] + 0.0) * x                 # scipy's: y = 0; y += F[-1]; y *= x
+        for i in range(1, len(R)):
+            y += R[i]
+            y *= u if i % 2 else x
+        y += self.y_old
+        return y.T
 
 
 class CompiledRate:
