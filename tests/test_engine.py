@@ -128,6 +128,37 @@ def test_the_engine_applies_only_where_its_assumptions_hold(tmp_path, monkeypatc
 
 
 @needs_compiler
+@pytest.mark.parametrize("damage", ["none", "truncated", "verified garbage"])
+def test_small_models_link_the_engine_compiled_once(tmp_path, monkeypatch, damage):
+    """In a new cache the engine's C is compiled once into an object file that each small
+    model's library links. An object truncated is compiled again; one that passes its
+    digest but cannot be linked leaves the library to be compiled whole. Either way the
+    next model's engine serves, and its run is the one in the suite's cache to the bit."""
+    from mechsim.codegen.cache import adopt, verified_file
+    reference = ms.examples.slider_crank().simulate(0.3, method="lu", rtol=1e-8)
+    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path))
+    cache.clear_memory_cache()
+    try:
+        assert ms.examples.four_bar().compilation().engine
+        (obj,) = tmp_path.glob("mechsim_engine-*.o")
+        if damage == "truncated":
+            obj.write_bytes(obj.read_bytes()[:100])
+        elif damage == "verified garbage":
+            obj.write_bytes(b"not an object file")
+            adopt(obj)
+        mech = ms.examples.slider_crank()
+        assert mech.compilation().engine
+        res = mech.simulate(0.3, method="lu", rtol=1e-8)
+        assert res.t.tobytes() == reference.t.tobytes()
+        assert res.q.tobytes() == reference.q.tobytes()
+        assert len(list(tmp_path.glob("*.evaluations-*.so"))) == 2
+        assert verified_file(obj) and (damage == "verified garbage") == \
+            (obj.read_bytes() == b"not an object file")
+    finally:
+        cache.clear_memory_cache()
+
+
+@needs_compiler
 def test_compiled_projection_accelerations_agree_with_the_python_path():
     """Across the double four-bar's first passage (t* ≈ 0.714 s, sampled every 1 µs
     around it): clear of the truncation band the compiled accelerations equal the Python

@@ -75,7 +75,7 @@ def compiler() -> list[str]:
     return shlex.split(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
 
 
-def _compiler_identity(command: list[str]) -> str:
+def compiler_identity(command: list[str]) -> str:
     """What a remembered failure is valid for: the compiler's path, size and time (a new
     or updated compiler is tried again)."""
     found = shutil.which(command[0]) if command else None
@@ -85,12 +85,16 @@ def _compiler_identity(command: list[str]) -> str:
     return f"{found} {st.st_size} {st.st_mtime_ns}"
 
 
-def shared_library(source: str, target: Path):
+def shared_library(source: str, target: Path, parts=None):
     """The ctypes library compiled from `source` at `target`: loaded where the file there
     passes its digest (`mechsim.codegen.cache`), else built (once: a failure is remembered
     beside it, `<target>.failed`, for the same compiler, and said in one warning per
     process naming the compiler and its error). None where compiling is switched off
-    (`MECHSIM_NO_COMPILE`) or fails: the Python path serves."""
+    (`MECHSIM_NO_COMPILE`) or fails: the Python path serves.
+
+    `parts` = (own, objects): `source` is `own` followed by code that `objects(command)`
+    gives compiled (object files kept in the cache, [] where it cannot): the library is
+    built from `own` linked with them, and from `source` whole where that fails."""
     if env_flag("MECHSIM_NO_COMPILE"):
         _declined[str(target)] = "MECHSIM_NO_COMPILE is set"
         return None
@@ -100,7 +104,7 @@ def shared_library(source: str, target: Path):
         except OSError:
             pass                              # rebuilt below
     command = compiler()
-    identity = _compiler_identity(command)
+    identity = compiler_identity(command)
     failed = target.with_name(target.name + ".failed")
     record = read_verified(failed)
     error = None
@@ -113,7 +117,9 @@ def shared_library(source: str, target: Path):
             pass
     remembered = error is not None
     if error is None:
-        error = build_library(source, target, command)
+        found = parts[1](command) if parts is not None else []
+        if not (found and build_library(parts[0], target, command, found) is None):
+            error = build_library(source, target, command)
         if error is None:
             adopt(target)
             failed.unlink(missing_ok=True)
@@ -150,18 +156,22 @@ def transient(error: str) -> bool:
 BUILD_PREFIX = "mechsim-build-"
 
 
-def build_library(source: str, library: Path, command: list[str]) -> str | None:
-    """Compile `source` into `library` with `command`; None on success, else the error (the
-    compiler's last lines). The compile works in a directory of its own in the cache,
-    removed after it; one left by a killed process is removed by the next compile."""
+def build_library(source: str, library: Path, command: list[str], objects=(),
+                  shared=True) -> str | None:
+    """Compile `source` into `library` with `command` (linked with the object files
+    `objects`; with `shared` False, into an object file); None on success, else the error
+    (the compiler's last lines). The compile works in a directory of its own in the
+    cache, removed after it; one left by a killed process is removed by the next
+    compile."""
     clean_builds(library.parent)
     try:
         with tempfile.TemporaryDirectory(dir=library.parent,
                                          prefix=f"{BUILD_PREFIX}{os.getpid()}-") as tmp:
             c_file, out = Path(tmp) / "model.c", Path(tmp) / "model.so"
             c_file.write_text(source)
-            done = subprocess.run(command + ["-O2", "-shared", "-fPIC", "-o", str(out),
-                                             str(c_file), "-lm"],
+            link = ["-shared", "-o", str(out), str(c_file), *map(str, objects), "-lm"] \
+                if shared else ["-c", "-o", str(out), str(c_file)]
+            done = subprocess.run(command + ["-O2", "-fPIC", *link],
                                   capture_output=True, timeout=600)
             if done.returncode != 0 or not out.is_file():
                 text = (done.stderr or done.stdout).decode(errors="replace").strip()

@@ -53,13 +53,22 @@ from pathlib import Path
 import numpy as np
 
 from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
-from .compiled import shared_library
+from .cache import adopt, verified_file
+from .compiled import build_library, compiler_identity, shared_library
 from .layout import PARTITION, PROJECTION, Dims
 
 # The engine's own C (shipped beside this module), compiled after the model's C twins and the
 # structures' typedefs (`layout`).
 _ENGINE_C = "engine.c"
 _HEADERS = "#include <math.h>\n#include <stdint.h>\n#include <string.h>\n\n"
+# The model's C twins the engine calls (`mechsim.codegen.printer`), declared for the
+# engine compiled on its own (`engine_object`).
+_MODEL = """void mechsim_phi(const double *q, double t, const double *p, double *o0);
+void mechsim_phi_q(const double *q, double t, const double *p, double *o0);
+void mechsim_phi_t(const double *q, double t, const double *p, double *o0);
+void mechsim_gamma(const double *q, const double *v, double t, const double *p, double *o0);
+
+"""
 
 
 @functools.cache
@@ -67,7 +76,27 @@ def source() -> str:
     """The engine's C: headers, the typedefs of `layout.PARTITION` and `layout.PROJECTION`,
     and `engine.c`."""
     text = resources.files(__package__).joinpath(_ENGINE_C).read_text(encoding="utf-8")
-    return _HEADERS + PARTITION.typedef() + "\n" + PROJECTION.typedef() + "\n" + text
+    return _HEADERS + _MODEL + PARTITION.typedef() + "\n" + PROJECTION.typedef() + "\n" + text
+
+
+def engine_object(directory: Path, command: list[str]) -> list[Path]:
+    """[the engine's C compiled on its own with `command`], kept in `directory` (the cache)
+    as `mechsim_engine-<digest>.o`, the digest of the source and the compiler's identity,
+    verified as every entry; [] where it cannot be built. Each small model's library links
+    it (`library`): a new mechanism compiles only its own functions (the double four-bar's
+    in 0.1 s, against 0.6 s with the engine's)."""
+    tag = hashlib.sha256("\0".join([source(), compiler_identity(command),
+                                     *command]).encode()).hexdigest()[:16]
+    path = directory / f"mechsim_engine-{tag}.o"
+    if verified_file(path):
+        return [path]
+    if build_library(source(), path, command, shared=False) is not None:
+        return []
+    try:
+        adopt(path)
+    except OSError:
+        return []
+    return [path]
 
 
 def _lapack(name: str) -> int:
@@ -125,7 +154,9 @@ def library(model):
     path = getattr(model, "__file__", None)
     if not model_source or not path:
         return None
-    lib = shared_library(model_source + source(), library_path(Path(path)))
+    target = library_path(Path(path))
+    lib = shared_library(model_source + source(), target,
+                         (model_source, lambda command: engine_object(target.parent, command)))
     if lib is None:
         return None
     try:
