@@ -34,9 +34,11 @@ that needs fresh Jacobians, redundant constraints, Newton failing altogether, a 
 value under the cut) returns a status and the Python path takes the evaluation from the
 start, so the two agree on every decision and differ only in the rounding of their sums.
 
-The library is built beside the cached model module on first use (`library`); without a
-compiler, with `MECHSIM_NO_COMPILE` set, or for a model kept in memory only, there is none
-and the formulations take the Python path. The structures both sides share, and the sizes
+The library is built beside the cached model module on first use (`library`), from the
+model's C twins linked with the engine compiled once per cache (`engine_object`), or
+from both compiled together where that object cannot serve; without a compiler, with
+`MECHSIM_NO_COMPILE` set, or for a model kept in memory only, there is none and the
+formulations take the Python path. The structures both sides share, and the sizes
 of the buffers they point to, are described once in `layout`.
 """
 
@@ -57,8 +59,8 @@ from .cache import adopt, verified_file
 from .compiled import build_library, compiler_identity, shared_library
 from .layout import PARTITION, PROJECTION, Dims
 
-# The engine's own C (shipped beside this module), compiled after the model's C twins and the
-# structures' typedefs (`layout`).
+# The engine's own C (shipped beside this module), after the declarations of the model's C
+# twins it calls and the structures' typedefs (`layout`).
 _ENGINE_C = "engine.c"
 _HEADERS = "#include <math.h>\n#include <stdint.h>\n#include <string.h>\n\n"
 # The model's C twins the engine calls (`mechsim.codegen.printer`), declared for the
@@ -73,8 +75,8 @@ void mechsim_gamma(const double *q, const double *v, double t, const double *p, 
 
 @functools.cache
 def source() -> str:
-    """The engine's C: headers, the typedefs of `layout.PARTITION` and `layout.PROJECTION`,
-    and `engine.c`."""
+    """The engine's C: headers, the declarations of the model's C twins it calls, the
+    typedefs of `layout.PARTITION` and `layout.PROJECTION`, and `engine.c`."""
     text = resources.files(__package__).joinpath(_ENGINE_C).read_text(encoding="utf-8")
     return _HEADERS + _MODEL + PARTITION.typedef() + "\n" + PROJECTION.typedef() + "\n" + text
 
@@ -83,8 +85,8 @@ def engine_object(directory: Path, command: list[str]) -> list[Path]:
     """[the engine's C compiled on its own with `command`], kept in `directory` (the cache)
     as `mechsim_engine-<digest>.o`, the digest of the source and the compiler's identity,
     verified as every entry; [] where it cannot be built. Each small model's library links
-    it (`library`): a new mechanism compiles only its own functions (the double four-bar's
-    in 0.1 s, against 0.6 s with the engine's)."""
+    it (`library`), so that a new mechanism compiles only its own functions
+    (docs/benchmarks.md has the times)."""
     tag = hashlib.sha256("\0".join([source(), compiler_identity(command),
                                      *command]).encode()).hexdigest()[:16]
     path = directory / f"mechsim_engine-{tag}.o"
