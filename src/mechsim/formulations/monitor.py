@@ -455,7 +455,8 @@ def _uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=Fal
     so it adds no passage; the passage's minimum is refined from its lowest value found."""
     count = len(times) - 1
     marks = [anchors.get(tk) for tk in times]
-    lows = [tk for tk, mark in zip(times, marks) if mark is not None and mark[0] < enter * mark[1]]
+    under = [mark is not None and mark[0] < enter * mark[1] for mark in marks]
+    lows = [tk for tk, below in zip(times, under) if below]
     low, high = [-np.inf] * count, [np.inf] * count
     # (Plain loops over the few nodes of a step: the search asks this several times a
     # step, and numpy's per-call cost on arrays this short is larger.)
@@ -480,9 +481,7 @@ def _uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=Fal
         k = j
         while k < count and high[k] < leave:
             k += 1
-        if k > j and ((open_at_start and j == 0) or
-                      any(mark is not None and mark[0] < enter * mark[1]
-                          for mark in marks[j:k + 1])):
+        if k > j and ((open_at_start and j == 0) or any(under[j:k + 1])):
             joined[j:k] = [True] * (k - j)
         j = k + 1
     shortest = 1e-9 * h

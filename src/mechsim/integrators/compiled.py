@@ -21,13 +21,16 @@ import ctypes
 import functools
 
 import numpy as np
-from scipy.integrate import DOP853
-from scipy.integrate._ivp.rk import Dop853DenseOutput
+from scipy.integrate import DOP853, DenseOutput
 
 try:            # scipy's step-size controller's constants (scipy 1.12 to 1.17 keep them here)
     from scipy.integrate._ivp.rk import MAX_FACTOR, MIN_FACTOR, SAFETY
 except ImportError:                       # moved: scipy's own steps serve
     MAX_FACTOR = MIN_FACTOR = SAFETY = None
+try:            # scipy's DOP853 interpolant (`Interpolant.of`)
+    from scipy.integrate._ivp.rk import Dop853DenseOutput
+except ImportError:                       # moved: scipy's own interpolants serve
+    Dop853DenseOutput = None
 
 
 # The Python rate the engine calls back for a stage it declines: (t, y, f) -> 0 when done.
@@ -160,30 +163,29 @@ class CompiledDOP853(DOP853):
         return Interpolant(self.t_old, self.t, self.y_old, F)
 
 
-class Interpolant(Dop853DenseOutput):
-    """scipy's DOP853 interpolant, evaluated in the same operations in the same order (the
-    same numbers to the bit) without its per-call dispatch: the samples, the work
-    integral, the passage search and the bridge's history call it several times a step."""
+class Interpolant(DenseOutput):
+    """scipy's DOP853 interpolant (coefficients F over the step from t_old to t), evaluated
+    in the same operations in the same order as scipy's (the same numbers to the bit)
+    without its per-call dispatch: the samples, the work integral, the passage search and
+    the bridge's history call it several times a step."""
 
     @classmethod
     def of(cls, dense):
         """The interpolant `dense` (scipy's DOP853 one as `Interpolant`; any other as is)."""
-        if type(dense) is not Dop853DenseOutput:
+        if Dop853DenseOutput is None or type(dense) is not Dop853DenseOutput:
             return dense
         return cls(dense.t_old, dense.t, dense.y_old, dense.F)
 
     def __init__(self, t_old, t, y_old, F):
-        super().__init__(t_old, t, y_old, F)
+        super().__init__(t_old, t)
+        self.h, self.F, self.y_old = t - t_old, F, y_old
         self._reversed = F[::-1]
 
-    def __call__(self, t):
-        """y at t (a float: shape (n,)) or at each of the times t (shape (n, len(t)))."""
-        t = np.asarray(t)
+    def _call_impl(self, t):
+        """y at t (0-d: shape (n,)) or at each of the times t (1-d: shape (n, len(t)))."""
         x = (t - self.t_old) / self.h
-        if t.ndim == 1:
+        if t.ndim:
             x = x[:, None]
-        elif t.ndim:
-            raise ValueError("`t` must be a float or a 1-D array.")
         u, R = 1 - x, self._reversed
         y = (R[0] + 0.0) * x                 # scipy's: y = 0; y += F[-1]; y *= x
         for i in range(1, len(R)):
