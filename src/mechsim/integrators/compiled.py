@@ -166,8 +166,8 @@ class CompiledDOP853(DOP853):
 class Interpolant(DenseOutput):
     """scipy's DOP853 interpolant (coefficients F over the step from t_old to t), evaluated
     in the same operations in the same order as scipy's (the same numbers to the bit)
-    without its per-call dispatch: the samples, the work integral, the passage search and
-    the bridge's history call it several times a step."""
+    without its zeroed start and per-term bookkeeping: the samples, the work integral,
+    the passage search and the bridge's history call it several times a step."""
 
     @classmethod
     def of(cls, dense):
