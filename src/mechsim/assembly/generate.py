@@ -23,7 +23,7 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 
-from ..codegen.printer import SPLINE_IMPORT, shared_terms, spline_call
+from ..codegen.printer import SPLINE_IMPORT, SharedTerms, spline_call
 from ..model import Driver
 from ..symbolic import SymbolicContext, jacobian_of, second_derivative_along
 
@@ -42,12 +42,13 @@ def kernel_source(item, key: str) -> str:
     J = jacobian_of(phi, q)
     gamma = -second_derivative_along(phi, q, v, jacobian=J)
     writer = _Writer(ctx)
-    writer.function("phi", ("Q", "P"), [phi])
-    writer.function("jacobian", ("Q", "P"), [J])
-    writer.function("position", ("Q", "P"), [phi, J])
-    writer.function("gamma", ("Q", "V", "P"), [gamma])
-    writer.function("terms", ("Q", "V", "P"), [phi, J, gamma])
-    writer.function("dynamics", ("Q", "V", "P"), [J, gamma])
+    shared = SharedTerms([phi, J, gamma])       # one cse; each function takes its terms
+    writer.function("phi", ("Q", "P"), shared.select([0]))
+    writer.function("jacobian", ("Q", "P"), shared.select([1]))
+    writer.function("position", ("Q", "P"), shared.select([0, 1]))
+    writer.function("gamma", ("Q", "V", "P"), shared.select([2]))
+    writer.function("terms", ("Q", "V", "P"), shared.select([0, 1, 2]))
+    writer.function("dynamics", ("Q", "V", "P"), shared.select([1, 2]))
     pattern = [(i, j) for i in range(J.rows) for j in range(J.cols) if J[i, j] != 0]
     imports = ["import numpy"] + ([SPLINE_IMPORT] if any("_pspline(" in f for f in
                                                          writer.functions) else [])
@@ -70,16 +71,24 @@ class _Writer:
         self.columns = {"Q": list(ctx.q), "V": list(ctx.v), "P": list(ctx.p)}
         self.printer = _KernelPrinter({"fully_qualified_modules": True})
         self.functions: list[str] = []
+        self._printed: dict = {}            # each expression printed once
 
-    def function(self, name: str, args: tuple[str, ...], outputs: list):
+    def _print(self, expr) -> str:
+        text = self._printed.get(expr)
+        if text is None:
+            text = self._printed[expr] = self.printer.doprint(expr)
+        return text
+
+    def function(self, name: str, args: tuple[str, ...], terms: tuple):
+        """One function of `SharedTerms.select`'s `terms`."""
         pr = self.printer
-        layout, repl, reduced, used = shared_terms(outputs)
+        layout, repl, reduced, used = terms
         lines = [f"def {name}({', '.join(args)}):", "    n = len(Q)"]
         for arg in args:
             for k, sym in enumerate(self.columns[arg]):
                 if sym in used:
                     lines.append(f"    {pr.doprint(sym)} = {arg}[:, {k}]")
-        lines += [f"    {pr.doprint(sym)} = {pr.doprint(expr)}" for sym, expr in repl]
+        lines += [f"    {pr.doprint(sym)} = {self._print(expr)}" for sym, expr in repl]
         names, k = [], 0
         for idx, (rows, cols, nz) in enumerate(layout):
             out = f"_o{idx}"
@@ -87,7 +96,7 @@ class _Writer:
             shape = f"(n, {rows})" if vector else f"(n, {rows}, {cols})"
             lines.append(f"    {out} = numpy.zeros({shape})")
             for (i, j), e in zip(nz, reduced[k:k + len(nz)]):
-                lines.append(f"    {out}[:, {i}{'' if vector else f', {j}'}] = {pr.doprint(e)}")
+                lines.append(f"    {out}[:, {i}{'' if vector else f', {j}'}] = {self._print(e)}")
             k += len(nz)
             names.append(out)
         lines.append(f"    return {names[0] if len(names) == 1 else ', '.join(names)}")

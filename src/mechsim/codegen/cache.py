@@ -32,7 +32,7 @@ from pathlib import Path
 from types import ModuleType
 
 # Bump when the generated code changes meaning, so stale cache entries are not used.
-CODEGEN_VERSION = 13          # 13: Φ_q of rows not of rotations by reverse accumulation
+CODEGEN_VERSION = 14          # 14: one cse for all of a model's functions
 
 
 def cache_dir() -> Path:

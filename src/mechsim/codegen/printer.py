@@ -70,15 +70,44 @@ def shared_terms(outputs):
     shared (sympy.cse): (layout, one (rows, cols, non-zero (i, j) list) per output;
     replacements [(symbol, expression)]; the entries in terms of them, in layout order;
     the free symbols they use)."""
-    entries, layout = [], []
-    for mat in outputs:
-        nz = [(i, j) for i in range(mat.rows) for j in range(mat.cols) if mat[i, j] != 0]
-        layout.append((mat.rows, mat.cols, nz))
-        entries += [mat[i, j] for i, j in nz]
-    repl, reduced = sp.cse(entries, symbols=sp.numbered_symbols("_c"))
-    used = set().union(*(e.free_symbols for e in reduced),
-                       *(r.free_symbols for _, r in repl)) if entries else set()
-    return layout, repl, reduced, used
+    return SharedTerms(outputs).select(range(len(outputs)))
+
+
+class SharedTerms:
+    """The common subexpressions of several matrices found once (one sympy.cse over all
+    their non-zero entries), from which a function of any of them takes only the terms
+    its own entries need: a model's functions over overlapping outputs (Φ alone, Φ with
+    Φ_q, all four) then cost one cse, not one each, and share every term's arithmetic,
+    so Φ from one function equals Φ from another to the last bit."""
+
+    def __init__(self, outputs):
+        self.layout, entries = [], []
+        for mat in outputs:
+            nz = [(i, j) for i in range(mat.rows) for j in range(mat.cols) if mat[i, j] != 0]
+            self.layout.append((mat.rows, mat.cols, nz))
+            entries += [mat[i, j] for i, j in nz]
+        self.repl, self.reduced = sp.cse(entries, symbols=sp.numbered_symbols("_c"))
+        terms = {sym for sym, _ in self.repl}
+        self._needs = {sym: expr.free_symbols & terms for sym, expr in self.repl}
+        self._terms = terms
+        self._starts = [0]
+        for _, _, nz in self.layout:
+            self._starts.append(self._starts[-1] + len(nz))
+
+    def select(self, which):
+        """(layout, replacements, entries, free symbols) of the outputs numbered `which`,
+        as `shared_terms` of those outputs gives them, the replacements in cse's order."""
+        which = list(which)
+        layout = [self.layout[k] for k in which]
+        reduced = [e for k in which for e in self.reduced[self._starts[k]:self._starts[k + 1]]]
+        needed = set().union(*(e.free_symbols & self._terms for e in reduced))
+        for sym, _ in reversed(self.repl):
+            if sym in needed:
+                needed |= self._needs[sym]
+        repl = [(sym, expr) for sym, expr in self.repl if sym in needed]
+        used = set().union(*(e.free_symbols for e in reduced),
+                           *(r.free_symbols for _, r in repl))
+        return layout, repl, reduced, used
 
 
 class _ModuleWriter:
@@ -95,6 +124,9 @@ class _ModuleWriter:
         self.c_kernels, self.c_replace = c_kernels, c_replace
         self.c_functions: list[str] = []
         self.c_signatures: list[tuple] = []
+        # Each expression printed once in each language (a model's functions share terms).
+        self._python: dict = {}
+        self._c: dict = {}
 
     def _constant(self, values) -> str:
         values = tuple(map(int, values))
@@ -102,10 +134,18 @@ class _ModuleWriter:
             self.constants[values] = f"_I{len(self.constants)}"
         return self.constants[values]
 
-    def function(self, name: str, args: tuple[str, ...], outputs: list[sp.Matrix], doc: str):
-        """Write one function; returns each output's non-zero (i, j) entries."""
+    def _print(self, expr) -> str:
+        text = self._python.get(expr)
+        if text is None:
+            text = self._python[expr] = self.printer.doprint(expr)
+        return text
+
+    def function(self, name: str, args: tuple[str, ...], outputs, doc: str):
+        """Write one function of the matrices `outputs` (or of `SharedTerms.select`'s
+        terms); returns each output's non-zero (i, j) entries."""
         sysm, pr = self.sys, self.printer
-        layout, repl, reduced, used = shared_terms(outputs)
+        layout, repl, reduced, used = outputs if isinstance(outputs, tuple) else \
+            shared_terms(outputs)
         if self.c_kernels is None or name in self.c_kernels:
             self._c_function(name, "_v" in args, layout, repl, reduced)
         lines = [f"def {name}({', '.join(args)}):", f'    """{doc}"""']
@@ -118,10 +158,10 @@ class _ModuleWriter:
                 source = "_p" if arg == "_p" else f"{arg}.tolist()"
                 lines.append(f"    [{targets}] = {source}")
         for sym, expr in repl:
-            lines.append(f"    {pr.doprint(sym)} = {pr.doprint(expr)}")
+            lines.append(f"    {pr.doprint(sym)} = {self._print(expr)}")
         results, k = [], 0
         for idx, (rows, cols, nz) in enumerate(layout):
-            vals = [pr.doprint(e) for e in reduced[k:k + len(nz)]]
+            vals = [self._print(e) for e in reduced[k:k + len(nz)]]
             k += len(nz)
             out = f"_o{idx}"
             is_vector = cols == 1
@@ -153,12 +193,20 @@ class _ModuleWriter:
         outs = ", ".join(f"double *o{k}" for k in range(len(layout)))
         head = "const double *q, const double *v" if has_v else "const double *q"
         lines = [f"void mechsim_{name}({head}, double t, const double *p, {outs}) {{"]
+        printed = self._c
+
+        def c(expr):
+            text = printed.get(expr)
+            if text is None:
+                text = printed[expr] = pr.doprint(expr.xreplace(names))
+            return text
+
         for sym, expr in repl:
-            lines.append(f"  const double {sym} = {pr.doprint(expr.xreplace(names))};")
+            lines.append(f"  const double {sym} = {c(expr)};")
         k = 0
         for idx, (rows, cols, nz) in enumerate(layout):
             for (i, j), e in zip(nz, reduced[k:k + len(nz)]):
-                lines.append(f"  o{idx}[{i * cols + j}] = {pr.doprint(e.xreplace(names))};")
+                lines.append(f"  o{idx}[{i * cols + j}] = {c(e)};")
             k += len(nz)
         lines.append("}")
         self.c_functions.append("\n".join(lines))
@@ -220,18 +268,24 @@ def model_source(system, key: str) -> str:
     large = len(system.q) >= C_MIN_COORDINATES
     w = _ModuleWriter(system, c_kernels=None if large else ENGINE_KERNELS, c_replace=large)
     s = system
-    w.function("phi", ("_q", "t", "_p"), [s.phi], "Constraint residual Φ, shape (m,).")
-    [nz] = w.function("phi_q", ("_q", "t", "_p"), [s.phi_q], "Jacobian Φ_q, shape (m, n).")
+    # One cse over Φ, Φ_q, Φ_t and γ; each function takes the terms of its outputs.
+    shared = SharedTerms([s.phi, s.phi_q, s.phi_t, s.gamma])
+    phi, phi_q, phi_t, gamma = range(4)
+    w.function("phi", ("_q", "t", "_p"), shared.select([phi]),
+               "Constraint residual Φ, shape (m,).")
+    [nz] = w.function("phi_q", ("_q", "t", "_p"), shared.select([phi_q]),
+                      "Jacobian Φ_q, shape (m, n).")
     # Where Φ_q can be non-zero at all: what a sparse factorisation of its products needs.
     w.extra += [f"JACOBIAN_ROWS = {[i for i, _ in nz]!r}",
                 f"JACOBIAN_COLS = {[j for _, j in nz]!r}", ""]
-    w.function("phi_t", ("_q", "t", "_p"), [s.phi_t], "Φ_t, shape (m,).")
-    w.function("gamma", ("_q", "_v", "t", "_p"), [s.gamma],
+    w.function("phi_t", ("_q", "t", "_p"), shared.select([phi_t]), "Φ_t, shape (m,).")
+    w.function("gamma", ("_q", "_v", "t", "_p"), shared.select([gamma]),
                "γ = −(Φ_q v)_q v − 2 Φ_qt v − Φ_tt, shape (m,).")
-    w.function("position_terms", ("_q", "t", "_p"), [s.phi, s.phi_q], "(Φ, Φ_q) with shared terms.")
-    w.function("terms", ("_q", "_v", "t", "_p"), [s.phi, s.phi_q, s.phi_t, s.gamma],
+    w.function("position_terms", ("_q", "t", "_p"), shared.select([phi, phi_q]),
+               "(Φ, Φ_q) with shared terms.")
+    w.function("terms", ("_q", "_v", "t", "_p"), shared.select([phi, phi_q, phi_t, gamma]),
                "(Φ, Φ_q, Φ_t, γ) with shared terms.")
-    w.function("dynamics_terms", ("_q", "_v", "t", "_p"), [s.phi_q, s.gamma],
+    w.function("dynamics_terms", ("_q", "_v", "t", "_p"), shared.select([phi_q, gamma]),
                "(Φ_q, γ) with shared terms: what the constrained accelerations need.")
     return w.module(key)
 
