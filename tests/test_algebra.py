@@ -72,3 +72,54 @@ def test_a_new_algebra_serves_every_method(method):
     assert len(res.singular_passages) == len(reference.singular_passages) == 2
     for a, b in zip(res.singular_passages, reference.singular_passages):
         assert abs((a.t_min or a.t_start) - (b.t_min or b.t_start)) < 1e-3
+
+
+def _singular_values(A):
+    return np.linalg.svd(A, compute_uv=False)
+
+
+def test_the_fall_basis_bounds_how_far_a_singular_value_falls(rng):
+    """σ_k(A') ≥ σ_k(A) − ‖(A' − A) P‖₂ with P = `fall_basis` (an independent SVD of A'
+    checks it) on random wide matrices of unequal column scales, for the smallest and
+    for an inner singular value, of full rank and rank-deficient; exact where A' lowers
+    σ_k along its own singular vectors, and blind to a change of σ_max alone, which
+    Weyl's ‖A' − A‖₂ counts whole."""
+    from mechsim.linalg.dense import fall_basis
+    for _ in range(400):
+        m = int(rng.integers(1, 7))
+        n = m + int(rng.integers(0, 4))
+        A = rng.normal(size=(m, n)) * np.exp(2.0 * rng.normal(size=n))
+        if rng.random() < 0.2 and m > 1:
+            A[-1] = A[0] * rng.normal()                   # rank lost
+        U, sig, Vt = np.linalg.svd(A, full_matrices=False)
+        k = int(rng.integers(0, m))
+        E = rng.normal(size=(m, n)) * 10.0 ** rng.uniform(-4, 1) * sig[0]
+        P = fall_basis(sig, Vt.T, k)
+        assert _singular_values(A + E)[k] >= sig[k] - np.linalg.norm(E @ P, 2) - 1e-12 * sig[0]
+    A = np.diag([10.0, 1.0, 0.5]) @ np.eye(3, 4)
+    U, sig, Vt = np.linalg.svd(A, full_matrices=False)
+    P = fall_basis(sig, Vt.T, 2)
+    lower = -0.2 * np.outer(U[:, 2], Vt[2])                # σ_min 0.5 → 0.3
+    assert _singular_values(A + lower)[2] == pytest.approx(0.3, rel=1e-12)
+    assert np.linalg.norm(lower @ P, 2) == pytest.approx(0.2, rel=1e-12)
+    stretch = 3.0 * np.outer(U[:, 0], Vt[0])              # σ_max 10 → 13, σ_min kept
+    assert _singular_values(A + stretch)[2] == pytest.approx(0.5, rel=1e-12)
+    assert np.linalg.norm(stretch @ P, 2) == pytest.approx(3.0 * 0.5 / 10.0, rel=1e-12)
+
+
+def test_the_engine_s_fall_is_the_python_algebra_s():
+    """The compiled measurement's fall (dJ̃/dt, P) equals the Python algebra's at states of
+    the double four-bar (P up to the signs of singular vectors: PPᵀ is compared)."""
+    prob = ms.examples.double_four_bar().problem()
+    if prob.algebra.engine is None:
+        pytest.skip("no compiled engine here (no C compiler)")
+    res = ms.examples.double_four_bar().simulate(0.5, output_step=0.1)
+    k = prob.m - 1
+    for t, q, v in zip(res.t, res.q, res.v):
+        eps = 1e-7 / np.max(np.abs(v))
+        got = prob.algebra.measure(q, t, v, eps, k)
+        ref = ConstraintAlgebra.measure(prob.algebra, q, t, v, eps, k)
+        np.testing.assert_allclose(got[:2], ref[:2], rtol=1e-12)
+        (D, P), (D_ref, P_ref) = got[-1], ref[-1]
+        np.testing.assert_allclose(D, D_ref, rtol=0, atol=1e-6 * np.abs(D_ref).max())
+        np.testing.assert_allclose(P @ P.T, P_ref @ P_ref.T, rtol=0, atol=1e-9)

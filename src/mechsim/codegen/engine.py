@@ -54,6 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..linalg.dense import fall_basis
 from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
 from .cache import adopt, verified_file
 from .compiled import build_library, compiler_identity, shared_library
@@ -393,8 +394,9 @@ class ProjectionEngine:
     def measure(self, t, q, v=None, eps=0.0):
         """The extreme singular values of J̃ = Φ_q M^{-1/2} at (q, t) and, with eps > 0,
         their rates along v (from J̃ at (q + eps v, t + eps)): (σ_min, σ_max, σ̇_min,
-        σ̇_max, left singular vector of σ_min, J̃, ‖dJ̃/dt‖_F (0 without eps)); None where
-        the SVD fails. Needs m ≤ n (else σ_min is 0 by count)."""
+        σ̇_max, left singular vector of σ_min, J̃, ‖dJ̃/dt‖_F (0 without eps), fall (with
+        eps: (dJ̃/dt, `fall_basis`), else None)); None where the SVD fails. Needs m ≤ n
+        (else σ_min is 0 by count)."""
         self.q[:] = q
         if eps > 0.0:
             self.v[:] = v
@@ -402,7 +404,16 @@ class ProjectionEngine:
         if self._measure(self.context, t, eps, out.ctypes.data, self.Jt.ctypes.data):
             return None
         smin, smax, dmin, dmax = out[:4].tolist()
-        return smin, smax, dmin, dmax, out[4:-1].copy(), self.Jt.copy(), float(out[-1])
+        fall = None
+        if eps > 0.0 and smax > 0.0:
+            # dgesdd left J̃'s right singular vectors in U (column-major n × m) and J̃ at
+            # (q + eps v, t + eps) in J1 (`ConstraintAlgebra.measure`'s `fall`).
+            m, n = self.Jt.shape
+            rates = (self.buffers["J1"].reshape(m, n) - self.Jt) / eps
+            fall = (rates, fall_basis(self.buffers["sig"], self.buffers["U"].reshape(m, n).T,
+                                      m - 1))
+        return (smin, smax, dmin, dmax, out[4:-1].copy(), self.Jt.copy(), float(out[-1]),
+                fall)
 
     def project_states(self, T, Q, V, tols, max_iter=8):
         """`project_state` of each state (T[i], Q[i], V[i]) to tols[i] in one call, Q and V

@@ -32,6 +32,7 @@ while large steps, which move J̃ a lot, are measured every time.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -107,6 +108,10 @@ class SingularityMonitor:
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
         self._known = {}             # time -> (σ_min, σ_max) measured at the latest step's ends
         self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
+        # (t, D, H, σ_min, σ_max, ‖dJ̃/dt‖_F) at the latest measured observation, D and H
+        # flattened DᵀD and PPᵀ of `ConstraintAlgebra.measure`'s `fall` (dJ̃/dt = D, P), or
+        # None
+        self._fall = None
         self.t_first = -np.inf       # the first observation's time
         # Whether σ_min/σ_max of J̃ is below round-off for the masses' sake (`BLIND`): then
         # no passage is watched, and the run says so.
@@ -123,19 +128,20 @@ class SingularityMonitor:
 
     def _measure(self, q, t, v, J=None):
         """`measure`, also returning σ_min, σ_max (σ_max = 0: rank lost), J̃ = J̃(q)
-        (`J` if the caller has it) and ‖dJ̃/dt‖_F along v (0 without v)."""
+        (`J` if the caller has it), ‖dJ̃/dt‖_F along v (0 without v) and the algebra's
+        `fall` (dJ̃/dt, P) where it gives one."""
         speed = float(np.max(np.abs(v))) if v is not None and v.size else 0.0
         eps = 1e-7 / speed if speed > 0.0 else 0.0
         m = self.problem.m
         if m == 0:
             return (1.0, 0.0, np.zeros(0), 1.0, 1.0,
-                    self._jacobian(q, t) if J is None else J, 0.0)
-        smin, smax, d_min, d_max, u_min, J, rate_norm = self.problem.algebra.measure(
+                    self._jacobian(q, t) if J is None else J, 0.0, None)
+        smin, smax, d_min, d_max, u_min, J, rate_norm, fall = self.problem.algebra.measure(
             q, t, v, eps, m - 1 - self.redundant, J)
         if not smax > 0.0:
-            return 0.0, 0.0, u_min, 0.0, 0.0, J, 0.0
+            return 0.0, 0.0, u_min, 0.0, 0.0, J, 0.0, None
         rate = float((d_min * smax - smin * d_max) / smax ** 2) if eps else 0.0
-        return float(smin / smax), rate, u_min, float(smin), float(smax), J, rate_norm
+        return float(smin / smax), rate, u_min, float(smin), float(smax), J, rate_norm, fall
 
     def _masses_hide(self, q, t) -> bool:
         """Do unequal masses, not the configuration, make σ_min/σ_max of J̃ that small?
@@ -189,11 +195,16 @@ class SingularityMonitor:
         if skip:
             self._skipped += 1
             return self.last
-        raw, rate, u, smin, smax, J, rate_norm = self._measure(q, t, v, J)
+        raw, rate, u, smin, smax, J, rate_norm, fall = self._measure(q, t, v, J)
         self._measured = (J, smin, smax) if smax > 0.0 else None
         self._known = {tk: x for tk, x in self._known.items() if tk == t_old}
         self._known[t] = (smin, smax)
         speed_before, self._ratio_speed = self._ratio_speed, self._speed(rate_norm, smax)
+        fall_before, self._fall = self._fall, None
+        if fall is not None:
+            rates, basis = fall
+            self._fall = (t, (rates.T @ rates).ravel(), (basis @ basis.T).ravel(), smin, smax,
+                          rate_norm)
         self.peak = max(self.peak, raw)
         if self.peak < BLIND and self._masses_hide(q, t):
             # Below round-off, s/peak is noise: no passage can be told from it.
@@ -211,9 +222,11 @@ class SingularityMonitor:
         self._skipped = 0
         self.last, self.rate = s, rate
         if prev is not None and state_at is not None:
+            falls = (fall_before, self._fall) \
+                if fall_before is not None and fall_before[0] == t_old else None
             for dip in self._hidden_passages(prev, (t, s, rate), state_at,
                                              max(speed_before, self._ratio_speed),
-                                             positions_at):
+                                             positions_at, falls):
                 here = self.open_passage
                 if here is not None and dip.at_start:          # the open passage goes on
                     if dip.s_min < here.s_min:
@@ -260,7 +273,7 @@ class SingularityMonitor:
         return 2.0 * rate_norm / smax
 
     def _hidden_passages(self, a, b, state_at, ratio_speed=0.0,
-                         positions_at=None) -> list[Dip]:
+                         positions_at=None, falls=None) -> list[Dip]:
         """The dips of s inside the step from a = (t0, s0/peak, rate) to b, in time order
         (s0 may be a lower bound of s at t0, with rate 0); a dip that holds t0 continues
         the open passage.
@@ -275,7 +288,11 @@ class SingularityMonitor:
         dips (runs not parted by a value above `leave`), each refined to its minimum.
         A step that crosses several passages (a partitioned method striding through a
         uniformly turning parallelogram) reports every one, wherever its midpoints fall.
-        Steps clear of any passage cost nothing: their ends already exclude it. Where the
+        Steps clear of any passage cost nothing: their ends already exclude it, by that bound
+        or, with `falls` (the step's ends' `_fall`, for `_fall_rates`: how fast σ_min/σ_max
+        can fall from each end, seen in each end's own singular directions), by the lines s_a − R_a |t − t_a|
+        (R_a twice the end's rate, at least twice the rates seen) where no passage is open
+        at the start (there the search finds where it closes). Where the
         algebra measures many states together (a small mechanism) the values come from
         `_anchored` (Weyl's inequality along J̃'s path), elsewhere from `_bisect` on the
         rate bound, one `measure` each."""
@@ -293,6 +310,11 @@ class SingularityMonitor:
         if not h > 0.0 or not rate_bound > 0.0 or \
                 (s0 + s1) * peak - rate_bound * h >= 2.0 * enter:
             return []
+        if falls is not None and self.open_passage is None and falls[1] is not None:
+            r0, r1 = (2.0 * max(r, observed) for r in _fall_rates(*falls))
+            if r0 > 0.0 and r1 > 0.0 and \
+                    (r1 * s0 + r0 * s1) * peak - r0 * r1 * h >= enter * (r0 + r1):
+                return []
 
         def s_at(tk):
             return self.measure(state_at(tk)[0], tk)[0]
@@ -440,6 +462,23 @@ class SingularityMonitor:
             self.passages.append(SingularPassage(here.t_start, t, here.s_min, here.joints,
                                                  here.t_min, here.bridged))
             self.open_passage = None
+
+
+def _fall_rates(before, after) -> tuple[float, float]:
+    """How fast σ_min/σ_max (not normalized) can fall over a step from each of its ends,
+    `before` and `after` the monitor's (t, DᵀD, PPᵀ, σ_min, σ_max, ‖D‖_F) there, D = dJ̃/dt
+    (all flattened): from end a, σ_min falls at most at ‖D P_a‖₂ ≤ ‖D P_a‖_F
+    (`mechsim.linalg.dense.fall_basis`; ‖D P‖_F² = ⟨DᵀD, PPᵀ⟩), taken as the larger of
+    that with either end's D (the step's rate of J̃ at its two ends, seen in a's singular
+    directions), and σ_max rises at most at the larger ‖D‖_F (Weyl); so s = σ_min/σ_max
+    falls at most at (fall + s_a rise)/σ_max,a."""
+    rise = max(before[5], after[5])
+    rates = []
+    for end in (before, after):
+        H = end[2]
+        fall = math.sqrt(max(before[1] @ H, after[1] @ H, 0.0))
+        rates.append((fall + end[3] / end[4] * rise) / end[4])
+    return rates[0], rates[1]
 
 
 def _uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=False) -> list:

@@ -102,3 +102,18 @@ def svdvals(A):
     if info != 0:
         return np.linalg.svd(A, compute_uv=False)
     return s
+
+
+def fall_basis(sig, V, k) -> np.ndarray:
+    """P = σ_k V_r Σ_r⁻¹ (n × r, r = k + 1) from a matrix A's singular values `sig`
+    (descending) and right singular vectors V (columns): for any A' of A's shape,
+    σ_k(A') ≥ σ_k(A) − ‖(A' − A) P‖₂. (σ_k(A') ≥ σ_k(A' V_r), as V_r has orthonormal
+    columns, and A' V_r = (I + (A' − A) V_r Σ_r⁻¹ U_rᵀ) U_r Σ_r, whose r-th singular value
+    is at least σ_k (1 − ‖(A' − A) V_r Σ_r⁻¹‖₂).) Unlike Weyl's ‖A' − A‖₂ it weighs a
+    change along each singular direction l by σ_k/σ_l: what moves the larger singular
+    values, or turns A out of its row space, barely counts (the singularity monitor's
+    bound on how fast σ_min of J̃ can fall). A zero singular value's direction weighs 1."""
+    r = k + 1
+    if sig[k] > 0.0:
+        return V[:, :r] * (sig[k] / sig[:r])
+    return V[:, :r] * (sig[:r] <= 0.0)

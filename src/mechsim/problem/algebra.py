@@ -65,8 +65,11 @@ class ConstraintAlgebra:
       accepted step found the motion far from any singular configuration, so no
       condition estimate is needed
     - ``measure(q, t, v, eps, k, J=None)``: (σ_k, σ_max, σ̇_k, σ̇_max, u_k, J̃,
-      ‖dJ̃/dt‖_F) at (q, t), the rates along v from J̃ at (q + eps v, t + eps) (0 where
-      eps is 0; `J`: J̃ at q if the caller has it); σ_max = 0 where J̃ has lost that rank
+      ‖dJ̃/dt‖_F, fall) at (q, t), the rates along v from J̃ at (q + eps v, t + eps) (0
+      where eps is 0; `J`: J̃ at q if the caller has it); σ_max = 0 where J̃ has lost that
+      rank. `fall`: (dJ̃/dt, P) where the algebra is small and eps > 0, else None, with
+      P = σ_k V Σ⁻¹ over J̃'s first k + 1 singular triplets (n × (k + 1)): any J̃' has
+      σ_k(J̃') ≥ σ_k − ‖(J̃' − J̃) P‖₂ (`mechsim.linalg.dense.fall_basis`)
     - ``chords(times, Q)``, ``singular_extremes(times, Q, k)``: bounds of ‖J̃ᵢ₊₁ − J̃ᵢ‖₂
       (`chord_bound`), (σ_k, σ_max) at each configuration: the passage search's grid
     - ``compiled_accelerations(t, q, v, Q, cut, bound, far)``: q̈ at (t, q, v) under the
@@ -145,16 +148,27 @@ class ConstraintAlgebra:
     def measure(self, q, t, v, eps, k, J=None):
         if J is None:
             J = self.scaled_jacobian(q, t)
-        smin, u_min, v_min, smax, u_max, v_max = self.extremes(J, k)
+        basis = None
+        if eps and self.small:
+            U, sig, Vt = dense.svd(sparse.dense(J))
+            if k >= sig.size or k < 0 or sig[0] <= 0.0:
+                return 0.0, 0.0, 0.0, 0.0, U[:, -1], J, 0.0, None
+            smin, u_min, v_min, smax, u_max, v_max = sig[k], U[:, k], Vt[k], sig[0], U[:, 0], Vt[0]
+            basis = dense.fall_basis(sig, Vt.T, k)
+        else:
+            smin, u_min, v_min, smax, u_max, v_max = self.extremes(J, k)
         if not smax > 0.0:
-            return 0.0, 0.0, 0.0, 0.0, u_min, J, 0.0
+            return 0.0, 0.0, 0.0, 0.0, u_min, J, 0.0, None
         d_min = d_max = rate_norm = 0.0
+        fall = None
         if eps:
             dJ = sparse.difference(self.scaled_jacobian(q + eps * v, t + eps), J, 1.0 / eps)
             d_min = u_min @ (dJ @ v_min)
             d_max = u_max @ (dJ @ v_max)
             rate_norm = sparse.frobenius(dJ)
-        return smin, smax, d_min, d_max, u_min, J, rate_norm
+            if basis is not None:
+                fall = (sparse.dense(dJ), basis)
+        return smin, smax, d_min, d_max, u_min, J, rate_norm, fall
 
     def chords(self, times, Q):
         return chord_bound(np.diff(self._scaled_at(times, Q), axis=0))
