@@ -57,6 +57,10 @@ WEYL_SPAN = 100.0
 # first grid, and the margin of J̃'s path between two grid nodes over their chord.
 GRID = 8
 CHORD = 0.25
+# The margin of the rate at which σ_min/σ_max can fall along a step, bounded on the cubic
+# through J̃'s values and rates at the step's ends (`_fall_rates`), for J̃'s departure from
+# that cubic.
+HERMITE_MARGIN = 1.25
 
 
 @dataclass
@@ -108,10 +112,7 @@ class SingularityMonitor:
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
         self._known = {}             # time -> (σ_min, σ_max) measured at the latest step's ends
         self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
-        # (t, D, H, σ_min, σ_max, ‖dJ̃/dt‖_F) at the latest measured observation, D and H
-        # flattened DᵀD and PPᵀ of `ConstraintAlgebra.measure`'s `fall` (dJ̃/dt = D, P), or
-        # None
-        self._fall = None
+        self._fall = None            # `_Fall` at the latest measured observation, or None
         self.t_first = -np.inf       # the first observation's time
         # Whether σ_min/σ_max of J̃ is below round-off for the masses' sake (`BLIND`): then
         # no passage is watched, and the run says so.
@@ -202,9 +203,7 @@ class SingularityMonitor:
         speed_before, self._ratio_speed = self._ratio_speed, self._speed(rate_norm, smax)
         fall_before, self._fall = self._fall, None
         if fall is not None:
-            rates, basis = fall
-            self._fall = (t, (rates.T @ rates).ravel(), (basis @ basis.T).ravel(), smin, smax,
-                          rate_norm)
+            self._fall = _Fall.of(t, sparse.dense(J), fall, smin, smax, rate_norm)
         self.peak = max(self.peak, raw)
         if self.peak < BLIND and self._masses_hide(q, t):
             # Below round-off, s/peak is noise: no passage can be told from it.
@@ -223,7 +222,7 @@ class SingularityMonitor:
         self.last, self.rate = s, rate
         if prev is not None and state_at is not None:
             falls = (fall_before, self._fall) \
-                if fall_before is not None and fall_before[0] == t_old else None
+                if fall_before is not None and fall_before.t == t_old else None
             for dip in self._hidden_passages(prev, (t, s, rate), state_at,
                                              max(speed_before, self._ratio_speed),
                                              positions_at, falls):
@@ -289,10 +288,11 @@ class SingularityMonitor:
         A step that crosses several passages (a partitioned method striding through a
         uniformly turning parallelogram) reports every one, wherever its midpoints fall.
         Steps clear of any passage cost nothing: their ends already exclude it, by that bound
-        or, with `falls` (the step's ends' `_fall`, for `_fall_rates`: how fast σ_min/σ_max
-        can fall from each end, seen in each end's own singular directions), by the lines s_a − R_a |t − t_a|
-        (R_a twice the end's rate, at least twice the rates seen) where no passage is open
-        at the start (there the search finds where it closes). Where the
+        or, with `falls` (the step's ends' `_Fall`s), by the lines s_a − R_a |t − t_a| where
+        no passage is open at the start (there the search finds where it closes): R_a is
+        `_fall_rates`' bound on how fast σ_min/σ_max can fall from end a along the step
+        (J̃'s cubic through its values and rates at the ends, seen in a's own singular
+        directions), times `HERMITE_MARGIN`, and at least twice the rates seen. Where the
         algebra measures many states together (a small mechanism) the values come from
         `_anchored` (Weyl's inequality along J̃'s path), elsewhere from `_bisect` on the
         rate bound, one `measure` each."""
@@ -311,7 +311,7 @@ class SingularityMonitor:
                 (s0 + s1) * peak - rate_bound * h >= 2.0 * enter:
             return []
         if falls is not None and self.open_passage is None and falls[1] is not None:
-            r0, r1 = (2.0 * max(r, observed) for r in _fall_rates(*falls))
+            r0, r1 = (max(HERMITE_MARGIN * r, 2.0 * observed) for r in _fall_rates(*falls))
             if r0 > 0.0 and r1 > 0.0 and \
                     (r1 * s0 + r0 * s1) * peak - r0 * r1 * h >= enter * (r0 + r1):
                 return []
@@ -464,20 +464,43 @@ class SingularityMonitor:
             self.open_passage = None
 
 
-def _fall_rates(before, after) -> tuple[float, float]:
-    """How fast σ_min/σ_max (not normalized) can fall over a step from each of its ends,
-    `before` and `after` the monitor's (t, DᵀD, PPᵀ, σ_min, σ_max, ‖D‖_F) there, D = dJ̃/dt
-    (all flattened): from end a, σ_min falls at most at ‖D P_a‖₂ ≤ ‖D P_a‖_F
-    (`mechsim.linalg.dense.fall_basis`; ‖D P‖_F² = ⟨DᵀD, PPᵀ⟩), taken as the larger of
-    that with either end's D (the step's rate of J̃ at its two ends, seen in a's singular
-    directions), and σ_max rises at most at the larger ‖D‖_F (Weyl); so s = σ_min/σ_max
-    falls at most at (fall + s_a rise)/σ_max,a."""
-    rise = max(before[5], after[5])
+@dataclass(frozen=True)
+class _Fall:
+    """What the monitor keeps of a measured observation for `_fall_rates`: its time, J̃ and
+    D = dJ̃/dt there, DᵀD and PPᵀ flattened (P of `mechsim.linalg.dense.fall_basis`),
+    σ_min, σ_max and ‖D‖_F."""
+    t: float
+    J: np.ndarray
+    D: np.ndarray
+    DD: np.ndarray
+    PP: np.ndarray
+    smin: float
+    smax: float
+    rise: float
+
+    @classmethod
+    def of(cls, t, J, fall, smin, smax, rate_norm):
+        D, P = fall
+        return cls(t, J, D, (D.T @ D).ravel(), (P @ P.T).ravel(), smin, smax, rate_norm)
+
+
+def _fall_rates(a: _Fall, b: _Fall) -> tuple[float, float]:
+    """How fast σ_min/σ_max (not normalized) can fall along the step from a to b, from
+    each end's values: J̃ along the step taken as the cubic through J̃ and D = dJ̃/dt at
+    both ends, whose rate is D_a + (D_b − D_a) x + c x (1 − x) (x from 0 to 1, c = 6 C,
+    C = (J̃_b − J̃_a)/h − (D_a + D_b)/2: its mean is the chord's), so ‖rate · P‖ ≤
+    max(‖D_a P‖, ‖D_b P‖) + 1.5 ‖C P‖ for any P. Seen from end e, σ_min falls at most at
+    that with P = P_e (`mechsim.linalg.dense.fall_basis`; Frobenius norms, ‖X P‖_F² =
+    ⟨XᵀX, PPᵀ⟩), σ_max rises at most at max(‖D_a‖_F, ‖D_b‖_F) + 1.5 ‖C‖_F (Weyl), and
+    s = σ_min/σ_max falls at most at (fall + s_e rise)/σ_max,e."""
+    C = (b.J - a.J) / (b.t - a.t) - 0.5 * (a.D + b.D)
+    CC = (C.T @ C).ravel()
+    rise = max(a.rise, b.rise) + 1.5 * math.sqrt(float(np.dot(C.ravel(), C.ravel())))
     rates = []
-    for end in (before, after):
-        H = end[2]
-        fall = math.sqrt(max(before[1] @ H, after[1] @ H, 0.0))
-        rates.append((fall + end[3] / end[4] * rise) / end[4])
+    for end in (a, b):
+        PP = end.PP
+        fall = math.sqrt(max(a.DD @ PP, b.DD @ PP, 0.0)) + 1.5 * math.sqrt(max(CC @ PP, 0.0))
+        rates.append((fall + end.smin / end.smax * rise) / end.smax)
     return rates[0], rates[1]
 
 
