@@ -219,3 +219,37 @@ def test_the_search_skips_intervals_joined_to_a_passage_it_has_found(at, chords,
     anchors = {tk: (s, 1.0) for tk, s in zip(times, at)}
     assert _uncleared(times, list(chords), anchors, 0.07, 0.14, 0.0, 3.0,
                       open_at_start) == expected
+
+
+@pytest.mark.parametrize("build, window", [(lambda: ms.examples.double_four_bar(), 40),
+                                           (lambda: ms.examples.double_four_bar(), 100),
+                                           (lambda: ms.examples.four_bar(), 60)])
+def test_a_step_s_fall_rates_bound_sigma_min_over_sigma_max_inside_it(build, window):
+    """The monitor's pre-check clears a step by the lines s_a − R_a |t − t_a| from its ends
+    (R_a from `_fall_rates`: J̃'s cubic through the ends' values and rates, in each end's
+    singular directions). On windows of 40–100 ms of an accurate run (the steps rtol 1e-4
+    takes), through the double four-bar's passages and over a four-bar, s at every
+    millisecond inside lies on or above both lines, without the pre-check's margin; half
+    the rates, or each end's own rate alone, would cross s on some window."""
+    from mechsim.formulations.monitor import _Fall, _fall_rates
+    from mechsim.linalg import sparse
+    mech = build()
+    res = mech.simulate(1.2, rtol=1e-10, atol=1e-12, output_step=1e-3)
+    prob = mech.problem()
+    k = prob.m - 1
+    falls, s = [], []
+    for t, q, v in zip(res.t, res.q, res.v):
+        speed = np.max(np.abs(v))                  # (0 at the four-bar's start from rest)
+        smin, smax, _, _, _, J, rise, fall = prob.algebra.measure(
+            q, t, v, 1e-7 / speed if speed > 0.0 else 0.0, k)
+        falls.append(fall and _Fall.of(t, sparse.dense(J), fall, smin, smax, rise))
+        s.append(smin / smax)
+    s = np.array(s)
+    for i in range(0, len(s) - window, window // 2):
+        a, b = falls[i], falls[i + window]
+        if a is None or b is None:
+            continue                               # an end at rest: no rate to bound by
+        r0, r1 = _fall_rates(a, b)
+        tau = res.t[i:i + window + 1] - a.t
+        lines = np.maximum(s[i] - r0 * tau, s[i + window] - r1 * (b.t - a.t - tau))
+        assert np.all(s[i:i + window + 1] >= lines - 1e-12), (a.t, b.t)
