@@ -221,8 +221,9 @@ class SingularityMonitor:
         self._skipped = 0
         self.last, self.rate = s, rate
         if prev is not None and state_at is not None:
-            falls = (fall_before, self._fall) \
-                if fall_before is not None and fall_before.t == t_old else None
+            # From the latest measured observation: the step's start, or before the
+            # measurements skipped since.
+            falls = (fall_before, self._fall) if fall_before is not None else None
             for dip in self._hidden_passages(prev, (t, s, rate), state_at,
                                              max(speed_before, self._ratio_speed),
                                              positions_at, falls):
@@ -288,8 +289,10 @@ class SingularityMonitor:
         A step that crosses several passages (a partitioned method striding through a
         uniformly turning parallelogram) reports every one, wherever its midpoints fall.
         Steps clear of any passage cost nothing: their ends already exclude it, by that bound
-        or, with `falls` (the step's ends' `_Fall`s), by the lines s_a − R_a |t − t_a| where
-        no passage is open at the start (there the search finds where it closes): R_a is
+        or, with `falls` (the `_Fall`s of the latest measured observation, the step's start
+        or one before the measurements skipped since, and of its end), by the lines
+        s_a − R_a |t − t_a| over that span where no passage is open at the start (there the
+        search finds where it closes): R_a is
         `_fall_rates`' bound on how fast σ_min/σ_max can fall from end a along the step
         (J̃'s cubic through its values and rates at the ends, seen in a's own singular
         directions), times `HERMITE_MARGIN`, and at least twice the rates seen. Where the
@@ -311,9 +314,10 @@ class SingularityMonitor:
                 (s0 + s1) * peak - rate_bound * h >= 2.0 * enter:
             return []
         if falls is not None and self.open_passage is None and falls[1] is not None:
-            r0, r1 = (max(HERMITE_MARGIN * r, 2.0 * observed) for r in _fall_rates(*falls))
-            if r0 > 0.0 and r1 > 0.0 and \
-                    (r1 * s0 + r0 * s1) * peak - r0 * r1 * h >= enter * (r0 + r1):
+            fa, fb = falls
+            r0, r1 = (max(HERMITE_MARGIN * r, 2.0 * observed) for r in _fall_rates(fa, fb))
+            if r0 > 0.0 and r1 > 0.0 and r1 * fa.smin / fa.smax + r0 * fb.smin / fb.smax - \
+                    r0 * r1 * (fb.t - fa.t) >= enter * (r0 + r1):
                 return []
 
         def s_at(tk):
