@@ -242,7 +242,7 @@ def test_a_step_s_fall_rates_bound_sigma_min_over_sigma_max_inside_it(build, win
         speed = np.max(np.abs(v))                  # (0 at the four-bar's start from rest)
         smin, smax, _, _, _, J, rise, fall = prob.algebra.measure(
             q, t, v, 1e-7 / speed if speed > 0.0 else 0.0, k)
-        falls.append(fall and _Fall.of(t, sparse.dense(J), fall, smin, smax, rise))
+        falls.append(fall and _Fall(t, sparse.dense(J), fall, smin, smax, rise))
         s.append(smin / smax)
     s = np.array(s)
     for i in range(0, len(s) - window, window // 2):

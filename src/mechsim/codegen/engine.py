@@ -337,6 +337,11 @@ class ProjectionEngine:
         self.q, self.v = self.y[:n], self.y[n:]
         self.buffers = PROJECTION.buffers(Dims(n, m))
         self.measured, self.Jt = np.zeros(5 + m), np.zeros((m, n))
+        # Views of the SVD's buffers `measure` reads its fall from: J̃ at (q + eps v,
+        # t + eps), J̃'s right singular vectors (rows: U is column-major n × m), σ.
+        self._ahead = self.buffers["J1"].reshape(m, n)
+        self._right = self.buffers["U"].reshape(m, n)
+        self._sig = self.buffers["sig"]
         arrays = {**self.buffers, "p": self.p, "winv": self.winv, "q": self.q, "v": self.v,
                   "Q": self.Q, "out": self.out}
         self.ctx = PROJECTION.make(dict(
@@ -391,12 +396,12 @@ class ProjectionEngine:
         self.counters.projections += self.ctx.count
         return self.q.copy(), self.v.copy()
 
-    def measure(self, t, q, v=None, eps=0.0):
+    def measure(self, t, q, v=None, eps=0.0, fall=True):
         """The extreme singular values of J̃ = Φ_q M^{-1/2} at (q, t) and, with eps > 0,
         their rates along v (from J̃ at (q + eps v, t + eps)): (σ_min, σ_max, σ̇_min,
         σ̇_max, left singular vector of σ_min, J̃, ‖dJ̃/dt‖_F (0 without eps), fall (with
-        eps: (dJ̃/dt, `fall_basis`), else None)); None where the SVD fails. Needs m ≤ n
-        (else σ_min is 0 by count)."""
+        eps and `fall`: (dJ̃/dt, `fall_basis`), else None)); None where the SVD fails.
+        Needs m ≤ n (else σ_min is 0 by count)."""
         self.q[:] = q
         if eps > 0.0:
             self.v[:] = v
@@ -404,16 +409,14 @@ class ProjectionEngine:
         if self._measure(self.context, t, eps, out.ctypes.data, self.Jt.ctypes.data):
             return None
         smin, smax, dmin, dmax = out[:4].tolist()
-        fall = None
-        if eps > 0.0 and smax > 0.0:
-            # dgesdd left J̃'s right singular vectors in U (column-major n × m) and J̃ at
-            # (q + eps v, t + eps) in J1 (`ConstraintAlgebra.measure`'s `fall`).
-            m, n = self.Jt.shape
-            rates = (self.buffers["J1"].reshape(m, n) - self.Jt) / eps
-            fall = (rates, fall_basis(self.buffers["sig"], self.buffers["U"].reshape(m, n).T,
-                                      m - 1))
+        got = None
+        if fall and eps > 0.0 and smax > 0.0:
+            # `ConstraintAlgebra.measure`'s `fall`, from what dgesdd and the rate left
+            rates = self._ahead - self.Jt
+            rates *= 1.0 / eps
+            got = (rates, fall_basis(self._sig, self._right.T, len(self._sig) - 1))
         return (smin, smax, dmin, dmax, out[4:-1].copy(), self.Jt.copy(), float(out[-1]),
-                fall)
+                got)
 
     def project_states(self, T, Q, V, tols, max_iter=8):
         """`project_state` of each state (T[i], Q[i], V[i]) to tols[i] in one call, Q and V

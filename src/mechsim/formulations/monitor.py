@@ -203,7 +203,7 @@ class SingularityMonitor:
         speed_before, self._ratio_speed = self._ratio_speed, self._speed(rate_norm, smax)
         fall_before, self._fall = self._fall, None
         if fall is not None:
-            self._fall = _Fall.of(t, sparse.dense(J), fall, smin, smax, rate_norm)
+            self._fall = _Fall(t, sparse.dense(J), fall, smin, smax, rate_norm)
         self.peak = max(self.peak, raw)
         if self.peak < BLIND and self._masses_hide(q, t):
             # Below round-off, s/peak is noise: no passage can be told from it.
@@ -468,24 +468,16 @@ class SingularityMonitor:
             self.open_passage = None
 
 
-@dataclass(frozen=True)
 class _Fall:
-    """What the monitor keeps of a measured observation for `_fall_rates`: its time, J̃ and
-    D = dJ̃/dt there, DᵀD and PPᵀ flattened (P of `mechsim.linalg.dense.fall_basis`),
-    σ_min, σ_max and ‖D‖_F."""
-    t: float
-    J: np.ndarray
-    D: np.ndarray
-    DD: np.ndarray
-    PP: np.ndarray
-    smin: float
-    smax: float
-    rise: float
+    """What the monitor keeps of a measured observation for `_fall_rates`: its time `t`,
+    J̃ and D = dJ̃/dt there, P (`mechsim.linalg.dense.fall_basis`), σ_min, σ_max and
+    ‖D‖_F (`rise`)."""
 
-    @classmethod
-    def of(cls, t, J, fall, smin, smax, rate_norm):
-        D, P = fall
-        return cls(t, J, D, (D.T @ D).ravel(), (P @ P.T).ravel(), smin, smax, rate_norm)
+    __slots__ = ("t", "J", "D", "P", "smin", "smax", "rise")
+
+    def __init__(self, t, J, fall, smin, smax, rise):
+        self.t, self.J, (self.D, self.P) = t, J, fall
+        self.smin, self.smax, self.rise = smin, smax, rise
 
 
 def _fall_rates(a: _Fall, b: _Fall) -> tuple[float, float]:
@@ -494,18 +486,20 @@ def _fall_rates(a: _Fall, b: _Fall) -> tuple[float, float]:
     both ends, whose rate is D_a + (D_b − D_a) x + c x (1 − x) (x from 0 to 1, c = 6 C,
     C = (J̃_b − J̃_a)/h − (D_a + D_b)/2: its mean is the chord's), so ‖rate · P‖ ≤
     max(‖D_a P‖, ‖D_b P‖) + 1.5 ‖C P‖ for any P. Seen from end e, σ_min falls at most at
-    that with P = P_e (`mechsim.linalg.dense.fall_basis`; Frobenius norms, ‖X P‖_F² =
-    ⟨XᵀX, PPᵀ⟩), σ_max rises at most at max(‖D_a‖_F, ‖D_b‖_F) + 1.5 ‖C‖_F (Weyl), and
-    s = σ_min/σ_max falls at most at (fall + s_e rise)/σ_max,e."""
-    C = (b.J - a.J) / (b.t - a.t) - 0.5 * (a.D + b.D)
-    CC = (C.T @ C).ravel()
+    that with P = P_e (`mechsim.linalg.dense.fall_basis`; Frobenius norms), σ_max rises
+    at most at max(‖D_a‖_F, ‖D_b‖_F) + 1.5 ‖C‖_F (Weyl), and s = σ_min/σ_max falls at
+    most at (fall + s_e rise)/σ_max,e."""
+    C = (b.J - a.J) * (1.0 / (b.t - a.t)) - 0.5 * (a.D + b.D)
+    m, r = a.D.shape[0], a.P.shape[1]
+    # ‖X P_e‖_F² for X = D_a, D_b, C and e = a, b, from one product.
+    X = np.concatenate((a.D, b.D, C)) @ np.concatenate((a.P, b.P), axis=1)
+    (da_a, da_b), (db_a, db_b), (c_a, c_b) = \
+        np.square(X).reshape(3, m, 2, r).sum(axis=(1, 3)).tolist()
     rise = max(a.rise, b.rise) + 1.5 * math.sqrt(float(np.dot(C.ravel(), C.ravel())))
-    rates = []
-    for end in (a, b):
-        PP = end.PP
-        fall = math.sqrt(max(a.DD @ PP, b.DD @ PP, 0.0)) + 1.5 * math.sqrt(max(CC @ PP, 0.0))
-        rates.append((fall + end.smin / end.smax * rise) / end.smax)
-    return rates[0], rates[1]
+    fall_a = math.sqrt(max(da_a, db_a)) + 1.5 * math.sqrt(c_a)
+    fall_b = math.sqrt(max(da_b, db_b)) + 1.5 * math.sqrt(c_b)
+    return ((fall_a + a.smin / a.smax * rise) / a.smax,
+            (fall_b + b.smin / b.smax * rise) / b.smax)
 
 
 def _uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=False) -> list:

@@ -274,7 +274,7 @@ class DenseAlgebra(ConstraintAlgebra):
     def measure(self, q, t, v, eps, k, J=None):
         engine = self._compiled(k)
         if engine is not None:
-            got = engine.measure(t, q, v, eps)
+            got = engine.measure(t, q, v, eps, fall=self.small)
             if got is not None:
                 return got
         return super().measure(q, t, v, eps, k, J)
