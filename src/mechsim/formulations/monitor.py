@@ -289,14 +289,7 @@ class SingularityMonitor:
         A step that crosses several passages (a partitioned method striding through a
         uniformly turning parallelogram) reports every one, wherever its midpoints fall.
         Steps clear of any passage cost nothing: their ends already exclude it, by that bound
-        or, with `falls` (the `_Fall`s of the latest measured observation, the step's start
-        or one before the measurements skipped since, and of its end), by the lines
-        s_a − R_a |t − t_a| over that span where no passage is open at the start (there the
-        search finds where it closes): R_a is
-        `_fall_rates`' bound on how fast σ_min/σ_max can fall from end a along the step
-        (J̃'s cubic through its values and rates at the ends, seen in a's own singular
-        directions), times `HERMITE_MARGIN`, and at least twice the rates seen. Where the
-        algebra measures many states together (a small mechanism) the values come from
+        or by `_fall_clears` (`falls`). Where the algebra measures many states together (a small mechanism) the values come from
         `_anchored` (Weyl's inequality along J̃'s path), elsewhere from `_bisect` on the
         rate bound, one `measure` each."""
         t0, s0, d0 = a
@@ -313,12 +306,8 @@ class SingularityMonitor:
         if not h > 0.0 or not rate_bound > 0.0 or \
                 (s0 + s1) * peak - rate_bound * h >= 2.0 * enter:
             return []
-        if falls is not None and self.open_passage is None and falls[1] is not None:
-            fa, fb = falls
-            r0, r1 = (max(HERMITE_MARGIN * r, 2.0 * observed) for r in _fall_rates(fa, fb))
-            if r0 > 0.0 and r1 > 0.0 and r1 * fa.smin / fa.smax + r0 * fb.smin / fb.smax - \
-                    r0 * r1 * (fb.t - fa.t) >= enter * (r0 + r1):
-                return []
+        if self._fall_clears(falls, observed):
+            return []
 
         def s_at(tk):
             return self.measure(state_at(tk)[0], tk)[0]
@@ -362,6 +351,21 @@ class SingularityMonitor:
                             t0 if at_start else max(t0, tm - width),
                             t1 if at_end else min(t1, tm + width), at_start, at_end))
         return dips
+
+    def _fall_clears(self, falls, observed) -> bool:
+        """Do the lines s_a − R_a |t − t_a| keep s above `enter` over the span of `falls`,
+        the `_Fall`s of the latest measured observation (the step's start, or one before
+        the measurements skipped since) and of the step's end? R_a is `_fall_rates`' bound
+        on how fast σ_min/σ_max can fall from end a (J̃'s cubic through its values and rates
+        at the ends, seen in a's own singular directions) times `HERMITE_MARGIN`, at least
+        twice `observed` (the rates seen, not normalized). Not where a passage is open at
+        the start: there the search finds where it closes."""
+        if falls is None or falls[1] is None or self.open_passage is not None:
+            return False
+        fa, fb = falls
+        r0, r1 = (max(HERMITE_MARGIN * r, 2.0 * observed) for r in _fall_rates(fa, fb))
+        return r0 > 0.0 and r1 > 0.0 and r1 * fa.smin / fa.smax + r0 * fb.smin / fb.smax - \
+            r0 * r1 * (fb.t - fa.t) >= self.enter * self.peak * (r0 + r1)
 
     def _anchored(self, ends, positions_at, budget, apart, known=None) -> dict:
         """{t: s} over the step `ends` = (t0, t1) (not normalized), measured where the

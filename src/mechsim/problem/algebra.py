@@ -41,8 +41,7 @@ class ConstraintAlgebra:
 
     - ``cut_reference``: float, the level of σ_min/σ_max of J̃ that the projection
       method's truncation cut `rcond` is relative to (`mechsim.formulations.projection`)
-    - ``small``: bool, J̃'s SVD is cheap (the dense algebra's, at most `SMALL_ROWS`
-      constraint rows)
+    - ``small``: bool, J̃'s SVD is cheap (dense, at most `SMALL_ROWS` constraint rows)
     - ``batched``: bool, J̃ of many states is measured together by one stacked dense SVD
     - ``dense_complement``: bool, Φ_q M⁻¹ Φ_qᵀ is formed dense with a constant diagonal
       mass, so many right-hand sides share one factor (output samples settled by one
@@ -55,8 +54,7 @@ class ConstraintAlgebra:
     - ``rank(J)``: the numerical rank of Φ_q = J (singular values > 1e3 ε max(m, n) σ_max)
     - ``extremes(J̃, k)``: (σ_k, u_k, v_k, σ_max, u_max, v_max), the k-th largest singular
       value of J̃ (k = m − 1 − redundant rows) with its singular vectors, and the largest;
-      σ_max = 0 where J̃ has lost that rank (u_k then a left singular vector of the
-      smallest)
+      σ_max = 0 where J̃ lost that rank (u_k then a left singular vector of the smallest)
     - ``clear_solver(J, f, cut, bound)``: r ↦ (J̃J̃ᵀ)⁻¹ r where every singular value of
       J̃ = f.cols(J) is clear of the truncation cut (relative to σ_max; `bound`: the
       smallest acceptable estimate of 1/cond₁(J̃J̃ᵀ)), else None
@@ -65,11 +63,9 @@ class ConstraintAlgebra:
       accepted step found the motion far from any singular configuration, so no
       condition estimate is needed
     - ``measure(q, t, v, eps, k, J=None)``: (σ_k, σ_max, σ̇_k, σ̇_max, u_k, J̃,
-      ‖dJ̃/dt‖_F, fall) at (q, t), the rates along v from J̃ at (q + eps v, t + eps) (0
-      where eps is 0; `J`: J̃ at q if the caller has it); σ_max = 0 where J̃ has lost that
-      rank. `fall`: (dJ̃/dt, P) where the algebra is small and eps > 0, else None, with
-      P = σ_k V Σ⁻¹ over J̃'s first k + 1 singular triplets (n × (k + 1)): any J̃' has
-      σ_k(J̃') ≥ σ_k − ‖(J̃' − J̃) P‖₂ (`mechsim.linalg.dense.fall_basis`)
+      ‖dJ̃/dt‖_F, fall) at (q, t), rates along v from J̃ at (q + eps v, t + eps) (0 where
+      eps is 0; `J`: J̃ at q if at hand); σ_max = 0 where J̃ lost that rank; fall:
+      (dJ̃/dt, `mechsim.linalg.dense.fall_basis`) where small and eps > 0, else None
     - ``chords(times, Q)``, ``singular_extremes(times, Q, k)``: bounds of ‖J̃ᵢ₊₁ − J̃ᵢ‖₂
       (`chord_bound`), (σ_k, σ_max) at each configuration: the passage search's grid
     - ``compiled_accelerations(t, q, v, Q, cut, bound, far)``: q̈ at (t, q, v) under the
