@@ -289,9 +289,9 @@ class SingularityMonitor:
         A step that crosses several passages (a partitioned method striding through a
         uniformly turning parallelogram) reports every one, wherever its midpoints fall.
         Steps clear of any passage cost nothing: their ends already exclude it, by that bound
-        or by `_fall_clears` (`falls`). Where the algebra measures many states together (a small mechanism) the values come from
-        `_anchored` (Weyl's inequality along J̃'s path), elsewhere from `_bisect` on the
-        rate bound, one `measure` each."""
+        or by `_fall_clears` (`falls`). Where the algebra measures many states together (a
+        small mechanism) the values come from `_anchored` (Weyl's inequality along J̃'s
+        path), elsewhere from `_bisect` on the rate bound, one `measure` each."""
         t0, s0, d0 = a
         t1, s1, d1 = b
         h = t1 - t0
