@@ -411,7 +411,8 @@ class ProjectionEngine:
         smin, smax, dmin, dmax = out[:4].tolist()
         got = None
         if fall and eps > 0.0 and smax > 0.0:
-            # `ConstraintAlgebra.measure`'s `fall`, from what dgesdd and the rate left
+            # `ConstraintAlgebra.measure`'s `fall`, from what dgesdd (σ, V) and the rate's
+            # second Jacobian (J̃ at q + eps v) left in the buffers
             rates = self._ahead - self.Jt
             rates *= 1.0 / eps
             got = (rates, fall_basis(self._sig, self._right.T, len(self._sig) - 1))
