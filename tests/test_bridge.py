@@ -253,3 +253,21 @@ def test_a_step_s_fall_rates_bound_sigma_min_over_sigma_max_inside_it(build, win
         tau = res.t[i:i + window + 1] - a.t
         lines = np.maximum(s[i] - r0 * tau, s[i + window] - r1 * (b.t - a.t - tau))
         assert np.all(s[i:i + window + 1] >= lines - 1e-12), (a.t, b.t)
+
+
+def test_the_lowest_of_two_falling_lines_is_found_and_falls_with_either_rate(rng):
+    """`_lowest` (what the fall pre-check compares with `enter`) against the least over a
+    fine grid of the larger of the two lines, where they cross inside the span and where
+    one stays above the other throughout; and a faster fall from either end never raises
+    it (so a step the slowest rates seen cannot clear needs no rates of its own)."""
+    from mechsim.formulations.monitor import _lowest
+    tau = np.linspace(0.0, 1.0, 20001)
+    for _ in range(300):
+        sa, sb = rng.uniform(0.0, 1.0, 2)
+        h = rng.uniform(0.01, 2.0)
+        ra, rb = 10.0 ** rng.uniform(-2, 2, 2)
+        lines = np.maximum(sa - ra * h * tau, sb - rb * h * (1.0 - tau))
+        assert _lowest(sa, sb, h, ra, rb) == pytest.approx(lines.min(), abs=1e-3 * (ra + rb) * h)
+        assert _lowest(sa, sb, h, 2.0 * ra, rb) <= _lowest(sa, sb, h, ra, rb) + 1e-15
+        assert _lowest(sa, sb, h, ra, 2.0 * rb) <= _lowest(sa, sb, h, ra, rb) + 1e-15
+    assert _lowest(0.5, 0.5, 1.0, 0.0, 1.0) == -math.inf

@@ -363,9 +363,12 @@ class SingularityMonitor:
         if falls is None or falls[1] is None or self.open_passage is not None:
             return False
         fa, fb = falls
-        r0, r1 = (max(HERMITE_MARGIN * r, 2.0 * observed) for r in _fall_rates(fa, fb))
-        return r0 > 0.0 and r1 > 0.0 and r1 * fa.smin / fa.smax + r0 * fb.smin / fb.smax - \
-            r0 * r1 * (fb.t - fa.t) >= self.enter * self.peak * (r0 + r1)
+        enter, least = self.enter * self.peak, 2.0 * observed
+        ends = (fa.smin / fa.smax, fb.smin / fb.smax, fb.t - fa.t)
+        if least > 0.0 and _lowest(*ends, least, least) < enter:
+            return False                        # no faster fall can clear it either
+        r0, r1 = (max(HERMITE_MARGIN * r, least) for r in _fall_rates(fa, fb))
+        return _lowest(*ends, r0, r1) >= enter
 
     def _anchored(self, ends, positions_at, budget, apart, known=None) -> dict:
         """{t: s} over the step `ends` = (t0, t1) (not normalized), measured where the
@@ -504,6 +507,16 @@ def _fall_rates(a: _Fall, b: _Fall) -> tuple[float, float]:
     fall_b = math.sqrt(max(da_b, db_b)) + 1.5 * math.sqrt(c_b)
     return ((fall_a + a.smin / a.smax * rise) / a.smax,
             (fall_b + b.smin / b.smax * rise) / b.smax)
+
+
+def _lowest(sa, sb, h, ra, rb) -> float:
+    """The least over a span of length h of max(sa − ra τ, sb − rb (h − τ)), the lines
+    falling from its two ends at rates ra, rb (−inf unless both are positive): it only
+    falls as either rate grows."""
+    if not (ra > 0.0 and rb > 0.0):
+        return -math.inf
+    tau = min(max((sa - sb + rb * h) / (ra + rb), 0.0), h)
+    return max(sa - ra * tau, sb - rb * (h - tau))
 
 
 def _uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=False) -> list:
