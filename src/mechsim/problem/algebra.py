@@ -124,10 +124,7 @@ class ConstraintAlgebra:
         return int(np.sum(s > max(J.shape) * np.finfo(float).eps * 1e3 * s[0]))
 
     def extremes(self, Jt, k):
-        U, sig, Vt = dense.svd(sparse.dense(Jt))
-        if k >= sig.size or k < 0 or sig[0] <= 0.0:
-            return 0.0, U[:, -1], None, 0.0, None, None
-        return sig[k], U[:, k], Vt[k], sig[0], U[:, 0], Vt[0]
+        return _svd_extremes(Jt, k)[0]
 
     def clear_solver(self, J, f, cut, bound):
         raise NotImplementedError
@@ -145,14 +142,11 @@ class ConstraintAlgebra:
         if J is None:
             J = self.scaled_jacobian(q, t)
         basis = None
-        if eps and self.small:
-            U, sig, Vt = dense.svd(sparse.dense(J))
-            if k >= sig.size or k < 0 or sig[0] <= 0.0:
-                return 0.0, 0.0, 0.0, 0.0, U[:, -1], J, 0.0, None
-            smin, u_min, v_min, smax, u_max, v_max = sig[k], U[:, k], Vt[k], sig[0], U[:, 0], Vt[0]
-            basis = dense.fall_basis(sig, Vt.T, k)
+        if eps and self.small:          # the SVD `extremes` takes, its fall basis beside
+            found, basis = _svd_extremes(J, k, fall=True)
         else:
-            smin, u_min, v_min, smax, u_max, v_max = self.extremes(J, k)
+            found = self.extremes(J, k)
+        smin, u_min, v_min, smax, u_max, v_max = found
         if not smax > 0.0:
             return 0.0, 0.0, 0.0, 0.0, u_min, J, 0.0, None
         d_min = d_max = rate_norm = 0.0
@@ -415,6 +409,16 @@ class BandedAlgebra(DenseAlgebra):
         if c is None:
             return None
         return self.problem.accelerations(J, Q, gamma, factor=c)[0]
+
+
+def _svd_extremes(Jt, k, fall=False):
+    """(`ConstraintAlgebra.extremes` of J̃ by its SVD, and with `fall` its
+    `mechsim.linalg.dense.fall_basis` where J̃ has that rank, else None)."""
+    U, sig, Vt = dense.svd(sparse.dense(Jt))
+    if k >= sig.size or k < 0 or sig[0] <= 0.0:
+        return (0.0, U[:, -1], None, 0.0, None, None), None
+    found = (sig[k], U[:, k], Vt[k], sig[0], U[:, 0], Vt[0])
+    return found, dense.fall_basis(sig, Vt.T, k) if fall else None
 
 
 def chord_bound(D) -> np.ndarray:
