@@ -3,14 +3,19 @@ user's cache (shared by the session's workers: each model is built once, as the 
 concurrent builds are safe), the fused build, one BLAS thread per worker, and
 tolerance-scaled error helpers."""
 
+import atexit
 import os
+import shutil
 import tempfile
 
 import numpy as np
 import pytest
 
-# The controlling process makes the directory; the workers it starts inherit it.
-os.environ.setdefault("MECHSIM_TEST_SESSION_CACHE", tempfile.mkdtemp(prefix="mechsim-test-cache-"))
+# The controlling process makes the directory and removes it when it exits; the workers it
+# starts inherit it.
+if "MECHSIM_TEST_SESSION_CACHE" not in os.environ:
+    os.environ["MECHSIM_TEST_SESSION_CACHE"] = tempfile.mkdtemp(prefix="mechsim-test-cache-")
+    atexit.register(shutil.rmtree, os.environ["MECHSIM_TEST_SESSION_CACHE"], ignore_errors=True)
 os.environ["MECHSIM_CACHE_DIR"] = os.environ["MECHSIM_TEST_SESSION_CACHE"]
 # The suite runs the fused models (compiled where small) it was written against, built in
 # its own process: no test depends on when a background build finishes. The assembled
