@@ -123,3 +123,23 @@ def test_the_engine_s_fall_is_the_python_algebra_s():
         (D, P), (D_ref, P_ref) = got[-1], ref[-1]
         np.testing.assert_allclose(D, D_ref, rtol=0, atol=1e-6 * np.abs(D_ref).max())
         np.testing.assert_allclose(P @ P.T, P_ref @ P_ref.T, rtol=0, atol=1e-9)
+
+
+def test_one_lu_gives_the_inverse_and_the_sign_of_the_determinant(rng):
+    """`inv_and_sign`: the inverse to round-off and det's sign, against numpy's `inv` and
+    `slogdet`, on random matrices with rows permuted (every parity of row swaps) and
+    negative pivots; (None, 0) for an exactly singular matrix, 1 for an empty one."""
+    from mechsim.linalg.dense import inv_and_sign
+    signs = set()
+    for _ in range(300):
+        n = int(rng.integers(1, 9))
+        A = rng.normal(size=(n, n))[rng.permutation(n)] * rng.choice([-1.0, 1.0], size=n)
+        Ai, sign = inv_and_sign(A)
+        assert sign == int(np.linalg.slogdet(A)[0])
+        np.testing.assert_allclose(Ai @ A, np.eye(n), rtol=0, atol=1e-9 * np.linalg.cond(A))
+        signs.add(sign)
+    assert signs == {-1, 1}
+    singular = np.array([[1.0, 2.0, 0.0], [2.0, 4.0, 0.0], [0.0, 0.0, 1.0]])
+    assert inv_and_sign(singular) == (None, 0)
+    empty, sign = inv_and_sign(np.zeros((0, 0)))
+    assert empty.shape == (0, 0) and sign == 1

@@ -233,6 +233,30 @@ def python_path(model):
             _LIBRARIES[model] = before
 
 
+class _Scratch:
+    """Float buffers the C side reads and writes, kept between calls with their addresses
+    (an array's `.ctypes.data` costs more than copying a step's few states in and out):
+    `take(name, k, width)` is a C-contiguous (k,) or (k, width) view and its address."""
+
+    def __init__(self):
+        self._kept = {}
+
+    def take(self, name, k, width=0):
+        kept, address = self._kept.get(name, (None, 0))
+        if kept is None or len(kept) < k or (width and kept.shape[1] != width):
+            rows = max(k, 16, 2 * len(kept) if kept is not None else 0)
+            kept = np.empty((rows, width) if width else rows)
+            address = kept.ctypes.data
+            self._kept[name] = (kept, address)
+        return kept[:k], address
+
+    def put(self, name, values, width=0):
+        """`take` of len(values) rows, filled with `values`: its address."""
+        view, address = self.take(name, len(values), width)
+        view[...] = values
+        return address
+
+
 class PartitionedEngine:
     """One partition's compiled evaluation (`library`): the buffers the C side reads and
     writes, and the calls. `accept` loads an accepted step's predictor and chord factor;
@@ -268,6 +292,8 @@ class PartitionedEngine:
         self._rhs = lib.mechsim_lu_rhs
         self.lib = lib
         self._states = lib.mechsim_lu_states
+        self._scratch = _Scratch()
+        self._J_samples = self.J_samples.ctypes.data
         self.ready = False
 
     def accept(self, t, q_ref, P, chord_inverse):
@@ -312,14 +338,14 @@ class PartitionedEngine:
     def states(self, ts, Y):
         """(Q, V, signs) of the output samples (rows of Y at the times ts), signs those of
         det(Φ_q D) there (the partition's dependent columns in its order), or None."""
-        ts = np.ascontiguousarray(ts, dtype=float)
-        Y = np.ascontiguousarray(Y, dtype=float)
-        k, n = len(ts), self.q.size
-        Qs, Vs, signs = np.empty((k, n)), np.empty((k, n)), np.empty(k)
-        if self._states(self.context, k, ts.ctypes.data, Y.ctypes.data, Qs.ctypes.data,
-                        Vs.ctypes.data, self.J_samples.ctypes.data, signs.ctypes.data):
+        scratch, k, n = self._scratch, len(ts), self.q.size
+        Qs, at_Q = scratch.take("Q", k, n)
+        Vs, at_V = scratch.take("V", k, n)
+        signs, at_signs = scratch.take("signs", k)
+        if self._states(self.context, k, scratch.put("t", ts), scratch.put("Y", Y, 2 * self.f),
+                        at_Q, at_V, self._J_samples, at_signs):
             return None
-        return Qs, Vs, signs
+        return Qs.copy(), Vs.copy(), signs.copy()
 
 
 class ProjectionEngine:
@@ -359,6 +385,8 @@ class ProjectionEngine:
         self._lu_condition = lib.mechsim_lu_condition
         self._multipliers = lib.mechsim_multipliers
         self.counters = problem.counters
+        self._scratch = _Scratch()
+        self._measured_at, self._Jt_at = self.measured.ctypes.data, self.Jt.ctypes.data
 
     def accelerations(self, t, q, v, Q, min_rcond, cut=0.0):
         """q̈ at (t, q, v) under the forces Q by the Cholesky factor of J W Jᵀ where it is
@@ -406,7 +434,7 @@ class ProjectionEngine:
         if eps > 0.0:
             self.v[:] = v
         out = self.measured
-        if self._measure(self.context, t, eps, out.ctypes.data, self.Jt.ctypes.data):
+        if self._measure(self.context, t, eps, self._measured_at, self._Jt_at):
             return None
         smin, smax, dmin, dmax = out[:4].tolist()
         got = None
@@ -423,33 +451,32 @@ class ProjectionEngine:
         """`project_state` of each state (T[i], Q[i], V[i]) to tols[i] in one call, Q and V
         (C-contiguous float arrays) changed in place: (k,) status, 0 projected, 2 within
         its tolerance already, 1 declined (left for the Python path)."""
-        T = np.ascontiguousarray(T, dtype=float)
-        tols = np.ascontiguousarray(tols, dtype=float)
+        scratch = self._scratch
         status = np.empty(len(T), dtype=np.int64)
-        self._project_many(self.context, len(T), T.ctypes.data, Q.ctypes.data, V.ctypes.data,
-                           tols.ctypes.data, max_iter, status.ctypes.data)
+        self._project_many(self.context, len(T), scratch.put("T", T), Q.ctypes.data,
+                           V.ctypes.data, scratch.put("tols", tols), max_iter,
+                           status.ctypes.data)
         self.counters.projections += int(np.count_nonzero(status == 0))
         return status
 
     def chords(self, T, Q):
         """Bounds of ‖J̃ᵢ₊₁ − J̃ᵢ‖₂ between consecutive states (T[i], Q[i]), shape (k − 1,)
         (`mechsim.problem.algebra.chord_bound`)."""
-        T = np.ascontiguousarray(T, dtype=float)
-        Q = np.ascontiguousarray(Q, dtype=float)
-        out = np.empty(max(len(T) - 1, 0))
-        self._chords(self.context, len(T), T.ctypes.data, Q.ctypes.data, out.ctypes.data)
-        return out
+        scratch, k = self._scratch, len(T)
+        out, at_out = scratch.take("chords", max(k - 1, 0))
+        self._chords(self.context, k, scratch.put("T", T), scratch.put("Q", Q, self.n),
+                     at_out)
+        return out.copy()
 
     def extremes(self, T, Q, k):
         """(σ_k, σ_max) of J̃ at each state (T[i], Q[i]), shape (len(T), 2); None where an
         SVD fails."""
-        T = np.ascontiguousarray(T, dtype=float)
-        Q = np.ascontiguousarray(Q, dtype=float)
-        out = np.empty((len(T), 2))
-        if self._extremes(self.context, len(T), k, T.ctypes.data, Q.ctypes.data,
-                          out.ctypes.data):
+        scratch = self._scratch
+        out, at_out = scratch.take("extremes", len(T), 2)
+        if self._extremes(self.context, len(T), k, scratch.put("T", T),
+                          scratch.put("Q", Q, self.n), at_out):
             return None
-        return out
+        return out.copy()
 
     def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam, phi_t=None):
         """λ at the states (T[i], Q[i], V[i]) under the applied forces F[i] into the rows

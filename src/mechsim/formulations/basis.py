@@ -36,16 +36,6 @@ def condition_number(A, inv=None) -> float:
     return float(np.abs(A).sum(axis=0).max() * np.abs(inv).sum(axis=0).max())
 
 
-def inverse_or_none(A):
-    """A⁻¹ of a square matrix, None if it is singular or not square."""
-    if A.shape[0] != A.shape[1]:
-        return None
-    try:
-        return dense.inv(A)
-    except np.linalg.LinAlgError:
-        return None
-
-
 
 class DenseBlock:
     """Φ_q D as a dense matrix. `solve` is LAPACK's (least squares when the block is not
@@ -62,8 +52,16 @@ class DenseBlock:
     def inverse(self):
         """A⁻¹, formed once; None if A is singular or not square."""
         if self._inv is False:
-            self._inv = inverse_or_none(self.A)
+            self._factor()
         return self._inv
+
+    def _factor(self):
+        """A⁻¹ and the sign of det A from one LU factorisation (a square A; a non-square
+        one has neither)."""
+        if self.A.shape[0] != self.A.shape[1]:
+            self._inv, self._sign = None, 0
+        else:
+            self._inv, self._sign = dense.inv_and_sign(self.A)
 
     def chord(self, b):
         inv = self.inverse()
@@ -75,8 +73,7 @@ class DenseBlock:
     def sign(self) -> int:
         """The sign of det A (0 where A is singular or not square), computed once."""
         if self._sign is None:
-            self._sign = 0 if self.A.shape[0] != self.A.shape[1] else \
-                int(np.linalg.slogdet(self.A)[0])
+            self._factor()
         return self._sign
 
 

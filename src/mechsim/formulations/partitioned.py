@@ -397,7 +397,7 @@ class Partitioned(Formulation):
             return None
         engine.Q[:] = Q
         self._cache = None                 # (the engine's buffers will hold other states)
-        return CompiledRate(engine.lib, engine.context, 1, prob.counters.compiled_rates)
+        return CompiledRate.of(engine, 1, prob.counters.compiled_rates)
 
     def derivative(self, t, q, v):
         qdd = self._qdd(t, q, v, self.problem.phi_q(q, t))

@@ -247,8 +247,8 @@ class Projection(FullCoordinates):
             return None
         engine.Q[:] = Q
         far = self._far if far is None else far
-        return CompiledRate(engine.lib, engine.context, 0, prob.counters.compiled_rates,
-                            -1.0 if far else self._min_rcond, self.cut)
+        return CompiledRate.of(engine, 0, prob.counters.compiled_rates,
+                               -1.0 if far else self._min_rcond, self.cut)
 
     def accelerations(self, t, q, v, far=None):
         """q̈ at (t, q, v); `far`: skip the condition estimate (default: as the last

@@ -73,6 +73,19 @@ class CompiledDOP853(DOP853):
         self._fallback = _RATE(self._python_rate)
         self._raised = None
         self._taken = None          # the rate the last step was taken on (None: scipy's)
+        # The engine reads and writes these buffers only: their addresses, taken once
+        # (an array's `.ctypes.data` costs more than copying a small state in and out).
+        self._y, self._f = np.empty(self.n), np.empty(self.n)
+        self._y_new, self._f_new = np.empty(self.n), np.empty(self.n)
+        self._step_args = (_coefficients().ctypes.data, self._in.ctypes.data,
+                           self._y.ctypes.data, self._f.ctypes.data, self._atol.ctypes.data,
+                           self.K.ctypes.data, self._y_new.ctypes.data,
+                           self._f_new.ctypes.data, self._work.ctypes.data,
+                           self._out.ctypes.data, ctypes.cast(self._fallback, ctypes.c_void_p))
+        self._extra_args = (_extra_coefficients().ctypes.data, self._extra_in.ctypes.data,
+                            self._y.ctypes.data, self.K_extended.ctypes.data,
+                            self._work.ctypes.data, self._out.ctypes.data,
+                            ctypes.cast(self._fallback, ctypes.c_void_p))
 
     def _python_rate(self, t, y, f):
         """The callback: scipy's own call of the rate (counted in nfev) at a state the
@@ -102,29 +115,24 @@ class CompiledDOP853(DOP853):
         if compiled is None or SAFETY is None or self.status != "running" or self.n == 0 or \
                 self.t == self.t_bound or self.y.dtype != np.float64:
             return super().step()
-        t = self.t
-        y = np.ascontiguousarray(self.y, dtype=float)
-        f = np.ascontiguousarray(self.f, dtype=float)
-        y_new, f_new = np.empty_like(y), np.empty_like(y)
+        t, y = self.t, self.y
+        self._y[:] = y
+        self._f[:] = self.f
         self._in[:] = (DOP853.n_stages, t, self.h_abs, self.t_bound, self.direction,
                        self.max_step, self.rtol, compiled.min_rcond, compiled.cut,
                        SAFETY, MIN_FACTOR, MAX_FACTOR, self.error_exponent)
-        status = compiled.step(compiled.context, compiled.kind, self.n,
-                               _coefficients().ctypes.data, self._in.ctypes.data,
-                               y.ctypes.data, f.ctypes.data, self._atol.ctypes.data,
-                               self.K.ctypes.data, y_new.ctypes.data, f_new.ctypes.data,
-                               self._work.ctypes.data, self._out.ctypes.data,
-                               ctypes.cast(self._fallback, ctypes.c_void_p))
+        status = compiled.step(compiled.context, compiled.kind, self.n, *self._step_args)
         self._after(int(self._out[3]), compiled)
         if status == 1:
             return super().step()
         if status == 2:
             self.status = "failed"
             return self.TOO_SMALL_STEP
-        t_new, h, h_abs = self._out[:3]
+        t_new, h, h_abs = self._out[:3].tolist()
         self._taken = compiled
-        self.h_previous, self.y_old, self.t_old = float(h), y, t
-        self.t, self.y, self.h_abs, self.f = float(t_new), y_new, float(h_abs), f_new
+        self.h_previous, self.y_old, self.t_old = h, y, t
+        self.t, self.y, self.h_abs, self.f = t_new, self._y_new.copy(), h_abs, \
+            self._f_new.copy()
         if self.direction * (self.t - self.t_bound) >= 0:
             self.status = "finished"
         return None
@@ -136,15 +144,11 @@ class CompiledDOP853(DOP853):
         compiled = self._taken
         if compiled is None or self.t == self.t_old:
             return Interpolant.of(super().dense_output())
-        extra = _extra_coefficients()
-        rows, width = np.asarray(DOP853.A_EXTRA).shape
+        rows, width = DOP853.A_EXTRA.shape
         self._extra_in[:] = (self.n_stages + 1, rows, width, self.t_old, self.h_previous,
                              compiled.min_rcond, compiled.cut)
-        failed = compiled.extra(compiled.context, compiled.kind, self.n, extra.ctypes.data,
-                                self._extra_in.ctypes.data, self.y_old.ctypes.data,
-                                self.K_extended.ctypes.data, self._work.ctypes.data,
-                                self._out.ctypes.data,
-                                ctypes.cast(self._fallback, ctypes.c_void_p))
+        self._y[:] = self.y_old
+        failed = compiled.extra(compiled.context, compiled.kind, self.n, *self._extra_args)
         self._after(int(self._out[0]), compiled)
         if failed:
             return Interpolant.of(super().dense_output())
@@ -207,6 +211,17 @@ class CompiledRate:
         self.step, self.extra = lib.mechsim_dop853, lib.mechsim_dop853_extra
         self.context, self.kind, self.counted = context, kind, counted
         self.min_rcond, self.cut = float(min_rcond), float(cut)
+
+    @classmethod
+    def of(cls, engine, kind: int, counted, min_rcond=-1.0, cut=0.0) -> "CompiledRate":
+        """The rate on `engine` (its `lib` and `context`) with these settings: one object
+        per engine and settings, kept on the engine (a run asks for it at every step)."""
+        rates = engine.__dict__.setdefault("_compiled_rates", {})
+        key = (kind, counted, float(min_rcond), float(cut))
+        rate = rates.get(key)
+        if rate is None:
+            rate = rates[key] = cls(engine.lib, engine.context, kind, counted, min_rcond, cut)
+        return rate
 
 
 __all__ = ["CompiledDOP853", "CompiledRate"]
