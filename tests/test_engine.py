@@ -517,3 +517,23 @@ def test_stages_the_engine_declines_are_the_python_rate_s(monkeypatch):
     failed = mech.simulate(1.0, **run)
     assert failed.status == "failed" and "the rate failed here" in failed.message
     assert 0.4 < failed.t[-1] <= 0.5
+
+
+def test_a_run_leaves_the_engine_s_shared_rates_as_it_found_them():
+    """The compiled rate of an engine is one object per engine and settings, shared by
+    every run and bridge: a bridge that counts its history's evaluations does so on a copy
+    (changing the shared one chained a counter per bridge, until a later run in the same
+    process failed with a RecursionError). After runs through the double four-bar's
+    passages, each shared rate still books to the problem's own counter, and a later run
+    is the first one to the bit."""
+    mech = ms.examples.double_four_bar()
+    first = mech.simulate(1.5, rtol=1e-4, atol=1e-6)
+    assert first.status == "success" and first.stats["bridges"] == 2
+    again = mech.simulate(1.5, rtol=1e-4, atol=1e-6)
+    np.testing.assert_array_equal(again.q, first.q)
+    prob = mech.problem()
+    engines = [prob.algebra.engine]
+    rates = [rate for e in engines for rate in vars(e).get("_compiled_rates", {}).values()]
+    assert rates
+    for rate in rates:
+        assert rate.counted == prob.counters.compiled_rates

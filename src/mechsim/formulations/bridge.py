@@ -236,14 +236,14 @@ class PassageBridge:
         """The engine's rate for the history's steps (`rate`), its evaluations counted as
         the bridge's."""
         rate = self.rate()
-        if rate is not None:
-            counted = rate.counted
+        if rate is None:
+            return None
+        counted = rate.counted
 
-            def both(evaluations):
-                counted(evaluations)
-                self.evaluations += evaluations
-            rate.counted = both
-        return rate
+        def both(evaluations):
+            counted(evaluations)
+            self.evaluations += evaluations
+        return rate.counting(both)
 
     @property
     def edge(self) -> float:

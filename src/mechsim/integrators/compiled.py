@@ -215,13 +215,22 @@ class CompiledRate:
     @classmethod
     def of(cls, engine, kind: int, counted, min_rcond=-1.0, cut=0.0) -> "CompiledRate":
         """The rate on `engine` (its `lib` and `context`) with these settings: one object
-        per engine and settings, kept on the engine (a run asks for it at every step)."""
+        per engine and settings, kept on the engine (a run asks for it at every step), so
+        shared: never changed (`counting` gives a changed copy)."""
         rates = engine.__dict__.setdefault("_compiled_rates", {})
         key = (kind, counted, float(min_rcond), float(cut))
         rate = rates.get(key)
         if rate is None:
             rate = rates[key] = cls(engine.lib, engine.context, kind, counted, min_rcond, cut)
         return rate
+
+    def counting(self, counted) -> "CompiledRate":
+        """A copy of this rate whose evaluations `counted` books instead."""
+        other = object.__new__(CompiledRate)
+        for name in self.__slots__:
+            setattr(other, name, getattr(self, name))
+        other.counted = counted
+        return other
 
 
 __all__ = ["CompiledDOP853", "CompiledRate"]
