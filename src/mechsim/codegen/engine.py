@@ -243,9 +243,10 @@ class _Scratch:
 
     def take(self, name, k, width=0):
         kept, address = self._kept.get(name, (None, 0))
-        if kept is None or len(kept) < k or (width and kept.shape[1] != width):
+        row = (width,) if width else ()
+        if kept is None or len(kept) < k or kept.shape[1:] != row:
             rows = max(k, 16, 2 * len(kept) if kept is not None else 0)
-            kept = np.empty((rows, width) if width else rows)
+            kept = np.empty((rows, *row))
             address = kept.ctypes.data
             self._kept[name] = (kept, address)
         return kept[:k], address
