@@ -36,7 +36,6 @@ def condition_number(A, inv=None) -> float:
     return float(np.abs(A).sum(axis=0).max() * np.abs(inv).sum(axis=0).max())
 
 
-
 class DenseBlock:
     """Φ_q D as a dense matrix. `solve` is LAPACK's (least squares when the block is not
     square: redundant constraints); the chord iteration and the condition number use the
