@@ -5,6 +5,7 @@ import math
 import os
 import shutil
 import sysconfig
+import time
 
 import numpy as np
 import pytest
@@ -156,6 +157,45 @@ def test_small_models_link_the_engine_compiled_once(tmp_path, monkeypatch, damag
             (obj.read_bytes() == b"not an object file")
     finally:
         cache.clear_memory_cache()
+
+
+@needs_compiler
+def test_the_engine_compiles_beside_a_new_mechanism_s_sympy_run(tmp_path, monkeypatch):
+    """In a new cache the engine's object file starts compiling before the small
+    mechanism's model is derived (the compiler's first call precedes the derivation's
+    end) and is compiled once; the model's library links it and the run is the suite
+    cache's to the bit."""
+    import shlex
+    from mechsim.build import background
+    from mechsim.codegen.compiled import compiler
+    reference = ms.examples.four_bar().simulate(0.3, method="lu", rtol=1e-8)
+    log = tmp_path / "calls"
+    wrapper = tmp_path / "cc"
+    wrapper.write_text(f'#!/bin/sh\necho "$(date +%s.%N) $*" >> {log}\n'
+                       f'exec {shlex.join(compiler())} "$@"\n')
+    wrapper.chmod(0o755)
+    derived = []
+    real = background.fused_source
+
+    def timed(*args):
+        source = real(*args)
+        derived.append(time.time())
+        return source
+    monkeypatch.setattr(background, "fused_source", timed)
+    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setenv("CC", str(wrapper))
+    cache.clear_memory_cache()
+    try:
+        mech = ms.examples.four_bar()
+        assert mech.compilation().engine
+        res = mech.simulate(0.3, method="lu", rtol=1e-8)
+    finally:
+        cache.clear_memory_cache()
+    calls = [line.split(" ", 1) for line in log.read_text().splitlines()]
+    objects = [float(at) for at, args in calls if " -c " in f" {args} "]
+    assert len(objects) == 1 and len(derived) == 1 and objects[0] < derived[0]
+    assert len(calls) == 2                      # the object file, then the model's library
+    assert res.q.tobytes() == reference.q.tobytes()
 
 
 @needs_compiler

@@ -72,6 +72,7 @@ def constraint_model(mech, items, build: str = "auto"):
         if model is not None:
             return model, True
         if build == "fused" or len(mech.coordinate_names) <= FUSE_AT_ONCE:
+            _prepare_engine(mech, items)
             return load_model(structure, lambda: background.fused_source(mech.bodies, items,
                                                                          structure))
     from ..assembly import AssembledModel
@@ -80,6 +81,15 @@ def constraint_model(mech, items, build: str = "auto"):
     if build == "auto" and model.N < C_MIN_COORDINATES:
         background.start(mech.bodies, items, structure)
     return model, model.from_cache
+
+
+def _prepare_engine(mech, items) -> None:
+    """Before a rigid mechanism's fused model is derived: the compiled engine it will link
+    starts compiling beside sympy (`mechsim.codegen.engine.prepare`)."""
+    from ..codegen import engine
+    from ..codegen.cache import store
+    if items and not any(isinstance(body, FlexibleBeam) for body in mech.bodies):
+        engine.prepare(store())
 
 
 def build_problem(mech, build: str | None = None) -> tuple[NumericProblem, bool]:

@@ -48,6 +48,7 @@ import contextlib
 import ctypes
 import functools
 import hashlib
+import threading
 import weakref
 from importlib import resources
 from pathlib import Path
@@ -56,8 +57,8 @@ import numpy as np
 
 from ..linalg.dense import fall_basis
 from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
-from .cache import adopt, verified_file
-from .compiled import build_library, compiler_identity, shared_library
+from .cache import adopt, env_flag, verified_file
+from .compiled import build_library, compiler, compiler_identity, shared_library
 from .layout import PARTITION, PROJECTION, Dims
 
 # The engine's own C (shipped beside this module), after the declarations of the model's C
@@ -87,10 +88,26 @@ def engine_object(directory: Path, command: list[str]) -> list[Path]:
     as `mechsim_engine-<digest>.o`, the digest of the source and the compiler's identity,
     verified as every entry; [] where it cannot be built. Each small model's library links
     it (`library`), so that a new mechanism compiles only its own functions
-    (docs/benchmarks.md has the times)."""
+    (docs/benchmarks.md has the times). Where `prepare` started its compile, waits for
+    that one and takes its outcome."""
+    path = _object_path(directory, command)
+    with _PREPARING_LOCK:
+        pending = _PREPARING.pop(path, None)
+    if pending is not None:
+        thread, outcome = pending
+        thread.join()
+        if outcome:
+            return outcome[0]
+    return _compile_object(path, command)
+
+
+def _object_path(directory: Path, command: list[str]) -> Path:
     tag = hashlib.sha256("\0".join([source(), compiler_identity(command),
                                      *command]).encode()).hexdigest()[:16]
-    path = directory / f"mechsim_engine-{tag}.o"
+    return directory / f"mechsim_engine-{tag}.o"
+
+
+def _compile_object(path: Path, command: list[str]) -> list[Path]:
     if verified_file(path):
         return [path]
     if build_library(source(), path, command, shared=False) is not None:
@@ -100,6 +117,31 @@ def engine_object(directory: Path, command: list[str]) -> list[Path]:
     except OSError:
         return []
     return [path]
+
+
+# Engine objects being compiled in a thread (`prepare`): path -> (thread, [its outcome]).
+_PREPARING: dict = {}
+_PREPARING_LOCK = threading.Lock()
+
+
+def prepare(directory: Path) -> None:
+    """Start compiling the engine object into the cache `directory` in a thread, where
+    compiling is on and the cache lacks it: the caller is about to derive a small rigid
+    mechanism's model with sympy, and the C compiler then runs beside it (on another
+    core) instead of after it; `engine_object` waits for it and takes its outcome. A
+    process's first new mechanism pays for the engine's compile so (docs/benchmarks.md)."""
+    if env_flag("MECHSIM_NO_COMPILE"):
+        return
+    command = compiler()
+    path = _object_path(directory, command)
+    with _PREPARING_LOCK:
+        if path in _PREPARING or verified_file(path):
+            return
+        outcome: list = []
+        thread = threading.Thread(target=lambda: outcome.append(_compile_object(path, command)),
+                                  name="mechsim engine compile", daemon=True)
+        _PREPARING[path] = (thread, outcome)
+    thread.start()
 
 
 def _lapack(name: str) -> int:
