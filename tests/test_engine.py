@@ -573,7 +573,7 @@ def test_a_run_leaves_the_engine_s_shared_rates_as_it_found_them():
     np.testing.assert_array_equal(again.q, first.q)
     prob = mech.problem()
     engines = [prob.algebra.engine]
-    rates = [rate for e in engines for rate in vars(e).get("_compiled_rates", {}).values()]
+    rates = [rate for e in engines for rate in e.rates.values()]
     assert rates
     for rate in rates:
         assert rate.counted == prob.counters.compiled_rates

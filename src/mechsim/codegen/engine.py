@@ -337,6 +337,7 @@ class PartitionedEngine:
         self._states = lib.mechsim_lu_states
         self._scratch = _Scratch()
         self._J_samples = self.J_samples.ctypes.data
+        self.rates = {}          # the compiled rates made on it (`CompiledRate.of`)
         self.ready = False
 
     def accept(self, t, q_ref, P, chord_inverse):
@@ -430,6 +431,7 @@ class ProjectionEngine:
         self.counters = problem.counters
         self._scratch = _Scratch()
         self._measured_at, self._Jt_at = self.measured.ctypes.data, self.Jt.ctypes.data
+        self.rates = {}          # the compiled rates made on it (`CompiledRate.of`)
 
     def accelerations(self, t, q, v, Q, min_rcond, cut=0.0):
         """q̈ at (t, q, v) under the forces Q by the Cholesky factor of J W Jᵀ where it is

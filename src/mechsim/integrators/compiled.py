@@ -17,6 +17,7 @@ agree to round-off, not bit for bit.
 
 from __future__ import annotations
 
+import copy
 import ctypes
 import functools
 
@@ -215,20 +216,18 @@ class CompiledRate:
     @classmethod
     def of(cls, engine, kind: int, counted, min_rcond=-1.0, cut=0.0) -> "CompiledRate":
         """The rate on `engine` (its `lib` and `context`) with these settings: one object
-        per engine and settings, kept on the engine (a run asks for it at every step), so
-        shared: never changed (`counting` gives a changed copy)."""
-        rates = engine.__dict__.setdefault("_compiled_rates", {})
+        per engine and settings, kept in the engine's `rates` (a run asks for it at every
+        step), so shared: never changed (`counting` gives a changed copy)."""
         key = (kind, counted, float(min_rcond), float(cut))
-        rate = rates.get(key)
+        rate = engine.rates.get(key)
         if rate is None:
-            rate = rates[key] = cls(engine.lib, engine.context, kind, counted, min_rcond, cut)
+            rate = engine.rates[key] = cls(engine.lib, engine.context, kind, counted,
+                                           min_rcond, cut)
         return rate
 
     def counting(self, counted) -> "CompiledRate":
         """A copy of this rate whose evaluations `counted` books instead."""
-        other = object.__new__(CompiledRate)
-        for name in self.__slots__:
-            setattr(other, name, getattr(self, name))
+        other = copy.copy(self)
         other.counted = counted
         return other
 

@@ -74,7 +74,7 @@ def cho_solve(c, r):
 
 def inv(A):
     """A⁻¹ of a square matrix; LinAlgError if A is exactly singular."""
-    Ai, _ = inv_and_sign(A)
+    Ai, _, _ = _lu_inverse(A)
     if Ai is None:
         raise np.linalg.LinAlgError("Singular matrix")
     return Ai
@@ -84,17 +84,25 @@ def inv_and_sign(A):
     """(A⁻¹, sign of det A) of a square matrix from one LU factorisation, P A = L U:
     det A = (−1)^(row swaps) ∏ Uᵢᵢ (as `np.linalg.slogdet`'s sign). (None, 0) where A is
     exactly singular."""
-    if A.size == 0:
-        return np.zeros(A.shape), 1
-    lu, piv, info = _getrf(A)
-    if info != 0:
-        return None, 0
-    Ai, info = _getri(lu, piv)
-    if info != 0:
+    Ai, lu, piv = _lu_inverse(A)
+    if Ai is None:
         return None, 0
     swaps = int(np.count_nonzero(piv != np.arange(len(piv))))
     negative = int(np.count_nonzero(np.diagonal(lu) < 0.0))
     return Ai, -1 if (swaps + negative) % 2 else 1
+
+
+def _lu_inverse(A):
+    """(A⁻¹, LU factors, pivots) of a square A by getrf and getri; A⁻¹ None where A is
+    exactly singular."""
+    if A.size == 0:
+        return np.zeros(A.shape), np.zeros(A.shape), np.zeros(0, dtype=int)
+    lu, piv, info = _getrf(A)
+    if info == 0:
+        Ai, info = _getri(lu, piv)
+        if info == 0:
+            return Ai, lu, piv
+    return None, lu, piv
 
 
 def svd(A):
