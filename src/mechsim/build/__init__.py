@@ -84,11 +84,13 @@ def constraint_model(mech, items, build: str = "auto"):
 
 
 def _prepare_engine(mech, items) -> None:
-    """Before a rigid mechanism's fused model is derived: the compiled engine it will link
-    starts compiling beside sympy (`mechsim.codegen.engine.prepare`)."""
+    """Before a small rigid mechanism's fused model is derived (at most `FUSE_AT_ONCE`
+    coordinates: the compiled engine's customers): the engine it will link starts
+    compiling beside sympy (`mechsim.codegen.engine.prepare`)."""
     from ..codegen import engine
     from ..codegen.cache import store
-    if items and not any(isinstance(body, FlexibleBeam) for body in mech.bodies):
+    if items and len(mech.coordinate_names) <= FUSE_AT_ONCE and \
+            not any(isinstance(body, FlexibleBeam) for body in mech.bodies):
         engine.prepare(store())
 
 
