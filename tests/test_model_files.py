@@ -92,17 +92,29 @@ for saved, after, gif in zip(*[iter(sys.argv[1:])] * 3):
     res.animate(gif, fps=4)
 """
 SCENES = sorted(p.name for p in (ROOT / "mechanisms").glob("*.toml"))
+# The scenes replay in groups, one new process each (all of them in one fixture took 25 s
+# on an empty cache): a group's scenes share their fixture's process and worker.
+GROUPS = 5
+
+
+def _group(scene) -> int:
+    return SCENES.index(scene) % GROUPS
 
 
 @pytest.fixture(scope="module")
-def replayed(tmp_path_factory):
-    """Each shipped scene run briefly, saved, and what is compared after (its joint force,
+def replays():
+    """{group: what `_replay` gave for its scenes}, filled as the tests ask."""
+    return {}
+
+
+def _replay(scenes, tmp_path_factory):
+    """Each of `scenes` run briefly, saved, and what is compared after (its joint force,
     extension, motion plot, animation); then every saved result loaded in one new process
     (its answers beside each): {scene: (result, extension, plot lines, directory)}."""
     import subprocess
     import sys
     runs, arguments = {}, []
-    for scene in SCENES:
+    for scene in scenes:
         where = tmp_path_factory.mktemp(scene.replace(".", "_"))
         res = ms.load_scene(ROOT / "mechanisms" / scene).simulate(t_end=0.03,
                                                                  output_step=0.005)
@@ -120,13 +132,16 @@ def replayed(tmp_path_factory):
     return runs
 
 
-@pytest.mark.xdist_group("replays")          # the fixture's one process serves them all
-@pytest.mark.parametrize("scene", SCENES)
-def test_a_saved_result_replays_in_a_fresh_process(scene, replayed):
+@pytest.mark.parametrize("scene", [
+    pytest.param(s, marks=pytest.mark.xdist_group(f"replays-{_group(s)}")) for s in SCENES])
+def test_a_saved_result_replays_in_a_fresh_process(scene, replays, tmp_path_factory):
     """Each shipped scene, run briefly and saved: loaded in a new process it has its
     mechanism, and its joint force, its extension, its motion plot and its animation are
     those of the result before saving (arrays to 1e-12, the GIF byte for byte)."""
-    res, ext, lines, where = replayed[scene]
+    group = _group(scene)
+    if group not in replays:
+        replays[group] = _replay([s for s in SCENES if _group(s) == group], tmp_path_factory)
+    res, ext, lines, where = replays[group][scene]
     joint = res.mechanism.joints[0].name
     after = np.load(where / "after.npz")
     np.testing.assert_allclose(after["force"], res.joint_force(joint), rtol=0, atol=1e-12)
