@@ -466,10 +466,9 @@ def test_compiled_fresh_newton_agrees_with_the_python_path():
     assert fresh >= 3                # the compiled fresh iterations were exercised
 
 
-def test_the_step_s_interpolant_is_scipy_s_to_the_bit():
-    """`Interpolant` at a time and at many times equals scipy's DOP853 dense output to the
-    last bit (signs of zero included), on a real step of the crank-rocker's integrator
-    and on coefficients with zeros of both signs; from scipy's stages the same."""
+def _interpolant_cases(kernel=None):
+    """(scipy's DOP853 dense output, `Interpolant` of the same coefficients evaluated by
+    `kernel` or by numpy): on coefficients with zeros of both signs and on a real step."""
     from scipy.integrate._ivp.rk import Dop853DenseOutput
     from mechsim.integrators.compiled import Interpolant
     rng = np.random.default_rng(11)
@@ -477,12 +476,51 @@ def test_the_step_s_interpolant_is_scipy_s_to_the_bit():
     F[:, 0], F[:, 1], F[-1, 2] = 0.0, -0.0, -0.0
     y_old = np.concatenate([[0.0, -0.0], rng.standard_normal(7)])
     cases = [(Dop853DenseOutput(0.25, 0.25 + 3e-3, y_old, F),
-              Interpolant(0.25, 0.25 + 3e-3, y_old, F))]
+              Interpolant(0.25, 0.25 + 3e-3, y_old, F, kernel))]
     solver = DOP853(lambda t, y: np.array([y[1], -np.sin(y[0])]), 0.0, [1.0, 0.0], 5.0)
     solver.step()
     solver.step()
     scipy_dense = DOP853.dense_output(solver)
-    cases.append((scipy_dense, Interpolant.of(scipy_dense)))
+    of = Interpolant.of(scipy_dense)
+    cases.append((scipy_dense, of if kernel is None else
+                  Interpolant(of.t_old, of.t, of.y_old, of.F, kernel)))
+    return cases, rng
+
+
+def test_the_step_s_interpolant_is_scipy_s_to_the_bit():
+    """`Interpolant` at a time and at many times equals scipy's DOP853 dense output to the
+    last bit (signs of zero included), on a real step of the crank-rocker's integrator
+    and on coefficients with zeros of both signs; from scipy's stages the same."""
+    cases, rng = _interpolant_cases()
+    _same_to_the_bit(cases, rng)
+
+
+@needs_compiler
+def test_the_engine_s_interpolant_is_scipy_s_to_the_bit():
+    """The engine's `mechsim_interpolate` (the compiled steps' interpolant) gives scipy's
+    numbers to the last bit too, at one time and at many, also where the times are
+    integers; and the compiled steps' interpolants use it."""
+    prob = PROBLEMS["crank-rocker"].build().problem()
+    kernel = prob.algebra.engine.lib.mechsim_interpolate
+    cases, rng = _interpolant_cases(kernel)
+    assert all(lean._kernel is not None for _, lean in cases)
+    _same_to_the_bit(cases, rng)
+    ref, lean = cases[1]
+    assert lean(np.array([0, 1])).tobytes() == ref(np.array([0, 1])).tobytes()
+    used = []
+    original = CompiledDOP853.dense_output
+
+    def dense(self):
+        out = original(self)
+        used.append(out._kernel is not None)
+        return out
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(CompiledDOP853, "dense_output", dense)
+        res = PROBLEMS["crank-rocker"].build().simulate(0.5, method="lu", output_step=0.01)
+    assert res.success and used and all(used)
+
+
+def _same_to_the_bit(cases, rng):
     for ref, lean in cases:
         times = np.concatenate([[ref.t_old, ref.t], rng.uniform(ref.t_old, ref.t, 30)])
         assert lean(times).tobytes() == ref(times).tobytes()

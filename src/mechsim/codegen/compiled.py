@@ -171,7 +171,7 @@ def build_library(source: str, library: Path, command: list[str], objects=(),
             c_file.write_text(source)
             link = ["-shared", "-o", str(out), str(c_file), *map(str, objects), "-lm"] \
                 if shared else ["-c", "-o", str(out), str(c_file)]
-            done = subprocess.run(command + ["-O2", "-fPIC", *link],
+            done = subprocess.run(command + ["-O2", "-fPIC", "-ffp-contract=off", *link],
                                   capture_output=True, timeout=600)
             if done.returncode != 0 or not out.is_file():
                 text = (done.stderr or done.stdout).decode(errors="replace").strip()

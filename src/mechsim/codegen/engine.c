@@ -776,6 +776,27 @@ int mechsim_dop853_extra(void *ctx, int64_t kind, int64_t N, const double *coef,
   return 0;
 }
 
+/* DOP853's dense output over the step from t_old (length h) at the k times ts into the
+   rows of Y (k x N): scipy's Dop853DenseOutput, its operations in its order (x = (t -
+   t_old) / h, y = (F[rows-1] + 0) x, then y += F[rows-1-i] and y *= 1 - x (i odd) or x,
+   finally y += y_old), so that the numbers are scipy's to the bit (the engine is
+   compiled without contracting a product and a sum into one rounding). */
+void mechsim_interpolate(int64_t N, int64_t rows, const double *F, double t_old, double h,
+                         const double *y_old, int64_t k, const double *ts, double *Y) {
+  for (int64_t s = 0; s < k; s++) {
+    const double x = (ts[s] - t_old) / h, u = 1.0 - x;
+    double *y = Y + s * N;
+    const double *top = F + (rows - 1) * N;
+    for (int64_t i = 0; i < N; i++) y[i] = (top[i] + 0.0) * x;
+    for (int64_t r = 1; r < rows; r++) {
+      const double *row = F + (rows - 1 - r) * N;
+      const double w = (r % 2) ? u : x;
+      for (int64_t i = 0; i < N; i++) y[i] = (y[i] + row[i]) * w;
+    }
+    for (int64_t i = 0; i < N; i++) y[i] += y_old[i];
+  }
+}
+
 /* The structures' sizes as this compiler lays them out: Python checks them against its
    ctypes twins before using the library. */
 int64_t mechsim_sizeof_lu(void) { return (int64_t)sizeof(mechsim_lu); }

@@ -249,6 +249,11 @@ def library(model):
         fn = lib.mechsim_dop853_extra
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64] + [ctypes.c_void_p] * 7
         fn.restype = ctypes.c_int
+        fn = lib.mechsim_interpolate
+        fn.argtypes = [ctypes.c_int64, ctypes.c_int64, ctypes.c_void_p, ctypes.c_double,
+                       ctypes.c_double, ctypes.c_void_p, ctypes.c_int64, ctypes.c_void_p,
+                       ctypes.c_void_p]
+        fn.restype = None
         fn = lib.mechsim_multipliers
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 4 + \
             [ctypes.c_double] * 2 + [ctypes.c_void_p] * 3

@@ -153,11 +153,12 @@ class CompiledDOP853(DOP853):
         self._after(int(self._out[0]), compiled)
         if failed:
             return Interpolant.of(super().dense_output())
-        return self._from_stages()
+        return self._from_stages(compiled.interpolate)
 
-    def _from_stages(self):
+    def _from_stages(self, kernel=None):
         """scipy's DOP853 interpolant from the stages in K_extended (the extra ones
-        included): its coefficients F as scipy's `_dense_output_impl` computes them."""
+        included): its coefficients F as scipy's `_dense_output_impl` computes them,
+        evaluated by `kernel` (`Interpolant`) where given."""
         K, h = self.K_extended, self.h_previous
         f_old, delta_y = K[0], self.y - self.y_old
         F = np.empty((self.D.shape[0] + 3, self.n))
@@ -165,14 +166,16 @@ class CompiledDOP853(DOP853):
         F[1] = h * f_old - delta_y
         F[2] = 2 * delta_y - h * (self.f + f_old)
         F[3:] = h * np.dot(self.D, K)
-        return Interpolant(self.t_old, self.t, self.y_old, F)
+        return Interpolant(self.t_old, self.t, self.y_old, F, kernel)
 
 
 class Interpolant(DenseOutput):
     """scipy's DOP853 interpolant (coefficients F over the step from t_old to t), evaluated
     in the same operations in the same order as scipy's (the same numbers to the bit)
     without its zeroed start and per-term bookkeeping: the samples, the work integral,
-    the passage search and the bridge's history call it several times a step."""
+    the passage search and the bridge's history call it several times a step. `kernel`,
+    where given, is the engine's `mechsim_interpolate`, which evaluates it in C (the same
+    operations in the same order: the same numbers) in one call for all the times."""
 
     @classmethod
     def of(cls, dense):
@@ -181,13 +184,26 @@ class Interpolant(DenseOutput):
             return dense
         return cls(dense.t_old, dense.t, dense.y_old, dense.F)
 
-    def __init__(self, t_old, t, y_old, F):
+    def __init__(self, t_old, t, y_old, F, kernel=None):
         super().__init__(t_old, t)
         self.h, self.F, self.y_old = t - t_old, F, y_old
         self._reversed = F[::-1]
+        self._kernel = None
+        if kernel is not None and F.ndim == 2 and F.dtype == np.float64 and \
+                F.flags.c_contiguous and y_old.dtype == np.float64 and \
+                y_old.flags.c_contiguous and y_old.shape == F.shape[1:] and self.h != 0.0:
+            # Its arguments' addresses taken once (kept alive by this object's F, y_old).
+            self._kernel = (kernel, F.shape[1], F.shape[0], F.ctypes.data, float(t_old),
+                            float(self.h), y_old.ctypes.data)
 
     def _call_impl(self, t):
         """y at t (0-d: shape (n,)) or at each of the times t (1-d: shape (n, len(t)))."""
+        if self._kernel is not None:
+            kernel, n, rows, at_F, t_old, h, at_y_old = self._kernel
+            ts = np.ascontiguousarray(t, dtype=np.float64)
+            Y = np.empty((ts.size, n))
+            kernel(n, rows, at_F, t_old, h, at_y_old, ts.size, ts.ctypes.data, Y.ctypes.data)
+            return Y.T if t.ndim else Y[0]
         x = (t - self.t_old) / self.h
         if t.ndim:
             x = x[:, None]
@@ -202,14 +218,17 @@ class Interpolant(DenseOutput):
 
 class CompiledRate:
     """What `mechsim_dop853` needs of a formulation for one step: the engine's step
-    function (`step`), the context (its address) and `kind` (0 projection, 1 partition),
-    the projection's `min_rcond` and `cut`, and `counted(evaluations)`, which books the
-    stages as the formulation's own right-hand sides."""
+    function (`step`) and its dense output's (`extra`, `interpolate`), the context (its
+    address) and `kind` (0 projection, 1 partition), the projection's `min_rcond` and
+    `cut`, and `counted(evaluations)`, which books the stages as the formulation's own
+    right-hand sides."""
 
-    __slots__ = ("step", "extra", "context", "kind", "min_rcond", "cut", "counted")
+    __slots__ = ("step", "extra", "interpolate", "context", "kind", "min_rcond", "cut",
+                 "counted")
 
     def __init__(self, lib, context: int, kind: int, counted, min_rcond=-1.0, cut=0.0):
         self.step, self.extra = lib.mechsim_dop853, lib.mechsim_dop853_extra
+        self.interpolate = lib.mechsim_interpolate
         self.context, self.kind, self.counted = context, kind, counted
         self.min_rcond, self.cut = float(min_rcond), float(cut)
 
