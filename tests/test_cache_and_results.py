@@ -178,6 +178,19 @@ def test_a_large_model_runs_compiled_c_twins_of_its_kernels(tmp_path, monkeypatc
             fast, slow = getattr(model, name)(*args), model.PYTHON_KERNELS[name](*args)
             for a, b in zip(*(x if isinstance(x, tuple) else (x,) for x in (fast, slow))):
                 np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13 * (1 + np.abs(b).max()))
+    # The twins copy their inputs into kept buffers: a strided view and a list are read
+    # as their values, and threads calling at once each get their own state's answer.
+    Q = rng.normal(size=(model.N, 8))
+    expected = [model.PYTHON_KERNELS["gamma"](Q[:, k], Q[::-1, k], 0.3, p) for k in range(8)]
+    np.testing.assert_allclose(model.gamma(list(Q[:, 0]), Q[::-1, 0], 0.3, p), expected[0],
+                               rtol=1e-13, atol=1e-13 * (1 + np.abs(expected[0]).max()))
+    from concurrent.futures import ThreadPoolExecutor
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(lambda k: [model.gamma(Q[:, k], Q[::-1, k], 0.3, p)
+                                       for _ in range(200)], range(8)))
+    for answers, b in zip(got, expected):
+        for a in answers:
+            np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13 * (1 + np.abs(b).max()))
     # The same cache entry without its library, and no compiler: the Python functions.
     (library,) = tmp_path.glob("mechsim_model_*.so")
     library.unlink()

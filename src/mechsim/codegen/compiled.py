@@ -27,6 +27,7 @@ import shutil
 import subprocess
 import sysconfig
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -207,29 +208,45 @@ def declined(target: Path) -> str | None:
 
 
 def _kernel(cfun, has_v: bool, shapes):
-    """A Python function with the generated function's signature calling `cfun`."""
+    """A Python function with the generated function's signature calling `cfun`. Its
+    inputs are copied into buffers kept with their addresses (an array's `.ctypes.data`
+    costs more than copying a state of a few hundred numbers), the parameters' array and
+    address kept while the same parameter tuple comes; a lock keeps the buffers to one
+    call at a time (ctypes lets other threads run during the call)."""
     shapes = [(rows,) if cols == 1 else (rows, cols) for rows, cols in shapes]
     single = len(shapes) == 1
-    last = [(None, None)]       # (parameter tuple last seen, as an array): one atomic slot
+    lock = threading.Lock()
+    kept = {}               # "q", "v": (buffer, its address); "p": (tuple, array, address)
 
-    def call(pointers, t, p):
-        seen, values = last[0]
-        if seen is not p:
-            values = np.ascontiguousarray(p, dtype=float)
-            last[0] = (p, values)
-        outs = [np.zeros(shape) for shape in shapes]
-        cfun(*pointers, t, values.ctypes.data, *[o.ctypes.data for o in outs])
+    def address(name, x):
+        buffer, at = kept.get(name, (None, 0))
+        x = np.asarray(x, dtype=float)
+        if buffer is None or buffer.shape != x.shape:
+            buffer = np.empty(x.shape)
+            at = buffer.ctypes.data
+            kept[name] = (buffer, at)
+        buffer[...] = x
+        return at
+
+    def call(t, p, q, v=None):
+        with lock:
+            seen, _, at_p = kept.get("p", (None, None, 0))
+            if seen is not p:
+                values = np.ascontiguousarray(p, dtype=float)
+                at_p = values.ctypes.data
+                kept["p"] = (p, values, at_p)
+            pointers = (address("q", q),) if v is None else (address("q", q),
+                                                              address("v", v))
+            outs = [np.zeros(shape) for shape in shapes]
+            cfun(*pointers, t, at_p, *[o.ctypes.data for o in outs])
         return outs[0] if single else tuple(outs)
 
     if has_v:
         def kernel(q, v, t, p):
-            q = np.ascontiguousarray(q, dtype=float)
-            v = np.ascontiguousarray(v, dtype=float)
-            return call((q.ctypes.data, v.ctypes.data), t, p)
+            return call(t, p, q, v)
     else:
         def kernel(q, t, p):
-            q = np.ascontiguousarray(q, dtype=float)
-            return call((q.ctypes.data,), t, p)
+            return call(t, p, q)
     return kernel
 
 
