@@ -68,6 +68,35 @@ def test_banded_schur_solves_and_extremes_match_dense(ten_window, rng):
     assert np.allclose(band.assemble(Jt, scaled=True), band.assemble(J), rtol=1e-12, atol=0)
 
 
+def test_the_largest_eigenvalue_from_a_warm_start_is_certified(ten_window, rng):
+    """`largest` from the previous call's vector (Lanczos, `top_pair`) along a path of
+    perturbed chain states, and from the eigenvector of the second eigenvalue (where two
+    of the crowded top eigenvalues cross, the previous vector is that one): within 1e-3
+    of λ_max at every state. From the second eigenvector Lanczos alone settles on the
+    second eigenvalue: the certificate (a Cholesky factor of θ (1 + 1e-3) I − S) catches
+    it and the exact path serves."""
+    from mechsim.linalg.banded import top_pair
+    prob = ten_window
+    band = BandedSchur(prob.model.JACOBIAN_ROWS, prob.model.JACOBIAN_COLS,
+                       (prob.m, prob.n), prob.inverse_mass_diagonal)
+    q0, _ = chain_state(10, 0.4)
+    step = 0.01 * rng.standard_normal(q0.size)
+    wrong = 0
+    for k in range(40):
+        J = prob.phi_q(q0 + k * step, 0.0)
+        S = (J * prob.inverse_mass_diagonal) @ J.T
+        lam, U = np.linalg.eigh(S)
+        band.factor(J)
+        if k % 4 == 3:                   # as if the top two eigenvalues had just crossed
+            band._high = U[:, -2].copy()
+            alone = top_pair(band._matvec, band._high[band.perm])
+            wrong += alone is not None and alone[0] < (1.0 - 1e-3) * lam[-1]
+        hi, u = band.largest()
+        assert lam[-1] * (1.0 - 1e-3) <= hi <= lam[-1] * (1.0 + 1e-12)
+        assert np.linalg.norm(S @ u - hi * u) <= 1.1e-3 * hi
+    assert wrong >= 1
+
+
 @pytest.mark.parametrize("theta", [0.5, 0.05])
 def test_banded_accelerations_match_the_svd_path(ten_window, theta):
     """Away from the truncation band the banded Schur complement gives the projection

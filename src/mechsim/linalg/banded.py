@@ -11,7 +11,8 @@ O(m b²) in place of the O(m³) of a dense Cholesky or SVD.
 The same factor gives the extreme eigenvalues of S, which are the squared extreme singular
 values of the mass-scaled Jacobian J̃ = Φ_q M^{-1/2}: the smallest by inverse iteration from
 the previous call's vector (consecutive evaluations of an integrator are close, so two or
-three solves settle it), the largest from LAPACK's banded eigensolver. This is what the
+three solves settle it), the largest by Lanczos from the previous call's vector, certified
+by a Cholesky factor of a shifted S, else from LAPACK's banded eigensolver. This is what the
 projection method and the singularity monitor need away from a singular configuration; near
 one (S nearly singular, or the iteration not settling) the callers use the dense SVD.
 """
@@ -143,28 +144,25 @@ class BandedSchur:
             y[d:] += row * x[:m - d]
         return y
 
-    def largest(self):
-        """(λ_max, u) of the latest S, to 1e-3 relative (what the singularity monitor's
-        ratios σ_min/σ_max need). From the previous call's vector, Lanczos (ARPACK, O(m kd)
-        a product, on a basis of 6 vectors: each restart of its default 20 costs 20
-        products) settles in a few products, consecutive calls being close. The first call, or one that does not settle, takes the eigenvalue from
+    def largest(self, rtol=1e-3):
+        """(λ_max, u) of the latest S, to `rtol` relative (what the singularity monitor's
+        ratios σ_min/σ_max need). From the previous call's vector, Lanczos (`top_pair`,
+        O(m kd) a product) settles in a few products, consecutive calls being close; its
+        value θ is certified the largest to `rtol` by the banded Cholesky factor of
+        θ (1 + rtol) I − S (O(m kd²)), which exists only if no eigenvalue of S is above
+        θ (1 + rtol) (the top of a long chain's spectrum is crowded with alike joints, and
+        where two of its eigenvalues cross, the previous vector leads Lanczos to one below
+        the top). The first call, or one not so settled, takes the eigenvalue from
         LAPACK's banded solver (dsbevx, that one value only: its reduction to tridiagonal
         form is O(m² kd)) and its vector by two steps of inverse iteration shifted just
-        past it. The top of a long chain's spectrum is crowded (many alike joints):
-        Lanczos from a cold start, or power iteration, would crawl."""
+        past it. Lanczos from a cold start, or power iteration, would crawl."""
         if self._high is not None:
-            from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh
-            op = LinearOperator((self.m, self.m), matvec=self._matvec, dtype=float)
-            try:
-                w, V = eigsh(op, k=1, which="LA", v0=self._high[self.perm], tol=1e-3,
-                             maxiter=50, ncv=6)
-            except ArpackNoConvergence:
-                pass
-            else:
+            found = top_pair(self._matvec, self._high[self.perm], rtol)
+            if found is not None and self._all_below(found[0] * (1.0 + rtol)):
                 u = np.empty(self.m)
-                u[self.perm] = V[:, 0]
+                u[self.perm] = found[1]
                 self._high = u
-                return float(w[0]), u
+                return found[0], u
         from scipy.linalg import eigvals_banded, solve_banded
         kd, m = self.kd, self.m
         lam = float(eigvals_banded(self._band, select="i", select_range=(m - 1, m - 1),
@@ -181,6 +179,12 @@ class BandedSchur:
         u[self.perm] = x
         self._high = u
         return lam, u
+
+    def _all_below(self, mu) -> bool:
+        """Are all eigenvalues of the latest S below `mu`? (μ I − S has a Cholesky factor.)"""
+        shifted = -self._band
+        shifted[self.kd] += mu
+        return self._pbtrf(shifted)[1] == 0
 
     def _layout(self):
         """Jᵀ (n × m) as a band: its columns (the constraints) in the order of S, its rows
@@ -228,3 +232,35 @@ def for_problem(problem):
         return None
     return BandedSchur(model.JACOBIAN_ROWS, model.JACOBIAN_COLS, (problem.m, problem.n),
                        problem.inverse_mass_diagonal)
+
+
+def top_pair(matvec, start, rtol=1e-3, max_products=24):
+    """(λ_max, its unit eigenvector) of the symmetric operator `matvec` by Lanczos from
+    `start`, every new basis vector orthogonalized against all before it (the basis is a
+    few vectors): the top Ritz pair (θ, x) once its residual ‖A x − θ x‖, read from the
+    recurrence as β_j |s_j|, is at most `rtol` θ (ARPACK's test); None where it is not
+    within `max_products` products. Unlike a restarted Lanczos it keeps every product's
+    information, so a start near the top eigenvector settles in a few."""
+    m = start.size
+    V = np.empty((max_products + 1, m))
+    norm = np.linalg.norm(start)
+    if not norm > 0.0:
+        return None
+    V[0] = start / norm
+    T = np.zeros((max_products, max_products))
+    for j in range(max_products):
+        w = matvec(V[j])
+        T[j, j] = w @ V[j]
+        w -= V[:j + 1].T @ (V[:j + 1] @ w)
+        w -= V[:j + 1].T @ (V[:j + 1] @ w)          # twice is enough (Kahan)
+        beta = float(np.linalg.norm(w))
+        theta, S = np.linalg.eigh(T[:j + 1, :j + 1])
+        top, s = float(theta[-1]), S[:, -1]
+        if top > 0.0 and (beta * abs(s[-1]) <= rtol * top or beta <= 1e-300):
+            x = V[:j + 1].T @ s
+            return top, x / np.linalg.norm(x)
+        if j + 1 < max_products:
+            V[j + 1] = w / beta
+            T[j, j + 1] = T[j + 1, j] = beta
+    return None
+
