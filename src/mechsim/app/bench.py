@@ -130,6 +130,9 @@ PROBLEMS["seven-window"] = Problem(
 PROBLEMS["ten-window"] = Problem(
     "ten-window", lambda: examples.double_four_bar(10), 3.0, math.pi / 2, -1.0, 10,
     description="10-window four-bar, 3 s, 63 coordinates, 3 singular passages")
+PROBLEMS["hundred-window"] = Problem(
+    "hundred-window", lambda: examples.double_four_bar(100), 20.0, math.pi / 2, -1.0, 100,
+    description="100-window four-bar, 20 s, 603 coordinates")
 
 DEFAULT_PROBLEMS = ("parallelogram", "double-four-bar", "driven-slider-crank")
 DEFAULT_METHODS = ("lu", "projection", "projection-svd", "hybrid", "baumgarte")
