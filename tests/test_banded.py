@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import mechsim as ms
+from mechsim.linalg import sparse
 from mechsim.linalg.banded import BandedSchur
 from mechsim.app.bench import Problem
 from mechsim.examples import parallelogram_constants
@@ -95,6 +96,36 @@ def test_the_largest_eigenvalue_from_a_warm_start_is_certified(ten_window, rng):
         assert lam[-1] * (1.0 - 1e-3) <= hi <= lam[-1] * (1.0 + 1e-12)
         assert np.linalg.norm(S @ u - hi * u) <= 1.1e-3 * hi
     assert wrong >= 1
+
+
+def test_near_a_chain_s_singular_configuration_the_band_measures_without_an_svd(
+        ten_window, monkeypatch):
+    """The ten-window chain with every crank at θ → 0 (all windows singular at once): the
+    banded extremes without a dense SVD (it costs O(m³)) down to θ = 1e-10, σ_max and,
+    while σ_min/σ_max ≥ 1e-7, σ_min as the SVD's to 1e-6; below, a σ_min not under
+    the SVD's (to round-off of σ_max) and under 1e-6 σ_max (the monitor's decisions need
+    no more), its vector one J̃ᵀ maps to that length."""
+    from mechsim.linalg import dense
+    from mechsim.problem import algebra as A
+    prob = ten_window
+    alg = prob.algebra
+    exact = {}
+    for theta in (1e-2, 1e-4, 1e-6, 1e-8, 1e-10):
+        Jt = alg.scaled_jacobian(chain_state(10, theta)[0], 0.0)
+        exact[theta] = (Jt, A._svd_extremes(Jt, prob.m - 1)[0])
+    alg.band.forget()
+
+    def no_svd(*args, **kwargs):
+        raise AssertionError("the dense SVD was called")
+    monkeypatch.setattr(dense, "svd", no_svd)
+    for theta, (Jt, svd) in exact.items():
+        smin, u, v, smax, _, _ = alg.extremes(Jt, prob.m - 1)
+        assert smax == pytest.approx(svd[3], rel=1e-3)
+        if svd[0] >= 1e-7 * svd[3]:
+            assert smin == pytest.approx(svd[0], rel=1e-6)
+        else:
+            assert svd[0] - 1e-14 * smax <= smin <= 1e-6 * smax      # (round-off of σ_max)
+            assert np.linalg.norm(sparse.dense(Jt).T @ u) == pytest.approx(smin, rel=1e-12)
 
 
 @pytest.mark.parametrize("theta", [0.5, 0.05])

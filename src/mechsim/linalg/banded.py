@@ -97,6 +97,13 @@ class BandedSchur:
         c, info = self._pbtrf(self._band)
         return c if info == 0 else None
 
+    def shifted_factor(self, delta):
+        """The banded Cholesky factor of the latest S + δ I, or None."""
+        shifted = self._band.copy()
+        shifted[self.kd] += delta
+        c, info = self._pbtrf(shifted)
+        return c if info == 0 else None
+
     def solve(self, c, r):
         """S⁻¹ r from the factor `c`, in the original order of the constraints."""
         x, _ = self._pbtrs(c, r[self.perm])

@@ -375,17 +375,39 @@ class BandedAlgebra(DenseAlgebra):
         return super().rank(J)
 
     def extremes(self, Jt, k):
+        """By the band: σ_min's left vector u by inverse iteration on S = J̃J̃ᵀ (on S +
+        δ I, δ at round-off of its largest eigenvalue, where S is too near singular for
+        its own Cholesky factor: the iteration's vector is no less accurate, its direction
+        set by the gap to the next eigenvalue, not by the factor's condition), σ_max by
+        `BandedSchur.largest`. σ_min is √λ_min where λ_min > 1e-12 λ_max, else ‖J̃ᵀu‖
+        (squared, a σ_min under 1e-6 σ_max would be lost to round-off; J̃ᵀu keeps it to
+        round-off of σ_max): near a long chain's singular configurations too, where a
+        dense SVD costs O(m³) (0.15 s at 600 rows). Under 1e-6 σ_max the value is that of
+        the vector the iteration settles on, at least σ_min: where several singular
+        values are that small together (every window of a chain at once) it may be the
+        next one of them. The dense SVD where the iteration does not settle, or with
+        redundant rows."""
         band = self.band
         if k == self.problem.m - 1:        # no redundant rows (the band sees all of them)
             c = band.factor(Jt, scaled=True)
+            near = c is None
+            if near:
+                c = band.shifted_factor(1e-14 * band.largest_bound())
             low = band.smallest(c) if c is not None else None
             if low is not None:
                 lam_min, u_min = low
                 lam_max, u_max = band.largest()
-                # σ_min below 1e-6 σ_max: squared, it would be lost to round-off
-                if lam_min > 1e-12 * lam_max:
-                    smin, smax = np.sqrt(lam_min), np.sqrt(lam_max)
+                smax = np.sqrt(lam_max)
+                if not near and lam_min > 1e-12 * lam_max:
+                    smin = np.sqrt(lam_min)
                     return smin, u_min, Jt.T @ u_min / smin, smax, u_max, Jt.T @ u_max / smax
+                w = Jt.T @ u_min
+                smin = float(np.linalg.norm(w))
+                # ‖J̃ᵀu‖ ≥ σ_min for every unit u; S without a Cholesky factor has σ_min
+                # at round-off of σ_max, so a larger value means the iteration settled on
+                # another eigenvector.
+                if 0.0 < smin <= 1e-6 * smax:
+                    return smin, u_min, w / smin, smax, u_max, Jt.T @ u_max / smax
         return super().extremes(Jt, k)
 
     def _clear_factor(self, J, cut):
