@@ -48,6 +48,14 @@ def test_the_solvers_take_a_long_chains_jacobian_sparse(chain):
     np.testing.assert_array_equal(sparse.columns(Js, [5, 7]), J[:, [5, 7]])
     with pytest.raises(ValueError, match="pattern"):
         sparse.positions(Js, [0], [prob.n - 1])
+    # Jᵀx without forming Jᵀ: scipy's numbers to the bit; another matrix of the pattern
+    # shares its structure, its own values, the first untouched.
+    x = np.linspace(-1.0, 1.0, prob.m)
+    assert sparse.transpose_times(Js, x).tobytes() == (Js.T @ x).tobytes()
+    twice = sparse.with_data(Js, 2.0 * Js.data)
+    assert twice.indptr is Js.indptr and np.array_equal(twice.toarray(), 2.0 * J)
+    assert np.array_equal(Js.toarray(), J)
+    assert sparse.transpose_times(twice, x).tobytes() == (twice.T @ x).tobytes()
     np.testing.assert_allclose(prob.schur.assemble(Js), prob.schur.assemble(J), rtol=1e-15)
 
 

@@ -19,6 +19,7 @@ import json
 import numpy as np
 
 from ..codegen import load_model, structure_key
+from ..linalg import sparse
 from ..model import Driver
 
 # Bump when the kernels' generated code changes meaning.
@@ -143,6 +144,7 @@ class AssembledModel:
         order = np.lexsort((cols, rows))
         self._csr_indices = cols[order]
         self._csr_indptr = np.searchsorted(rows[order], np.arange(self.M + 1))
+        self._csr_template = None
         where = np.empty(order.size, np.intp)
         where[order] = np.arange(order.size)
         start = 0
@@ -229,8 +231,13 @@ class AssembledModel:
         return self._evaluate_many("jacobian", "J", Q, ts, p)
 
     def _csr(self, data):
-        from scipy.sparse import csr_array
-        return csr_array((data, self._csr_indices, self._csr_indptr), shape=(self.M, self.N))
+        """Φ_q's entries `data` as a CSR array of the pattern (scipy's constructor checks
+        the structure once, for the first; the others share it: `sparse.with_data`)."""
+        if self._csr_template is None:
+            from scipy.sparse import csr_array
+            self._csr_template = csr_array((data, self._csr_indices, self._csr_indptr),
+                                           shape=(self.M, self.N))
+        return sparse.with_data(self._csr_template, data)
 
     def phi(self, q, t, p):
         return self._evaluate("phi", ("phi",), q, None, t, p)[0]

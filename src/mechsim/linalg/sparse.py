@@ -11,6 +11,8 @@ code around them reads the same for a four-bar and a chain of hundreds of window
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 
@@ -44,18 +46,54 @@ def values(J, rows, cols, where=None):
     return J.data[positions(J, rows, cols) if where is None else where]
 
 
+def with_data(J, data):
+    """The CSR matrix of J's pattern holding `data` (float, one value per entry of J.data):
+    a shallow copy of J, its index arrays shared (never changed in place: the pattern is
+    sorted and without duplicates). scipy's constructor checks the whole structure each
+    time (about 90 µs on a 100-window chain's Φ_q, thousands of times a run)."""
+    out = copy.copy(J)
+    out.data = data
+    return out
+
+
+def transpose_times(J, x):
+    """Jᵀ x for x of shape (m,), without forming Jᵀ (scipy builds and checks a CSC matrix
+    for `J.T`); the sums in the order of J's entries, as scipy's product of Jᵀ."""
+    if is_dense(J):
+        return J.T @ x
+    return np.bincount(J.indices, weights=J.data * x[_entry_rows(J.indptr)],
+                       minlength=J.shape[1])
+
+
+# The row of each entry, for the last few patterns' row pointers (matrices of one pattern
+# share theirs: `with_data`): {id(indptr): (indptr, rows)}, the array kept so that its id
+# stays its own.
+_ROWS: dict = {}
+
+
+def _entry_rows(indptr) -> np.ndarray:
+    kept = _ROWS.get(id(indptr))
+    if kept is not None and kept[0] is indptr:
+        return kept[1]
+    rows = np.repeat(np.arange(indptr.size - 1), np.diff(indptr))
+    if len(_ROWS) >= 8:
+        _ROWS.pop(next(iter(_ROWS)))
+    _ROWS[id(indptr)] = (indptr, rows)
+    return rows
+
+
 def scale_columns(J, s):
     """J diag(s)."""
     if is_dense(J):
         return J * s
-    return type(J)((J.data * s[J.indices], J.indices, J.indptr), shape=J.shape)
+    return with_data(J, J.data * s[J.indices])
 
 
 def difference(J1, J0, scale=1.0):
     """(J1 − J0) · scale, for two Jacobians of the same pattern."""
     if is_dense(J1):
         return (J1 - J0) * scale
-    return type(J1)(((J1.data - J0.data) * scale, J1.indices, J1.indptr), shape=J1.shape)
+    return with_data(J1, (J1.data - J0.data) * scale)
 
 
 def frobenius(J) -> float:

@@ -398,16 +398,18 @@ class BandedAlgebra(DenseAlgebra):
                 lam_min, u_min = low
                 lam_max, u_max = band.largest()
                 smax = np.sqrt(lam_max)
+                v_max = sparse.transpose_times(Jt, u_max) / smax
                 if not near and lam_min > 1e-12 * lam_max:
                     smin = np.sqrt(lam_min)
-                    return smin, u_min, Jt.T @ u_min / smin, smax, u_max, Jt.T @ u_max / smax
-                w = Jt.T @ u_min
+                    return (smin, u_min, sparse.transpose_times(Jt, u_min) / smin, smax,
+                            u_max, v_max)
+                w = sparse.transpose_times(Jt, u_min)
                 smin = float(np.linalg.norm(w))
                 # ‖J̃ᵀu‖ ≥ σ_min for every unit u; S without a Cholesky factor has σ_min
                 # at round-off of σ_max, so a larger value means the iteration settled on
                 # another eigenvector.
                 if 0.0 < smin <= 1e-6 * smax:
-                    return smin, u_min, w / smin, smax, u_max, Jt.T @ u_max / smax
+                    return smin, u_min, w / smin, smax, u_max, v_max
         return super().extremes(Jt, k)
 
     def _clear_factor(self, J, cut):

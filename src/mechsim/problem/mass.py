@@ -174,11 +174,11 @@ class SchurSolver:
             w = self.mass.inverse_diagonal
             wq = w * Q
             lam = self.solve(J, J @ wq - c, factor=factor)
-            return wq - w * (J.T @ lam), lam
+            return wq - w * sparse.transpose_times(J, lam), lam
         f = self.mass.factor(q)
         Jt, x = f.cols(J), f.left(Q)
         lam = dense().solve_psd(Jt @ Jt.T, Jt @ x - c)
-        return f.right(x - Jt.T @ lam), lam
+        return f.right(x - sparse.transpose_times(Jt, lam)), lam
 
 
 @functools.cache

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..linalg.newton import newton
-from ..linalg.sparse import dense as as_dense
+from ..linalg.sparse import dense as as_dense, transpose_times
 from .loads import Loads
 from .mass import MassFactor, MassModel, SchurSolver, dense
 from .multipliers import minimum_norm
@@ -436,7 +436,7 @@ class NumericProblem:
 
         def correct(q, phi, J, slow):
             self.counters.projections += 1
-            return q - f.right(f.cols(J).T @ self.solver.solve(J, phi, f))
+            return q - f.right(transpose_times(f.cols(J), self.solver.solve(J, phi, f)))
 
         done = newton(np.array(q, float), lambda q: self.solver_position_terms(q, t), correct,
                       tol, max_iter, stall=True)
@@ -467,7 +467,7 @@ class NumericProblem:
 
         def correct(q, phi, _, slow):
             self.counters.projections += 1
-            return q - f.right(Jt.T @ solve(phi))
+            return q - f.right(transpose_times(Jt, solve(phi)))
 
         done = newton(np.array(q, float), residual, correct, tol, max_iter, stall=True,
                       extra=extra)
@@ -477,7 +477,7 @@ class NumericProblem:
         J = self.solver_phi_q(q, t)
         f = self.mass_factor(q)
         phi_t = self.phi_t(q, t)
-        moved = v - f.right(f.cols(J).T @ solve(J @ v + phi_t))
+        moved = v - f.right(transpose_times(f.cols(J), solve(J @ v + phi_t)))
         if velocities_hold(J, moved, phi_t):
             return q, moved
         # The factor at the given q leaves J v off by |ΔJ| |Δv| at the new q (a long step's
@@ -499,7 +499,7 @@ class NumericProblem:
             A, r = np.vstack([J, G]), np.concatenate([r, G @ v - rates])
             At = f.cols(A)
             return v - f.right(At.T @ dense().solve_psd(At @ At.T, r))
-        out = v - f.right(f.cols(J).T @ self.solver.solve(J, r, f))
+        out = v - f.right(transpose_times(f.cols(J), self.solver.solve(J, r, f)))
         if velocities_hold(J, out, phi_t):
             return out
         # Redundant rows: a Cholesky factor of the singular complement solved to garbage
