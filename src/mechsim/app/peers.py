@@ -8,7 +8,8 @@ precision beside mechsim's, each peer modelled as its own documentation recommen
   constraints), contacts off; integrators "implicitfast" and "RK4" at fixed steps.
 - Exudyn: rigid 2D bodies on `NodeRigidBody2D` nodes, `ObjectJointRevolute2D` pins, gravity
   as `LoadMassProportional`, its default implicit generalized-α solver (spectral radius
-  0.8) at fixed steps.
+  0.8) at fixed steps, with its sparse linear solver above 1000 coordinates (as it
+  advises there).
 
 Each run traces one body point, sampled every `output_step`; its error is measured as the
 bench measures mechsim's (`mechsim.app.bench.Problem.point_error`). Times are the integration
@@ -133,6 +134,11 @@ def mujoco_run(mech, t_end, dt, output_step, trace, integrator="implicitfast"):
     return wall, np.arange(len(out)) * every * dt, np.array(out)
 
 
+# Exudyn advises its sparse solver (EigenSparse) for systems of more coordinates than
+# this (its warning; a planar body has 3, a pin 2 algebraic ones).
+EXUDYN_SPARSE_ABOVE = 1000
+
+
 def exudyn_run(mech, t_end, h, output_step, trace, spectral_radius=0.8):
     """(wall time [s], times, traced point (N, 2)) of `mech` in Exudyn (see the module
     docstring)."""
@@ -174,6 +180,9 @@ def exudyn_run(mech, t_end, h, output_step, trace, spectral_radius=0.8):
     s.solutionSettings.writeSolutionToFile = False
     s.solutionSettings.sensorsWritePeriod = float(output_step)
     s.displayComputationTime = s.displayStatistics = False
+    if 3 * len(mech.bodies) + 2 * len(mech.joints) > EXUDYN_SPARSE_ABOVE:
+        # Its own advice for a large system (it warns above this many coordinates).
+        s.linearSolver.solverType = exudyn.LinearSolverType.EigenSparse
     start = time.perf_counter()
     mbs.SolveDynamic(s)
     wall = time.perf_counter() - start
