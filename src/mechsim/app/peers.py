@@ -194,8 +194,7 @@ STEPS = {"mujoco implicitfast": (1e-2, 2e-3, 1e-3, 2e-4, 1e-4),
          "mujoco RK4": (1e-2, 2e-3, 1e-3, 2e-4, 1e-4),
          "exudyn": (1e-2, 2e-3, 1e-3, 2e-4)}
 # Long chains (40 windows and more, 20 s): without the peers' finest steps, which take
-# minutes there (Exudyn at 2e-4 took 300 s on the 40-window chain) and are far more
-# accurate than mechsim's runs need to be compared at.
+# minutes there and are far more accurate than mechsim's runs need to be compared at.
 CHAIN_STEPS = {"mujoco implicitfast": (1e-2, 2e-3, 1e-3, 2e-4),
                "mujoco RK4": (1e-2, 2e-3, 1e-3, 2e-4),
                "exudyn": (1e-2, 2e-3, 1e-3)}

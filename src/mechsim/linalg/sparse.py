@@ -50,7 +50,7 @@ def with_data(J, data):
     """The CSR matrix of J's pattern holding `data` (float, one value per entry of J.data):
     a shallow copy of J, its index arrays shared (never changed in place: the pattern is
     sorted and without duplicates). scipy's constructor checks the whole structure each
-    time (about 90 µs on a 100-window chain's Φ_q, thousands of times a run)."""
+    time, and a long chain's run makes thousands of them (docs/benchmarks.md)."""
     out = copy.copy(J)
     out.data = data
     return out
