@@ -518,9 +518,9 @@ def main(argv=None) -> int:
                             "hybrid against projection at the smallest rtol), coulomb "
                             "(shooting against brute force), analysis (reactions, "
                             "equilibrium and linearization), crank-rocker, seven-window, "
-                            "ten-window, hundred-window, peers (MuJoCo and Exudyn beside mechsim on the "
-                            "problems named, default double-four-bar and crank-rocker: the "
-                            "peers extra), "
+                            "ten-window, hundred-window, peers (MuJoCo and Exudyn beside "
+                            "mechsim on the problems named, default double-four-bar and "
+                            "crank-rocker: the peers extra), "
                             "costs (steps, right-hand sides and bridge evaluations of the "
                             "cases the tests bound loosely); default: the first three and "
                             "random")

@@ -13,8 +13,9 @@ values of the mass-scaled Jacobian J̃ = Φ_q M^{-1/2}: the smallest by inverse 
 the previous call's vector (consecutive evaluations of an integrator are close, so two or
 three solves settle it), the largest by Lanczos from the previous call's vector, certified
 by a Cholesky factor of a shifted S, else from LAPACK's banded eigensolver. This is what the
-projection method and the singularity monitor need away from a singular configuration; near
-one (S nearly singular, or the iteration not settling) the callers use the dense SVD.
+projection method and the singularity monitor need; near a singular configuration the
+smallest comes from a factor of S shifted by round-off (`BandedAlgebra.extremes`), and
+where the iteration does not settle the callers use the dense SVD.
 """
 
 from __future__ import annotations
@@ -97,9 +98,10 @@ class BandedSchur:
         c, info = self._pbtrf(self._band)
         return c if info == 0 else None
 
-    def shifted_factor(self, delta):
-        """The banded Cholesky factor of the latest S + δ I, or None."""
-        shifted = self._band.copy()
+    def shifted_factor(self, delta, sign=1.0):
+        """The banded Cholesky factor of the latest sign · S + δ I, or None where that is
+        not positive definite."""
+        shifted = sign * self._band
         shifted[self.kd] += delta
         c, info = self._pbtrf(shifted)
         return c if info == 0 else None
@@ -189,9 +191,7 @@ class BandedSchur:
 
     def _all_below(self, mu) -> bool:
         """Are all eigenvalues of the latest S below `mu`? (μ I − S has a Cholesky factor.)"""
-        shifted = -self._band
-        shifted[self.kd] += mu
-        return self._pbtrf(shifted)[1] == 0
+        return self.shifted_factor(mu, -1.0) is not None
 
     def _layout(self):
         """Jᵀ (n × m) as a band: its columns (the constraints) in the order of S, its rows

@@ -382,7 +382,7 @@ class BandedAlgebra(DenseAlgebra):
         `BandedSchur.largest`. σ_min is √λ_min where λ_min > 1e-12 λ_max, else ‖J̃ᵀu‖
         (squared, a σ_min under 1e-6 σ_max would be lost to round-off; J̃ᵀu keeps it to
         round-off of σ_max): near a long chain's singular configurations too, where a
-        dense SVD costs O(m³) (0.15 s at 600 rows). Under 1e-6 σ_max the value is that of
+        dense SVD costs O(m³). Under 1e-6 σ_max the value is that of
         the vector the iteration settles on, at least σ_min: where several singular
         values are that small together (every window of a chain at once) it may be the
         next one of them. The dense SVD where the iteration does not settle, or with
@@ -405,9 +405,9 @@ class BandedAlgebra(DenseAlgebra):
                             u_max, v_max)
                 w = sparse.transpose_times(Jt, u_min)
                 smin = float(np.linalg.norm(w))
-                # ‖J̃ᵀu‖ ≥ σ_min for every unit u; S without a Cholesky factor has σ_min
-                # at round-off of σ_max, so a larger value means the iteration settled on
-                # another eigenvector.
+                # ‖J̃ᵀu‖ ≥ σ_min for every unit u, and here σ_min is under 1e-6 σ_max
+                # (S without a Cholesky factor: at round-off of it), so a larger value
+                # means the iteration settled on another eigenvector.
                 if 0.0 < smin <= 1e-6 * smax:
                     return smin, u_min, w / smin, smax, u_max, v_max
         return super().extremes(Jt, k)
