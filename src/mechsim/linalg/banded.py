@@ -163,8 +163,9 @@ class BandedSchur:
         where two of its eigenvalues cross, the previous vector leads Lanczos to one below
         the top). The first call, or one not so settled, takes the eigenvalue from
         LAPACK's banded solver (dsbevx, that one value only: its reduction to tridiagonal
-        form is O(m² kd)) and its vector by two steps of inverse iteration shifted just
-        past it. Lanczos from a cold start, or power iteration, would crawl."""
+        form is O(m² kd)) and its vector by inverse iteration shifted just past it (two
+        steps, more until its residual is under `rtol` λ_max). Lanczos from a cold start,
+        or power iteration, would crawl."""
         if self._high is not None:
             found = top_pair(self._matvec, self._high[self.perm], rtol)
             if found is not None and self._all_below(found[0] * (1.0 + rtol)):
@@ -181,9 +182,14 @@ class BandedSchur:
         u = self._high if self._high is not None else np.ones(m) / np.sqrt(m)
         # Rows of the band are in the permuted order.
         x = u[self.perm]
-        for _ in range(2):
+        for k in range(8):
             x = solve_banded((kd, kd), full, x, check_finite=False)
             x /= np.linalg.norm(x)
+            # Two steps settle it from a start with a part along the top eigenvector;
+            # from one without (the next eigenvector's, where they crossed), round-off
+            # brings that part in and a few more do.
+            if k and np.linalg.norm(self._matvec(x) - lam * x) <= rtol * lam:
+                break
         u = np.empty_like(x)
         u[self.perm] = x
         self._high = u
