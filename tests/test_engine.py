@@ -128,6 +128,27 @@ def test_the_engine_applies_only_where_its_assumptions_hold(tmp_path, monkeypatc
         cache.clear_memory_cache()
 
 
+def test_an_entry_compiled_with_other_flags_is_never_taken(tmp_path, monkeypatch):
+    """The compile's flags (`-ffp-contract=off` decides how the C sums round) are part of
+    the name of every compiled entry: the engine's object, a small model's engine library
+    and a large model's kernel library. Other flags give other names, and the compile
+    takes the flags the names say."""
+    import subprocess
+    from mechsim.codegen import compiled
+    module = tmp_path / "mechsim_model_0123456789abcdef.py"
+    names = lambda: (engine._object_path(tmp_path, ["cc"]), engine.library_path(module),
+                     compiled.kernel_library_path(module))
+    before = names()
+    monkeypatch.setattr(compiled, "FLAGS", ("-O2", "-fPIC", "-ffp-contract=fast"))
+    after = names()
+    assert all(a != b and a.parent == b.parent == tmp_path for a, b in zip(before, after))
+    commands = []
+    monkeypatch.setattr(subprocess, "run", lambda command, **_: commands.append(command)
+                        or subprocess.CompletedProcess(command, 1, b"", b"refused"))
+    assert compiled.build_library("int x;", tmp_path / "x.so", ["cc"]) == "refused"
+    assert commands[0][1:4] == ["-O2", "-fPIC", "-ffp-contract=fast"]
+
+
 @needs_compiler
 @pytest.mark.parametrize("damage", ["none", "truncated", "verified garbage"])
 def test_small_models_link_the_engine_compiled_once(tmp_path, monkeypatch, damage):

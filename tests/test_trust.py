@@ -613,7 +613,7 @@ def pristine(tmp_path_factory):
 
 # The kind of entry: (its model's windows, another model's, the entry's file pattern).
 _ENTRIES = {"engine library": (1, 2, "*.evaluations-*.so"),
-            "kernel library": (10, 11, "*[0-9a-f].so"), "module": (1, 2, "*.py")}
+            "kernel library": (10, 11, "*.kernels-*.so"), "module": (1, 2, "*.py")}
 # Each damage and each kind of entry once in the default suite (the small models); the
 # rest of the matrix, and the larger models' other damages, in the slow one.
 _DEFAULT_DAMAGE = {("truncated", "engine library"), ("foreign", "engine library"),

@@ -20,6 +20,7 @@ import sympy.
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import json
 import os
 import shlex
@@ -42,6 +43,24 @@ from .cache import adopt, env_flag, read_verified, verified_file, warn_once, wri
 # fused model stops paying for its build (`mechsim.build.constraint_model`).
 C_MIN_COORDINATES = 60
 
+# The flags every compile of mechsim's C takes: `-ffp-contract=off` keeps multiply-adds
+# unfused where a platform has them, so that the C sums round as numpy's. They are part of
+# every compiled entry's name (`kernel_library_path`, `engine.library_path`, the engine's
+# object), so that an entry compiled with other flags is never taken.
+FLAGS = ("-O2", "-fPIC", "-ffp-contract=off")
+
+
+def flags_digest() -> str:
+    """A short digest of `FLAGS`, for the names of compiled entries."""
+    return hashlib.sha256(" ".join(FLAGS).encode()).hexdigest()[:8]
+
+
+def kernel_library_path(module_path: Path) -> Path:
+    """Where the C twins of the model module at `module_path` are cached: the module's
+    name with `.kernels-<digest of FLAGS>.so`."""
+    return module_path.with_name(f"{module_path.stem}.kernels-{flags_digest()}.so")
+
+
 # Why the compiled path does not serve, by library path (see `status`).
 _declined: dict[str, str] = {}
 
@@ -52,7 +71,7 @@ def attach(module, path: Path | None) -> bool:
     source = getattr(module, "C_SOURCE", None)
     if not source or not getattr(module, "C_REPLACE", True) or path is None:
         return False
-    lib = shared_library(source, path.with_suffix(".so"))
+    lib = shared_library(source, kernel_library_path(path))
     if lib is None:
         return False
     try:
@@ -172,7 +191,7 @@ def build_library(source: str, library: Path, command: list[str], objects=(),
             c_file.write_text(source)
             link = ["-shared", "-o", str(out), str(c_file), *map(str, objects), "-lm"] \
                 if shared else ["-c", "-o", str(out), str(c_file)]
-            done = subprocess.run(command + ["-O2", "-fPIC", "-ffp-contract=off", *link],
+            done = subprocess.run(command + [*FLAGS, *link],
                                   capture_output=True, timeout=600)
             if done.returncode != 0 or not out.is_file():
                 text = (done.stderr or done.stdout).decode(errors="replace").strip()
@@ -293,7 +312,7 @@ def compilation(problem) -> Compilation:
         elif path is None:
             reason = "the model is kept in memory only (its cache could not be written)"
         else:
-            why = [declined(Path(path).with_suffix(".so")),
+            why = [declined(kernel_library_path(Path(path))),
                    declined(engine.library_path(Path(path)))]
             reason = next((w for w in why if w), "") or engine.why_not(problem)
     return Compilation(kernels, served, reason)

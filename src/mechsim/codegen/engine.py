@@ -58,7 +58,7 @@ import numpy as np
 from ..linalg.dense import fall_basis
 from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
 from .cache import adopt, env_flag, verified_file
-from .compiled import build_library, compiler, compiler_identity, shared_library
+from .compiled import build_library, compiler, compiler_identity, flags_digest, shared_library
 from .layout import PARTITION, PROJECTION, Dims
 
 # The engine's own C (shipped beside this module), after the declarations of the model's C
@@ -102,8 +102,8 @@ def engine_object(directory: Path, command: list[str]) -> list[Path]:
 
 
 def _object_path(directory: Path, command: list[str]) -> Path:
-    tag = hashlib.sha256("\0".join([source(), compiler_identity(command),
-                                     *command]).encode()).hexdigest()[:16]
+    tag = hashlib.sha256("\0".join([source(), compiler_identity(command), *command,
+                                     flags_digest()]).encode()).hexdigest()[:16]
     return directory / f"mechsim_engine-{tag}.o"
 
 
@@ -168,8 +168,8 @@ def for_problem(problem):
 
 def library_path(module_path: Path) -> Path:
     """Where the compiled evaluations of the model module at `module_path` are cached: the
-    model's name with `.evaluations-<digest of the engine's C>.so`."""
-    digest = hashlib.sha256(source().encode()).hexdigest()[:12]
+    model's name with `.evaluations-<digest of the engine's C and the compile's FLAGS>.so`."""
+    digest = hashlib.sha256("\0".join([source(), flags_digest()]).encode()).hexdigest()[:12]
     return module_path.with_name(f"{module_path.stem}.evaluations-{digest}.so")
 
 
