@@ -128,6 +128,10 @@ def test_many_states_at_once_equal_each_state_bitwise(name):
     for k, (phi, J) in enumerate(one):
         np.testing.assert_array_equal(phis[k], phi)
         np.testing.assert_array_equal(jacobians[k], J)
+    for q, t, csr in zip(Q, ts, prob.model.phi_q_csr_many(Q, ts, prob.p)):
+        one = prob.model.phi_q_csr(q, t, prob.p)
+        np.testing.assert_array_equal(csr.data, one.data)
+        assert csr.indices is one.indices and csr.shape == one.shape
     if mech.drivers:                          # each driver's law at its state's own time
         assert not np.array_equal(prob.phi(Q[0], ts[1]), phis[0])
 

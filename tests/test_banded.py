@@ -151,6 +151,70 @@ def test_banded_accelerations_match_the_svd_path(ten_window, theta):
     assert s_band[1] == pytest.approx(s_dense[1], rel=1e-2)
 
 
+@pytest.fixture(scope="module")
+def ten_window_csr(tmp_path_factory):
+    """The ten-window chain's fused model generated as those of `CSR_MIN_COORDINATES` or
+    more are (Φ_q also as its non-zero entries), in a cache of its own."""
+    from mechsim.codegen import cache, printer
+    patch = pytest.MonkeyPatch()
+    patch.setattr(printer, "CSR_MIN_COORDINATES", 60)
+    patch.setenv("MECHSIM_CACHE_DIR", str(tmp_path_factory.mktemp("csr")))
+    cache.clear_memory_cache()
+    try:
+        yield ms.examples.double_four_bar(10).problem(build="fused")
+    finally:
+        patch.undo()
+        cache.clear_memory_cache()
+
+
+def test_a_long_chain_s_fused_model_gives_its_jacobian_as_csr(ten_window_csr, rng):
+    """Φ_q as a CSR array of its pattern from the fused model (its C twins), equal to the
+    dense Φ_q to the bit in each function that gives it, with the pattern's indices; the
+    solvers then take it so, as they do the assembled model's."""
+    prob = ten_window_csr
+    model, p = prob.model, prob.p
+    assert model.COMPILED and prob.sparse
+    assembled = ms.examples.double_four_bar(10).problem(build="assembled").model
+    q, v, t = rng.standard_normal(prob.n), rng.standard_normal(prob.n), 0.3
+    forms = [(model.phi_q_csr(q, t, p), model.phi_q(q, t, p)),
+             (model.position_terms_csr(q, t, p)[1], model.position_terms(q, t, p)[1]),
+             (model.dynamics_terms_csr(q, v, t, p)[0], model.dynamics_terms(q, v, t, p)[0])]
+    for csr, dense in forms:
+        np.testing.assert_array_equal(csr.toarray(), dense)
+        np.testing.assert_array_equal(csr.indices, assembled.phi_q_csr(q, t, p).indices)
+    np.testing.assert_array_equal(model.position_terms_csr(q, t, p)[0], model.phi(q, t, p))
+    np.testing.assert_array_equal(model.dynamics_terms_csr(q, v, t, p)[1],
+                                  model.gamma(q, v, t, p))
+
+
+@pytest.mark.parametrize("build", ["fused, Φ_q as CSR", "assembled"])
+def test_a_chain_s_samples_settle_together_as_each_would_alone(build, rng, request):
+    """A step's output samples of the ten-window chain, pushed off the constraints by 1e-6
+    (more than a dense output drifts), are settled side by side (`settle_samples`: each
+    its own chord, the evaluations of all in one call on the assembled build) to the
+    points each sample's own `project_state` gives, on the constraints to round-off with
+    consistent velocities."""
+    from mechsim.formulations.full import ROUND_OFF, settle_samples
+    prob = request.getfixturevalue("ten_window_csr") if build != "assembled" else \
+        ms.examples.double_four_bar(10).problem(build=build)
+    assert prob.sparse
+    ts = np.linspace(0.0, 0.02, 6)
+    states = [chain_state(10, theta, w) for theta, w in zip(np.linspace(0.3, 1.2, 6),
+                                                            np.linspace(-2.0, 1.0, 6))]
+    Q0 = np.array([q for q, _ in states]) + 1e-6 * rng.standard_normal((6, prob.n))
+    V0 = np.array([v for _, v in states]) + 1e-6 * rng.standard_normal((6, prob.n))
+    Q, V = Q0.copy(), V0.copy()
+    settle_samples(prob, ts, Q, V, 1e-6)
+    for t, q0, v0, q, v in zip(ts, Q0, V0, Q, V):
+        floor = ROUND_OFF * max(1.0, np.abs(q0).max())
+        alone = prob.project_state(q0, v0, t, tol=floor)
+        np.testing.assert_allclose(q, alone[0], rtol=0, atol=1e-14 * np.abs(q0).max())
+        np.testing.assert_allclose(v, alone[1], rtol=0, atol=1e-13 * np.abs(v0).max())
+        assert np.abs(prob.phi(q, t)).max() <= 1e3 * floor
+        assert np.abs(prob.phi_q(q, t) @ v + prob.phi_t(q, t)).max() < 1e-10
+        assert np.abs(q - q0).max() > 1e-7                    # it was moved
+
+
 def test_ten_window_chain_runs_on_the_banded_path_between_passages(monkeypatch):
     """0.5 s of the 10-window chain by the projection method (its first singular passage is
     at 0.70 s): on the branch to 1e-8, and neither the accelerations, the projections nor

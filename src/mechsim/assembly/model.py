@@ -230,6 +230,20 @@ class AssembledModel:
         """Φ_q at the states (ts[i], Q[i]), (k, M, N), as `phi_q` gives each."""
         return self._evaluate_many("jacobian", "J", Q, ts, p)
 
+    def phi_q_csr_many(self, Q, ts, p):
+        """Φ_q at the states (ts[i], Q[i]), each as `phi_q_csr` gives it: each group's
+        kernel called once for all of them (`_evaluate_many`)."""
+        Q = np.asarray(Q, dtype=float)
+        k = Q.shape[0]
+        data = np.zeros((k, self._csr_indices.size))
+        for g, P in zip(self.groups, self._p(p)):
+            joints = g.rows.shape[0]
+            value = g.kernel.jacobian(Q[:, g.cols].reshape(k * joints, -1), np.tile(P, (k, 1)))
+            entries = np.reshape(value, (k, joints, *value.shape[1:]))[..., g.pattern[0],
+                                                                        g.pattern[1]]
+            data[:, g.csr] = entries.transpose(0, 2, 1)
+        return [self._csr(row) for row in data]
+
     def _csr(self, data):
         """Φ_q's entries `data` as a CSR array of the pattern (scipy's constructor checks
         the structure once, for the first; the others share it: `sparse.with_data`)."""

@@ -31,8 +31,12 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
+
+from ..linalg.sparse import with_data
+
 # Bump when the generated code changes meaning, so stale cache entries are not used.
-CODEGEN_VERSION = 14          # 14: one cse for all of a model's functions
+CODEGEN_VERSION = 15          # 15: a long chain's Φ_q also as its non-zero entries
 
 
 def cache_dir() -> Path:
@@ -166,7 +170,37 @@ def _module(name: str, source: str, path: Path | None) -> ModuleType:
     module.__file__ = None if path is None else str(path)
     code = compile(source, str(path) if path else f"<mechsim model {name}>", "exec")
     exec(code, module.__dict__)
+    sparse_forms(module)
     return module
+
+
+def sparse_forms(module) -> None:
+    """Give a generated module whose Φ_q comes also as its non-zero entries (`phi_q_nz`:
+    a model of `compiled.CSR_MIN_COORDINATES` or more) the forms a long chain's solvers take, Φ_q a CSR array of its
+    pattern (`mechsim.linalg.sparse`): `phi_q_csr`, `position_terms_csr` and
+    `dynamics_terms_csr`, as the assembled model has them. They call the module's
+    functions as it has them at the call (its C twins once `attach`ed)."""
+    if not hasattr(module, "phi_q_nz"):
+        return
+    from scipy.sparse import csr_array
+    rows = np.asarray(module.JACOBIAN_ROWS, dtype=np.intp)
+    indptr = np.searchsorted(rows, np.arange(module.M + 1))
+    template = csr_array((np.zeros(rows.size), np.asarray(module.JACOBIAN_COLS, np.intp),
+                          indptr), shape=(module.M, module.N))
+
+    def phi_q_csr(q, t, p):
+        return with_data(template, module.phi_q_nz(q, t, p))
+
+    def position_terms_csr(q, t, p):
+        phi, data = module.position_terms_nz(q, t, p)
+        return phi, with_data(template, data)
+
+    def dynamics_terms_csr(q, v, t, p):
+        data, gamma = module.dynamics_terms_nz(q, v, t, p)
+        return with_data(template, data), gamma
+
+    module.phi_q_csr, module.position_terms_csr = phi_q_csr, position_terms_csr
+    module.dynamics_terms_csr = dynamics_terms_csr
 
 
 _loaded: dict[str, ModuleType] = {}

@@ -42,6 +42,10 @@ from .cache import adopt, env_flag, read_verified, verified_file, warn_once, wri
 # Φ, Φ_q, Φ_t and γ serve only inside the compiled partitioned engine. It is also where a
 # fused model stops paying for its build (`mechsim.build.constraint_model`).
 C_MIN_COORDINATES = 60
+# Fused models with at least this many coordinates also give Φ_q as its non-zero entries,
+# and a long chain's solvers then take it as a CSR array (`cache.sparse_forms`): below it
+# the dense Φ_q from C serves the banded algebra as fast or faster (docs/benchmarks.md).
+CSR_MIN_COORDINATES = 200
 
 # The flags every compile of mechsim's C takes: `-ffp-contract=off` keeps multiply-adds
 # unfused where a platform has them, so that the C sums round as numpy's. They are part of

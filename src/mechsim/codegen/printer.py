@@ -11,7 +11,7 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
-from .compiled import C_MIN_COORDINATES
+from .compiled import C_MIN_COORDINATES, CSR_MIN_COORDINATES
 
 
 class _Printer(PythonCodePrinter):
@@ -94,11 +94,15 @@ class SharedTerms:
         for _, _, nz in self.layout:
             self._starts.append(self._starts[-1] + len(nz))
 
-    def select(self, which):
+    def select(self, which, flat=()):
         """(layout, replacements, entries, free symbols) of the outputs numbered `which`,
-        as `shared_terms` of those outputs gives them, the replacements in cse's order."""
+        as `shared_terms` of those outputs gives them, the replacements in cse's order.
+        The outputs numbered in `flat` are given as the vector of their non-zero entries
+        in row-major order (the data of a CSR array of their pattern)."""
         which = list(which)
-        layout = [self.layout[k] for k in which]
+        layout = [self.layout[k] if k not in flat else
+                  (len(self.layout[k][2]), 1, [(i, 0) for i in range(len(self.layout[k][2]))])
+                  for k in which]
         reduced = [e for k in which for e in self.reduced[self._starts[k]:self._starts[k + 1]]]
         needed = set().union(*(e.free_symbols & self._terms for e in reduced))
         for sym, _ in reversed(self.repl):
@@ -287,6 +291,18 @@ def model_source(system, key: str) -> str:
                "(Φ, Φ_q, Φ_t, γ) with shared terms.")
     w.function("dynamics_terms", ("_q", "_v", "t", "_p"), shared.select([phi_q, gamma]),
                "(Φ_q, γ) with shared terms: what the constrained accelerations need.")
+    if len(s.q) >= CSR_MIN_COORDINATES:
+        # Φ_q as its non-zero entries (JACOBIAN_ROWS, JACOBIAN_COLS, row-major): a long
+        # chain's solvers take it as a CSR array (`mechsim.codegen.cache.sparse_forms`),
+        # where the dense (m, n) array would cost O(m n) to fill for O(m) entries.
+        w.function("phi_q_nz", ("_q", "t", "_p"), shared.select([phi_q], flat=[phi_q]),
+                   "Φ_q's non-zero entries in row-major order.")
+        w.function("position_terms_nz", ("_q", "t", "_p"),
+                   shared.select([phi, phi_q], flat=[phi_q]),
+                   "(Φ, Φ_q's non-zero entries) with shared terms.")
+        w.function("dynamics_terms_nz", ("_q", "_v", "t", "_p"),
+                   shared.select([phi_q, gamma], flat=[phi_q]),
+                   "(Φ_q's non-zero entries, γ) with shared terms.")
     return w.module(key)
 
 

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..options import Option
+from ..linalg.newton import STALL_RATIO, STALL_SPAN
+from ..linalg.sparse import transpose_times
 from ..problem.numeric import velocities_hold
 from .base import Correction, Formulation
 from .basis import ConstraintSolveError
@@ -127,6 +129,8 @@ def settle_samples(problem, ts, Q, V, accept, compiled=False) -> None:
         return
     if problem.algebra.dense_complement:
         off = _settle_together(problem, ts, Q, V, phis, floors, off)
+    elif problem.sparse and problem.mass_model.constant:
+        off = _settle_each(problem, ts, Q, V, phis, floors, off)
     for k in off:
         t = ts[k]
         done = problem.project_state(Q[k], V[k], t, tol=floors[k])
@@ -136,6 +140,50 @@ def settle_samples(problem, ts, Q, V, accept, compiled=False) -> None:
                 Q[k], V[k] = q, problem.project_velocities(q, V[k], t)
         else:
             Q[k], V[k] = done
+
+
+def _settle_each(problem, ts, Q, V, phis, floors, off, max_iter=8):
+    """`NumericProblem.project_state` for the samples `off` of a long chain, side by side:
+    each its own chord (one factor of the banded complement at its own q, serving its
+    velocities too) under `newton`'s rules (tol its floor, round-off stalls, `max_iter`),
+    but Φ and Φ_q of all of them in one call each where the model evaluates many states
+    together (the assembled model): a step's samples cost about what one does. Returns
+    the samples it did not settle (no factor, no convergence), for their own projections."""
+    f = problem.mass_factor(Q[off[0]])
+    tk, q, tol = ts[off], Q[off].copy(), floors[off]
+    Js = problem.solver_phi_q_many(q, tk)
+    solves = [problem.complement_solver(J, f) for J in Js]
+    Jt = [f.cols(J) for J in Js]
+    failed = np.array([solve is None for solve in solves])
+    landed = np.zeros(len(off), dtype=bool)
+    phi, prev = phis[off], np.full(len(off), np.inf)
+    active = np.flatnonzero(~failed)
+    for k in range(max_iter + 1):
+        err = np.max(np.abs(phi[active]), axis=1)
+        done = (err <= tol[active]) | (
+            (err > STALL_RATIO * prev[active]) & (err <= STALL_SPAN * tol[active]))
+        landed[active[done]] = True
+        active, err = active[~done], err[~done]
+        stuck = ~np.isfinite(err) if k < max_iter else np.ones(len(active), dtype=bool)
+        failed[active[stuck]] = True
+        active, prev[active[~stuck]] = active[~stuck], err[~stuck]
+        if not active.size:
+            break
+        for i in active:
+            problem.counters.projections += 1
+            q[i] -= f.right(transpose_times(Jt[i], solves[i](phi[i])))
+        phi[active] = problem.phi_many(q[active], tk[active])
+    idx = np.flatnonzero(landed)
+    for i, J in zip(idx, problem.solver_phi_q_many(q[idx], tk[idx])):
+        t, v = tk[i], V[off[i]]
+        phi_t = problem.phi_t(q[i], t)
+        moved = v - f.right(transpose_times(f.cols(J), solves[i](J @ v + phi_t)))
+        # The factor at the sample's old q leaves J v off by |ΔJ| |Δv| at the new q (a
+        # long step's sample): the velocities' own projection there.
+        V[off[i]] = moved if velocities_hold(J, moved, phi_t) else \
+            problem.project_velocities(q[i], v, t)
+        Q[off[i]] = q[i]
+    return off[~landed]
 
 
 def _settle_together(problem, ts, Q, V, phis, floors, off):

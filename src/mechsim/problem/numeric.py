@@ -228,6 +228,13 @@ class NumericProblem:
     def solver_phi_q(self, q, t):
         return self.model.phi_q_csr(q, t, self.p) if self.sparse else self.phi_q(q, t)
 
+    def solver_phi_q_many(self, Q, ts) -> list:
+        """`solver_phi_q` at the states (ts[i], Q[i]): in one call where the model evaluates
+        many states together (the assembled one)."""
+        if self.sparse and hasattr(self.model, "phi_q_csr_many"):
+            return self.model.phi_q_csr_many(Q, ts, self.p)
+        return [self.solver_phi_q(q, t) for q, t in zip(Q, ts)]
+
     def solver_position_terms(self, q, t):
         if self.sparse:
             return self.model.position_terms_csr(q, t, self.p)
