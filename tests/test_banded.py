@@ -203,11 +203,16 @@ def test_a_chain_s_samples_settle_together_as_each_would_alone(build, rng, reque
                                                             np.linspace(-2.0, 1.0, 6))]
     Q0 = np.array([q for q, _ in states]) + 1e-6 * rng.standard_normal((6, prob.n))
     V0 = np.array([v for _, v in states]) + 1e-6 * rng.standard_normal((6, prob.n))
+    Q0[4] += 0.05 * rng.standard_normal(prob.n)      # too far for a chord: the full way
     Q, V = Q0.copy(), V0.copy()
     settle_samples(prob, ts, Q, V, 1e-6)
-    for t, q0, v0, q, v in zip(ts, Q0, V0, Q, V):
+    for k, (t, q0, v0, q, v) in enumerate(zip(ts, Q0, V0, Q, V)):
         floor = ROUND_OFF * max(1.0, np.abs(q0).max())
         alone = prob.project_state(q0, v0, t, tol=floor)
+        assert (alone is None) == (k == 4)
+        if alone is None:
+            at, _, _ = prob.project_positions(q0, t, tol=floor)
+            alone = at, prob.project_velocities(at, v0, t)
         np.testing.assert_allclose(q, alone[0], rtol=0, atol=1e-14 * np.abs(q0).max())
         np.testing.assert_allclose(v, alone[1], rtol=0, atol=1e-13 * np.abs(v0).max())
         assert np.abs(prob.phi(q, t)).max() <= 1e3 * floor

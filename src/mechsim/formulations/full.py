@@ -166,7 +166,8 @@ def _settle_each(problem, ts, Q, V, phis, floors, off, max_iter=8):
         active, err = active[~done], err[~done]
         stuck = ~np.isfinite(err) if k < max_iter else np.ones(len(active), dtype=bool)
         failed[active[stuck]] = True
-        active, prev[active[~stuck]] = active[~stuck], err[~stuck]
+        prev[active[~stuck]] = err[~stuck]
+        active = active[~stuck]
         if not active.size:
             break
         for i in active:
