@@ -176,10 +176,11 @@ def _module(name: str, source: str, path: Path | None) -> ModuleType:
 
 def sparse_forms(module) -> None:
     """Give a generated module whose Φ_q comes also as its non-zero entries (`phi_q_nz`:
-    a model of `compiled.CSR_MIN_COORDINATES` or more) the forms a long chain's solvers take, Φ_q a CSR array of its
-    pattern (`mechsim.linalg.sparse`): `phi_q_csr`, `position_terms_csr` and
-    `dynamics_terms_csr`, as the assembled model has them. They call the module's
-    functions as it has them at the call (its C twins once `attach`ed)."""
+    a model of `compiled.CSR_MIN_COORDINATES` coordinates or more) the forms a long
+    chain's solvers take, Φ_q a CSR array of its pattern (`mechsim.linalg.sparse`):
+    `phi_q_csr`, `position_terms_csr` and `dynamics_terms_csr`, as the assembled model
+    has them. They call the module's functions as it has them at the call (its C twins
+    once `attach`ed)."""
     if not hasattr(module, "phi_q_nz"):
         return
     from scipy.sparse import csr_array

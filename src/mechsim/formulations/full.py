@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..options import Option
-from ..linalg.newton import STALL_RATIO, STALL_SPAN
+from ..linalg.newton import newton_stalled
 from ..linalg.sparse import transpose_times
 from ..problem.numeric import velocities_hold
 from .base import Correction, Formulation
@@ -160,8 +160,7 @@ def _settle_each(problem, ts, Q, V, phis, floors, off, max_iter=8):
     active = np.flatnonzero(~failed)
     for k in range(max_iter + 1):
         err = np.max(np.abs(phi[active]), axis=1)
-        done = (err <= tol[active]) | (
-            (err > STALL_RATIO * prev[active]) & (err <= STALL_SPAN * tol[active]))
+        done = (err <= tol[active]) | newton_stalled(err, prev[active], tol[active])
         landed[active[done]] = True
         active, err = active[~done], err[~done]
         stuck = ~np.isfinite(err) if k < max_iter else np.ones(len(active), dtype=bool)

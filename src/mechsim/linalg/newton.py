@@ -30,11 +30,12 @@ STALL_RATIO = 0.5
 STALL_SPAN = 1e3
 
 
-def newton_stalled(err: float, prev: float, tol: float, round_off: float | None = None) -> bool:
+def newton_stalled(err, prev, tol, round_off: float | None = None):
     """Has a Newton iteration on Φ reached round-off (see the module docstring)? Within
-    `round_off` of zero if given, else within `STALL_SPAN` tol."""
-    return err > STALL_RATIO * prev and err <= (STALL_SPAN * tol if round_off is None
-                                                else round_off)
+    `round_off` of zero if given, else within `STALL_SPAN` tol. Elementwise where the
+    residuals are arrays (several iterations side by side)."""
+    return (err > STALL_RATIO * prev) & (err <= (STALL_SPAN * tol if round_off is None
+                                                 else round_off))
 
 
 def max_abs(phi) -> float:
