@@ -204,22 +204,29 @@ class AssembledModel:
                      self._csr(a) if name == "Jcsr" else a for a, name in zip(arrays, outputs))
 
     def _evaluate_many(self, function, output, Q, ts, p):
-        """`output` ("phi" or "J") at the states (ts[i], Q[i]) stacked, (k, M) or
-        (k, M, N): each group's kernel called once for all of them (its joints of every
-        state as rows), so many states cost about what one does."""
+        """`output` ("phi", "J" or "Jcsr") at the states (ts[i], Q[i]): stacked, (k, M) or
+        (k, M, N), or a list of CSR arrays as `phi_q_csr` gives them; each group's kernel
+        called once for all of them (its joints of every state as rows), so many states
+        cost about what one does."""
         Q = np.asarray(Q, dtype=float)
         k = Q.shape[0]
-        width = self.M * self.N if output == "J" else self.M
+        width = {"J": self.M * self.N, "Jcsr": self._csr_indices.size}.get(output, self.M)
         out = np.zeros((k, width))
         for g, P in zip(self.groups, self._p(p)):
             joints = g.rows.shape[0]
             rows = Q[:, g.cols].reshape(k * joints, -1)
             value = getattr(g.kernel, function)(rows, np.tile(P, (k, 1)))
-            target = g.flat if output == "J" else g.rows
-            out[:, target] = np.reshape(value, (k, *target.shape))
+            if output == "Jcsr":
+                value = np.reshape(value, (k, joints, *value.shape[1:]))
+                out[:, g.csr] = value[..., g.pattern[0], g.pattern[1]].transpose(0, 2, 1)
+            else:
+                target = g.flat if output == "J" else g.rows
+                out[:, target] = np.reshape(value, (k, *target.shape))
         if self.laws and output == "phi":
             for i, t in enumerate(ts):
                 out[i, self.law_rows] -= self._law(t)[0]
+        if output == "Jcsr":
+            return [self._csr(row) for row in out]
         return out.reshape(k, self.M, self.N) if output == "J" else out
 
     def phi_many(self, Q, ts, p):
@@ -231,26 +238,15 @@ class AssembledModel:
         return self._evaluate_many("jacobian", "J", Q, ts, p)
 
     def phi_q_csr_many(self, Q, ts, p):
-        """Φ_q at the states (ts[i], Q[i]), each as `phi_q_csr` gives it: each group's
-        kernel called once for all of them (`_evaluate_many`)."""
-        Q = np.asarray(Q, dtype=float)
-        k = Q.shape[0]
-        data = np.zeros((k, self._csr_indices.size))
-        for g, P in zip(self.groups, self._p(p)):
-            joints = g.rows.shape[0]
-            value = g.kernel.jacobian(Q[:, g.cols].reshape(k * joints, -1), np.tile(P, (k, 1)))
-            entries = np.reshape(value, (k, joints, *value.shape[1:]))[..., g.pattern[0],
-                                                                        g.pattern[1]]
-            data[:, g.csr] = entries.transpose(0, 2, 1)
-        return [self._csr(row) for row in data]
+        """Φ_q at the states (ts[i], Q[i]), each as `phi_q_csr` gives it."""
+        return self._evaluate_many("jacobian", "Jcsr", Q, ts, p)
 
     def _csr(self, data):
         """Φ_q's entries `data` as a CSR array of the pattern (scipy's constructor checks
         the structure once, for the first; the others share it: `sparse.with_data`)."""
         if self._csr_template is None:
-            from scipy.sparse import csr_array
-            self._csr_template = csr_array((data, self._csr_indices, self._csr_indptr),
-                                           shape=(self.M, self.N))
+            self._csr_template = sparse.template(self._csr_indices, self._csr_indptr,
+                                                 (self.M, self.N))
         return sparse.with_data(self._csr_template, data)
 
     def phi(self, q, t, p):

@@ -33,7 +33,7 @@ from types import ModuleType
 
 import numpy as np
 
-from ..linalg.sparse import with_data
+from ..linalg.sparse import template, with_data
 
 # Bump when the generated code changes meaning, so stale cache entries are not used.
 CODEGEN_VERSION = 15          # 15: a long chain's Φ_q also as its non-zero entries
@@ -183,22 +183,20 @@ def sparse_forms(module) -> None:
     once `attach`ed)."""
     if not hasattr(module, "phi_q_nz"):
         return
-    from scipy.sparse import csr_array
     rows = np.asarray(module.JACOBIAN_ROWS, dtype=np.intp)
-    indptr = np.searchsorted(rows, np.arange(module.M + 1))
-    template = csr_array((np.zeros(rows.size), np.asarray(module.JACOBIAN_COLS, np.intp),
-                          indptr), shape=(module.M, module.N))
+    pattern = template(np.asarray(module.JACOBIAN_COLS, np.intp),
+                       np.searchsorted(rows, np.arange(module.M + 1)), (module.M, module.N))
 
     def phi_q_csr(q, t, p):
-        return with_data(template, module.phi_q_nz(q, t, p))
+        return with_data(pattern, module.phi_q_nz(q, t, p))
 
     def position_terms_csr(q, t, p):
         phi, data = module.position_terms_nz(q, t, p)
-        return phi, with_data(template, data)
+        return phi, with_data(pattern, data)
 
     def dynamics_terms_csr(q, v, t, p):
         data, gamma = module.dynamics_terms_nz(q, v, t, p)
-        return with_data(template, data), gamma
+        return with_data(pattern, data), gamma
 
     module.phi_q_csr, module.position_terms_csr = phi_q_csr, position_terms_csr
     module.dynamics_terms_csr = dynamics_terms_csr

@@ -154,19 +154,18 @@ def _settle_each(problem, ts, Q, V, phis, floors, off, max_iter=8):
     Js = problem.solver_phi_q_many(q, tk)
     solves = [problem.complement_solver(J, f) for J in Js]
     Jt = [f.cols(J) for J in Js]
-    failed = np.array([solve is None for solve in solves])
     landed = np.zeros(len(off), dtype=bool)
     phi, prev = phis[off], np.full(len(off), np.inf)
-    active = np.flatnonzero(~failed)
+    active = np.flatnonzero([solve is not None for solve in solves])
     for k in range(max_iter + 1):
         err = np.max(np.abs(phi[active]), axis=1)
         done = (err <= tol[active]) | newton_stalled(err, prev[active], tol[active])
         landed[active[done]] = True
         active, err = active[~done], err[~done]
-        stuck = ~np.isfinite(err) if k < max_iter else np.ones(len(active), dtype=bool)
-        failed[active[stuck]] = True
-        prev[active[~stuck]] = err[~stuck]
-        active = active[~stuck]
+        # Non-finite residuals, or the iteration limit: left to their own projections.
+        going = np.isfinite(err) if k < max_iter else np.zeros(len(active), dtype=bool)
+        prev[active[going]] = err[going]
+        active = active[going]
         if not active.size:
             break
         for i in active:
@@ -175,13 +174,7 @@ def _settle_each(problem, ts, Q, V, phis, floors, off, max_iter=8):
         phi[active] = problem.phi_many(q[active], tk[active])
     idx = np.flatnonzero(landed)
     for i, J in zip(idx, problem.solver_phi_q_many(q[idx], tk[idx])):
-        t, v = tk[i], V[off[i]]
-        phi_t = problem.phi_t(q[i], t)
-        moved = v - f.right(transpose_times(f.cols(J), solves[i](J @ v + phi_t)))
-        # The factor at the sample's old q leaves J v off by |ΔJ| |Δv| at the new q (a
-        # long step's sample): the velocities' own projection there.
-        V[off[i]] = moved if velocities_hold(J, moved, phi_t) else \
-            problem.project_velocities(q[i], v, t)
+        V[off[i]] = problem.velocities_by(q[i], V[off[i]], tk[i], solves[i], J)
         Q[off[i]] = q[i]
     return off[~landed]
 

@@ -46,6 +46,14 @@ def values(J, rows, cols, where=None):
     return J.data[positions(J, rows, cols) if where is None else where]
 
 
+def template(indices, indptr, shape):
+    """A CSR array of the pattern (`indices`, `indptr`: sorted within each row, without
+    duplicates) holding zeros, its structure checked by scipy once: `with_data` gives each
+    evaluation's matrix from it."""
+    from scipy.sparse import csr_array
+    return csr_array((np.zeros(len(indices)), indices, indptr), shape=shape)
+
+
 def with_data(J, data):
     """The CSR matrix of J's pattern holding `data` (float, one value per entry of J.data):
     a shallow copy of J, its index arrays shared (never changed in place: the pattern is

@@ -480,17 +480,23 @@ class NumericProblem:
                       extra=extra)
         if not done.converged:
             return None
-        q = done.x
-        J = self.solver_phi_q(q, t)
+        return done.x, self.velocities_by(done.x, v, t, solve)
+
+    def velocities_by(self, q, v, t, solve, J=None):
+        """v projected onto Φ_q v + Φ_t = 0 at q in the mass metric with `solve`, the
+        complement's factor at a configuration near q (a chord's), where that leaves them
+        on their constraints (`velocities_hold`); else by their own projection at q.
+        `J`: `solver_phi_q` at (q, t), if the caller has it."""
+        J = self.solver_phi_q(q, t) if J is None else J
         f = self.mass_factor(q)
         phi_t = self.phi_t(q, t)
         moved = v - f.right(transpose_times(f.cols(J), solve(J @ v + phi_t)))
         if velocities_hold(J, moved, phi_t):
-            return q, moved
+            return moved
         # The factor at the given q leaves J v off by |ΔJ| |Δv| at the new q (a long step's
         # sample), or it was of a singular complement (redundant rows): the velocities'
         # own projection at the new q.
-        return q, self.project_velocities(q, v, t)
+        return self.project_velocities(q, v, t)
 
     def project_velocities(self, q, v, t, extra=None):
         """v − W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ (Φ_q v + Φ_t): the nearest consistent velocity in the
