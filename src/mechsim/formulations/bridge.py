@@ -30,9 +30,11 @@ spacings H/3 and H/4 read 2–10× larger estimates. A bridge whose estimate mis
 tolerance is not taken: d shrinks by the estimate's (order+1)-th root and the integrator
 lands again. Where landing closer makes the estimate no better (it is then the round-off of
 q̈ near the configuration, not truncation), or at the floor of 1.2 `EDGE` cuts, the best
-declined bridge with an estimate up to `FLOOR_ACCEPT` tolerances (or 1e-8 relative) is
-taken; without one, or if a landing falls inside the band, the bridge stands down and the
-formulation steps through the passage on its own.
+declined bridge is taken: one with an estimate up to `FLOOR_ACCEPT` tolerances (or 1e-8
+relative) as within the run's accuracy, one up to `LAST_RESORT_RELATIVE` (1e-6 relative) as
+a last resort that the run's message reports (`beyond`). Without one, or if a landing falls
+inside the band, the bridge stands down and the formulation steps through the passage on
+its own.
 """
 
 from __future__ import annotations
@@ -57,6 +59,12 @@ SPAN = 2.4
 # (docs/design-notes.md, passage bridge).
 FLOOR_ACCEPT = 10.0
 FLOOR_ACCEPT_RELATIVE = 1e-8
+# Where the estimates grow as the landing closes in, or the floor is reached, above
+# `FLOOR_ACCEPT`: the best bridge with an estimate up to this relative error is still taken
+# (and the run's message says so), since stepping through the band is then both slower and
+# no more accurate (the 100-window chain at rtol 1e-10: estimates 108, 450, 2140 tolerances,
+# then steps of 1e-7 s with a 602 × 603 SVD in each evaluation, no end in 15 minutes).
+LAST_RESORT_RELATIVE = 1e-6
 # The fewest history points a crossing is built on (its corrector orders start at 3).
 MIN_HISTORY = 5
 # The most right-hand sides a history's backward integration may spend, per point.
@@ -115,6 +123,8 @@ class PassageBridge:
         self._declined = None                   # (estimate, crossing) of the best declined
         self.evaluations = 0                    # right-hand sides evaluated by the bridge
         self.over_tolerance = 0                 # bridges taken at the floor with estimate > 1
+        self.beyond = []                        # (t*, relative estimate) of bridges taken
+                                                # over `FLOOR_ACCEPT` (the last resort)
 
     def extended(self, extension) -> "PassageBridge":
         """A new bridge with this one's settings that carries `extension` over too."""
@@ -302,18 +312,18 @@ class PassageBridge:
         at_floor = self.landing is not None and self.landing <= 1.01 * self._floor()
         accept = max(FLOOR_ACCEPT, FLOOR_ACCEPT_RELATIVE / self.rtol)
         if err > 1.0 and not (at_floor and err <= accept):
-            best_declined = self._declined
-            if best_declined is not None and (err >= best_declined[0] or at_floor):
+            declined = self._declined
+            if declined is not None and err >= declined[0]:
                 # Closer was no better: the estimate is the round-off of q̈ near the
                 # configuration, which a still closer landing only amplifies
                 # (docs/design-notes.md, passage bridge). The best bridge declined so far is
                 # taken instead; its end lies past the present landing point.
-                self._declined, self.landing = None, None
-                self.over_tolerance += 1
-                return best_declined[1]
-            if err <= accept:
+                return self._take_declined(accept)
+            if err <= max(accept, LAST_RESORT_RELATIVE / self.rtol):
                 self._declined = (err, self._finish(n, t_n, t_b, H, y_n, ys, best, nodes, F,
                                                     t_star, history))
+            if at_floor and self._declined is not None:
+                return self._take_declined(accept)
             return self._decline(err)
         if err > 1.0:
             self.over_tolerance += 1
@@ -381,6 +391,16 @@ class PassageBridge:
 
         return Crossing(t_b, y_b[:n], y_b[n:2 * n], interpolant, t_star, history, H, k - 1,
                         None if self.extension is None else y_b[2 * n:])
+
+    def _take_declined(self, accept):
+        """The best declined crossing, taken (counted over tolerance, and among `beyond`
+        where its estimate exceeds `accept`)."""
+        err, crossing = self._declined
+        self._declined, self.landing = None, None
+        self.over_tolerance += 1
+        if err > accept:
+            self.beyond.append((crossing.t_star, err * self.rtol))
+        return crossing
 
     def _floor(self):
         """The closest landing distance: σ_min/σ_max of 1.2 `EDGE` cuts at the present rate."""

@@ -128,8 +128,9 @@ class Run:
         self.bound = StepBound(settings.max_step, bound_read_at_start(solver_cls))
         self.stats = Statistics()
         self.bridge = form.bridge
-        self._bridge_start = ((self.bridge.evaluations, self.bridge.over_tolerance)
-                              if self.bridge is not None else (0, 0))
+        self._bridge_start = ((self.bridge.evaluations, self.bridge.over_tolerance,
+                               len(self.bridge.beyond))
+                              if self.bridge is not None else (0, 0, 0))
         # The last accepted states (t, q, v), for a warm Adams restart after a change of
         # coordinates (after a bridge: the states the bridge was built on).
         self.keep_past = issubclass(solver_cls, AdamsPECE)
@@ -424,6 +425,15 @@ class Run:
                              f"at {monitor.peak:.2g} (very unequal masses), below round-off: "
                              "singular passages were not watched")
         passages = monitor.passages
+        beyond = self.bridge.beyond[self._bridge_start[2]:] if self.bridge is not None else []
+        if beyond:
+            worst = max(beyond, key=lambda b: b[1])
+            self.message += (
+                f"; {len(beyond)} singular passage(s) (first at t = {beyond[0][0]:.6g}) were "
+                f"crossed with an estimated relative error up to {worst[1]:.2g} (at t = "
+                f"{worst[0]:.6g}), above the run's tolerance: the round-off of the "
+                "accelerations near the configuration, which no closer step resolves "
+                "(stepping through the passage instead would be slower and no more accurate)")
         if self.status != Status.SUCCESS:
             return
         first = passages[0] if passages else None
