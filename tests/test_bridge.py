@@ -88,15 +88,16 @@ def ten_window():
 def test_bridging_costs_each_passage_a_bounded_number_of_evaluations(ten_window):
     """The ten-window chain loses ten directions over each passage, one after another.
     Bridged, each passage costs its Adams step's evaluations; stepping through costs what
-    the step placement happens to give. `mechsim bench costs` (ten-window) measures both on
-    four BLAS kernels: bridged 212 bridge evaluations and 881 right-hand sides for 3 s,
-    stepped through 3094–5793; the bounds here are three times the bridged figures."""
-    kw = dict(t_end=3.0, method="projection", rtol=1e-8, atol=1e-10, output_step=0.01)
+    the step placement happens to give. `mechsim bench costs` (ten-window, rtol 1e-7, a
+    local tolerance of 2.5e-9) measures both: bridged 215 bridge evaluations and 992
+    right-hand sides for 3 s, stepped through 708 here and 3094–5793 over four BLAS kernels
+    at a local tolerance of 3.2e-9; the bounds here are three times the bridged figures."""
+    kw = dict(t_end=3.0, method="projection", rtol=1e-7, atol=1e-9, output_step=0.01)
     bridged = ten_window.simulate(**kw)
     assert bridged.status == "success"
     assert bridged.stats["bridges"] == 3 and bridged.stats["bridges_over_tolerance"] == 0
-    assert bridged.stats["bridge_evaluations"] <= 3 * 212
-    assert bridged.stats["rhs_evaluations"] <= 3 * 881
+    assert bridged.stats["bridge_evaluations"] <= 3 * 215
+    assert bridged.stats["rhs_evaluations"] <= 3 * 992
     assert tip_error(bridged, 10) <= 1e-7
     # Stepped through, over its first passage (at 0.72 s; the whole 3 s cost 3094-5793
     # right-hand sides by kernel).
@@ -126,11 +127,11 @@ def test_a_hundred_window_chain_bridges_its_passages_within_tolerance():
     error estimates of 8 and 1183 and the second passage was stepped through with an SVD
     of J̃ at every evaluation (minutes). With the cut relative to the chain's own level
     both passages of the first 1.3 s are bridged within tolerance (16 steps) at a local
-    tolerance of 1e-8 (rtol 1e-7, `Tolerances.local`; at 3.2e-9, rtol 1e-8, one bridge is
+    tolerance of 1e-8 (rtol 1e-6, `Tolerances.local`; at 2.5e-9, rtol 1e-7, one bridge is
     taken at its floor over tolerance)."""
     mech = ms.examples.double_four_bar(100)
     mech.problem(build="assembled")
-    res = mech.simulate(t_end=1.3, method="hybrid", rtol=1e-7, atol=1e-9, output_step=0.01,
+    res = mech.simulate(t_end=1.3, method="hybrid", rtol=1e-6, atol=1e-8, output_step=0.01,
                         max_steps=60)
     assert res.status == "success", res.message
     assert res.stats["bridges"] == 2 == len(res.singular_passages)

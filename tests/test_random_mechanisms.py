@@ -109,9 +109,9 @@ def test_the_generator_covers_every_class():
 
 
 def test_a_step_that_leaves_the_branch_is_retaken_or_reported():
-    """A Grashof double-crank at rtol 0.05: LU strides 0.3 s steps and its Newton lands on
+    """A Grashof double-crank at rtol 0.1: LU strides 0.3 s steps and its Newton lands on
     the mirror assembly (the coupler crosses to the rocker's other side; energy balance off
-    by 0.60), which it now reports; the default method takes such a step again, shorter, and
+    by 0.013), which it now reports; the default method takes such a step again, shorter, and
     stays on its branch, its energy balance within the integration error of so loose a
     tolerance (10 rtol)."""
     a, b, c, d = 0.8131294559364897, 1.3211470186857572, 1.123945832457931, 0.22569475014308732
@@ -121,12 +121,12 @@ def test_a_step_that_leaves_the_branch_is_retaken_or_reported():
 
     def side(res):
         return np.sign(np.sin(res.coordinate("coupler.angle") - res.coordinate("rocker.angle")))
-    # (its first step as long: the local tolerance, rtol/30, would not let it grow so far)
-    lu = mech.simulate(t_end=3.0, method="lu", rtol=0.05, atol=1e-6, first_step=0.3)
+    # (its first step as long: the local tolerance, rtol/100, would not let it grow so far)
+    lu = mech.simulate(t_end=3.0, method="lu", rtol=0.1, atol=1e-6, first_step=0.3)
     assert np.any(side(lu) != side(lu)[0])                   # it did leave its branch
     assert "may have left its assembly branch" in lu.message
-    hybrid = mech.simulate(t_end=3.0, method="hybrid", rtol=0.05, atol=1e-6, output_step=0.01,
+    hybrid = mech.simulate(t_end=3.0, method="hybrid", rtol=0.1, atol=1e-6, output_step=0.01,
                            first_step=0.3)
     assert np.all(side(hybrid) == side(hybrid)[0])
     assert "assembly branch" not in hybrid.message
-    assert np.max(np.abs(hybrid.energy_drift)) < 10 * 0.05
+    assert np.max(np.abs(hybrid.energy_drift)) < 10 * 0.1

@@ -56,7 +56,7 @@ def ten_window():
     """The ten-window chain for 3 s (three passages): projection bridged and stepped
     through, and the hybrid."""
     mech = examples.double_four_bar(10)
-    kw = dict(t_end=3.0, rtol=1e-8, atol=1e-10, output_step=0.01)
+    kw = dict(t_end=3.0, rtol=1e-7, atol=1e-9, output_step=0.01)
     return (_row_set("10-window, projection", mech.simulate(method="projection", **kw)) +
             _row_set("10-window, projection without bridges",
                      mech.simulate(method="projection", bridge_passages=False, **kw)) +

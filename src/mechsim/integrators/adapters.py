@@ -116,6 +116,22 @@ def lsoda_workspace(solver):
     return getattr(getattr(ode, ODE_INTEGRATOR, None), "rwork", None)
 
 
+def retune(solver, rtol, atol) -> bool:
+    """Give a running integrator new tolerances for its next steps without restarting it,
+    where its steps read them afresh: scipy's explicit Runge–Kutta methods and mechsim's
+    Adams (`rtol`, `atol`; the compiled DOP853 keeps its own copy of atol, renewed by its
+    `tolerances_changed`). False elsewhere (BDF and Radau derive Newton's tolerance from
+    rtol once, LSODA keeps them in ODEPACK's arrays): the caller restarts the solver."""
+    if not isinstance(solver, (RK23, RK45, DOP853, AdamsPECE)) or \
+            not (hasattr(solver, "rtol") and hasattr(solver, "atol")):
+        return False
+    solver.rtol, solver.atol = float(rtol), float(atol)
+    changed = getattr(solver, "tolerances_changed", None)
+    if changed is not None:
+        changed()
+    return True
+
+
 def proposed_step(solver):
     """The step size the integrator proposes next (scipy's RK, BDF, Radau: h_abs; Adams: h;
     LSODA: HCUR, RWORK(12))."""

@@ -88,6 +88,10 @@ class CompiledDOP853(DOP853):
                             self._work.ctypes.data, self._out.ctypes.data,
                             ctypes.cast(self._fallback, ctypes.c_void_p))
 
+    def tolerances_changed(self):
+        """Renew the engine's copy of atol after `atol` was set (`adapters.retune`)."""
+        self._atol[:] = np.broadcast_to(np.asarray(self.atol, float), self.y.shape)
+
     def _python_rate(self, t, y, f):
         """The callback: scipy's own call of the rate (counted in nfev) at a state the
         engine declined; 1 where it raised (kept for `_after`)."""

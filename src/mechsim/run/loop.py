@@ -31,7 +31,8 @@ import numpy as np
 from ..formulations.bridge import bridge_passage
 from ..formulations.full import settle_samples
 from ..integrators import AdamsPECE, CompiledDOP853, integrator_name
-from ..integrators.adapters import bound_read_at_start, correct_in_place, proposed_step, shift_in_place, warm_start
+from ..integrators.adapters import (bound_read_at_start, correct_in_place, proposed_step, retune,
+                                    shift_in_place, warm_start)
 from ..results import SimulationResult
 from ..records import Status, WorkRecord
 from ..results.stream import begin_stream
@@ -39,6 +40,7 @@ from ..results.work import WorkIntegral
 from .bounds import Statistics, StepBound
 from .passage_times import PassageTimes
 from .runaway import Runaway
+from ..tolerances import Tolerances
 from ..formulations.basis import ConstraintSolveError
 from ..model.checks import LoadError
 from .samples import (FAILURES, NonFiniteState, Recorder, check_finite, fastest_motion,
@@ -126,6 +128,10 @@ class Run:
         if settings.stream is not None:
             begin_stream(settings.stream, problem.coordinate_names, channels)
         self.bound = StepBound(settings.max_step, bound_read_at_start(solver_cls))
+        # The integrator's tolerances: the run's local ones, or looser through a passage's
+        # band where no bridge crosses it (`_tolerances_for_passages`).
+        self.local = Tolerances(settings.rtol, settings.atol)
+        self.tolerances = self.local
         self.stats = Statistics()
         self.bridge = form.bridge
         self._bridge_start = ((self.bridge.evaluations, self.bridge.over_tolerance,
@@ -215,6 +221,8 @@ class Run:
         if why:
             return self._stop(why + fastest_motion(self.problem, solver.t,
                                                     self.form.state(solver.t, y_here)[1]))
+        if self.solver.status == "running":
+            self._tolerances_for_passages()
         if self.bridge is not None and self.solver.status == "running":
             self._bridge(self.solver.t, y_here)
         self.out.flush()
@@ -316,6 +324,23 @@ class Run:
             if self.keep_past:
                 self.stats.nfev += warm_start(self.solver, old, form, list(self.past)[:-1])
 
+    def _tolerances_for_passages(self) -> None:
+        """Step through a singular passage's band no tighter than
+        `Tolerances.through_passage` of the local tolerances, where the formulation steps
+        through it (no bridge, or the bridge stood down), and with the local ones again
+        once out of it: the integrator takes them in place, or is restarted with them."""
+        if self.s.h is not None:
+            return
+        bridged = self.form.bridging and not (self.bridge is not None and
+                                              self.bridge.standing_down)
+        wanted = self.local.through_passage() if self.monitor.inside and not bridged \
+            else self.local
+        if wanted == self.tolerances:
+            return
+        self.tolerances = wanted
+        if not retune(self.solver, wanted.rtol, wanted.atol):
+            self._replace(self.solver.t, self.solver.y, proposed_step(self.solver))
+
     def _bridge(self, t, y) -> None:
         """Cross a singular passage ahead where the formulation bridges, and go on from its
         far side."""
@@ -366,8 +391,9 @@ class Run:
         bound = s.max_step if bound is None else bound
         step = s.first_step if s.h is not None else step
         kw = {"first_step": min(step, s.t_end - t, bound)} if step else {}
-        solver = self.solver_cls(self.form.integrand, t, y, s.t_end, rtol=s.rtol, atol=s.atol,
-                                 max_step=bound, **kw)
+        tol = self.tolerances
+        solver = self.solver_cls(self.form.integrand, t, y, s.t_end, rtol=tol.rtol,
+                                 atol=tol.atol, max_step=bound, **kw)
         if isinstance(solver, CompiledDOP853):       # its steps in C where the rate is
             solver.rate = self.form.compiled_rate
         if isinstance(solver, AdamsPECE):

@@ -199,7 +199,7 @@ def simulate(problem: NumericProblem, q0, v0, *, t_end: float, method: str | Non
     ----------
     method : name in `mechsim.formulations.METHODS` (default "hybrid")
     rtol, atol : the accuracy asked of the motion; the integrator's local error test runs
-        at `Tolerances.local()` of them (a thirtieth from rtol 1e-6 up, all of it from 1e-9
+        at `Tolerances.local()` of them (a hundredth from rtol 1e-6 up, all of it from 1e-11
         down), so that the error of the whole run, not of each step, is of the order of rtol
     max_step : largest step the integrator may take
     output_step : spacing of output samples (None: one sample per accepted step)
