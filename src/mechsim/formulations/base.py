@@ -103,6 +103,8 @@ class Formulation:
     -------------------------------------------------------------------------
     bridge, bridging : a `PassageBridge` that crosses singular passages in one step (else
         None), and whether the run may use it at the present step
+    bridges_passages : whether the run's passages are bridged at all (by a phase of the
+        formulation that may not be the present one), else stepped through
     failure : what went wrong last, for the message of a failed run
     switches : list of `Switch`, its changes of formulation
     sign_changes : steps (t_a, t_b) across which its partition's det(Φ_q D) changed sign
@@ -116,6 +118,10 @@ class Formulation:
     bridge = None
     bridging = False
     project_now = None
+
+    @property
+    def bridges_passages(self) -> bool:
+        return self.bridging
     extras = None
     width = 0
 

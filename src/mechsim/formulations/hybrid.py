@@ -158,6 +158,10 @@ class Hybrid(Formulation):
     def bridging(self):
         return self.active is self.proj and self.proj.bridging
 
+    @property
+    def bridges_passages(self):
+        return self.proj.bridging
+
     def resume(self, t, q, v, extra=None):
         return self.active.resume(t, q, v, extra)
 

@@ -57,6 +57,10 @@ class Tangent(Formulation):
     def bridging(self):
         return self.base.bridging
 
+    @property
+    def bridges_passages(self):
+        return self.base.bridges_passages
+
     # What the run reads, from the formulation integrating the motion.
     @property
     def switches(self):

@@ -331,8 +331,8 @@ class Run:
         once out of it: the integrator takes them in place, or is restarted with them."""
         if self.s.h is not None:
             return
-        bridged = self.form.bridging and not (self.bridge is not None and
-                                              self.bridge.standing_down)
+        bridged = self.form.bridges_passages and not (self.bridge is not None and
+                                                      self.bridge.standing_down)
         wanted = self.local.through_passage() if self.monitor.inside and not bridged \
             else self.local
         if wanted == self.tolerances:
