@@ -282,17 +282,19 @@ def test_hybrid_with_adams_restarts_warm_after_switches_and_bridges(monkeypatch)
 
 
 def test_a_run_stuck_at_a_passage_stops_early_naming_the_joints():
-    """LU alone at rtol 1e-8 cannot pass the flexible four-bar's first passage: its steps
+    """LU alone at rtol 1e-6 cannot pass the flexible four-bar's first passage: its steps
     collapse to a few 1e-12 s at 0.172 s. The run stops once 2000 steps have advanced less
     than 1e-7 of its span, with its partial result and a message naming the joints, instead
-    of grinding on (it took 20001 steps and 23 s to reach a step limit)."""
-    res = ms.examples.flexible_four_bar().simulate(t_end=1.2, method="lu", rtol=1e-8,
-                                                   atol=1e-10, max_step=5e-4,
+    of grinding on (it took 20001 steps and 23 s to reach a step limit). (At rtol 1e-8 the
+    passage's band is integrated at 1e-9, `Tolerances.through_passage`, and whether LU's
+    partition gets through it depends on the BLAS kernel's round-off.)"""
+    res = ms.examples.flexible_four_bar().simulate(t_end=1.2, method="lu", rtol=1e-6,
+                                                   atol=1e-8, max_step=5e-4,
                                                    integrator="adams")
     assert res.status == "failed" and "the steps collapsed" in res.message
     assert "joints A, B, C, D" in res.message
     # It stops within a few hundred steps of the stall rule's 2000 (2470–2568 on four BLAS
-    # kernels, `mechsim bench costs`, stuck-lu), not at a step limit.
+    # kernels, `mechsim bench costs`, stuck-lu, rtol 1e-6), not at a step limit.
     assert 0.17 < res.t[-1] < 0.175 and res.stats["steps"] <= 3 * 2568
     assert len(res.t) > 300                           # the work before the passage is kept
 
