@@ -471,6 +471,29 @@ def test_bench_compares_methods_at_equal_error():
     assert equal_error([row("lu", 1e-5, 9e-3, 1.0)]) == []
 
 
+def test_bench_says_which_runs_missed_twenty_rtol_and_what_a_loose_rtol_saves():
+    """`bench.proportionality`: per method the runs within 20 rtol, naming those over it
+    (a failed run counts as over), then each problem's time at its loosest rtol over its
+    tightest."""
+    from mechsim.app.bench import Row, proportionality
+
+    def row(method, rtol, error, wall, status="success", problem="p"):
+        return Row(problem, method, "DOP853", rtol, status, error, 0.0, wall, 10, 100, 1)
+
+    rows = [row("hybrid", 1e-4, 1.5e-3, 0.4), row("hybrid", 1e-7, 2.5e-6, 1.6),
+            row("hybrid", 1e-10, 1e-9, 2.0), row("lu", 1e-4, 1e-3, 0.2),
+            row("lu", 1e-10, math.nan, 0.5, status="failed"),
+            row("hybrid", 1e-6, 1.9e-5, 1.0, problem="q")]
+    lines = proportionality(rows)
+    assert lines[:2] == [
+        "tolerance proportionality, hybrid: error ≤ 20 rtol in 3 of 4 runs; not: p at "
+        "1e-07 (25 rtol)",
+        "tolerance proportionality, lu: error ≤ 20 rtol in 1 of 2 runs; not: p at 1e-10 "
+        "(failed)"]
+    assert lines[2:] == ["p, hybrid: t(rtol 1e-04) / t(rtol 1e-10) = 0.20",
+                         "p, lu: t(rtol 1e-04) / t(rtol 1e-10) = 0.40"]
+
+
 @pytest.mark.parametrize("integrator", ["BDF", "LSODA", "Radau", "RK23"])
 @pytest.mark.parametrize("method", ["projection", "hybrid"])
 def test_every_scipy_integrator_carries_the_projection_method_through_passages(method,

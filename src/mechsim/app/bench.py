@@ -299,6 +299,39 @@ def format_within(name: str, error: float, best: dict) -> str:
     return f"within error {error:.0e}, {name}: " + ", ".join(parts)
 
 
+# The error a run may reach, in multiples of its rtol, for its tolerance to mean what it
+# says (`proportionality`).
+PROPORTIONAL = 20.0
+
+
+def proportionality(rows: list[Row], factor: float = PROPORTIONAL) -> list[str]:
+    """Per method, whether its errors follow its rtol: how many of its runs erred at most
+    `factor` × rtol (in each problem's own error measure), and which did not (problem,
+    rtol, error ÷ rtol; a failed run or one without an error counts as not); then per
+    problem and method with two rtols or more, the time at the loosest rtol ÷ at the
+    tightest (how much a looser tolerance saves)."""
+    lines = []
+    for method in dict.fromkeys(r.method for r in rows):
+        mine = [r for r in rows if r.method == method]
+        over = [r for r in mine if not (r.status == "success" and r.error <= factor * r.rtol)]
+        text = (f"tolerance proportionality, {method}: error ≤ {factor:g} rtol in "
+                f"{len(mine) - len(over)} of {len(mine)} runs")
+        if over:
+            text += "; not: " + ", ".join(
+                f"{r.problem} at {r.rtol:.0e} (" +
+                (f"{r.error / r.rtol:.3g} rtol)" if r.status == "success" and
+                 np.isfinite(r.error) else f"{r.status})") for r in over)
+        lines.append(text)
+    for name in dict.fromkeys(r.problem for r in rows):
+        for method in dict.fromkeys(r.method for r in rows if r.problem == name):
+            mine = [r for r in rows if r.problem == name and r.method == method]
+            loose, tight = max(mine, key=lambda r: r.rtol), min(mine, key=lambda r: r.rtol)
+            if loose.rtol > tight.rtol and tight.wall_time > 0.0:
+                lines.append(f"{name}, {method}: t(rtol {loose.rtol:.0e}) / t(rtol "
+                             f"{tight.rtol:.0e}) = {loose.wall_time / tight.wall_time:.2f}")
+    return lines
+
+
 def write_csv(rows, path: Path, fields) -> Path:
     """One CSV row per row of `rows` with the attributes `fields`, under a header of them
     (`mechsim.files.written`)."""

@@ -353,6 +353,8 @@ def _bench(args) -> int:
                           ", ".join(f"{k} = {v:.2f}" for k, v in r.items()))
             for name, error, best in bench.equal_error(rows):      # at equal accuracy
                 print(bench.format_within(name, error, best))
+            for line in bench.proportionality(rows):
+                print(line)
             written += bench.write(rows, args.out)
             if peers:
                 written += _peers(rows, problems, repeat, args.out)
