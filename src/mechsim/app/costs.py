@@ -88,14 +88,14 @@ def stuck_lu():
 
 
 def scipy_integrators():
-    """The double four-bar's first two passages at rtol 1e-6 with each of scipy's
-    integrators under the projection and hybrid methods."""
+    """The double four-bar's first two passages at rtol 1e-4 (a local tolerance of 1e-6)
+    with each of scipy's integrators under the projection and hybrid methods."""
     rows = []
     mech = examples.double_four_bar(2)
     for method in ("projection", "hybrid"):
         for integrator in ("BDF", "LSODA", "Radau", "RK23"):
-            res = mech.simulate(t_end=2.0, method=method, rtol=1e-6, atol=1e-8,
-                                output_step=0.01, integrator=integrator, max_steps=1000)
+            res = mech.simulate(t_end=2.0, method=method, rtol=1e-4, atol=1e-6,
+                                output_step=0.01, integrator=integrator, max_steps=1200)
             rows += _row_set(f"double four-bar 2 s, {method}/{integrator}", res)
     return rows
 
