@@ -45,9 +45,8 @@ class Tolerances:
 
         A local error test passed at every step leaves a global error that adds up over
         the steps and the turns of a mechanism; the share keeps a run's error of the
-        order of rtol. The share was set on the bench's longest runs (chains turning over
-        ten times, whose energy errors grow ~45× into the crank's speed over the top):
-        a thirtieth left them at up to 46 rtol. Near `LOCAL_FLOOR` round-off, not
+        order of rtol, also over the many turns of a mechanism that turns over and over
+        (whose energy errors grow into its speed). Near `LOCAL_FLOOR` round-off, not
         truncation, sets the error, and a tighter local tolerance only costs time
         (docs/design-notes.md, tolerances).
         """
@@ -67,10 +66,8 @@ class Tolerances:
         `PASSAGE_FLOOR` (atol in proportion). Close to the configuration the projection
         method's q̈ carries round-off amplified by 1/σ_min² and the truncation's switch
         where σ_min crosses its cut, about 1e-9 relative (the bridge's estimates there
-        read the same); a tighter local test resolves that noise, not the motion: on a
-        parallelogram with a redundant fifth bar (no bridge) at a local 1.6e-10, 364 steps
-        of 2–7e-7 s within 0.1 ms of one singular instant, against 37 at 1e-9 (its 1.2 s:
-        896 steps and 11.7 s against 80 and 0.8 s)."""
+        read the same); a tighter local test resolves that noise, not the motion, and its
+        steps crawl through the configuration (docs/design-notes.md, tolerances)."""
         if self.rtol >= PASSAGE_FLOOR:
             return self
         return Tolerances(PASSAGE_FLOOR, self.atol * PASSAGE_FLOOR / self.rtol)
