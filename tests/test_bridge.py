@@ -32,22 +32,29 @@ def tip_error(res, n):
     return float(np.max(np.hypot(tip[:, 0] - np.cos(theta), tip[:, 1] - np.sin(theta))))
 
 
-def test_one_bridge_lands_on_the_branch():
-    """From 4.4 ms before the double four-bar's first singular instant, one Adams step to
-    past it: the end state is consistent, on the parallelogram branch, and the crank's
-    angle and rate match the exact solution to the run's tolerance."""
-    mech = ms.examples.double_four_bar()
+def _one_bridge(mech):
+    """The bridge over the double four-bar's first passage from t = 0.710: the start
+    state (a run to there), the problem, the bridge's formulation and the crossing."""
     t_n = 0.710
     start = mech.simulate(t_end=t_n, method="projection", rtol=1e-12, atol=1e-14,
                           bridge_passages=False)
     prob = start.problem
     form = Projection(prob, rtol=1e-9, atol=1e-11)
-    t_star = exact_crossings(1.0, 2)[0]
-    assert t_star == pytest.approx(0.7144, abs=1e-4)
     monitor = SingularityMonitor(prob)
-    out = form.bridge.cross(t_n, start.q[-1], start.v[-1], t_star,
+    out = form.bridge.cross(t_n, start.q[-1], start.v[-1], exact_crossings(1.0, 2)[0],
                             lambda q, t: monitor.measure(q, t)[0])
     assert out is not None, f"declined, estimate {form.bridge.last_estimate:.3g}"
+    return start, prob, form, out
+
+
+def test_one_bridge_lands_on_the_branch():
+    """From 4.4 ms before the double four-bar's first singular instant, one Adams step to
+    past it: the end state is consistent, on the parallelogram branch, and the crank's
+    angle and rate match the exact solution to the run's tolerance."""
+    t_star = exact_crossings(1.0, 2)[0]
+    assert t_star == pytest.approx(0.7144, abs=1e-4)
+    start, prob, form, out = _one_bridge(ms.examples.double_four_bar())
+    t_n = start.t[-1]
     t_b, q_b, v_b, interpolant, *_ = out
     assert t_b > t_star + 0.004                       # past the passage, out of its band
     assert form.bridge.last_estimate <= 1.0
@@ -67,21 +74,6 @@ def test_one_bridge_lands_on_the_branch():
     np.testing.assert_allclose(interpolant(t_b)[:prob.n], q_b, atol=1e-8)
 
 
-def _one_bridge(mech):
-    """The bridge over the double four-bar's first passage from t = 0.710 (as above):
-    the start state, the problem and the crossing."""
-    t_n = 0.710
-    start = mech.simulate(t_end=t_n, method="projection", rtol=1e-12, atol=1e-14,
-                          bridge_passages=False)
-    prob = start.problem
-    form = Projection(prob, rtol=1e-9, atol=1e-11)
-    monitor = SingularityMonitor(prob)
-    out = form.bridge.cross(t_n, start.q[-1], start.v[-1], exact_crossings(1.0, 2)[0],
-                            lambda q, t: monitor.measure(q, t)[0])
-    assert out is not None, f"declined, estimate {form.bridge.last_estimate:.3g}"
-    return start, prob, out
-
-
 def energy(prob, q, v):
     return float(prob.kinetic_energy(q, v) + prob.potential_energy(q) + prob.strain_energy(q))
 
@@ -92,7 +84,7 @@ def test_a_conservative_mechanism_s_bridge_keeps_its_energy(monkeypatch):
     the exact one). With a damper on a crank something else does work, of which the bridge
     knows nothing to its accuracy: its end is the Adams step's own, bitwise."""
     from mechsim.formulations.bridge import PassageBridge
-    start, prob, out = _one_bridge(ms.examples.double_four_bar())
+    start, prob, _, out = _one_bridge(ms.examples.double_four_bar())
     e0 = energy(prob, start.q[-1], start.v[-1])
     assert energy(prob, out.q_b, out.v_b) == pytest.approx(e0, rel=1e-14, abs=1e-14)
     theta, omega = parallelogram_exact(np.array([out.t_b]), math.pi / 2, -1.0, n=2)
@@ -104,10 +96,10 @@ def test_a_conservative_mechanism_s_bridge_keeps_its_energy(monkeypatch):
         mech = ms.examples.double_four_bar()
         mech.add(ms.RotationalSpring(mech.ground, mech.body("crank2"), 0.0, damping=0.05))
         return mech
-    _, prob_d, kept = _one_bridge(damped())
+    _, prob_d, _, kept = _one_bridge(damped())
     assert prob_d.work_channels
     monkeypatch.setattr(PassageBridge, "_energy_kept", lambda self, y_n, y_b: y_b)
-    _, _, plain = _one_bridge(damped())
+    *_, plain = _one_bridge(damped())
     assert kept.t_b == plain.t_b
     np.testing.assert_array_equal(kept.v_b, plain.v_b)
 
