@@ -118,12 +118,12 @@ class Formulation:
     bridge = None
     bridging = False
     project_now = None
+    extras = None
+    width = 0
 
     @property
     def bridges_passages(self) -> bool:
         return self.bridging
-    extras = None
-    width = 0
 
     @classmethod
     def cannot_resolve(cls, problem: NumericProblem, q: np.ndarray, t: float, rtol: float,

@@ -420,8 +420,7 @@ class PassageBridge:
         n = p.n
         q_n, v_n, q_b, v_b = y_n[:n], y_n[n:2 * n], y_b[:n], y_b[n:2 * n]
         kinetic = float(p.kinetic_energy(q_b, v_b))
-        wanted = float(p.kinetic_energy(q_n, v_n) + p.potential_energy(q_n) + p.strain_energy(q_n)
-                       - p.potential_energy(q_b) - p.strain_energy(q_b))
+        wanted = float(p.kinetic_energy(q_n, v_n) + p.stored_energy(q_n) - p.stored_energy(q_b))
         if not (kinetic > 0.0 and wanted > 0.0):
             return y_b
         k = np.sqrt(wanted / kinetic)

@@ -434,6 +434,11 @@ class NumericProblem:
         """Elastic energy of the flexible bodies' modes, ½ Σ ω_k² η_k²."""
         return self.load_model.strain_energy(q)
 
+    def stored_energy(self, q) -> np.ndarray:
+        """The energy the configuration holds: gravity's and the springs' potential and
+        the beams' strain (what `work_channels` leave out)."""
+        return self.potential_energy(q) + self.strain_energy(q)
+
     # --- projections onto the constraint manifold (mass metric) -----------------------------
     def project_positions(self, q, t, tol=1e-12, max_iter=20):
         """Newton steps Δq = −W Φ_qᵀ (Φ_q W Φ_qᵀ)⁺ Φ with W = M⁻¹: the smallest correction in

@@ -131,6 +131,7 @@ class Run:
         # The integrator's tolerances: the run's local ones, or looser through a passage's
         # band where no bridge crosses it (`_tolerances_for_passages`).
         self.local = Tolerances(settings.rtol, settings.atol)
+        self.through_passage = self.local.through_passage()
         self.tolerances = self.local
         self.stats = Statistics()
         self.bridge = form.bridge
@@ -333,8 +334,7 @@ class Run:
             return
         bridged = self.form.bridges_passages and not (self.bridge is not None and
                                                       self.bridge.standing_down)
-        wanted = self.local.through_passage() if self.monitor.inside and not bridged \
-            else self.local
+        wanted = self.through_passage if self.monitor.inside and not bridged else self.local
         if wanted == self.tolerances:
             return
         self.tolerances = wanted
