@@ -309,13 +309,14 @@ def test_the_search_skips_intervals_joined_to_a_passage_it_has_found(at, chords,
                                            (lambda: ms.examples.four_bar(), 60)])
 def test_a_step_s_fall_rates_bound_sigma_min_over_sigma_max_inside_it(build, window):
     """The monitor's pre-check clears a step by the lines s_a − R_a |t − t_a| from its ends
-    (R_a from `_fall_rates`: J̃'s cubic through the ends' values and rates, in each end's
+    (R_a from `fall_rates`: J̃'s cubic through the ends' values and rates, in each end's
     singular directions). On windows of 40–100 ms of an accurate run (the steps rtol 1e-4
     takes), through the double four-bar's passages and over a four-bar, s at every
     millisecond inside lies on or above both lines, without the pre-check's margin; half
-    the rates, or each end's own rate alone, would cross s on some window."""
-    from mechsim.formulations.monitor import _Fall, _fall_rates
-    from mechsim.linalg import sparse
+    the rates, or each end's own rate alone, would cross s on some window. The compiled
+    engine's rates (the algebra's, which the monitor takes) are numpy's to round-off."""
+    from mechsim.formulations.monitor import _Fall
+    from mechsim.linalg import dense, sparse
     mech = build()
     res = mech.simulate(1.2, rtol=1e-10, atol=1e-12, output_step=1e-3)
     prob = mech.problem()
@@ -332,7 +333,8 @@ def test_a_step_s_fall_rates_bound_sigma_min_over_sigma_max_inside_it(build, win
         a, b = falls[i], falls[i + window]
         if a is None or b is None:
             continue                               # an end at rest: no rate to bound by
-        r0, r1 = _fall_rates(a, b)
+        r0, r1 = dense.fall_rates(a, b)
+        assert np.allclose(prob.algebra.fall_rates(a, b), (r0, r1), rtol=1e-12, atol=0.0)
         tau = res.t[i:i + window + 1] - a.t
         lines = np.maximum(s[i] - r0 * tau, s[i + window] - r1 * (b.t - a.t - tau))
         assert np.all(s[i:i + window + 1] >= lines - 1e-12), (a.t, b.t)

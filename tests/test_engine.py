@@ -16,7 +16,9 @@ import mechsim as ms
 from mechsim.app.bench import PROBLEMS
 from mechsim.codegen import cache, engine
 from mechsim.integrators import CompiledDOP853
+from mechsim.formulations.basis import ConstraintSolveError
 from mechsim.formulations.partitioned import Partitioned
+from mechsim.integrators.compiled import Interpolant
 
 needs_compiler = pytest.mark.skipif(
     shutil.which((os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0])
@@ -76,6 +78,18 @@ def test_compiled_evaluation_agrees_with_the_python_path(build, rng):
     assert np.abs(res.problem.phi(q, ts[0])).max() <= fast.newton_tol
     for x, z in zip(fast.states(np.array(ts), np.array(ys)), slow.states(np.array(ts), np.array(ys))):
         np.testing.assert_allclose(x, z, rtol=0, atol=1e-12 * (1.0 + np.abs(z).max()))
+    # The end of a step in one call (`PartitionedEngine.end`): Φ_q D's inverse, A⁻¹ Φ_q B,
+    # the sign of its determinant and its condition, as numpy's.
+    for tk, yk in zip(ts[:5], ys[:5]):
+        A, B = fast._block_at(tk, yk)[4], slow._block_at(tk, yk)[4]
+        assert A.reduced is not None and B.reduced is None
+        np.testing.assert_allclose(A.inverse(), B.inverse(), rtol=1e-10,
+                                   atol=1e-12 * np.abs(B.inverse()).max())
+        JB = slow.basis.JB(slow.full_state(tk, yk)[2])
+        np.testing.assert_allclose(A.reduced, B.chord(JB), rtol=1e-10,
+                                   atol=1e-12 * np.abs(B.chord(JB)).max())
+        assert A.sign() == B.sign() != 0
+        assert A.condition() == pytest.approx(B.condition(), rel=1e-10)
     # The signs of det(Φ_q D) the engine takes from its LU factors (which branch each
     # sample is on, `Partitioned.states`) are numpy's determinant's.
     Q, _, signs = fast.engine.states(np.array(ts), np.array(ys))
@@ -366,6 +380,14 @@ def test_compiled_singularity_measure_agrees_with_the_python_path():
     np.testing.assert_allclose(prob.algebra.singular_extremes(T, Q, k),
                                python_only(prob).algebra.singular_extremes(T, Q, k),
                                rtol=1e-10, atol=1e-14)
+    # The skip's Weyl bound: J̃ and how far it moved since an earlier J̃, compiled and in
+    # numpy.
+    for (ta, qa), (tb, qb) in zip(zip(T, Q), zip(T[1:], Q[1:])):
+        Jm = prob.algebra.scaled_jacobian(qa, ta)
+        (Ja, Ea), (Jb, Eb) = (x.change(qb, tb, Jm) for x in (prob.algebra,
+                                                              python_only(prob).algebra))
+        np.testing.assert_allclose(Ja, Jb, rtol=0, atol=1e-14)
+        assert Ea == pytest.approx(Eb, rel=1e-12) and Ea > 0.0
 
 
 @needs_compiler
@@ -470,12 +492,12 @@ def test_compiled_fresh_newton_agrees_with_the_python_path():
     """Where the chord on the last step's Φ_q D contracts too slowly (a crank-rocker's
     state a long stage ahead of its last step, near its toggle positions), every later
     Newton iteration takes a fresh Φ_q D, compiled as in Python: the same count of them
-    and the same positions and velocities, to round-off (where Newton fails from the
-    prediction both leave the state to the Python path, which follows the motion)."""
+    and the same positions and velocities, to round-off; where Newton fails from the
+    prediction, both follow the motion from the last step in pieces (`_follow`) alike."""
     mech = ms.examples.general_four_bar(0.3, 0.9, 0.7, 1.0, math.radians(60.0),
                                         masses=(1.0, 1.5, 1.0), name="crank-rocker")
     res = mech.simulate(t_end=3.0, method="lu", rtol=1e-9, atol=1e-11, output_step=0.15)
-    fresh = 0
+    fresh = followed = 0
     for k in range(len(res.t)):
         sample = ms.SimulationResult(res.t[:k + 1], res.q[:k + 1], res.v[:k + 1],
                                      res.coordinate_names, problem=res.problem)
@@ -484,21 +506,23 @@ def test_compiled_fresh_newton_agrees_with_the_python_path():
         for dt in (0.05, 0.1):
             yk = y.copy()
             yk[:f] += dt * y[f:]
-            a, b = fast.engine.state(t + dt, yk), slow.full_state(t + dt, yk)
-            if a is None:            # Newton fails from the prediction: Python follows the path
-                continue
-            assert a[3] == b[3]
+            a = fast.engine.state(t + dt, yk)
+            try:
+                slow._newton(yk[:f], t + dt, slow._predict(t + dt, yk[:f]))
+            except ConstraintSolveError:
+                followed += 1
+            b = slow.full_state(t + dt, yk)
+            assert a is not None and a[3] == b[3]
             fresh += a[3] > 0
             for x, z in zip(a[:2], b[:2]):
                 np.testing.assert_allclose(x, z, rtol=0, atol=1e-12 * (1.0 + np.abs(z).max()))
-    assert fresh >= 3                # the compiled fresh iterations were exercised
+    assert fresh >= 3 and followed >= 1      # both were exercised
 
 
 def _interpolant_cases(kernel=None):
     """(scipy's DOP853 dense output, `Interpolant` of the same coefficients evaluated by
     `kernel` or by numpy): on coefficients with zeros of both signs and on a real step."""
     from scipy.integrate._ivp.rk import Dop853DenseOutput
-    from mechsim.integrators.compiled import Interpolant
     rng = np.random.default_rng(11)
     F = rng.standard_normal((7, 9)) * 10.0 ** rng.integers(-8, 3, (7, 9))
     F[:, 0], F[:, 1], F[-1, 2] = 0.0, -0.0, -0.0
@@ -541,6 +565,14 @@ def test_the_engine_s_interpolant_is_scipy_s_to_the_bit():
     def dense(self):
         out = original(self)
         used.append(out._kernel is not None)
+        # its coefficients, formed in the engine from the stages, are scipy's formulas'
+        # (`Dop853DenseOutput`'s F) to round-off
+        K, h, dy = self.K_extended, self.h_previous, self.y - self.y_old
+        ref = np.vstack([dy, h * K[0] - dy, 2 * dy - h * (self.f + K[0]), h * (self.D @ K)])
+        scale = np.vstack([np.abs(dy), np.abs(h * K[0]) + np.abs(dy),
+                           np.abs(h * (self.f + K[0])) + 2 * np.abs(dy),
+                           np.abs(h) * (np.abs(self.D) @ np.abs(K))])
+        assert np.all(np.abs(out.F - ref) <= 4 * np.finfo(float).eps * scale)
         return out
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(CompiledDOP853, "dense_output", dense)

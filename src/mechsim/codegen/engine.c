@@ -48,25 +48,15 @@ static double max_abs(int64_t m, const double *x) {
 
 /* ---- the partitioned evaluation (Partitioned.full_state and its accelerations) ---- */
 
-/* Positions by the chord Newton from the prediction, Phi_q there and the velocities, into
-   q, v, J, and (where sign is not NULL) the sign of det(Phi_q D) from the LU the velocities
-   are solved with. Where the chord contracts too slowly, every later iteration takes a
-   fresh Phi_q D (as Partitioned._newton), counted in c->fresh. 0: done; 1: Newton failed
-   (Python decides); 2: Phi_q D singular. */
-static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double *v,
-                    double *J, double *sign) {
-  const int64_t n = c->n, m = c->m, f = c->f, r = n - f, cols = 3 + f;
-  const double *z = y, *zd = y + f;
-  double *w = c->w, *phi = c->phi, *A = c->A, *b = c->b, *phit = c->phit;
-  int fresh = 0;
+/* Newton on the dependent coordinates w of Phi(q_ref + B z + D w, t) = 0 from the guess in
+   w, into w and q: the chord with C, the inverse of Phi_q D at the last accepted step, and
+   fresh Phi_q D from the iteration where the chord contracts too slowly, or from the start
+   where `fresh` (as Partitioned._newton), counted in c->fresh. 0: converged; 1: failed. */
+static int newton_w(mechsim_lu *c, double t, const double *z, double *w, double *q, double *J,
+                    int fresh) {
+  const int64_t n = c->n, m = c->m, f = c->f, r = n - f;
+  double *phi = c->phi, *A = c->A, *b = c->b;
   c->fresh = 0;
-  const double d = t - c->t_last;
-  for (int64_t i = 0; i < r; i++) {
-    const double *Pi = c->P + i * cols;
-    double s = Pi[0] + Pi[1] * d + Pi[2] * (d * d);
-    for (int64_t k = 0; k < f; k++) s += Pi[3 + k] * z[k];
-    w[i] = s;
-  }
   double err_prev = INFINITY;
   for (int64_t it = 0;; it++) {
     memcpy(q, c->q_ref, n * sizeof(double));
@@ -76,7 +66,7 @@ static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double 
     const double err = max_abs(m, phi);
     if (isnan(err)) return 1;
     if (err <= c->newton_tol ||
-        (err > c->stall_ratio * err_prev && err <= c->stall_span * c->newton_tol)) break;
+        (err > c->stall_ratio * err_prev && err <= c->stall_span * c->newton_tol)) return 0;
     if (it == c->max_newton || !isfinite(err)) return 1;
     if (!(err <= c->chord_contraction * err_prev)) fresh = 1;
     err_prev = err;
@@ -100,6 +90,35 @@ static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double 
       w[i] -= s;
     }
   }
+}
+
+/* Newton along the straight path from the last accepted state (t_last, z_last, w_last) to
+   (t, z) in `first`, then 4 and 16 times as many pieces, each from the one before with fresh
+   Jacobians (as Partitioned._follow): 0 with w and q solved at (t, z); 1: failed. */
+static int follow(mechsim_lu *c, double t, const double *z, double *w, double *q, double *J,
+                  int64_t first) {
+  const int64_t f = c->f, r = c->n - f;
+  double *zk = c->zk;
+  for (int64_t pieces = first; pieces <= 16 * first; pieces *= 4) {
+    memcpy(w, c->w_last, r * sizeof(double));
+    int64_t k = 1;
+    for (; k <= pieces; k++) {
+      const double a = (double)k / (double)pieces;
+      for (int64_t i = 0; i < f; i++) zk[i] = c->z_last[i] + a * (z[i] - c->z_last[i]);
+      if (newton_w(c, c->t_last + a * (t - c->t_last), zk, w, q, J, 1)) break;
+    }
+    if (k > pieces) return 0;
+  }
+  return 1;
+}
+
+/* The velocities of the positions in q at (t, zd): Phi_q into J, v, and (where sign is not
+   NULL) the sign of det(Phi_q D) from the LU they are solved with. 0: done; 2: Phi_q D
+   singular. */
+static int velocities(mechsim_lu *c, double t, const double *zd, const double *q, double *v,
+                      double *J, double *sign) {
+  const int64_t n = c->n, m = c->m, f = c->f, r = n - f;
+  double *A = c->A, *b = c->b, *phit = c->phit;
   memset(J, 0, m * n * sizeof(double));
   mechsim_phi_q(q, t, c->p, J);
   memset(phit, 0, m * sizeof(double));
@@ -127,6 +146,26 @@ static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double 
   return 0;
 }
 
+/* Positions by the chord Newton from the prediction (Partitioned._positions: where it
+   fails, by following the path from the last accepted state), Phi_q there and the
+   velocities, into q, v, J, and (where sign is not NULL) the sign of det(Phi_q D).
+   0: done; 1: Newton failed (Python decides); 2: Phi_q D singular. */
+static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double *v,
+                    double *J, double *sign) {
+  const int64_t f = c->f, r = c->n - f, cols = 3 + f;
+  const double *z = y, *zd = y + f;
+  double *w = c->w;
+  const double d = t - c->t_last;
+  for (int64_t i = 0; i < r; i++) {
+    const double *Pi = c->P + i * cols;
+    double s = Pi[0] + Pi[1] * d + Pi[2] * (d * d);
+    for (int64_t k = 0; k < f; k++) s += Pi[3 + k] * z[k];
+    w[i] = s;
+  }
+  if (newton_w(c, t, z, w, q, J, 0) && follow(c, t, z, w, q, J, 4)) return 1;
+  return velocities(c, t, zd, q, v, J, sign);
+}
+
 int mechsim_lu_state(mechsim_lu *c, double t) {
   return lu_state(c, t, c->y, c->q, c->v, c->J, NULL);
 }
@@ -152,6 +191,51 @@ int mechsim_lu_states(mechsim_lu *c, int64_t k, const double *ts, const double *
                                 signs + s);
     if (status) return status;
   }
+  return 0;
+}
+
+/* The end of a step (Partitioned.keeps_branch and after_step): the state at c->y solved as
+   mechsim_lu_state solves it (q, v, J, c->fresh), and of A = Phi_q D there the inverse into
+   Ainv (r x r, row-major), X = A^-1 Phi_q B into X (r x f, row-major), and out = (the sign
+   of det A, cond_1 A = |A|_1 |A^-1|_1), from one LU of A with the r + f right-hand sides
+   [I, Phi_q B]. 0: done; else the state's status, or 2 where A is singular. */
+int mechsim_lu_end(mechsim_lu *c, double t, double *Ainv, double *Xo, double *out) {
+  const int64_t n = c->n, f = c->f, r = n - f;
+  const int status = lu_state(c, t, c->y, c->q, c->v, c->J, NULL);
+  if (status) return status;
+  double *A = c->A, *E = c->E, norm = 0.0;
+  memset(E, 0, r * n * sizeof(double));
+  for (int64_t i = 0; i < r; i++) {                 /* column-major A and [I, J B] */
+    const double *Ji = c->J + i * n;
+    for (int64_t j = 0; j < r; j++) A[i + j * r] = Ji[c->dep[j]];
+    E[i + i * r] = 1.0;
+    for (int64_t k = 0; k < f; k++) E[i + (r + k) * r] = Ji[c->ind[k]];
+  }
+  for (int64_t j = 0; j < r; j++) {
+    double col = 0.0;
+    for (int64_t i = 0; i < r; i++) col += fabs(A[i + j * r]);
+    if (col > norm) norm = col;
+  }
+  int R = (int)r, nrhs = (int)n, info = 0;
+  mechsim_dgesv(&R, &nrhs, A, &R, c->ipiv, E, &R, &info);
+  if (info != 0) return 2;
+  double sign = 1.0, inorm = 0.0;                   /* P A = L U: det A = (-1)^swaps prod U_ii */
+  for (int64_t i = 0; i < r; i++) {
+    if (A[i + i * r] < 0.0) sign = -sign;
+    if (c->ipiv[i] != (int)(i + 1)) sign = -sign;
+  }
+  for (int64_t j = 0; j < r; j++) {
+    double col = 0.0;
+    for (int64_t i = 0; i < r; i++) {
+      Ainv[i * r + j] = E[i + j * r];
+      col += fabs(E[i + j * r]);
+    }
+    if (col > inorm) inorm = col;
+  }
+  for (int64_t i = 0; i < r; i++)
+    for (int64_t k = 0; k < f; k++) Xo[i * f + k] = E[i + (r + k) * r];
+  out[0] = sign;
+  out[1] = norm * inorm;
   return 0;
 }
 
@@ -532,6 +616,58 @@ int mechsim_measure(mechsim_projection *c, double t, double eps, double *out, do
 
 /* An upper bound of the spectral norm of the m x n difference A - B: the smaller of its
    Frobenius norm and sqrt(||.||_1 ||.||_inf). */
+/* J~ = Phi_q W^1/2 at (c->q, t) into Jt; returns |J~ - Jm|_F (Jm: m x n, row-major), the
+   singularity monitor's Weyl bound on how far the singular values moved since Jm. */
+double mechsim_change(mechsim_projection *c, double t, const double *Jm, double *Jt) {
+  const int64_t size = c->m * c->n;
+  scaled_jacobian(c, c->q, t, Jt);
+  double e = 0.0;
+  for (int64_t i = 0; i < size; i++) {
+    const double d = Jt[i] - Jm[i];
+    e += d * d;
+  }
+  return sqrt(e);
+}
+
+/* |X P|_F^2 for X (m x n) and P (n x r), both row-major. */
+static double product_square(int64_t m, int64_t n, int64_t r, const double *X, const double *P) {
+  double total = 0.0;
+  for (int64_t i = 0; i < m; i++) {
+    const double *Xi = X + i * n;
+    for (int64_t l = 0; l < r; l++) {
+      double s = 0.0;
+      for (int64_t j = 0; j < n; j++) s += Xi[j] * P[j * r + l];
+      total += s * s;
+    }
+  }
+  return total;
+}
+
+/* How fast sigma_min/sigma_max can fall along a step from its end a to its end b (the
+   singularity monitor's fall rates, mechsim.linalg.dense.fall_rates): J~ taken as the cubic
+   through J~ (Ja, Jb) and D = dJ~/dt (Da, Db) at both ends, C = (Jb - Ja)/h - (Da + Db)/2,
+   P_e the ends' fall bases (n x r, row-major); in = (ta, tb, smin_a, smax_a, rise_a,
+   smin_b, smax_b, rise_b), out = (rate seen from a, rate seen from b). C goes to work
+   (m x n). */
+void mechsim_fall_rates(int64_t m, int64_t n, int64_t r, const double *in, const double *Ja,
+                        const double *Da, const double *Pa, const double *Jb,
+                        const double *Db, const double *Pb, double *work, double *out) {
+  const double scale = 1.0 / (in[1] - in[0]);
+  double cc = 0.0;
+  for (int64_t i = 0; i < m * n; i++) {
+    work[i] = (Jb[i] - Ja[i]) * scale - 0.5 * (Da[i] + Db[i]);
+    cc += work[i] * work[i];
+  }
+  const double da_a = product_square(m, n, r, Da, Pa), db_a = product_square(m, n, r, Db, Pa);
+  const double da_b = product_square(m, n, r, Da, Pb), db_b = product_square(m, n, r, Db, Pb);
+  const double c_a = product_square(m, n, r, work, Pa), c_b = product_square(m, n, r, work, Pb);
+  const double rise = fmax(in[4], in[7]) + 1.5 * sqrt(cc);
+  const double fall_a = sqrt(fmax(da_a, db_a)) + 1.5 * sqrt(c_a);
+  const double fall_b = sqrt(fmax(da_b, db_b)) + 1.5 * sqrt(c_b);
+  out[0] = (fall_a + in[2] / in[3] * rise) / in[3];
+  out[1] = (fall_b + in[5] / in[6] * rise) / in[6];
+}
+
 static double difference_norm(int64_t m, int64_t n, const double *A, const double *B,
                               double *cols) {
   double frob = 0.0, rows = 0.0, colmax = 0.0;
@@ -774,6 +910,30 @@ int mechsim_dop853_extra(void *ctx, int64_t kind, int64_t N, const double *coef,
     if (failed) return 1;
   }
   return 0;
+}
+
+/* The coefficients F ((rows + 3) x N) of DOP853's dense output over the step of length h
+   from y_old to y (f: the rate at y), from its stages K (cols x N, the extra ones included)
+   and scipy's matrix Dm (rows x cols), as scipy's _dense_output_impl forms them: F[0] = dy,
+   F[1] = h K[0] - dy, F[2] = 2 dy - h (f + K[0]), F[3 + i] = h (Dm K)[i]. */
+void mechsim_dense_coefficients(int64_t N, int64_t rows, int64_t cols, const double *Dm,
+                                const double *K, const double *y_old, const double *y,
+                                const double *f, double h, double *F) {
+  for (int64_t j = 0; j < N; j++) {
+    const double dy = y[j] - y_old[j];
+    F[j] = dy;
+    F[N + j] = h * K[j] - dy;
+    F[2 * N + j] = 2.0 * dy - h * (f[j] + K[j]);
+  }
+  for (int64_t i = 0; i < rows; i++) {
+    const double *Di = Dm + i * cols;
+    double *Fi = F + (3 + i) * N;
+    for (int64_t j = 0; j < N; j++) {
+      double s = 0.0;
+      for (int64_t k = 0; k < cols; k++) s += Di[k] * K[k * N + j];
+      Fi[j] = h * s;
+    }
+  }
 }
 
 /* DOP853's dense output over the step from t_old (length h) at the k times ts into the

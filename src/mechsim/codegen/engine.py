@@ -220,6 +220,8 @@ def library(model):
             fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_double], ctypes.c_int
         lib.mechsim_lu_states.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 6
         lib.mechsim_lu_states.restype = ctypes.c_int
+        lib.mechsim_lu_end.argtypes = [ctypes.c_void_p, ctypes.c_double] + [ctypes.c_void_p] * 3
+        lib.mechsim_lu_end.restype = ctypes.c_int
         fn = lib.mechsim_projection_accelerations
         fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_double]
         fn.restype = ctypes.c_int
@@ -253,6 +255,16 @@ def library(model):
         fn.argtypes = [ctypes.c_int64, ctypes.c_int64, ctypes.c_void_p, ctypes.c_double,
                        ctypes.c_double, ctypes.c_void_p, ctypes.c_int64, ctypes.c_void_p,
                        ctypes.c_void_p]
+        fn.restype = None
+        fn = lib.mechsim_change
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_double] + [ctypes.c_void_p] * 2
+        fn.restype = ctypes.c_double
+        fn = lib.mechsim_fall_rates
+        fn.argtypes = [ctypes.c_int64] * 3 + [ctypes.c_void_p] * 9
+        fn.restype = None
+        fn = lib.mechsim_dense_coefficients
+        fn.argtypes = [ctypes.c_int64] * 3 + [ctypes.c_void_p] * 5 + [ctypes.c_double,
+                                                                    ctypes.c_void_p]
         fn.restype = None
         fn = lib.mechsim_multipliers
         fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 4 + \
@@ -340,20 +352,29 @@ class PartitionedEngine:
         self._rhs = lib.mechsim_lu_rhs
         self.lib = lib
         self._states = lib.mechsim_lu_states
+        self._end = lib.mechsim_lu_end
+        self._last_z, self._last_w = self.buffers["z_last"][:f], self.buffers["w_last"][:r]
+        self._inverse, self._reduced = np.zeros((n - f, n - f)), np.zeros((n - f, f))
+        self._block = np.zeros(2)
+        self._end_args = (self._inverse.ctypes.data, self._reduced.ctypes.data,
+                          self._block.ctypes.data)
         self._scratch = _Scratch()
         self._J_samples = self.J_samples.ctypes.data
         self.rates = {}          # the compiled rates made on it (`CompiledRate.of`)
         self.ready = False
 
-    def accept(self, t, q_ref, P, chord_inverse):
-        """The last accepted step: its time, the prediction's matrix and the inverse of
-        Φ_q D there (None: not available, the Python path serves until the next step)."""
+    def accept(self, t, q_ref, P, chord_inverse, z, w):
+        """The last accepted step: its time, the prediction's matrix, the inverse of Φ_q D
+        there (None: not available, the Python path serves until the next step) and its
+        independent and dependent coordinates."""
         if chord_inverse is None:
             self.ready = False
             return
         self.q_ref[:] = q_ref
         self.P[:] = P
         self.C[:] = chord_inverse
+        self._last_z[:] = z
+        self._last_w[:] = w
         self.ctx.t_last = t
         self.ready = True
 
@@ -365,6 +386,18 @@ class PartitionedEngine:
         if self._state(self.context, t):
             return None
         return self.q.copy(), self.v.copy(), self.J.copy(), int(self.ctx.fresh)
+
+    def end(self, t, y):
+        """What the end of a step needs (`Partitioned.keeps_branch`, `after_step`): the
+        state as `state` gives it, then of A = Φ_q D there its inverse, A⁻¹ Φ_q B, the sign
+        of det A and cond₁ A, from one factorization: (q, v, Φ_q, n_fresh, A⁻¹, A⁻¹ Φ_q B,
+        sign, cond₁), or None where the Python path must decide."""
+        self.y[:] = y
+        if self._end(self.context, t, *self._end_args):
+            return None
+        sign, condition = self._block.tolist()
+        return (self.q.copy(), self.v.copy(), self.J.copy(), int(self.ctx.fresh),
+                self._inverse.copy(), self._reduced.copy(), int(sign), condition)
 
     def rhs(self, t, y, Q):
         """[ż; z̈] of y = [z; ż] under the applied forces Q in one call (`state`, then
@@ -433,6 +466,11 @@ class ProjectionEngine:
         self._project_many = lib.mechsim_project_states
         self._lu_condition = lib.mechsim_lu_condition
         self._multipliers = lib.mechsim_multipliers
+        self._change, self._fall_rates = lib.mechsim_change, lib.mechsim_fall_rates
+        self._fall_in, self._fall_out, self._fall_work = np.zeros(8), np.zeros(2), np.zeros(m * n)
+        self._fall_in_at, self._fall_out_at = self._fall_in.ctypes.data, self._fall_out.ctypes.data
+        self._fall_work_at = self._fall_work.ctypes.data
+        self.m = m
         self.counters = problem.counters
         self._scratch = _Scratch()
         self._measured_at, self._Jt_at = self.measured.ctypes.data, self.Jt.ctypes.data
@@ -496,6 +534,22 @@ class ProjectionEngine:
             got = (rates, fall_basis(self._sig, self._right.T, len(self._sig) - 1))
         return (smin, smax, dmin, dmax, out[4:-1].copy(), self.Jt.copy(), float(out[-1]),
                 got)
+
+    def change(self, t, q, Jm):
+        """(J̃ at (q, t), ‖J̃ − Jm‖_F) for Jm of J̃'s shape (C-contiguous floats)."""
+        self.q[:] = q
+        change = self._change(self.context, t, Jm.ctypes.data, self._Jt_at)
+        return self.Jt.copy(), change
+
+    def fall_rates(self, a, b):
+        """`mechsim.linalg.dense.fall_rates` of the ends a and b (`_Fall`s whose J, D and
+        P are C-contiguous floats of this mechanism's sizes), in one call."""
+        inputs = self._fall_in
+        inputs[:] = (a.t, b.t, a.smin, a.smax, a.rise, b.smin, b.smax, b.rise)
+        self._fall_rates(self.m, self.n, a.P.shape[1], self._fall_in_at, a.J.ctypes.data,
+                         a.D.ctypes.data, a.P.ctypes.data, b.J.ctypes.data, b.D.ctypes.data,
+                         b.P.ctypes.data, self._fall_work_at, self._fall_out_at)
+        return self._fall_out[0], self._fall_out[1]
 
     def project_states(self, T, Q, V, tols, max_iter=8):
         """`project_state` of each state (T[i], Q[i], V[i]) to tols[i] in one call, Q and V

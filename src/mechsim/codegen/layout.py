@@ -93,6 +93,10 @@ PARTITION = Layout("mechsim_lu", [
     Field("phit", "double*", lambda d: d.m), Field("g", "double*", lambda d: d.m),
     Field("X", "double*", lambda d: d.r * (d.f + 1)), Field("Mh", "double*", lambda d: d.f * d.f),
     Field("Qh", "double*", lambda d: d.f), Field("ipiv", "int*", lambda d: d.r),
+    Field("E", "double*", lambda d: d.r * d.n),
+    # the last accepted state's independent and dependent coordinates (`follow`)
+    Field("z_last", "double*", lambda d: d.f), Field("w_last", "double*", lambda d: d.r),
+    Field("zk", "double*", lambda d: d.f),
 ])
 
 # The projection method, the state projection, the monitor's measure and the LU test.

@@ -44,6 +44,17 @@ class DenseBlock:
 
     def __init__(self, A):
         self.A, self._inv, self._sign = A, False, None
+        self._condition = None
+        self.reduced = None          # A⁻¹ Φ_q B where the factorization gave it
+
+    @classmethod
+    def factored(cls, A, inverse, sign, condition, reduced):
+        """A = Φ_q D whose inverse, sign of det A, cond₁ A and A⁻¹ Φ_q B (`reduced`) were
+        computed together already (the compiled end of a step)."""
+        block = cls(A)
+        block._inv, block._sign, block._condition = inverse, sign, condition
+        block.reduced = reduced
+        return block
 
     def solve(self, b):
         return solve(self.A, b)
@@ -67,7 +78,9 @@ class DenseBlock:
         return self.solve(b) if inv is None else inv @ b
 
     def condition(self) -> float:
-        return condition_number(self.A, self.inverse())
+        if self._condition is None:
+            self._condition = condition_number(self.A, self.inverse())
+        return self._condition
 
     def sign(self) -> int:
         """The sign of det A (0 where A is singular or not square), computed once."""

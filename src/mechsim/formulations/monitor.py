@@ -58,7 +58,7 @@ WEYL_SPAN = 100.0
 GRID = 8
 CHORD = 0.25
 # The margin of the rate at which σ_min/σ_max can fall along a step, bounded on the cubic
-# through J̃'s values and rates at the step's ends (`_fall_rates`), for J̃'s departure from
+# through J̃'s values and rates at the step's ends (`mechsim.linalg.dense.fall_rates`), for J̃'s departure from
 # that cubic.
 HERMITE_MARGIN = 1.25
 
@@ -175,8 +175,7 @@ class SingularityMonitor:
         if prev[1] - bound * horizon <= 2.0 * self.enter:
             return False, None
         Jm, smin, smax = self._measured
-        J = self._jacobian(q, t)
-        E = sparse.frobenius(sparse.difference(J, Jm))
+        J, E = self.problem.algebra.change(q, t, Jm)
         floor = max(smin - E, 0.0) / (smax + E)
         if floor > 2.0 * self.enter * self.peak:
             self._floor = (t, floor)
@@ -355,7 +354,7 @@ class SingularityMonitor:
     def _fall_clears(self, falls, observed) -> bool:
         """Do the lines s_a − R_a |t − t_a| keep s above `enter` over the span of `falls`,
         the `_Fall`s of the latest measured observation (the step's start, or one before
-        the measurements skipped since) and of the step's end? R_a is `_fall_rates`' bound
+        the measurements skipped since) and of the step's end? R_a is `fall_rates`' bound (`mechsim.linalg.dense`)
         on how fast σ_min/σ_max can fall from end a (J̃'s cubic through its values and rates
         at the ends, seen in a's own singular directions) times `HERMITE_MARGIN`, at least
         twice `observed` (the rates seen, not normalized). Not where a passage is open at
@@ -367,7 +366,7 @@ class SingularityMonitor:
         ends = (fa.smin / fa.smax, fb.smin / fb.smax, fb.t - fa.t)
         if least > 0.0 and _lowest(*ends, least, least) < enter:
             return False                        # no faster fall can clear it either
-        r0, r1 = (max(HERMITE_MARGIN * r, least) for r in _fall_rates(fa, fb))
+        r0, r1 = (max(HERMITE_MARGIN * r, least) for r in self.problem.algebra.fall_rates(fa, fb))
         return _lowest(*ends, r0, r1) >= enter
 
     def _anchored(self, ends, positions_at, budget, apart, known=None) -> dict:
@@ -476,37 +475,16 @@ class SingularityMonitor:
 
 
 class _Fall:
-    """What the monitor keeps of a measured observation for `_fall_rates`: its time `t`,
+    """What the monitor keeps of a measured observation for `fall_rates`: its time `t`,
     J̃ and D = dJ̃/dt there, P (`mechsim.linalg.dense.fall_basis`), σ_min, σ_max and
     ‖D‖_F (`rise`)."""
 
     __slots__ = ("t", "J", "D", "P", "smin", "smax", "rise")
 
     def __init__(self, t, J, fall, smin, smax, rise):
-        self.t, self.J, (self.D, self.P) = t, J, fall
+        self.t, self.J, self.D = t, J, fall[0]
+        self.P = np.ascontiguousarray(fall[1])
         self.smin, self.smax, self.rise = smin, smax, rise
-
-
-def _fall_rates(a: _Fall, b: _Fall) -> tuple[float, float]:
-    """How fast σ_min/σ_max (not normalized) can fall along the step from a to b, from
-    each end's values: J̃ along the step taken as the cubic through J̃ and D = dJ̃/dt at
-    both ends, whose rate is D_a + (D_b − D_a) x + c x (1 − x) (x from 0 to 1, c = 6 C,
-    C = (J̃_b − J̃_a)/h − (D_a + D_b)/2: its mean is the chord's), so ‖rate · P‖ ≤
-    max(‖D_a P‖, ‖D_b P‖) + 1.5 ‖C P‖ for any P. Seen from end e, σ_min falls at most at
-    that with P = P_e (`mechsim.linalg.dense.fall_basis`; Frobenius norms), σ_max rises
-    at most at max(‖D_a‖_F, ‖D_b‖_F) + 1.5 ‖C‖_F (Weyl), and s = σ_min/σ_max falls at
-    most at (fall + s_e rise)/σ_max,e."""
-    C = (b.J - a.J) * (1.0 / (b.t - a.t)) - 0.5 * (a.D + b.D)
-    m, r = a.D.shape[0], a.P.shape[1]
-    # ‖X P_e‖_F² for X = D_a, D_b, C and e = a, b, from one product.
-    X = np.concatenate((a.D, b.D, C)) @ np.concatenate((a.P, b.P), axis=1)
-    (da_a, da_b), (db_a, db_b), (c_a, c_b) = \
-        np.square(X).reshape(3, m, 2, r).sum(axis=(1, 3)).tolist()
-    rise = max(a.rise, b.rise) + 1.5 * math.sqrt(float(np.dot(C.ravel(), C.ravel())))
-    fall_a = math.sqrt(max(da_a, db_a)) + 1.5 * math.sqrt(c_a)
-    fall_b = math.sqrt(max(da_b, db_b)) + 1.5 * math.sqrt(c_b)
-    return ((fall_a + a.smin / a.smax * rise) / a.smax,
-            (fall_b + b.smin / b.smax * rise) / b.smax)
 
 
 def _lowest(sa, sb, h, ra, rb) -> float:

@@ -36,7 +36,7 @@ from ..integrators.compiled import CompiledRate
 from ..linalg.newton import CHORD_CONTRACTION, newton
 from ..options import Option
 from .base import KEEP, Correction, Formulation
-from .basis import ConstraintSolveError, CoordinateBasis, MatrixBasis
+from .basis import ConstraintSolveError, CoordinateBasis, DenseBlock, MatrixBasis
 
 
 # A partition is given up when cond(Φ_q D) has grown this many times beyond its value at
@@ -135,7 +135,8 @@ class Partitioned(Formulation):
             # The chord factor: convergence is judged on ‖Φ‖, so its conditioning affects
             # only the rate.
             self._chord = self.basis.block(J) if block is None else block
-            G = -self._chord.chord(self.basis.JB(J))
+            reduced = getattr(self._chord, "reduced", None)
+            G = -(self._chord.chord(self.basis.JB(J)) if reduced is None else reduced)
             self.problem.counters.factorizations += 1
         else:
             G = np.zeros((self.basis.r, self.basis.f))
@@ -153,7 +154,7 @@ class Partitioned(Formulation):
         self._P = np.column_stack([w - G @ z, wd - G @ zd, cw - G @ cz, G])
         if self.engine is not None:      # a dense Φ_q D: `_chord` is a `DenseBlock`
             self.engine.accept(t, self.q_ref, self._P,
-                                self._chord.inverse() if self._square else None)
+                               self._chord.inverse() if self._square else None, z, w)
 
     def _compiled_engine(self, basis):
         """The compiled evaluation of this partition (the problem's algebra's
@@ -413,7 +414,18 @@ class Partitioned(Formulation):
         return min(self.cond_max, GROWTH * max(condition, 1.0))
 
     def _block_at(self, t, y):
-        """(q, v, J, n_fresh, Φ_q D factored) at the integrated state y."""
+        """(q, v, J, n_fresh, Φ_q D factored) at the integrated state y: in one compiled
+        call where the engine serves (`PartitionedEngine.end`)."""
+        c, engine = self._cache, self.engine
+        if engine is not None and engine.ready and not (
+                c is not None and c.t == t and c.block is not None and c.key == y.tobytes()):
+            ended = engine.end(t, y)
+            if ended is not None:
+                q, v, J, n_fresh, inverse, reduced, sign, condition = ended
+                block = DenseBlock.factored(self.basis.JD(J), inverse, sign, condition,
+                                            reduced)
+                self._cache = SolvedState(t, y.tobytes(), (q, v, J, n_fresh), block)
+                return q, v, J, n_fresh, block
         q, v, J, n_fresh = self.full_state(t, y)
         block = self._cache.block               # Φ_q D at this state, from full_state
         if block is None:                        # solved by the compiled engine

@@ -48,6 +48,13 @@ def _extra_coefficients() -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=None)
+def _dense_matrix() -> np.ndarray:
+    """scipy's DOP853 dense output matrix D (its interpolant's coefficients from the
+    stages) as the engine reads it."""
+    return np.ascontiguousarray(DOP853.D, dtype=float)
+
+
+@functools.lru_cache(maxsize=None)
 def _coefficients() -> np.ndarray:
     """scipy's DOP853 tableau as the engine reads it: A (S × S), B, C, E3, E5."""
     S = DOP853.n_stages
@@ -143,9 +150,10 @@ class CompiledDOP853(DOP853):
         return None
 
     def dense_output(self):
-        """scipy's interpolant of the step just taken (`Interpolant`: the same numbers to
-        the bit), its three extra stages evaluated in the engine where that step was (on
-        its rate), by scipy's own construction where not."""
+        """scipy's interpolant of the step just taken (`Interpolant`), where that step was
+        taken in the engine (on its rate) with its three extra stages and its coefficients
+        formed there too (`mechsim_dense_coefficients`: scipy's formulas, their sums in
+        another order), by scipy's own construction where not."""
         compiled = self._taken
         if compiled is None or self.t == self.t_old:
             return Interpolant.of(super().dense_output())
@@ -157,20 +165,14 @@ class CompiledDOP853(DOP853):
         self._after(int(self._out[0]), compiled)
         if failed:
             return Interpolant.of(super().dense_output())
-        return self._from_stages(compiled.interpolate)
-
-    def _from_stages(self, kernel=None):
-        """scipy's DOP853 interpolant from the stages in K_extended (the extra ones
-        included): its coefficients F as scipy's `_dense_output_impl` computes them,
-        evaluated by `kernel` (`Interpolant`) where given."""
-        K, h = self.K_extended, self.h_previous
-        f_old, delta_y = K[0], self.y - self.y_old
-        F = np.empty((self.D.shape[0] + 3, self.n))
-        F[0] = delta_y
-        F[1] = h * f_old - delta_y
-        F[2] = 2 * delta_y - h * (self.f + f_old)
-        F[3:] = h * np.dot(self.D, K)
-        return Interpolant(self.t_old, self.t, self.y_old, F, kernel)
+        rows, cols = self.D.shape
+        F = np.empty((rows + 3, self.n))
+        y_old, y, f = (np.ascontiguousarray(x, dtype=float) for x in (self.y_old, self.y,
+                                                                       self.f))
+        compiled.coefficients(self.n, rows, cols, _dense_matrix().ctypes.data,
+                              self.K_extended.ctypes.data, y_old.ctypes.data, y.ctypes.data,
+                              f.ctypes.data, self.h_previous, F.ctypes.data)
+        return Interpolant(self.t_old, self.t, y_old, F, compiled.interpolate)
 
 
 class Interpolant(DenseOutput):
@@ -222,16 +224,17 @@ class Interpolant(DenseOutput):
 
 class CompiledRate:
     """What `mechsim_dop853` needs of a formulation for one step: the engine's step
-    function (`step`) and its dense output's (`extra`, `interpolate`), the context (its
+    function (`step`) and its dense output's (`extra`, `coefficients`, `interpolate`), the context (its
     address) and `kind` (0 projection, 1 partition), the projection's `min_rcond` and
     `cut`, and `counted(evaluations)`, which books the stages as the formulation's own
     right-hand sides."""
 
-    __slots__ = ("step", "extra", "interpolate", "context", "kind", "min_rcond", "cut",
-                 "counted")
+    __slots__ = ("step", "extra", "coefficients", "interpolate", "context", "kind",
+                 "min_rcond", "cut", "counted")
 
     def __init__(self, lib, context: int, kind: int, counted, min_rcond=-1.0, cut=0.0):
         self.step, self.extra = lib.mechsim_dop853, lib.mechsim_dop853_extra
+        self.coefficients = lib.mechsim_dense_coefficients
         self.interpolate = lib.mechsim_interpolate
         self.context, self.kind, self.counted = context, kind, counted
         self.min_rcond, self.cut = float(min_rcond), float(cut)

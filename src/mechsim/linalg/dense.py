@@ -9,6 +9,8 @@ meaning and raise `np.linalg.LinAlgError` where it does.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.linalg import lapack
 
@@ -138,3 +140,26 @@ def fall_basis(sig, V, k) -> np.ndarray:
     if sig[k] > 0.0:
         return V[:, :r] * (sig[k] / sig[:r])
     return V[:, :r] * (sig[:r] <= 0.0)
+
+
+def fall_rates(a, b) -> tuple[float, float]:
+    """How fast σ_min/σ_max (not normalized) of J̃ can fall along a step from its end a to
+    its end b (the singularity monitor's, each end with its time t, J̃ and D = dJ̃/dt there
+    (J, D), `fall_basis` P, σ_min, σ_max and ‖D‖_F (smin, smax, rise)), from each end's
+    values: J̃ along the step taken as the cubic through J̃ and D at both ends, whose rate is D_a + (D_b − D_a) x + c x (1 − x) (x from 0 to 1, c = 6 C,
+    C = (J̃_b − J̃_a)/h − (D_a + D_b)/2: its mean is the chord's), so ‖rate · P‖ ≤
+    max(‖D_a P‖, ‖D_b P‖) + 1.5 ‖C P‖ for any P. Seen from end e, σ_min falls at most at
+    that with P = P_e (`fall_basis`; Frobenius norms), σ_max rises
+    at most at max(‖D_a‖_F, ‖D_b‖_F) + 1.5 ‖C‖_F (Weyl), and s = σ_min/σ_max falls at
+    most at (fall + s_e rise)/σ_max,e."""
+    C = (b.J - a.J) * (1.0 / (b.t - a.t)) - 0.5 * (a.D + b.D)
+    m, r = a.D.shape[0], a.P.shape[1]
+    # ‖X P_e‖_F² for X = D_a, D_b, C and e = a, b, from one product.
+    X = np.concatenate((a.D, b.D, C)) @ np.concatenate((a.P, b.P), axis=1)
+    (da_a, da_b), (db_a, db_b), (c_a, c_b) = \
+        np.square(X).reshape(3, m, 2, r).sum(axis=(1, 3)).tolist()
+    rise = max(a.rise, b.rise) + 1.5 * math.sqrt(float(np.dot(C.ravel(), C.ravel())))
+    fall_a = math.sqrt(max(da_a, db_a)) + 1.5 * math.sqrt(c_a)
+    fall_b = math.sqrt(max(da_b, db_b)) + 1.5 * math.sqrt(c_b)
+    return ((fall_a + a.smin / a.smax * rise) / a.smax,
+            (fall_b + b.smin / b.smax * rise) / b.smax)

@@ -160,6 +160,16 @@ class ConstraintAlgebra:
                 fall = (sparse.dense(dJ), basis)
         return smin, smax, d_min, d_max, u_min, J, rate_norm, fall
 
+    def change(self, q, t, Jm):
+        """(J̃ at (q, t), ‖J̃ − Jm‖_F): how far J̃ moved since Jm, which bounds how far each
+        singular value did (Weyl; the singularity monitor's skip)."""
+        J = self.scaled_jacobian(q, t)
+        return J, sparse.frobenius(sparse.difference(J, Jm))
+
+    def fall_rates(self, a, b):
+        """`mechsim.linalg.dense.fall_rates` of the monitor's ends a and b."""
+        return dense.fall_rates(a, b)
+
     def chords(self, times, Q):
         return chord_bound(np.diff(self._scaled_at(times, Q), axis=0))
 
@@ -268,6 +278,16 @@ class DenseAlgebra(ConstraintAlgebra):
             if got is not None:
                 return got
         return super().measure(q, t, v, eps, k, J)
+
+    def change(self, q, t, Jm):
+        if self.engine is not None and Jm.flags.c_contiguous and Jm.dtype == np.float64:
+            return self.engine.change(t, q, Jm)
+        return super().change(q, t, Jm)
+
+    def fall_rates(self, a, b):
+        if self.engine is not None:
+            return self.engine.fall_rates(a, b)
+        return super().fall_rates(a, b)
 
     def chords(self, times, Q):
         if self.engine is not None:
