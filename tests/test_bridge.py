@@ -315,7 +315,7 @@ def test_a_step_s_fall_rates_bound_sigma_min_over_sigma_max_inside_it(build, win
     millisecond inside lies on or above both lines, without the pre-check's margin; half
     the rates, or each end's own rate alone, would cross s on some window. The compiled
     engine's rates (the algebra's, which the monitor takes) are numpy's to round-off."""
-    from mechsim.formulations.monitor import _Fall
+    from mechsim.formulations.monitor import Fall
     from mechsim.linalg import dense, sparse
     mech = build()
     res = mech.simulate(1.2, rtol=1e-10, atol=1e-12, output_step=1e-3)
@@ -326,7 +326,7 @@ def test_a_step_s_fall_rates_bound_sigma_min_over_sigma_max_inside_it(build, win
         speed = np.max(np.abs(v))                  # (0 at the four-bar's start from rest)
         smin, smax, _, _, _, J, rise, fall = prob.algebra.measure(
             q, t, v, 1e-7 / speed if speed > 0.0 else 0.0, k)
-        falls.append(fall and _Fall(t, sparse.dense(J), fall, smin, smax, rise))
+        falls.append(fall and Fall(t, sparse.dense(J), fall, smin, smax, rise))
         s.append(smin / smax)
     s = np.array(s)
     for i in range(0, len(s) - window, window // 2):

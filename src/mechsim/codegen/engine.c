@@ -961,3 +961,333 @@ void mechsim_interpolate(int64_t N, int64_t rows, const double *F, double t_old,
    ctypes twins before using the library. */
 int64_t mechsim_sizeof_lu(void) { return (int64_t)sizeof(mechsim_lu); }
 int64_t mechsim_sizeof_projection(void) { return (int64_t)sizeof(mechsim_projection); }
+int64_t mechsim_sizeof_segment(void) { return (int64_t)sizeof(mechsim_segment); }
+
+/* ---- consecutive plain steps of a partition in one call (mechsim.run.segment) ---- */
+
+/* What the compiled predictor of the next dependent coordinates (Partitioned._accept) reads:
+   the accepted state's z, zd, w, wd (f, f, r, r) at t, G = -A^-1 Phi_q B (r x f, row-major),
+   and the accepted state before it (t0, z0, w0; `first`: none). It writes P (r x (3 + f)) as
+   [w - G z, wd - G zd, cw - G cz, G] with cw = (w0 - w - wd e)/e^2, cz likewise, e = t0 - t
+   (zero where first or t0 = t), then loads the engine: C = Ainv, q_ref, z_last, w_last, t_last.
+   Partitioned._accept calls it, so that a step in a segment and one in Python agree to the
+   bit. */
+void mechsim_lu_predictor(mechsim_lu *c, double t, int64_t first, double t0, const double *z,
+                          const double *zd, const double *w, const double *wd,
+                          const double *z0, const double *w0, const double *reduced,
+                          const double *Ainv, double *P) {
+  const int64_t f = c->f, r = c->n - f, cols = 3 + f;
+  const int same = first || t0 == t;
+  const double e = t0 - t, e2 = pow(e, 2.0);
+  for (int64_t i = 0; i < r; i++) {
+    const double *Gi = reduced + i * f;
+    double gz = 0.0, gzd = 0.0, gcz = 0.0;
+    for (int64_t k = 0; k < f; k++) {
+      const double g = -Gi[k];
+      const double cz = same ? 0.0 : (z0[k] - z[k] - zd[k] * e) / e2;
+      gz += g * z[k];
+      gzd += g * zd[k];
+      gcz += g * cz;
+      P[i * cols + 3 + k] = g;
+    }
+    const double cw = same ? 0.0 : (w0[i] - w[i] - wd[i] * e) / e2;
+    P[i * cols] = w[i] - gz;
+    P[i * cols + 1] = wd[i] - gzd;
+    P[i * cols + 2] = cw - gcz;
+  }
+  memcpy((double *)c->P, P, r * cols * sizeof(double));
+  memcpy((double *)c->C, Ainv, r * r * sizeof(double));
+  memcpy(c->z_last, z, f * sizeof(double));
+  memcpy(c->w_last, w, r * sizeof(double));
+  c->t_last = t;
+}
+
+static double py_max(double a, double b) { return b > a ? b : a; }   /* Python's max(a, b) */
+static double py_min(double a, double b) { return b < a ? b : a; }   /* Python's min(a, b) */
+
+/* The monitor's _lowest: the least over [0, h] of max(sa - ra tau, sb - rb (h - tau)). */
+static double lowest(double sa, double sb, double h, double ra, double rb) {
+  if (!(ra > 0.0 && rb > 0.0)) return -INFINITY;
+  const double tau = py_min(py_max((sa - sb + rb * h) / (ra + rb), 0.0), h);
+  return py_max(sa - ra * tau, sb - rb * (h - tau));
+}
+
+static int declined_rate(double t, const double *y, double *f) {
+  (void)t; (void)y; (void)f;
+  return 1;
+}
+
+/* Why a segment stopped (mechsim_segment.reason). */
+enum { SEG_BUDGET = 0, SEG_STEP, SEG_BRANCH, SEG_SAMPLES, SEG_ROOM, SEG_DUE, SEG_FINITE,
+       SEG_MEASURE, SEG_SEARCH, SEG_BAND, SEG_LEAVE, SEG_PARTITION, SEG_FINISHED, SEG_SHORT,
+       SEG_LIMIT };
+
+/* Up to s->budget accepted steps of DOP853 on the partition c (kind 1), each followed by
+   what Run._advance does after a plain step of a small rigid mechanism in LU (the hybrid's LU
+   phase, or "lu"): its output samples (dense output, positions and velocities) written to
+   the rows of s->rows, the singularity monitor's observation (its skip by Weyl's bound, or
+   its measurement and the cheap clears of a hidden passage), the hybrid's policy and step
+   limit, the partition's end (branch, condition, re-reference, predictor). Where anything
+   else would happen (a stage or state the engine declines, a step that needs the monitor's
+   search, a passage's band, a change of partition or of formulation, a sample due at the
+   step's end, no room for the samples, a step shorter than the stall rule's span), the step
+   is dropped and the segment ends before it with s->reason: the Python loop takes it, from
+   the same state, with the same numbers. Everything a committed step changes is in s, c
+   and the buffers s points to; Python reads it back (mechsim.run.segment). */
+int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s) {
+  const int64_t N = 2 * c->f, f = c->f, n = c->n, m = c->m, r = n - f, S = s->stages;
+  const int64_t mn = m * n, nr = n * m, width = 1 + 2 * n;
+  double *y = s->y, *fy = s->fy, *K = s->K, *y_new = s->y_new, *f_new = s->f_new;
+  double *in = s->in, *out = s->out;
+  s->count = 0;
+  s->reason = SEG_BUDGET;
+  while (s->count < s->budget) {
+    if (s->max_steps >= 0 && s->steps + 1 > s->max_steps) { s->reason = SEG_LIMIT; break; }
+    /* the step (CompiledDOP853.step) */
+    in[0] = (double)S; in[1] = s->t; in[2] = s->h_abs; in[3] = s->t_bound;
+    in[4] = s->direction; in[5] = s->max_step; in[6] = s->rtol; in[7] = -1.0; in[8] = 0.0;
+    in[9] = s->safety; in[10] = s->min_factor; in[11] = s->max_factor; in[12] = s->exponent;
+    int status = mechsim_dop853(c, 1, N, s->coef, in, y, fy, s->atol, K, y_new, f_new,
+                                s->work, out, (void *)declined_rate);
+    if (status) { s->reason = SEG_STEP; break; }
+    int64_t evaluations = (int64_t)out[3];
+    const double t_old = s->t, t_new = out[0], h = out[1], h_next = out[2];
+    if (h < s->min_advance) { s->reason = SEG_SHORT; break; }
+    if (s->direction * (t_new - s->t_bound) >= 0.0) { s->reason = SEG_FINISHED; break; }
+    /* the step's end (Partitioned.keeps_branch, after_step: one LU of Phi_q D) */
+    memcpy(c->y, y_new, N * sizeof(double));
+    if (mechsim_lu_end(c, t_new, s->inverse, s->reduced, s->block) ||
+        s->block[0] != s->sign) { s->reason = SEG_BRANCH; break; }
+    const int64_t fresh = c->fresh;
+    const double condition = s->block[1];
+    memcpy(s->Jq, c->J, mn * sizeof(double));          /* Phi_q there, kept below */
+    double *q_new = s->q_new, *v_new = s->v_new;
+    memcpy(q_new, c->q, n * sizeof(double));
+    memcpy(v_new, c->v, n * sizeof(double));
+    /* the output samples inside the step (Recorder.within): computed once the step is
+       known to stand, below */
+    int64_t next = s->next;
+    while (next < s->n_ts && s->ts[next] < t_new) next++;
+    int64_t k0 = s->next;
+    while (k0 < next && !(s->ts[k0] > t_old)) k0++;
+    const int64_t k = next - k0;
+    if (k > 0 && (s->held + k > s->capacity || k > s->y_rows)) { s->reason = SEG_ROOM; break; }
+    if (next < s->n_ts && s->ts[next] == t_new) { s->reason = SEG_DUE; break; }
+    double speed = 0.0;
+    for (int64_t i = 0; i < n; i++) {
+      if (!isfinite(q_new[i]) || !isfinite(v_new[i])) { speed = NAN; break; }
+      const double a = fabs(v_new[i]);
+      if (a > speed) speed = a;
+    }
+    if (isnan(speed)) { s->reason = SEG_FINITE; break; }
+    /* the monitor (SingularityMonitor.observe), its state changed only once the step
+       stands: the candidates below */
+    int skip = 0;
+    double floor_value = 0.0;
+    if (s->has_prev && s->skipped < s->max_skip && s->has_measured) {
+      const double bound = py_max(2.0 * fabs(s->prev_rate), s->peak_rate);
+      const double horizon = t_new + 2.0 * (t_new - t_old) - s->prev_t;
+      if (!(s->prev_s - bound * horizon <= 2.0 * s->enter)) {
+        memcpy(pc->q, q_new, n * sizeof(double));
+        const double E = mechsim_change(pc, t_new, s->Jm, s->Jc);
+        floor_value = py_max(s->m_smin - E, 0.0) / (s->m_smax + E);
+        skip = floor_value > 2.0 * s->enter * s->peak;
+      }
+    }
+    const int slot = 1 - s->cur;
+    double *Jn = s->Js + slot * mn, *Dn = s->Ds + slot * mn, *Pn = s->Ps + slot * nr;
+    double smin = 0.0, smax = 0.0, raw = 0.0, rate = 0.0, rate_norm = 0.0, peak = s->peak;
+    double peak_rate = s->peak_rate, srel = 0.0, ratio_speed = 0.0;
+    int has_fall = 0;
+    if (!skip) {
+      memcpy(pc->q, q_new, n * sizeof(double));
+      const double eps = speed > 0.0 ? 1e-7 / speed : 0.0;
+      if (eps > 0.0) memcpy(pc->v, v_new, n * sizeof(double));
+      if (mechsim_measure(pc, t_new, eps, s->measured, Jn)) { s->reason = SEG_MEASURE; break; }
+      smin = s->measured[0];
+      smax = s->measured[1];
+      rate_norm = s->measured[4 + m];
+      if (!(smax > 0.0)) { s->reason = SEG_MEASURE; break; }
+      rate = eps ? (s->measured[2] * smax - smin * s->measured[3]) / pow(smax, 2.0) : 0.0;
+      raw = smin / smax;
+      if (s->small && eps > 0.0) {
+        const double scale = 1.0 / eps, *U = pc->U, *sig = pc->sig;
+        const int64_t kk = m - 1;
+        for (int64_t i = 0; i < mn; i++) Dn[i] = (pc->J1[i] - Jn[i]) * scale;
+        for (int64_t l = 0; l < m; l++) {
+          const double wl = sig[kk] > 0.0 ? sig[kk] / sig[l] : (sig[l] <= 0.0 ? 1.0 : 0.0);
+          for (int64_t j = 0; j < n; j++) Pn[j * m + l] = U[j + l * n] * wl;
+        }
+        has_fall = 1;
+      }
+      ratio_speed = s->small ? 2.0 * rate_norm / smax : 0.0;
+      peak = py_max(peak, raw);
+      if (peak < s->blind) { s->reason = SEG_MEASURE; break; }
+      srel = raw / peak;
+      rate = rate / peak;
+      peak_rate = py_max(peak_rate, fabs(rate));
+      /* the step's start as the search would take it */
+      int has_a = s->has_prev;
+      double a_t = s->prev_t, a_s = s->prev_s, a_d = s->prev_rate;
+      if (has_a && a_t != t_old) {
+        has_a = s->skipped && s->has_floor && s->floor_t == t_old;
+        a_t = t_old;
+        a_s = s->floor_v / peak;
+        a_d = 0.0;
+      }
+      if (has_a) {                     /* SingularityMonitor._hidden_passages' clears */
+        const double hh = t_new - a_t, enter = s->enter * peak;
+        const double observed = peak * py_max(py_max(peak_rate, fabs(a_d)), fabs(rate));
+        const double speed_bound = py_max(s->ratio_speed, ratio_speed);
+        const double rate_bound = 2.0 * py_max(observed, observed > 0.0 ?
+            py_min(speed_bound, s->weyl_span * observed) : speed_bound);
+        int clear = !(hh > 0.0) || !(rate_bound > 0.0) ||
+            (a_s + srel) * peak - rate_bound * hh >= 2.0 * enter;
+        if (!clear && s->has_fall && has_fall) {       /* _fall_clears */
+          const int cur = s->cur;
+          const double *fs_a = s->fall_scalars + 4 * cur;   /* t, smin, smax, rise */
+          const double least = 2.0 * observed;
+          const double ea = fs_a[1] / fs_a[2], eb = smin / smax, span = t_new - fs_a[0];
+          if (!(least > 0.0 && lowest(ea, eb, span, least, least) < enter)) {
+            double fin[8], rates[2];
+            fin[0] = fs_a[0]; fin[1] = t_new; fin[2] = fs_a[1]; fin[3] = fs_a[2];
+            fin[4] = fs_a[3]; fin[5] = smin; fin[6] = smax; fin[7] = rate_norm;
+            mechsim_fall_rates(m, n, m, fin, s->Js + cur * mn, s->Ds + cur * mn,
+                               s->Ps + cur * nr, Jn, Dn, Pn, s->fall_work, rates);
+            const double r0 = py_max(s->hermite_margin * rates[0], least);
+            const double r1 = py_max(s->hermite_margin * rates[1], least);
+            clear = lowest(ea, eb, span, r0, r1) >= enter;
+          }
+        }
+        if (!clear) { s->reason = SEG_SEARCH; break; }
+      }
+      if (srel < s->enter) { s->reason = SEG_BAND; break; }
+    }
+    const double last = skip ? s->last : srel, mon_rate = skip ? s->rate : rate;
+    /* the hybrid's policy (HybridPolicy.lu_limit, leave_lu) */
+    int has_limit = 0, held = s->held_steps;
+    double limit = 0.0;
+    if (s->hybrid) {
+      if (mon_rate < 0.0 && last > s->enter) {
+        has_limit = 1;
+        limit = py_max(0.5 * (last - s->enter) / -mon_rate, 1e-6);
+      }
+      const int was_held = s->has_limit && h >= 0.99 * s->limit;
+      held = was_held ? held + 1 : 0;
+      const int predicted = last < s->enter || (mon_rate < 0.0 && last + mon_rate * h < s->enter);
+      if (predicted || held >= 2) { s->reason = SEG_LEAVE; break; }
+    }
+    /* the partition (Partitioned.after_step) */
+    if (fresh >= 2 || condition > s->repartition_at) { s->reason = SEG_PARTITION; break; }
+    /* the output samples (Recorder.within, Partitioned.states), before the partition
+       moves its reference */
+    if (k > 0) {
+      double *ein = s->extra_in;
+      ein[0] = (double)(S + 1); ein[1] = (double)s->extra_rows; ein[2] = (double)s->extra_width;
+      ein[3] = t_old; ein[4] = h; ein[5] = -1.0; ein[6] = 0.0;
+      if (mechsim_dop853_extra(c, 1, N, s->extra_coef, ein, y, K, s->work, s->extra_out,
+                               (void *)declined_rate)) { s->reason = SEG_SAMPLES; break; }
+      evaluations += s->extra_rows;
+      mechsim_dense_coefficients(N, s->dense_rows, s->dense_cols, s->dense, K, y, y_new, f_new,
+                                 h, s->F);
+      mechsim_interpolate(N, s->dense_rows + 3, s->F, t_old, h, y, k, s->ts + k0, s->Y);
+      double *rows = s->rows + s->held * width;
+      int bad = 0;
+      for (int64_t j = 0; j < k && !bad; j++) {
+        double *row = rows + j * width, sign = 0.0;
+        row[0] = s->ts[k0 + j];
+        if (lu_state(c, row[0], s->Y + j * N, row + 1, row + 1 + n, c->J, &sign)) bad = 1;
+        else if (sign != 0.0 && sign != s->sign) bad = 1;
+        else
+          for (int64_t i = 1; i < width; i++)
+            if (!isfinite(row[i])) bad = 1;
+      }
+      if (bad) { s->reason = SEG_SAMPLES; break; }
+    }
+    double zmax = 0.0;
+    for (int64_t i = 0; i < f; i++) zmax = py_max(zmax, fabs(y_new[i]));
+    double *z = s->z, *w = s->w, *wd = s->wd;
+    const int shift = zmax > s->reference_span;
+    if (shift) {
+      double *q_ref = (double *)c->q_ref;
+      for (int64_t i = 0; i < f; i++) {
+        q_ref[c->ind[i]] = q_ref[c->ind[i]] + y_new[i];
+        c->z_last[i] = c->z_last[i] - y_new[i];
+        z[i] = 0.0;
+      }
+      for (int64_t i = 0; i < r; i++) q_ref[c->dep[i]] = q_ref[c->dep[i]] + 0.0;
+    } else {
+      memcpy(z, y_new, f * sizeof(double));
+    }
+    for (int64_t i = 0; i < r; i++) {
+      w[i] = q_new[c->dep[i]] - c->q_ref[c->dep[i]];
+      wd[i] = v_new[c->dep[i]];
+    }
+    /* committed from here: nothing below declines */
+    memcpy(s->J_end, s->Jq, mn * sizeof(double));
+    memcpy(s->z0, c->z_last, f * sizeof(double));
+    memcpy(s->w0, c->w_last, r * sizeof(double));
+    mechsim_lu_predictor(c, t_new, 0, c->t_last, z, y_new + f, w, wd, s->z0, s->w0, s->reduced,
+                         s->inverse, s->P);
+    s->factorizations += 1;
+    if (shift) {                       /* adapters.shift_in_place: y + (corrected - y) */
+      for (int64_t i = 0; i < f; i++) y_new[i] = y_new[i] + (0.0 - y_new[i]);
+      for (int64_t i = f; i < N; i++) y_new[i] = y_new[i] + (y_new[i] - y_new[i]);
+      s->corrections += 1;
+    }
+    if (s->hybrid) {
+      s->held_steps = held;
+      s->has_limit = has_limit;
+      s->limit = limit;
+      s->policy_steps += 1;
+      s->max_step = has_limit ? py_min(s->run_max_step, limit) : s->run_max_step;
+    }
+    if (!skip) {
+      int64_t kept = 0;                /* the measurements known: the one at t_old, if any */
+      for (int64_t j = 0; j < s->known_n; j++)
+        if (s->known[3 * j] == t_old) {
+          memmove(s->known, s->known + 3 * j, 3 * sizeof(double));
+          kept = 1;
+          break;
+        }
+      s->known_n = kept;
+      double *kn = s->known + 3 * s->known_n;
+      kn[0] = t_new; kn[1] = smin; kn[2] = smax;
+      s->known_n += 1;
+      memcpy(s->Jm, Jn, mn * sizeof(double));
+      s->m_smin = smin; s->m_smax = smax; s->has_measured = 1;
+      s->ratio_speed = ratio_speed;
+      if (has_fall) {
+        double *fs = s->fall_scalars + 4 * slot;
+        fs[0] = t_new; fs[1] = smin; fs[2] = smax; fs[3] = rate_norm;
+        s->cur = slot;
+      }
+      s->has_fall = has_fall;
+      s->peak = peak; s->peak_rate = peak_rate;
+      s->prev_t = t_new; s->prev_s = srel; s->prev_rate = rate; s->has_prev = 1;
+      s->skipped = 0;
+      s->last = srel; s->rate = rate;
+    } else {
+      s->skipped += 1;
+      s->floor_t = t_new; s->floor_v = floor_value; s->has_floor = 1;
+    }
+    /* the integrator and the run */
+    s->sign = s->block[0];
+    memcpy(s->y_old, y, N * sizeof(double));
+    memcpy(y, y_new, N * sizeof(double));
+    memcpy(fy, f_new, N * sizeof(double));
+    s->t_old = t_old;
+    s->t = t_new;
+    s->h_previous = h;
+    s->h_abs = h_next;
+    s->evaluations += evaluations;
+    s->steps += 1;
+    s->next = next;
+    s->held += k;
+    double *log = s->log + 4 * s->count;
+    log[0] = t_new; log[1] = h; log[2] = speed; log[3] = h_next;
+    s->count += 1;
+    if (s->steps >= s->runaway_from && s->steps % s->runaway_every == 0) break;
+  }
+  return s->count;
+}

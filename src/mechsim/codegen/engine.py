@@ -59,7 +59,7 @@ from ..linalg.dense import fall_basis
 from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
 from .cache import adopt, env_flag, verified_file
 from .compiled import build_library, compiler, compiler_identity, flags_digest, shared_library
-from .layout import PARTITION, PROJECTION, Dims
+from .layout import PARTITION, PROJECTION, SEGMENT, Dims, declare
 
 # The engine's own C (shipped beside this module), after the declarations of the model's C
 # twins it calls and the structures' typedefs (`layout`).
@@ -78,9 +78,11 @@ void mechsim_gamma(const double *q, const double *v, double t, const double *p, 
 @functools.cache
 def source() -> str:
     """The engine's C: headers, the declarations of the model's C twins it calls, the
-    typedefs of `layout.PARTITION` and `layout.PROJECTION`, and `engine.c`."""
+    typedefs of `layout.PARTITION`, `layout.PROJECTION` and `layout.SEGMENT`, and
+    `engine.c`."""
     text = resources.files(__package__).joinpath(_ENGINE_C).read_text(encoding="utf-8")
-    return _HEADERS + _MODEL + PARTITION.typedef() + "\n" + PROJECTION.typedef() + "\n" + text
+    return (_HEADERS + _MODEL + PARTITION.typedef() + "\n" + PROJECTION.typedef() + "\n" +
+            SEGMENT.typedef() + "\n" + text)
 
 
 def engine_object(directory: Path, command: list[str]) -> list[Path]:
@@ -206,7 +208,8 @@ def library(model):
         return None
     try:
         for name, layout in (("mechsim_sizeof_lu", PARTITION),
-                             ("mechsim_sizeof_projection", PROJECTION)):
+                             ("mechsim_sizeof_projection", PROJECTION),
+                             ("mechsim_sizeof_segment", SEGMENT)):
             fn = getattr(lib, name)
             fn.argtypes, fn.restype = [], ctypes.c_int64
             if fn() != ctypes.sizeof(layout.structure):
@@ -215,61 +218,7 @@ def library(model):
         lib.mechsim_engine_init.argtypes = [ctypes.c_void_p] * len(routines)
         lib.mechsim_engine_init.restype = None
         lib.mechsim_engine_init(*map(_lapack, routines))
-        for name in ("mechsim_lu_state", "mechsim_lu_accelerations", "mechsim_lu_rhs"):
-            fn = getattr(lib, name)
-            fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_double], ctypes.c_int
-        lib.mechsim_lu_states.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 6
-        lib.mechsim_lu_states.restype = ctypes.c_int
-        lib.mechsim_lu_end.argtypes = [ctypes.c_void_p, ctypes.c_double] + [ctypes.c_void_p] * 3
-        lib.mechsim_lu_end.restype = ctypes.c_int
-        fn = lib.mechsim_projection_accelerations
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_double]
-        fn.restype = ctypes.c_int
-        fn = lib.mechsim_project_state
-        fn.argtypes = [ctypes.c_void_p] + [ctypes.c_double] * 4 + [ctypes.c_int64] * 2
-        fn.restype = ctypes.c_int
-        fn = lib.mechsim_lu_condition
-        fn.argtypes, fn.restype = [ctypes.c_void_p, ctypes.c_double], ctypes.c_double
-        fn = lib.mechsim_measure
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double] + \
-            [ctypes.c_void_p] * 2
-        fn.restype = ctypes.c_int
-        fn = lib.mechsim_project_states
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 4 + \
-            [ctypes.c_int64, ctypes.c_void_p]
-        fn.restype = None
-        fn = lib.mechsim_chords
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 3
-        fn.restype = None
-        fn = lib.mechsim_extremes
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64] + \
-            [ctypes.c_void_p] * 3
-        fn.restype = ctypes.c_int
-        fn = lib.mechsim_dop853
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64] + [ctypes.c_void_p] * 11
-        fn.restype = ctypes.c_int
-        fn = lib.mechsim_dop853_extra
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int64] + [ctypes.c_void_p] * 7
-        fn.restype = ctypes.c_int
-        fn = lib.mechsim_interpolate
-        fn.argtypes = [ctypes.c_int64, ctypes.c_int64, ctypes.c_void_p, ctypes.c_double,
-                       ctypes.c_double, ctypes.c_void_p, ctypes.c_int64, ctypes.c_void_p,
-                       ctypes.c_void_p]
-        fn.restype = None
-        fn = lib.mechsim_change
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_double] + [ctypes.c_void_p] * 2
-        fn.restype = ctypes.c_double
-        fn = lib.mechsim_fall_rates
-        fn.argtypes = [ctypes.c_int64] * 3 + [ctypes.c_void_p] * 9
-        fn.restype = None
-        fn = lib.mechsim_dense_coefficients
-        fn.argtypes = [ctypes.c_int64] * 3 + [ctypes.c_void_p] * 5 + [ctypes.c_double,
-                                                                    ctypes.c_void_p]
-        fn.restype = None
-        fn = lib.mechsim_multipliers
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_int64] + [ctypes.c_void_p] * 4 + \
-            [ctypes.c_double] * 2 + [ctypes.c_void_p] * 3
-        fn.restype = ctypes.c_int64
+        declare(lib)
     except (OSError, AttributeError, KeyError):
         return None
     _LIBRARIES[model] = lib
@@ -353,7 +302,8 @@ class PartitionedEngine:
         self.lib = lib
         self._states = lib.mechsim_lu_states
         self._end = lib.mechsim_lu_end
-        self._last_z, self._last_w = self.buffers["z_last"][:f], self.buffers["w_last"][:r]
+        self._predictor, self._P_at = lib.mechsim_lu_predictor, self.P.ctypes.data
+        self.last_z, self.last_w = self.buffers["z_last"][:f], self.buffers["w_last"][:r]
         self._inverse, self._reduced = np.zeros((n - f, n - f)), np.zeros((n - f, f))
         self._block = np.zeros(2)
         self._end_args = (self._inverse.ctypes.data, self._reduced.ctypes.data,
@@ -373,10 +323,26 @@ class PartitionedEngine:
         self.q_ref[:] = q_ref
         self.P[:] = P
         self.C[:] = chord_inverse
-        self._last_z[:] = z
-        self._last_w[:] = w
+        self.last_z[:] = z
+        self.last_w[:] = w
         self.ctx.t_last = t
         self.ready = True
+
+    def predictor(self, t, z, zd, w, wd, prev, reduced, inverse, q_ref):
+        """Load an accepted step (`accept`) whose Φ_q D the engine factored (`end`: its
+        inverse and A⁻¹ Φ_q B `reduced`), the prediction's matrix formed in C from the
+        state (z, ż, w, ẇ) at t and `prev` = (t0, z0, w0), the accepted state before it (or
+        None): the same numbers as a step taken in a segment (`mechsim.run.segment`).
+        Returns that matrix."""
+        self.q_ref[:] = q_ref
+        first = prev is None
+        t0, z0, w0 = (t, z, w) if first else prev
+        args = [np.ascontiguousarray(x, dtype=float) for x in (z, zd, w, wd, z0, w0, reduced,
+                                                                 inverse)]
+        self._predictor(self.context, t, int(first), t0, *(x.ctypes.data for x in args),
+                        self._P_at)
+        self.ready = True
+        return self.P.copy()
 
     def state(self, t, y):
         """(q, v, Φ_q, n_fresh) of y = [z; ż] (n_fresh: the Newton iterations that took a
@@ -542,7 +508,7 @@ class ProjectionEngine:
         return self.Jt.copy(), change
 
     def fall_rates(self, a, b):
-        """`mechsim.linalg.dense.fall_rates` of the ends a and b (`_Fall`s whose J, D and
+        """`mechsim.linalg.dense.fall_rates` of the ends a and b (`Fall`s whose J, D and
         P are C-contiguous floats of this mechanism's sizes), in one call."""
         inputs = self._fall_in
         inputs[:] = (a.t, b.t, a.smin, a.smax, a.rise, b.smin, b.smax, b.rise)

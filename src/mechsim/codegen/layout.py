@@ -117,3 +117,66 @@ PROJECTION = Layout("mechsim_projection", [
     Field("svd_work", "double*",
           lambda d: 3 * d.k + max(d.n, d.m, 5 * d.k * d.k + 4 * d.k) + 64),
 ])
+
+# Consecutive plain steps of a partition in one call (`mechsim.run.segment`): the integrator's,
+# the monitor's, the hybrid policy's and the run's state a step reads and changes, with the
+# buffers of one step. `stages` rows of K are DOP853's with its dense output's extra ones.
+SEGMENT = Layout("mechsim_segment", [
+    *(Field(name, "int64") for name in (
+        "budget", "count", "reason", "steps", "max_steps", "runaway_from", "runaway_every",
+        "stages", "extra_rows", "extra_width", "dense_rows", "dense_cols", "n_ts", "next",
+        "held", "capacity", "y_rows", "evaluations", "factorizations", "corrections",
+        "hybrid", "held_steps", "has_limit", "policy_steps", "small", "max_skip", "skipped",
+        "has_prev", "has_floor", "has_measured", "has_fall", "cur", "known_n")),
+    *(Field(name, "double") for name in (
+        "t", "t_old", "h_abs", "h_previous", "t_bound", "direction", "max_step",
+        "run_max_step", "rtol", "safety", "min_factor", "max_factor", "exponent",
+        "min_advance", "sign", "repartition_at", "reference_span", "limit", "enter", "blind",
+        "weyl_span", "hermite_margin", "peak", "peak_rate", "last", "rate", "prev_t", "prev_s",
+        "prev_rate", "floor_t", "floor_v", "m_smin", "m_smax", "ratio_speed")),
+    *(Field(name, "const double*") for name in ("coef", "extra_coef", "dense", "atol", "ts")),
+    *(Field(name, "double*") for name in ("rows", "Y", "log")),
+    *(Field(name, "double*", lambda d: 2 * d.f) for name in (
+        "y", "fy", "y_old", "y_new", "f_new", "work")),
+    Field("K", "double*", lambda d: 16 * 2 * d.f), Field("F", "double*", lambda d: 7 * 2 * d.f),
+    Field("in", "double*", lambda d: 13), Field("out", "double*", lambda d: 5),
+    Field("extra_in", "double*", lambda d: 7), Field("extra_out", "double*", lambda d: 2),
+    Field("inverse", "double*", lambda d: d.r * d.r),
+    Field("reduced", "double*", lambda d: d.r * d.f), Field("block", "double*", lambda d: 2),
+    *(Field(name, "double*", lambda d: d.n) for name in ("q_new", "v_new")),
+    *(Field(name, "double*", lambda d: d.f) for name in ("z", "z0")),
+    *(Field(name, "double*", lambda d: d.r) for name in ("w", "wd", "w0")),
+    Field("P", "double*", lambda d: d.r * (3 + d.f)),
+    Field("measured", "double*", lambda d: 5 + d.m),
+    *(Field(name, "double*", lambda d: d.m * d.n) for name in ("Jm", "Jc", "Jq",
+                                                                "fall_work", "J_end")),
+    *(Field(name, "double*", lambda d: 2 * d.m * d.n) for name in ("Js", "Ds", "Ps")),
+    Field("fall_scalars", "double*", lambda d: 8), Field("known", "double*", lambda d: 6),
+])
+
+
+# The engine's functions as ctypes calls them: argument codes, then ">" and the result's
+# (p a pointer, d a double, l an int64_t, i an int, "-" none).
+SIGNATURES = {
+    "mechsim_lu_state": "pd>i", "mechsim_lu_accelerations": "pd>i", "mechsim_lu_rhs": "pd>i",
+    "mechsim_lu_states": "plpppppp>i", "mechsim_lu_end": "pdppp>i",
+    "mechsim_lu_predictor": "pdldppppppppp>-", "mechsim_lu_segment": "ppp>l",
+    "mechsim_projection_accelerations": "pddd>i", "mechsim_project_state": "pddddll>i",
+    "mechsim_lu_condition": "pd>d", "mechsim_measure": "pddpp>i",
+    "mechsim_project_states": "plpppplp>-", "mechsim_chords": "plppp>-",
+    "mechsim_extremes": "pllppp>i", "mechsim_dop853": "pll" + "p" * 11 + ">i",
+    "mechsim_dop853_extra": "pll" + "p" * 7 + ">i", "mechsim_interpolate": "llpddplpp>-",
+    "mechsim_change": "pdpp>d", "mechsim_fall_rates": "lll" + "p" * 9 + ">-",
+    "mechsim_dense_coefficients": "lllpppppdp>-", "mechsim_multipliers": "plppppddppp>l",
+}
+_CODES = {"p": ctypes.c_void_p, "d": ctypes.c_double, "l": ctypes.c_int64, "i": ctypes.c_int,
+          "-": None}
+
+
+def declare(lib) -> None:
+    """Set the argument and result types of the engine's functions in `lib` (`SIGNATURES`);
+    AttributeError where one is missing."""
+    for name, code in SIGNATURES.items():
+        args, result = code.split(">")
+        fn = getattr(lib, name)
+        fn.argtypes, fn.restype = [_CODES[a] for a in args], _CODES[result]

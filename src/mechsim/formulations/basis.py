@@ -42,19 +42,11 @@ class DenseBlock:
     explicit inverse, formed once: one small matmul per chord iteration instead of a
     solve through scipy's wrapper."""
 
-    def __init__(self, A):
-        self.A, self._inv, self._sign = A, False, None
-        self._condition = None
-        self.reduced = None          # A⁻¹ Φ_q B where the factorization gave it
-
-    @classmethod
-    def factored(cls, A, inverse, sign, condition, reduced):
-        """A = Φ_q D whose inverse, sign of det A, cond₁ A and A⁻¹ Φ_q B (`reduced`) were
-        computed together already (the compiled end of a step)."""
-        block = cls(A)
-        block._inv, block._sign, block._condition = inverse, sign, condition
-        block.reduced = reduced
-        return block
+    def __init__(self, A, inverse=False, sign=None, condition=None, reduced=None):
+        """A = Φ_q D; its inverse, the sign of det A, cond₁ A and A⁻¹ Φ_q B (`reduced`)
+        where they were computed together already (the compiled end of a step)."""
+        self.A, self._inv, self._sign = A, inverse, sign
+        self._condition, self.reduced = condition, reduced
 
     def solve(self, b):
         return solve(self.A, b)

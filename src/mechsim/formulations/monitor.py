@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..linalg import sparse
+from ..linalg.dense import Fall
 from ..records import SingularPassage
 
 
@@ -89,6 +90,27 @@ class Dip:
     at_end: bool
 
 
+@dataclass
+class Observation:
+    """What the monitor carries from one observation to the next (`SingularityMonitor.
+    observation`): the steps skipped since the last measurement and the bound of the
+    latest skip (t, σ_min/σ_max floor), the last measured (t, s/peak, ṡ/peak), `last` and
+    `rate`, the peak and the fastest rate seen, the last measurement (J̃, σ_min, σ_max),
+    its bound on |d(σ_min/σ_max)/dt|, its `Fall` (or None) and the measurements at the
+    latest step's ends (time -> (σ_min, σ_max))."""
+    skipped: int
+    floor: tuple | None
+    prev: tuple | None
+    last: float
+    rate: float
+    peak: float
+    peak_rate: float
+    measured: tuple | None
+    ratio_speed: float
+    fall: object
+    known: dict
+
+
 class SingularityMonitor:
     """Records singular passages; `last` and `rate` are s/peak and its rate after the latest
     observation, `inside` tells whether a passage is open."""
@@ -112,7 +134,7 @@ class SingularityMonitor:
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
         self._known = {}             # time -> (σ_min, σ_max) measured at the latest step's ends
         self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
-        self._fall = None            # `_Fall` at the latest measured observation, or None
+        self._fall = None            # `Fall` at the latest measured observation, or None
         self.t_first = -np.inf       # the first observation's time
         # Whether σ_min/σ_max of J̃ is below round-off for the masses' sake (`BLIND`): then
         # no passage is watched, and the run says so.
@@ -182,6 +204,20 @@ class SingularityMonitor:
             return True, J
         return False, J
 
+    def observation(self) -> Observation:
+        """The state the next observation starts from (for steps observed in the engine,
+        `mechsim.run.segment`)."""
+        return Observation(self._skipped, self._floor, self._prev, self.last, self.rate,
+                           self.peak, self.peak_rate, self._measured, self._ratio_speed,
+                           self._fall, dict(self._known))
+
+    def resume(self, o: Observation) -> None:
+        """Go on from `o`, the state after observations made elsewhere (the engine's)."""
+        self._skipped, self._floor, self._prev = o.skipped, o.floor, o.prev
+        self.last, self.rate, self.peak, self.peak_rate = o.last, o.rate, o.peak, o.peak_rate
+        self._measured, self._ratio_speed, self._fall = o.measured, o.ratio_speed, o.fall
+        self._known = dict(o.known)
+
     def observe(self, t, q, v=None, state_at=None, t_old=None, positions_at=None) -> float:
         """Take the state at an accepted step that began at `t_old`. `state_at(t) -> (q, v)`
         evaluates the step's dense output, used to confirm a minimum hidden inside the
@@ -202,7 +238,7 @@ class SingularityMonitor:
         speed_before, self._ratio_speed = self._ratio_speed, self._speed(rate_norm, smax)
         fall_before, self._fall = self._fall, None
         if fall is not None:
-            self._fall = _Fall(t, sparse.dense(J), fall, smin, smax, rate_norm)
+            self._fall = Fall(t, sparse.dense(J), fall, smin, smax, rate_norm)
         self.peak = max(self.peak, raw)
         if self.peak < BLIND and self._masses_hide(q, t):
             # Below round-off, s/peak is noise: no passage can be told from it.
@@ -353,7 +389,7 @@ class SingularityMonitor:
 
     def _fall_clears(self, falls, observed) -> bool:
         """Do the lines s_a − R_a |t − t_a| keep s above `enter` over the span of `falls`,
-        the `_Fall`s of the latest measured observation (the step's start, or one before
+        the `Fall`s of the latest measured observation (the step's start, or one before
         the measurements skipped since) and of the step's end? R_a is `fall_rates`' bound (`mechsim.linalg.dense`)
         on how fast σ_min/σ_max can fall from end a (J̃'s cubic through its values and rates
         at the ends, seen in a's own singular directions) times `HERMITE_MARGIN`, at least
@@ -472,19 +508,6 @@ class SingularityMonitor:
             self.passages.append(SingularPassage(here.t_start, t, here.s_min, here.joints,
                                                  here.t_min, here.bridged))
             self.open_passage = None
-
-
-class _Fall:
-    """What the monitor keeps of a measured observation for `fall_rates`: its time `t`,
-    J̃ and D = dJ̃/dt there, P (`mechsim.linalg.dense.fall_basis`), σ_min, σ_max and
-    ‖D‖_F (`rise`)."""
-
-    __slots__ = ("t", "J", "D", "P", "smin", "smax", "rise")
-
-    def __init__(self, t, J, fall, smin, smax, rise):
-        self.t, self.J, self.D = t, J, fall[0]
-        self.P = np.ascontiguousarray(fall[1])
-        self.smin, self.smax, self.rise = smin, smax, rise
 
 
 def _lowest(sa, sb, h, ra, rb) -> float:

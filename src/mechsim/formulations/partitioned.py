@@ -139,11 +139,17 @@ class Partitioned(Formulation):
             G = -(self._chord.chord(self.basis.JB(J)) if reduced is None else reduced)
             self.problem.counters.factorizations += 1
         else:
-            G = np.zeros((self.basis.r, self.basis.f))
+            reduced, G = None, np.zeros((self.basis.r, self.basis.f))
         self.w_last = w
         # The prediction (see `_predict`) is w(t, z) = a0 + a1 d + a2 d² + G z, d = t − t_last:
         # the path through the accepted states bent through the one before (O(h³)), corrected
-        # to first order for z off that path. Folded into one matrix here, once per step.
+        # to first order for z off that path. Folded into one matrix here, once per step: in
+        # the engine where it factored this Φ_q D (the numbers of a step in a segment,
+        # `mechsim.run.segment`).
+        if self.engine is not None and self._square and reduced is not None:
+            self._P = self.engine.predictor(t, z, zd, w, wd, prev, reduced,
+                                            self._chord.inverse(), self.q_ref)
+            return
         cw, cz = np.zeros_like(w), np.zeros_like(z)
         if prev is not None and prev[0] != t:
             t0, z0, w0 = prev
@@ -155,6 +161,28 @@ class Partitioned(Formulation):
         if self.engine is not None:      # a dense Φ_q D: `_chord` is a `DenseBlock`
             self.engine.accept(t, self.q_ref, self._P,
                                self._chord.inverse() if self._square else None, z, w)
+
+    def plain_start(self):
+        """(sign of det Φ_q D, the condition at which the partition is given up) where its
+        next steps can be taken in the engine (`mechsim.run.segment`: a compiled, square,
+        dense Φ_q D on a signed branch); else None."""
+        engine = self.engine
+        if engine is None or not engine.ready or not self._square or not self._sign:
+            return None
+        return self._sign, self._repartition_at
+
+    def accepted_in_engine(self, J, inverse, reduced, sign, condition) -> None:
+        """Steps were accepted in the engine (`mechsim.run.segment`), the last at Φ_q = J
+        with Φ_q D's inverse, A⁻¹ Φ_q B `reduced`, its sign and condition there: take the
+        partition's state from the engine's buffers, where its predictor left it."""
+        engine = self.engine
+        self.q_ref = engine.q_ref.copy()
+        self.t_last, self.z_last, self.w_last = engine.ctx.t_last, engine.last_z.copy(), \
+            engine.last_w.copy()
+        self._P = engine.P.copy()
+        self._chord = DenseBlock(self.basis.JD(J), inverse, sign, condition, reduced)
+        self._sign = self._end_sign = sign
+        self._cache = None
 
     def _compiled_engine(self, basis):
         """The compiled evaluation of this partition (the problem's algebra's
@@ -422,8 +450,7 @@ class Partitioned(Formulation):
             ended = engine.end(t, y)
             if ended is not None:
                 q, v, J, n_fresh, inverse, reduced, sign, condition = ended
-                block = DenseBlock.factored(self.basis.JD(J), inverse, sign, condition,
-                                            reduced)
+                block = DenseBlock(self.basis.JD(J), inverse, sign, condition, reduced)
                 self._cache = SolvedState(t, y.tobytes(), (q, v, J, n_fresh), block)
                 return q, v, J, n_fresh, block
         q, v, J, n_fresh = self.full_state(t, y)

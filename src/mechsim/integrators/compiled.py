@@ -40,7 +40,7 @@ _RATE = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_double, ctypes.POINTER(ctypes.c_
 
 
 @functools.lru_cache(maxsize=None)
-def _extra_coefficients() -> np.ndarray:
+def extra_tableau() -> np.ndarray:
     """scipy's DOP853 dense output's extra stages as the engine reads them: their rows of
     A_EXTRA, then their nodes C_EXTRA."""
     return np.ascontiguousarray(np.concatenate([np.asarray(DOP853.A_EXTRA, float).ravel(),
@@ -48,14 +48,14 @@ def _extra_coefficients() -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=None)
-def _dense_matrix() -> np.ndarray:
+def dense_matrix() -> np.ndarray:
     """scipy's DOP853 dense output matrix D (its interpolant's coefficients from the
     stages) as the engine reads it."""
     return np.ascontiguousarray(DOP853.D, dtype=float)
 
 
 @functools.lru_cache(maxsize=None)
-def _coefficients() -> np.ndarray:
+def tableau() -> np.ndarray:
     """scipy's DOP853 tableau as the engine reads it: A (S × S), B, C, E3, E5."""
     S = DOP853.n_stages
     return np.ascontiguousarray(np.concatenate([
@@ -85,15 +85,31 @@ class CompiledDOP853(DOP853):
         # (an array's `.ctypes.data` costs more than copying a small state in and out).
         self._y, self._f = np.empty(self.n), np.empty(self.n)
         self._y_new, self._f_new = np.empty(self.n), np.empty(self.n)
-        self._step_args = (_coefficients().ctypes.data, self._in.ctypes.data,
+        self._step_args = (tableau().ctypes.data, self._in.ctypes.data,
                            self._y.ctypes.data, self._f.ctypes.data, self._atol.ctypes.data,
                            self.K.ctypes.data, self._y_new.ctypes.data,
                            self._f_new.ctypes.data, self._work.ctypes.data,
                            self._out.ctypes.data, ctypes.cast(self._fallback, ctypes.c_void_p))
-        self._extra_args = (_extra_coefficients().ctypes.data, self._extra_in.ctypes.data,
+        self._extra_args = (extra_tableau().ctypes.data, self._extra_in.ctypes.data,
                             self._y.ctypes.data, self.K_extended.ctypes.data,
                             self._work.ctypes.data, self._out.ctypes.data,
                             ctypes.cast(self._fallback, ctypes.c_void_p))
+
+    @property
+    def atol_array(self) -> np.ndarray:
+        """atol for every component, as the engine reads it (its address is stable)."""
+        return self._atol
+
+    def stepped_in_engine(self, compiled, t, t_old, h_abs, h_previous, y, f, y_old, K,
+                          evaluations) -> None:
+        """Steps taken in the engine elsewhere on `compiled` (`mechsim.run.segment`): the
+        state after the last of them, as `step` would leave it, its stages K (the dense
+        output's included), and the rates they evaluated counted."""
+        self.t, self.t_old, self.h_abs, self.h_previous = t, t_old, h_abs, h_previous
+        self.y, self.f, self.y_old = y, f, y_old
+        self.K_extended[:] = K
+        self._taken = compiled
+        self._after(evaluations, compiled)
 
     def tolerances_changed(self):
         """Renew the engine's copy of atol after `atol` was set (`adapters.retune`)."""
@@ -169,7 +185,7 @@ class CompiledDOP853(DOP853):
         F = np.empty((rows + 3, self.n))
         y_old, y, f = (np.ascontiguousarray(x, dtype=float) for x in (self.y_old, self.y,
                                                                        self.f))
-        compiled.coefficients(self.n, rows, cols, _dense_matrix().ctypes.data,
+        compiled.coefficients(self.n, rows, cols, dense_matrix().ctypes.data,
                               self.K_extended.ctypes.data, y_old.ctypes.data, y.ctypes.data,
                               f.ctypes.data, self.h_previous, F.ctypes.data)
         return Interpolant(self.t_old, self.t, y_old, F, compiled.interpolate)

@@ -142,11 +142,22 @@ def fall_basis(sig, V, k) -> np.ndarray:
     return V[:, :r] * (sig[:r] <= 0.0)
 
 
-def fall_rates(a, b) -> tuple[float, float]:
+class Fall:
+    """What the singularity monitor keeps of a measured observation for `fall_rates`: its
+    time `t`, J̃ and D = dJ̃/dt there, P (`fall_basis`), σ_min, σ_max and ‖D‖_F
+    (`rise`)."""
+
+    __slots__ = ("t", "J", "D", "P", "smin", "smax", "rise")
+
+    def __init__(self, t, J, fall, smin, smax, rise):
+        self.t, self.J, self.D = t, J, fall[0]
+        self.P = np.ascontiguousarray(fall[1])
+        self.smin, self.smax, self.rise = smin, smax, rise
+
+
+def fall_rates(a: Fall, b: Fall) -> tuple[float, float]:
     """How fast σ_min/σ_max (not normalized) of J̃ can fall along a step from its end a to
-    its end b (the singularity monitor's, each end with its time t, J̃ and D = dJ̃/dt there
-    (J, D), `fall_basis` P, σ_min, σ_max and ‖D‖_F (smin, smax, rise)), from each end's
-    values: J̃ along the step taken as the cubic through J̃ and D at both ends, whose rate is D_a + (D_b − D_a) x + c x (1 − x) (x from 0 to 1, c = 6 C,
+    its end b (the singularity monitor's `Fall`s), from each end's values: J̃ along the step taken as the cubic through J̃ and D at both ends, whose rate is D_a + (D_b − D_a) x + c x (1 − x) (x from 0 to 1, c = 6 C,
     C = (J̃_b − J̃_a)/h − (D_a + D_b)/2: its mean is the chord's), so ‖rate · P‖ ≤
     max(‖D_a P‖, ‖D_b P‖) + 1.5 ‖C P‖ for any P. Seen from end e, σ_min falls at most at
     that with P = P_e (`fall_basis`; Frobenius norms), σ_max rises

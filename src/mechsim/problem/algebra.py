@@ -160,6 +160,11 @@ class ConstraintAlgebra:
                 fall = (sparse.dense(dJ), basis)
         return smin, smax, d_min, d_max, u_min, J, rate_norm, fall
 
+    def plain_steps(self, f, sample_rows, tableaus):
+        """Where the compiled engine takes a run's plain LU steps itself: its `PlainSteps`
+        (`mechsim.codegen.steps`); None here."""
+        return None
+
     def change(self, q, t, Jm):
         """(J̃ at (q, t), ‖J̃ − Jm‖_F): how far J̃ moved since Jm, which bounds how far each
         singular value did (Weyl; the singularity monitor's skip)."""
@@ -278,6 +283,16 @@ class DenseAlgebra(ConstraintAlgebra):
             if got is not None:
                 return got
         return super().measure(q, t, v, eps, k, J)
+
+    def plain_steps(self, f, sample_rows, tableaus):
+        """The engine's plain LU steps (`mechsim.codegen.steps.PlainSteps`) for partitions
+        of f independent coordinates, or None without the engine or where its monitor's
+        measure does not serve (redundant rows: m > n)."""
+        if self.engine is None or self.problem.m > self.problem.n:
+            return None
+        from ..codegen.steps import PlainSteps
+        p = self.problem
+        return PlainSteps(self.engine.lib, p.n, p.m, f, sample_rows, tableaus)
 
     def change(self, q, t, Jm):
         if self.engine is not None and Jm.flags.c_contiguous and Jm.dtype == np.float64:

@@ -40,6 +40,7 @@ from ..results.work import WorkIntegral
 from .bounds import Statistics, StepBound
 from .passage_times import PassageTimes
 from .runaway import Runaway
+from .segment import Segment
 from ..tolerances import Tolerances
 from ..formulations.basis import ConstraintSolveError
 from ..model.checks import LoadError
@@ -153,6 +154,7 @@ class Run:
         self.stream_failed = False       # the message says so already
         self.t_reached = settings.t_start
         self.solver = None
+        self.segment = None              # plain steps in the engine (`Segment`), where it applies
         self.y0 = form.initial_state(settings.t_start, q0, v0)
         self.passage_times = PassageTimes(form, self.monitor)
         self.monitor.observe(settings.t_start, q0, v0)
@@ -166,6 +168,7 @@ class Run:
             if self.s.progress else None
         try:
             self.solver = self.make(self.s.t_start, self.y0, self.s.first_step)
+            self.segment = Segment.for_run(self, STALL_SPAN * (self.s.t_end - self.s.t_start))
             while self.solver.status == "running" and self._advance():
                 if progress is not None:
                     progress.update(self.solver.t)
@@ -186,6 +189,13 @@ class Run:
     def _advance(self) -> bool:
         """One accepted step (or a step retaken, or an LSODA restart for a new bound);
         False where the run stops."""
+        if self.segment is not None and self.segment.advance():
+            # Plain steps taken in the engine, up to one the loop decides on (`Segment`).
+            why = self.runaway.verdict(self.stats.steps, self.solver.t, self.s.t_end)
+            if why:
+                return self._stop(why + fastest_motion(self.problem, self.solver.t, self.form.state(
+                    self.solver.t, self.solver.y)[1]))
+            return True
         restart = self.bound.restart_for(self.solver)
         if restart is not None:
             self._replace(self.solver.t, self.solver.y, *restart)

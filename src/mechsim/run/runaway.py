@@ -42,9 +42,14 @@ class Runaway:
 
     def note(self, j, h, v) -> None:
         """The j-th accepted step, of length h, ending at velocities v."""
+        if not j % self.stride:
+            self.note_speed(j, h, np.max(np.abs(v), initial=0.0))
+
+    def note_speed(self, j, h, speed) -> None:
+        """`note` of a step whose largest speed |v|∞ is `speed`."""
         if j % self.stride:
             return
-        self.rows[self.count] = j, h, np.max(np.abs(v), initial=0.0)
+        self.rows[self.count] = j, h, speed
         self.count += 1
         if self.count > self.keep:
             self.stride *= 2

@@ -1,0 +1,46 @@
+"""The engine's side of consecutive plain steps (`mechsim_lu_segment`, `mechsim.run.segment`).
+
+`PlainSteps` holds the structure `layout.SEGMENT` describes and the buffers it points to,
+for one mechanism and one count of independent coordinates; `run` takes steps on a
+partition's and the monitor's compiled contexts. The dense algebra builds it
+(`DenseAlgebra.plain_steps`); the run reads and writes its fields by name.
+"""
+
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+
+from .layout import SEGMENT, Dims
+
+# Steps one call takes at most before Python looks in (progress, the stream).
+BUDGET = 256
+
+
+class PlainSteps:
+    """The structure (`s`, its fields by their C names), its buffers (`buffers`), the
+    steps' log (`log`: t, h, |v|∞, the next step proposed, a row per step) and a step's
+    samples' scratch (`Y`, at most `sample_rows` samples a step)."""
+
+    def __init__(self, lib, n, m, f, sample_rows, tableaus):
+        self.lib, self.shape = lib, (n, m, f)
+        self.buffers = SEGMENT.buffers(Dims(n, m, f))
+        self.log = np.zeros((BUDGET, 4))
+        self.Y = np.zeros((max(int(sample_rows), 1), 2 * f))
+        coef, extra, dense = tableaus
+        self._arrays = {**self.buffers, "coef": coef, "extra_coef": extra, "dense": dense,
+                        "atol": np.zeros(1), "ts": np.zeros(1), "rows": np.zeros(1),
+                        "Y": self.Y, "log": self.log}
+        self.s = SEGMENT.make({"budget": BUDGET, "y_rows": len(self.Y)}, self._arrays)
+        self._address = ctypes.addressof(self.s)
+
+    def point(self, name, array) -> None:
+        """Point the structure's field `name` at `array` (kept alive here)."""
+        self._arrays[name] = array
+        setattr(self.s, name, array.ctypes.data)
+
+    def run(self, partition, projection) -> int:
+        """Steps on the partition's and the monitor's compiled contexts (their addresses):
+        how many were committed (`mechsim_lu_segment`)."""
+        return int(self.lib.mechsim_lu_segment(partition, projection, self._address))

@@ -1,0 +1,85 @@
+"""Plain LU steps taken in the compiled engine (`mechsim.run.segment`) give the Python
+loop's numbers to the bit."""
+
+import math
+import os
+import shutil
+import sysconfig
+
+import numpy as np
+import pytest
+
+import mechsim as ms
+from mechsim.app.bench import PROBLEMS
+from mechsim.run import segment
+
+needs_compiler = pytest.mark.skipif(
+    shutil.which((os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0])
+    is None or bool(os.environ.get("MECHSIM_NO_COMPILE")), reason="no C compiler")
+
+
+def _both(mech, monkeypatch, **run):
+    """The run with segments and without, and the steps the segments took."""
+    taken = []
+    advance = segment.Segment.advance
+
+    def counted(self):
+        done = advance(self)
+        if done:
+            taken.append(self.steps.s.count)
+        return done
+    monkeypatch.setattr(segment.Segment, "advance", counted)
+    fast = mech.simulate(**run)
+    monkeypatch.setattr(segment, "enabled", False)
+    slow = mech.simulate(**run)
+    monkeypatch.setattr(segment, "enabled", True)
+    return fast, slow, sum(taken)
+
+
+def _same(fast, slow):
+    for a, b in ((fast.t, slow.t), (fast.q, slow.q), (fast.v, slow.v)):
+        assert a.shape == b.shape and a.tobytes() == b.tobytes()
+    for key in ("steps", "rhs_evaluations", "factorizations", "corrections_in_place",
+                "partitions", "switches", "bridges"):
+        assert fast.stats[key] == slow.stats[key], key
+    assert fast.status == slow.status and fast.message == slow.message
+    assert [(p.t_start, p.t_end, p.min_sigma, p.t_min) for p in fast.singular_passages] == \
+        [(p.t_start, p.t_end, p.min_sigma, p.t_min) for p in slow.singular_passages]
+
+
+@needs_compiler
+@pytest.mark.parametrize("name, method, rtol", [
+    ("crank-rocker", "hybrid", 1e-4),        # long steps: the path followed, re-references
+    ("crank-rocker", "lu", 1e-8),
+    ("parallelogram", "hybrid", 1e-6),       # LU phases between passages
+    ("double-four-bar", "hybrid", 1e-8),
+])
+def test_segments_give_the_python_loop_s_numbers_to_the_bit(name, method, rtol, monkeypatch):
+    """The same samples, steps, counts, passages and message with segments as without:
+    the segments make the loop's decisions on the same doubles, so every sample of the
+    run is bitwise the Python loop's, not merely close; and they take part."""
+    p = PROBLEMS[name]
+    fast, slow, taken = _both(p.build(), monkeypatch, t_end=p.t_end, method=method,
+                              rtol=rtol, atol=1e-2 * rtol, output_step=p.t_end / 1000,
+                              max_step=p.max_step)
+    assert fast.success
+    _same(fast, slow)
+    assert taken >= 0.2 * fast.stats["steps"]
+
+
+@needs_compiler
+def test_a_segment_stops_where_the_loop_stops(monkeypatch):
+    """A step limit reached inside what would be a segment ends the run at the same step
+    with the same partial result; a crank-rocker released from its toggle with a fine
+    output grid (many samples a step) and one sample every step (a coarse grid) agree."""
+    mech = ms.examples.general_four_bar(0.3, 0.9, 0.7, 1.0, math.radians(60.0),
+                                        masses=(1.0, 1.5, 1.0), name="crank-rocker")
+    fast, slow, taken = _both(mech, monkeypatch, t_end=3.0, method="lu", rtol=1e-6,
+                              atol=1e-8, output_step=1e-3, max_steps=40)
+    assert not fast.success and "max_steps = 40" in fast.message and taken > 20
+    _same(fast, slow)
+    fast, slow, taken = _both(mech, monkeypatch, t_end=3.0, method="hybrid", rtol=1e-9,
+                              atol=1e-11, output_step=0.5)
+    assert fast.success and taken > 20
+    _same(fast, slow)
+    np.testing.assert_allclose(fast.t, np.linspace(0.0, 3.0, 7))
