@@ -83,3 +83,38 @@ def test_a_segment_stops_where_the_loop_stops(monkeypatch):
     assert fast.success and taken > 20
     _same(fast, slow)
     np.testing.assert_allclose(fast.t, np.linspace(0.0, 3.0, 7))
+
+
+@needs_compiler
+def test_the_passage_search_and_a_kept_partition_run_in_the_engine(monkeypatch):
+    """The crank-rocker at rtol 1e-3 strides ~0.07 s: the monitor's cheap bounds cannot
+    clear some steps, which its passage search (`SingularityMonitor._anchored`) clears, and
+    after the path was followed the partition's choice keeps its set. With segments, both
+    run in the engine (Python searches and chooses no more than at the start), and the
+    run is the loop's to the bit."""
+    from mechsim.formulations.monitor import SingularityMonitor
+    from mechsim.formulations.partitioned import Partitioned
+    calls = {"search": 0, "choose": 0}
+    anchored, choose = SingularityMonitor._anchored, Partitioned.choose
+
+    def counted_search(self, *args, **kw):
+        calls["search"] += 1
+        return anchored(self, *args, **kw)
+
+    def counted_choose(self, *args, **kw):
+        calls["choose"] += 1
+        return choose(self, *args, **kw)
+    monkeypatch.setattr(SingularityMonitor, "_anchored", counted_search)
+    monkeypatch.setattr(Partitioned, "choose", counted_choose)
+    p = PROBLEMS["crank-rocker"]
+    run = dict(t_end=p.t_end, method="hybrid", rtol=1e-3, atol=1e-5,
+               output_step=p.t_end / 1000)
+    mech = p.build()
+    fast = mech.simulate(**run)
+    in_engine = dict(calls)
+    monkeypatch.setattr(segment, "enabled", False)
+    calls.update(search=0, choose=0)
+    slow = mech.simulate(**run)
+    assert slow.success and calls["search"] >= 2 and calls["choose"] >= 2
+    assert in_engine["search"] == 0 and in_engine["choose"] <= 1      # the first partition
+    _same(fast, slow)

@@ -1017,6 +1017,197 @@ static int declined_rate(double t, const double *y, double *f) {
   return 1;
 }
 
+/* The step's dense output at the k times ts (its extra stages and coefficients formed once
+   a step, into s->F; their rates counted in *evaluations), the positions there into Q
+   (k x n) as Partitioned.positions solves them (lu_state on the partition's last accepted
+   step). 0: done; 1: a stage or a state the engine declines. */
+static int dense_ready(mechsim_lu *c, mechsim_segment *s, double t_old, double h, const double *y,
+                       const double *y_new, const double *f_new, int *ready,
+                       int64_t *evaluations) {
+  const int64_t N = 2 * c->f;
+  if (*ready) return 0;
+  double *ein = s->extra_in;
+  ein[0] = (double)(s->stages + 1); ein[1] = (double)s->extra_rows;
+  ein[2] = (double)s->extra_width; ein[3] = t_old; ein[4] = h; ein[5] = -1.0; ein[6] = 0.0;
+  if (mechsim_dop853_extra(c, 1, N, s->extra_coef, ein, y, s->K, s->work, s->extra_out,
+                           (void *)declined_rate)) return 1;
+  *evaluations += s->extra_rows;
+  mechsim_dense_coefficients(N, s->dense_rows, s->dense_cols, s->dense, s->K, y, y_new, f_new,
+                             h, s->F);
+  *ready = 1;
+  return 0;
+}
+
+static int positions_at(mechsim_lu *c, mechsim_segment *s, double t_old, double h,
+                        const double *y, int64_t k, const double *ts, double *Q) {
+  const int64_t N = 2 * c->f, n = c->n;
+  mechsim_interpolate(N, s->dense_rows + 3, s->F, t_old, h, y, k, ts, s->Yn);
+  for (int64_t j = 0; j < k; j++)
+    if (lu_state(c, ts[j], s->Yn + j * N, Q + j * n, s->vn, c->J, NULL)) return 1;
+  return 0;
+}
+
+/* The singularity monitor's search for a passage hidden inside the step [t0, t1]
+   (SingularityMonitor._anchored on a grid of GRID intervals, J~'s chords enlarged by
+   CHORD, at most `budget` SVDs), where it finds none: 1 when every interval is cleared by
+   its anchors' Weyl bounds, or the budget is spent, with no measured sigma_min/sigma_max
+   under `enter` (unnormalized); 0 where a value falls under it (a passage: the loop
+   records it), a state or an SVD the engine declines, or the grid outgrows its buffers.
+   The anchors at the step's ends are the ones measured there (known). */
+/* Whether a measured (sigma_min, sigma_max) is under `enter` as the search's values or its
+   anchors would count it (either form, or sigma_max not positive: a value of 0). */
+static int under(double smin, double smax, double enter) {
+  return !(smax > 0.0) || !(smin >= enter * smax) || smin / smax < enter;
+}
+
+static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
+                         double t0, double t1, double t_old, double h_step, const double *y,
+                         int64_t budget, double enter, const double *end0,
+                         const double *end1) {
+  const int64_t n = c->n, cap = s->nodes_cap, grid = 8;
+  double *T = s->nodes, *Q = s->node_q, *ch = s->node_chords, *an = s->node_anchor;
+  double *low = s->node_low, *mid = s->node_mid, *mq = s->node_mq, *ex = s->node_ex;
+  int64_t *has = (int64_t *)s->node_has;
+  const double step = (t1 - t0) / (double)grid, h = t1 - t0, chord = 1.25;
+  int64_t count = grid + 1;
+  for (int64_t i = 0; i < grid; i++) T[i] = (double)i * step + t0;
+  T[grid] = t1;
+  if (positions_at(c, s, t_old, h_step, y, count, T, Q)) return 0;
+  mechsim_chords(pc, count, T, Q, ch);
+  for (int64_t i = 0; i < grid; i++) ch[i] = chord * ch[i];
+  for (int64_t i = 0; i < count; i++) has[i] = 0;
+  if (end0) { has[0] = 1; an[0] = end0[0]; an[1] = end0[1]; }
+  if (end1) { has[grid] = 1; an[2 * grid] = end1[0]; an[2 * grid + 1] = end1[1]; }
+  int64_t spent = 0;
+  {
+    int64_t todo[2], k = 0;
+    if (!has[0]) todo[k++] = 0;
+    if (!has[grid]) todo[k++] = grid;
+    for (int64_t j = 0; j < k; j++) {
+      if (mechsim_extremes(pc, 1, pc->m - 1, T + todo[j], Q + todo[j] * n, ex)) return 0;
+      has[todo[j]] = 1;
+      an[2 * todo[j]] = ex[0];
+      an[2 * todo[j] + 1] = ex[1];
+    }
+    spent = 2;
+  }
+  for (int64_t i = 0; i < count; i++)
+    if (has[i] && under(an[2 * i], an[2 * i + 1], enter)) return 0;
+  const double shortest = 1e-9 * h;
+  while (spent < budget) {
+    const int64_t intervals = count - 1;
+    for (int64_t j = 0; j < intervals; j++) low[j] = -INFINITY;
+    for (int side = 0; side < 2; side++) {    /* from the nearest anchor on either side */
+      int anchored = 0;
+      double a0 = 0.0, a1 = 0.0, reach = 0.0;
+      for (int64_t jj = 0; jj < intervals; jj++) {
+        const int64_t j = side ? intervals - 1 - jj : jj, node = j + side;
+        if (has[node]) { anchored = 1; a0 = an[2 * node]; a1 = an[2 * node + 1]; reach = 0.0; }
+        reach += ch[j];
+        if (anchored) {
+          const double bound = (a0 - reach) / (a1 + reach);
+          if (bound > low[j]) low[j] = bound;
+        }
+      }
+    }
+    int64_t nt = 0;                              /* the uncleared intervals, in order */
+    int64_t *todo = (int64_t *)s->node_todo;
+    for (int64_t j = 0; j < intervals; j++)
+      if (low[j] < enter && T[j + 1] - T[j] >= shortest) todo[nt++] = j;
+    if (!nt) break;
+    int64_t nf = 0;                              /* their nodes not measured, in order */
+    int64_t *fresh = (int64_t *)s->node_fresh;
+    for (int64_t a = 0; a < nt; a++)
+      for (int64_t e = 0; e < 2; e++) {
+        const int64_t i = todo[a] + e;
+        if (!has[i] && (nf == 0 || fresh[nf - 1] != i)) fresh[nf++] = i;
+      }
+    if (nf) {
+      if (nf > budget - spent) nf = budget - spent;
+      for (int64_t a = 0; a < nf; a++) {
+        const int64_t i = fresh[a];
+        if (mechsim_extremes(pc, 1, pc->m - 1, T + i, Q + i * n, ex)) return 0;
+        has[i] = 1;
+        an[2 * i] = ex[0];
+        an[2 * i + 1] = ex[1];
+        if (under(ex[0], ex[1], enter)) return 0;
+      }
+      spent += nf;
+      continue;
+    }
+    if (count + nt > cap) return 0;
+    for (int64_t a = 0; a < nt; a++) mid[a] = 0.5 * (T[todo[a]] + T[todo[a] + 1]);
+    if (positions_at(c, s, t_old, h_step, y, nt, mid, mq)) return 0;
+    /* the pieces' chords: [Q[j], mid, Q[j + 1]] for each, as one list of states */
+    double *at = s->node_at, *trip = s->node_trip, *pieces = s->node_pieces;
+    for (int64_t a = 0; a < nt; a++) {
+      const int64_t j = todo[a];
+      at[3 * a] = T[j]; at[3 * a + 1] = mid[a]; at[3 * a + 2] = T[j + 1];
+      memcpy(trip + (3 * a) * n, Q + j * n, n * sizeof(double));
+      memcpy(trip + (3 * a + 1) * n, mq + a * n, n * sizeof(double));
+      memcpy(trip + (3 * a + 2) * n, Q + (j + 1) * n, n * sizeof(double));
+    }
+    mechsim_chords(pc, 3 * nt, at, trip, pieces);
+    for (int64_t a = 0; a < 3 * nt - 1; a++) pieces[a] = chord * pieces[a];
+    for (int64_t a = nt - 1; a >= 0; a--) {      /* insert each midpoint, last first */
+      const int64_t j = todo[a];
+      for (int64_t i = count; i > j + 1; i--) {
+        T[i] = T[i - 1];
+        memcpy(Q + i * n, Q + (i - 1) * n, n * sizeof(double));
+        has[i] = has[i - 1];
+        an[2 * i] = an[2 * (i - 1)];
+        an[2 * i + 1] = an[2 * (i - 1) + 1];
+      }
+      for (int64_t i = count - 1; i > j; i--) ch[i + 1] = ch[i];
+      T[j + 1] = mid[a];
+      memcpy(Q + (j + 1) * n, mq + a * n, n * sizeof(double));
+      has[j + 1] = 0;
+      ch[j] = pieces[3 * a];
+      ch[j + 1] = pieces[3 * a + 1];
+      count++;
+    }
+  }
+  return 1;
+}
+
+/* Whether Partitioned.choose at Phi_q = J (row-major m x n) keeps the partition's
+   independent set (c->ind): its rank from the singular values of J (above
+   max(m, n) eps 1e3 sigma_max, as ConstraintAlgebra.rank), its pivots from LU with
+   partial pivoting of J^T (DenseAlgebra.pivots: dgetrf on the same column-major J^T
+   scipy's lu_factor takes). 1: kept; 0: another set, or a factorization failed. */
+static int keeps_set(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
+                     const double *J) {
+  const int64_t n = c->n, m = c->m, f = c->f;
+  double *A = s->set_work;
+  int64_t *mark = (int64_t *)s->set_mark;
+  memcpy(A, J, m * n * sizeof(double));            /* J^T, column-major n x m */
+  char jobz = 'N';
+  int N = (int)n, M = (int)m, LW = (int)pc->lwork, info = 0;
+  mechsim_dgesdd(&jobz, &N, &M, A, &N, pc->sig, pc->U, &N, pc->VT, &M, pc->svd_work, &LW,
+                 pc->iwork, &info);
+  if (info != 0) return 0;
+  const double threshold = (double)(m > n ? m : n) * 2.220446049250313e-16 * 1e3 * pc->sig[0];
+  int64_t rank = 0;
+  for (int64_t i = 0; i < (m < n ? m : n); i++) rank += pc->sig[i] > threshold;
+  memcpy(A, J, m * n * sizeof(double));
+  int *piv = (int *)s->set_piv;
+  mechsim_dgetrf(&N, &M, A, &N, piv, &info);
+  if (info < 0) return 0;
+  for (int64_t i = 0; i < n; i++) mark[i] = i;      /* perm from the row swaps */
+  for (int64_t i = 0; i < (m < n ? m : n); i++) {
+    const int64_t p = piv[i] - 1, keep = mark[i];
+    mark[i] = mark[p];
+    mark[p] = keep;
+  }
+  if (n - rank != f) return 0;
+  for (int64_t k = 0; k < f; k++) {                 /* perm[rank:] is the set c->ind */
+    int found = 0;
+    for (int64_t i = rank; i < n; i++) found |= mark[i] == c->ind[k];
+    if (!found) return 0;
+  }
+  return 1;
+}
+
 /* Why a segment stopped (mechsim_segment.reason). */
 enum { SEG_BUDGET = 0, SEG_STEP, SEG_BRANCH, SEG_SAMPLES, SEG_ROOM, SEG_DUE, SEG_FINITE,
        SEG_MEASURE, SEG_SEARCH, SEG_BAND, SEG_LEAVE, SEG_PARTITION, SEG_FINISHED, SEG_SHORT,
@@ -1082,7 +1273,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     if (isnan(speed)) { s->reason = SEG_FINITE; break; }
     /* the monitor (SingularityMonitor.observe), its state changed only once the step
        stands: the candidates below */
-    int skip = 0;
+    int skip = 0, ready = 0;             /* ready: the step's dense output formed */
     double floor_value = 0.0;
     if (s->has_prev && s->skipped < s->max_skip && s->has_measured) {
       const double bound = py_max(2.0 * fabs(s->prev_rate), s->peak_rate);
@@ -1159,6 +1350,17 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
             clear = lowest(ea, eb, span, r0, r1) >= enter;
           }
         }
+        if (!clear && s->small) {        /* SingularityMonitor._anchored, where it clears */
+          const double sum = (a_s + srel) * peak;
+          const double budget = py_min(4000.0, 16.0 + 4.0 * rate_bound * hh /
+                                       py_max(sum, enter));
+          const double *end0 = NULL, end1[2] = {smin, smax};
+          for (int64_t j = 0; j < s->known_n; j++)
+            if (s->known[3 * j] == a_t) end0 = s->known + 3 * j + 1;
+          clear = !dense_ready(c, s, t_old, h, y, y_new, f_new, &ready, &evaluations) &&
+              search_clears(c, pc, s, a_t, t_new, t_old, h, y, (int64_t)budget, enter,
+                            end0, end1);
+        }
         if (!clear) { s->reason = SEG_SEARCH; break; }
       }
       if (srel < s->enter) { s->reason = SEG_BAND; break; }
@@ -1178,18 +1380,20 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
       if (predicted || held >= 2) { s->reason = SEG_LEAVE; break; }
     }
     /* the partition (Partitioned.after_step) */
-    if (fresh >= 2 || condition > s->repartition_at) { s->reason = SEG_PARTITION; break; }
+    double repartition_at = s->repartition_at;
+    if (fresh >= 2 || condition > repartition_at) {
+      /* Partitioned.after_step's choose: the same set stands until its condition grows as
+         much again; another is a new partition (the loop's) */
+      if (!keeps_set(c, pc, s, s->Jq)) { s->reason = SEG_PARTITION; break; }
+      repartition_at = py_min(s->cond_max, s->growth * py_max(condition, 1.0));
+    }
     /* the output samples (Recorder.within, Partitioned.states), before the partition
        moves its reference */
     if (k > 0) {
-      double *ein = s->extra_in;
-      ein[0] = (double)(S + 1); ein[1] = (double)s->extra_rows; ein[2] = (double)s->extra_width;
-      ein[3] = t_old; ein[4] = h; ein[5] = -1.0; ein[6] = 0.0;
-      if (mechsim_dop853_extra(c, 1, N, s->extra_coef, ein, y, K, s->work, s->extra_out,
-                               (void *)declined_rate)) { s->reason = SEG_SAMPLES; break; }
-      evaluations += s->extra_rows;
-      mechsim_dense_coefficients(N, s->dense_rows, s->dense_cols, s->dense, K, y, y_new, f_new,
-                                 h, s->F);
+      if (dense_ready(c, s, t_old, h, y, y_new, f_new, &ready, &evaluations)) {
+        s->reason = SEG_SAMPLES;
+        break;
+      }
       mechsim_interpolate(N, s->dense_rows + 3, s->F, t_old, h, y, k, s->ts + k0, s->Y);
       double *rows = s->rows + s->held * width;
       int bad = 0;
@@ -1230,6 +1434,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     mechsim_lu_predictor(c, t_new, 0, c->t_last, z, y_new + f, w, wd, s->z0, s->w0, s->reduced,
                          s->inverse, s->P);
     s->factorizations += 1;
+    s->repartition_at = repartition_at;
     if (shift) {                       /* adapters.shift_in_place: y + (corrected - y) */
       for (int64_t i = 0; i < f; i++) y_new[i] = y_new[i] + (0.0 - y_new[i]);
       for (int64_t i = f; i < N; i++) y_new[i] = y_new[i] + (y_new[i] - y_new[i]);

@@ -118,6 +118,10 @@ PROJECTION = Layout("mechsim_projection", [
           lambda d: 3 * d.k + max(d.n, d.m, 5 * d.k * d.k + 4 * d.k) + 64),
 ])
 
+# The most nodes a segment's passage search holds (`mechsim_lu_segment`; more: the loop
+# searches).
+NODES = 256
+
 # Consecutive plain steps of a partition in one call (`mechsim.run.segment`): the integrator's,
 # the monitor's, the hybrid policy's and the run's state a step reads and changes, with the
 # buffers of one step. `stages` rows of K are DOP853's with its dense output's extra ones.
@@ -127,13 +131,14 @@ SEGMENT = Layout("mechsim_segment", [
         "stages", "extra_rows", "extra_width", "dense_rows", "dense_cols", "n_ts", "next",
         "held", "capacity", "y_rows", "evaluations", "factorizations", "corrections",
         "hybrid", "held_steps", "has_limit", "policy_steps", "small", "max_skip", "skipped",
-        "has_prev", "has_floor", "has_measured", "has_fall", "cur", "known_n")),
+        "has_prev", "has_floor", "has_measured", "has_fall", "cur", "known_n", "nodes_cap")),
     *(Field(name, "double") for name in (
         "t", "t_old", "h_abs", "h_previous", "t_bound", "direction", "max_step",
         "run_max_step", "rtol", "safety", "min_factor", "max_factor", "exponent",
         "min_advance", "sign", "repartition_at", "reference_span", "limit", "enter", "blind",
         "weyl_span", "hermite_margin", "peak", "peak_rate", "last", "rate", "prev_t", "prev_s",
-        "prev_rate", "floor_t", "floor_v", "m_smin", "m_smax", "ratio_speed")),
+        "prev_rate", "floor_t", "floor_v", "m_smin", "m_smax", "ratio_speed", "cond_max",
+        "growth")),
     *(Field(name, "const double*") for name in ("coef", "extra_coef", "dense", "atol", "ts")),
     *(Field(name, "double*") for name in ("rows", "Y", "log")),
     *(Field(name, "double*", lambda d: 2 * d.f) for name in (
@@ -152,6 +157,20 @@ SEGMENT = Layout("mechsim_segment", [
                                                                 "fall_work", "J_end")),
     *(Field(name, "double*", lambda d: 2 * d.m * d.n) for name in ("Js", "Ds", "Ps")),
     Field("fall_scalars", "double*", lambda d: 8), Field("known", "double*", lambda d: 6),
+    # the passage search's grid (at most `nodes_cap` = NODES nodes) and its scratch
+    *(Field(name, "double*", lambda d: NODES) for name in (
+        "nodes", "node_chords", "node_low", "node_mid")),
+    *(Field(name, "int64*", lambda d: NODES) for name in ("node_has", "node_todo",
+                                                          "node_fresh")),
+    Field("node_anchor", "double*", lambda d: 2 * NODES), Field("node_ex", "double*", lambda d: 2),
+    *(Field(name, "double*", lambda d: NODES * d.n) for name in ("node_q", "node_mq")),
+    Field("node_at", "double*", lambda d: 3 * NODES),
+    Field("node_pieces", "double*", lambda d: 3 * NODES),
+    Field("node_trip", "double*", lambda d: 3 * NODES * d.n),
+    Field("Yn", "double*", lambda d: NODES * 2 * d.f), Field("vn", "double*", lambda d: d.n),
+    # a new partition's choice (`keeps_set`)
+    Field("set_work", "double*", lambda d: d.m * d.n), Field("set_mark", "int64*", lambda d: d.n),
+    Field("set_piv", "int*", lambda d: d.n),
 ])
 
 

@@ -12,7 +12,7 @@ import ctypes
 
 import numpy as np
 
-from .layout import SEGMENT, Dims
+from .layout import NODES, SEGMENT, Dims
 
 # Steps one call takes at most before Python looks in (progress, the stream).
 BUDGET = 256
@@ -32,7 +32,8 @@ class PlainSteps:
         self._arrays = {**self.buffers, "coef": coef, "extra_coef": extra, "dense": dense,
                         "atol": np.zeros(1), "ts": np.zeros(1), "rows": np.zeros(1),
                         "Y": self.Y, "log": self.log}
-        self.s = SEGMENT.make({"budget": BUDGET, "y_rows": len(self.Y)}, self._arrays)
+        self.s = SEGMENT.make({"budget": BUDGET, "y_rows": len(self.Y), "nodes_cap": NODES},
+                              self._arrays)
         self._address = ctypes.addressof(self.s)
 
     def point(self, name, array) -> None:

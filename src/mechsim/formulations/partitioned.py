@@ -163,18 +163,23 @@ class Partitioned(Formulation):
                                self._chord.inverse() if self._square else None, z, w)
 
     def plain_start(self):
-        """(sign of det Φ_q D, the condition at which the partition is given up) where its
-        next steps can be taken in the engine (`mechsim.run.segment`: a compiled, square,
-        dense Φ_q D on a signed branch); else None."""
+        """(sign of det Φ_q D, the condition at which the partition is given up, `cond_max`,
+        `GROWTH`) where its next steps can be taken in the engine (`mechsim.run.segment`: a
+        compiled, square, dense Φ_q D on a signed branch, chosen by LU's pivoting); else
+        None."""
         engine = self.engine
-        if engine is None or not engine.ready or not self._square or not self._sign:
+        if engine is None or not engine.ready or not self._square or not self._sign or \
+                type(self) is not Partitioned:
             return None
-        return self._sign, self._repartition_at
+        return self._sign, self._repartition_at, self.cond_max, GROWTH
 
-    def accepted_in_engine(self, J, inverse, reduced, sign, condition) -> None:
+    def accepted_in_engine(self, J, inverse, reduced, sign, condition,
+                           repartition_at) -> None:
         """Steps were accepted in the engine (`mechsim.run.segment`), the last at Φ_q = J
-        with Φ_q D's inverse, A⁻¹ Φ_q B `reduced`, its sign and condition there: take the
-        partition's state from the engine's buffers, where its predictor left it."""
+        with Φ_q D's inverse, A⁻¹ Φ_q B `reduced`, its sign and condition there, the
+        partition given up at `repartition_at` from then on: take the partition's state
+        from the engine's buffers, where its predictor left it."""
+        self._repartition_at = repartition_at
         engine = self.engine
         self.q_ref = engine.q_ref.copy()
         self.t_last, self.z_last, self.w_last = engine.ctx.t_last, engine.last_z.copy(), \

@@ -132,7 +132,7 @@ class Segment:
         s.min_advance = self.min_advance
         b["y"][:] = solver.y
         b["fy"][:] = solver.f
-        s.sign, s.repartition_at = start
+        s.sign, s.repartition_at, s.cond_max, s.growth = start
         s.reference_span = REFERENCE_SPAN
         policy = self.hybrid.policy if self.hybrid is not None else None
         s.hybrid = policy is not None
@@ -180,7 +180,7 @@ class Segment:
         lu.accepted_in_engine(b["J_end"].reshape(m, n).copy(),
                               b["inverse"][:r * r].reshape(r, r).copy(),
                               b["reduced"][:r * f].reshape(r, f).copy(), int(s.sign),
-                              float(b["block"][1]))
+                              float(b["block"][1]), s.repartition_at)
         run.problem.counters.factorizations += s.factorizations
         if self.hybrid is not None:
             policy = self.hybrid.policy
