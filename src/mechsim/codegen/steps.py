@@ -41,6 +41,12 @@ class PlainSteps:
         self._arrays[name] = array
         setattr(self.s, name, array.ctypes.data)
 
+    @property
+    def declined(self) -> bool:
+        """Whether the last call stopped on a step it declined (not on its budget or a
+        step the runaway rule looks at after)."""
+        return self.s.reason != 0
+
     def run(self, partition, projection) -> int:
         """Steps on the partition's and the monitor's compiled contexts (their addresses):
         how many were committed (`mechsim_lu_segment`)."""

@@ -24,7 +24,8 @@ algebra's engine, no redundant constraints), with an output grid and nothing els
 a step: no events, work integral, streamed output, state extras, sensitivities or fixed
 step. After a segment declines its first step the loop tries it again only after twice as
 many steps as the last time (up to `BACKOFF_MAX`), so a mechanism whose steps are seldom
-plain (the double four-bar near its passages) pays little for the tries. The engine's side
+plain (the double four-bar near its passages) pays little for the tries; after a segment
+that stopped on a step it declined, that step is the loop's without a try. The engine's side
 is `mechsim.codegen.steps.PlainSteps`, which the problem's algebra gives
 (`plain_steps`).
 """
@@ -104,7 +105,9 @@ class Segment:
         if not count:
             self.wait = self.backoff = min(max(2 * self.backoff, 1), BACKOFF_MAX)
             return False
-        self.backoff = 0
+        # A segment that stopped on a step it declined leaves that very step next: the
+        # loop's, without another try.
+        self.backoff, self.wait = 0, int(self.steps.declined)
         self._store(run, lu, solver, monitor, compiled, count)
         return True
 
