@@ -106,6 +106,7 @@ class ConstraintAlgebra:
     def __init__(self, problem):
         self.problem = problem
         self._nodes = {}               # J̃ of the passage search's latest states (`_scaled_at`)
+        self._plain = {}               # f -> the engine's plain steps (`plain_steps`)
 
     @property
     def small(self) -> bool:
@@ -286,13 +287,19 @@ class DenseAlgebra(ConstraintAlgebra):
 
     def plain_steps(self, f, sample_rows, tableaus):
         """The engine's plain LU steps (`mechsim.codegen.steps.PlainSteps`) for partitions
-        of f independent coordinates, or None without the engine or where its monitor's
-        measure does not serve (redundant rows: m > n)."""
+        of f independent coordinates with room for `sample_rows` samples a step, or None
+        without the engine or where its monitor's measure does not serve (redundant rows:
+        m > n). Kept for the problem's later runs, as the engine is (a run loads its whole
+        state into it at each call)."""
         if self.engine is None or self.problem.m > self.problem.n:
             return None
-        from ..codegen.steps import PlainSteps
-        p = self.problem
-        return PlainSteps(self.engine.lib, p.n, p.m, f, sample_rows, tableaus)
+        kept = self._plain.get(f)
+        if kept is None or len(kept.Y) < sample_rows:
+            from ..codegen.steps import PlainSteps
+            p = self.problem
+            kept = self._plain[f] = PlainSteps(self.engine.lib, p.n, p.m, f, sample_rows,
+                                               tableaus)
+        return kept
 
     def change(self, q, t, Jm):
         if self.engine is not None and Jm.flags.c_contiguous and Jm.dtype == np.float64:
