@@ -118,3 +118,22 @@ def test_the_passage_search_and_a_kept_partition_run_in_the_engine(monkeypatch):
     assert slow.success and calls["search"] >= 2 and calls["choose"] >= 2
     assert in_engine["search"] == 0 and in_engine["choose"] <= 1      # the first partition
     _same(fast, slow)
+
+
+@needs_compiler
+@pytest.mark.parametrize("method", ["lu", "hybrid"])
+def test_segments_through_dead_centres_and_under_drivers(method, monkeypatch):
+    """The slider-crank through its dead centres (a thousand steps) and a pendulum hanging
+    from a slider-crank driven at 20 rad/s (rheonomic constraints, Φ_t ≠ 0; without the
+    drivers' work, which the loop integrates step by step): the loop's numbers to the
+    bit, most steps in segments. With the work integral the driven run has no segments
+    and is the loop's own."""
+    from test_engine import _driven_slider_crank_with_pendulum
+    driven = _driven_slider_crank_with_pendulum()
+    for mech, rtol, work in ((ms.examples.slider_crank(crank_angle=math.radians(60.0)), 1e-8,
+                              True), (driven, 1e-7, False), (driven, 1e-7, True)):
+        fast, slow, taken = _both(mech, monkeypatch, t_end=1.0, method=method, rtol=rtol,
+                                  atol=1e-2 * rtol, output_step=1e-3, work=work)
+        in_segments = not (mech is driven and work)
+        assert fast.success and (taken >= 0.5 * fast.stats["steps"]) == in_segments
+        _same(fast, slow)

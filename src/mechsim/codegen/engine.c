@@ -1440,12 +1440,13 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
       for (int64_t i = f; i < N; i++) y_new[i] = y_new[i] + (y_new[i] - y_new[i]);
       s->corrections += 1;
     }
+    s->max_step = s->run_max_step;             /* StepBound.after_step */
     if (s->hybrid) {
       s->held_steps = held;
       s->has_limit = has_limit;
       s->limit = limit;
       s->policy_steps += 1;
-      s->max_step = has_limit ? py_min(s->run_max_step, limit) : s->run_max_step;
+      if (has_limit) s->max_step = py_min(s->run_max_step, limit);
     }
     if (!skip) {
       int64_t kept = 0;                /* the measurements known: the one at t_old, if any */
