@@ -137,3 +137,17 @@ def test_segments_through_dead_centres_and_under_drivers(method, monkeypatch):
         in_segments = not (mech is driven and work)
         assert fast.success and (taken >= 0.5 * fast.stats["steps"]) == in_segments
         _same(fast, slow)
+
+
+@needs_compiler
+@pytest.mark.parametrize("method", ["lu", "hybrid"])
+def test_segments_record_a_sample_at_every_step(method, monkeypatch):
+    """Without an output grid (a sample at each step's end, `simulate`'s default) the
+    segments record the steps' ends as the loop does, to the bit, also where the partition
+    moved its reference (the sample solved again from it, as `Partitioned.state` does)."""
+    p = PROBLEMS["crank-rocker"]
+    fast, slow, taken = _both(p.build(), monkeypatch, t_end=p.t_end, method=method,
+                              rtol=1e-6, atol=1e-8)
+    assert fast.success and len(fast.t) == fast.stats["steps"] + 1
+    assert taken >= 0.9 * fast.stats["steps"]
+    _same(fast, slow)

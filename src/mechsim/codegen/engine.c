@@ -1264,6 +1264,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     const int64_t k = next - k0;
     if (k > 0 && (s->held + k > s->capacity || k > s->y_rows)) { s->reason = SEG_ROOM; break; }
     if (next < s->n_ts && s->ts[next] == t_new) { s->reason = SEG_DUE; break; }
+    if (s->every_step && s->held + 1 > s->capacity) { s->reason = SEG_ROOM; break; }
     double speed = 0.0;
     for (int64_t i = 0; i < n; i++) {
       if (!isfinite(q_new[i]) || !isfinite(v_new[i])) { speed = NAN; break; }
@@ -1412,6 +1413,15 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     for (int64_t i = 0; i < f; i++) zmax = py_max(zmax, fabs(y_new[i]));
     double *z = s->z, *w = s->w, *wd = s->wd;
     const int shift = zmax > s->reference_span;
+    const int resolve = shift && s->every_step;  /* the end's sample solved again, below */
+    if (resolve) {                               /* the partition as it was, to go back to */
+      memcpy(s->keep_P, c->P, r * (3 + f) * sizeof(double));
+      memcpy(s->keep_C, c->C, r * r * sizeof(double));
+      memcpy(s->keep_q_ref, c->q_ref, n * sizeof(double));
+      memcpy(s->keep_z, c->z_last, f * sizeof(double));
+      memcpy(s->keep_w, c->w_last, r * sizeof(double));
+      s->keep_t = c->t_last;
+    }
     if (shift) {
       double *q_ref = (double *)c->q_ref;
       for (int64_t i = 0; i < f; i++) {
@@ -1427,17 +1437,41 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
       w[i] = q_new[c->dep[i]] - c->q_ref[c->dep[i]];
       wd[i] = v_new[c->dep[i]];
     }
-    /* committed from here: nothing below declines */
-    memcpy(s->J_end, s->Jq, mn * sizeof(double));
     memcpy(s->z0, c->z_last, f * sizeof(double));
     memcpy(s->w0, c->w_last, r * sizeof(double));
     mechsim_lu_predictor(c, t_new, 0, c->t_last, z, y_new + f, w, wd, s->z0, s->w0, s->reduced,
                          s->inverse, s->P);
+    if (shift) {                       /* adapters.shift_in_place: y + (corrected - y) */
+      for (int64_t i = 0; i < f; i++) s->y_here[i] = y_new[i] + (0.0 - y_new[i]);
+      for (int64_t i = f; i < N; i++) s->y_here[i] = y_new[i] + (y_new[i] - y_new[i]);
+    }
+    /* A sample at every step's end (Run._accept's record_due): after a re-reference the
+       loop solves it from the new reference, through the partition's state (Partitioned.
+       state); where that declines, the partition goes back and the loop takes the step. */
+    double *q_end = q_new, *v_end = v_new;
+    if (resolve) {
+      int bad = lu_state(c, t_new, s->y_here, s->q_here, s->v_here, c->J, NULL);
+      for (int64_t i = 0; i < n && !bad; i++)
+        bad = !isfinite(s->q_here[i]) || !isfinite(s->v_here[i]);
+      if (bad) {
+        memcpy((double *)c->P, s->keep_P, r * (3 + f) * sizeof(double));
+        memcpy((double *)c->C, s->keep_C, r * r * sizeof(double));
+        memcpy((double *)c->q_ref, s->keep_q_ref, n * sizeof(double));
+        memcpy(c->z_last, s->keep_z, f * sizeof(double));
+        memcpy(c->w_last, s->keep_w, r * sizeof(double));
+        c->t_last = s->keep_t;
+        s->reason = SEG_DUE;
+        break;
+      }
+      q_end = s->q_here;
+      v_end = s->v_here;
+    }
+    /* committed from here: nothing below declines */
+    memcpy(s->J_end, s->Jq, mn * sizeof(double));
     s->factorizations += 1;
     s->repartition_at = repartition_at;
-    if (shift) {                       /* adapters.shift_in_place: y + (corrected - y) */
-      for (int64_t i = 0; i < f; i++) y_new[i] = y_new[i] + (0.0 - y_new[i]);
-      for (int64_t i = f; i < N; i++) y_new[i] = y_new[i] + (y_new[i] - y_new[i]);
+    if (shift) {
+      memcpy(y_new, s->y_here, N * sizeof(double));
       s->corrections += 1;
     }
     s->max_step = s->run_max_step;             /* StepBound.after_step */
@@ -1490,6 +1524,13 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     s->steps += 1;
     s->next = next;
     s->held += k;
+    if (s->every_step) {                       /* Recorder.record_due at the step's end */
+      double *row = s->rows + s->held * width;
+      row[0] = t_new;
+      memcpy(row + 1, q_end, n * sizeof(double));
+      memcpy(row + 1 + n, v_end, n * sizeof(double));
+      s->held += 1;
+    }
     double *log = s->log + 4 * s->count;
     log[0] = t_new; log[1] = h; log[2] = speed; log[3] = h_next;
     s->count += 1;

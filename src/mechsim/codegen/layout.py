@@ -131,14 +131,15 @@ SEGMENT = Layout("mechsim_segment", [
         "stages", "extra_rows", "extra_width", "dense_rows", "dense_cols", "n_ts", "next",
         "held", "capacity", "y_rows", "evaluations", "factorizations", "corrections",
         "hybrid", "held_steps", "has_limit", "policy_steps", "small", "max_skip", "skipped",
-        "has_prev", "has_floor", "has_measured", "has_fall", "cur", "known_n", "nodes_cap")),
+        "has_prev", "has_floor", "has_measured", "has_fall", "cur", "known_n", "nodes_cap",
+        "every_step")),
     *(Field(name, "double") for name in (
         "t", "t_old", "h_abs", "h_previous", "t_bound", "direction", "max_step",
         "run_max_step", "rtol", "safety", "min_factor", "max_factor", "exponent",
         "min_advance", "sign", "repartition_at", "reference_span", "limit", "enter", "blind",
         "weyl_span", "hermite_margin", "peak", "peak_rate", "last", "rate", "prev_t", "prev_s",
         "prev_rate", "floor_t", "floor_v", "m_smin", "m_smax", "ratio_speed", "cond_max",
-        "growth")),
+        "growth", "keep_t")),
     *(Field(name, "const double*") for name in ("coef", "extra_coef", "dense", "atol", "ts")),
     *(Field(name, "double*") for name in ("rows", "Y", "log")),
     *(Field(name, "double*", lambda d: 2 * d.f) for name in (
@@ -168,6 +169,12 @@ SEGMENT = Layout("mechsim_segment", [
     Field("node_pieces", "double*", lambda d: 3 * NODES),
     Field("node_trip", "double*", lambda d: 3 * NODES * d.n),
     Field("Yn", "double*", lambda d: NODES * 2 * d.f), Field("vn", "double*", lambda d: d.n),
+    # a step's end re-solved after a re-reference, and the partition before it
+    Field("y_here", "double*", lambda d: 2 * d.f),
+    *(Field(name, "double*", lambda d: d.n) for name in ("q_here", "v_here", "keep_q_ref")),
+    Field("keep_P", "double*", lambda d: d.r * (3 + d.f)),
+    Field("keep_C", "double*", lambda d: d.r * d.r), Field("keep_z", "double*", lambda d: d.f),
+    Field("keep_w", "double*", lambda d: d.r),
     # a new partition's choice (`keeps_set`)
     Field("set_work", "double*", lambda d: d.m * d.n), Field("set_mark", "int64*", lambda d: d.n),
     Field("set_piv", "int*", lambda d: d.n),

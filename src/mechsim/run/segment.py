@@ -20,9 +20,9 @@ bitwise the same samples, steps and counts (a test).
 
 It applies to runs of "lu" and of the hybrid in its LU phase with the compiled DOP853 on a
 compiled partition (`Partitioned.compiled_rate`) and the compiled monitor (a dense
-algebra's engine, no redundant constraints), with an output grid and nothing else to do at
-a step: no events, work integral, streamed output, state extras, sensitivities or fixed
-step. After a segment declines its first step the loop tries it again only after twice as
+algebra's engine, no redundant constraints), with an output grid or a sample at every
+step, and nothing else to do at a step: no events, work integral, streamed output, state
+extras, sensitivities or fixed step. After a segment declines its first step the loop tries it again only after twice as
 many steps as the last time (up to `BACKOFF_MAX`), so a mechanism whose steps are seldom
 plain (the double four-bar near its passages) pays little for the tries; after a segment
 that stopped on a step it declined, that step is the loop's without a try. The engine's side
@@ -55,7 +55,9 @@ class Segment:
         self.hybrid = run.form if isinstance(run.form, Hybrid) else None
         self.min_advance = min_advance
         self.wait = self.backoff = 0
-        steps.point("ts", run.out.ts)
+        self.every_step = run.out.ts is None          # a sample at every step's end
+        if not self.every_step:
+            steps.point("ts", run.out.ts)
 
     @classmethod
     def for_run(cls, run, min_advance) -> "Segment | None":
@@ -69,14 +71,15 @@ class Segment:
         if type(lu) is not Partitioned or (form is not lu and type(form) is not Hybrid):
             return None
         if s.events is not None or s.stream is not None or s.h is not None or \
-                s.ts is None or run.work is not None or run.out.extras is not None or \
+                run.work is not None or run.out.extras is not None or \
                 run.passage_times.form is not None or run.keep_past or \
                 run.monitor is None or run.monitor.redundant:
             return None
         basis = getattr(lu, "basis", None)
         if lu.engine is None or basis is None or basis.sparse:
             return None
-        steps = prob.algebra.plain_steps(basis.f, min(len(s.ts), 4096),
+        rows = 1 if s.ts is None else min(len(s.ts), 4096)
+        steps = prob.algebra.plain_steps(basis.f, rows,
                                          (tableau(), extra_tableau(), dense_matrix()))
         return None if steps is None else cls(run, lu, steps, min_advance)
 
@@ -122,7 +125,8 @@ class Segment:
         s.stages = solver.n_stages
         s.extra_rows, s.extra_width = solver.A_EXTRA.shape
         s.dense_rows, s.dense_cols = solver.D.shape
-        s.n_ts, s.next = len(run.out.ts), run.out.next
+        s.every_step = self.every_step
+        s.n_ts, s.next = (0, 0) if self.every_step else (len(run.out.ts), run.out.next)
         s.held, s.capacity = samples.held, len(samples.data)
         steps.point("rows", samples.data)
         steps.point("atol", solver.atol_array)
@@ -210,7 +214,8 @@ class Segment:
         first = stats.steps + 1
         stats.steps, stats.retries = s.steps, 0
         stats.corrections += s.corrections
-        run.out.next, run.out.samples.held = s.next, s.held
+        run.out.samples.held = s.held
+        run.out.next = run.out.next + count if self.every_step else s.next
         run.t_reached = s.t
         run.recent.extend(log[:, 0].tolist())
         bridge, bound = run.bridge, run.bound.max_step
