@@ -66,7 +66,8 @@ class Mechanism(MechanismModel):
         if m == 0:
             return DofReport(n, 0, 0, n, 0, [], np.zeros(0))
         U, s, _ = np.linalg.svd(J)
-        tol = max(m, n) * np.finfo(float).eps * 1e3 * (s[0] if s.size else 1.0)
+        from .problem.algebra import RANK_FACTOR
+        tol = max(m, n) * np.finfo(float).eps * RANK_FACTOR * (s[0] if s.size else 1.0)
         rank = int(np.sum(s > tol))
         involved = []
         if rank < m:

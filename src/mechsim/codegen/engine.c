@@ -1064,11 +1064,11 @@ static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment 
                          double t0, double t1, double t_old, double h_step, const double *y,
                          int64_t budget, double enter, const double *end0,
                          const double *end1) {
-  const int64_t n = c->n, cap = s->nodes_cap, grid = 8;
+  const int64_t n = c->n, cap = s->nodes_cap, grid = s->grid;
   double *T = s->nodes, *Q = s->node_q, *ch = s->node_chords, *an = s->node_anchor;
   double *low = s->node_low, *mid = s->node_mid, *mq = s->node_mq, *ex = s->node_ex;
   int64_t *has = (int64_t *)s->node_has;
-  const double step = (t1 - t0) / (double)grid, h = t1 - t0, chord = 1.25;
+  const double step = (t1 - t0) / (double)grid, h = t1 - t0, chord = s->chord;
   int64_t count = grid + 1;
   for (int64_t i = 0; i < grid; i++) T[i] = (double)i * step + t0;
   T[grid] = t1;
@@ -1186,7 +1186,8 @@ static int keeps_set(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
   mechsim_dgesdd(&jobz, &N, &M, A, &N, pc->sig, pc->U, &N, pc->VT, &M, pc->svd_work, &LW,
                  pc->iwork, &info);
   if (info != 0) return 0;
-  const double threshold = (double)(m > n ? m : n) * 2.220446049250313e-16 * 1e3 * pc->sig[0];
+  const double threshold = (double)(m > n ? m : n) * s->machine_eps * s->rank_factor *
+      pc->sig[0];
   int64_t rank = 0;
   for (int64_t i = 0; i < (m < n ? m : n); i++) rank += pc->sig[i] > threshold;
   memcpy(A, J, m * n * sizeof(double));
@@ -1213,6 +1214,116 @@ enum { SEG_BUDGET = 0, SEG_STEP, SEG_BRANCH, SEG_SAMPLES, SEG_ROOM, SEG_DUE, SEG
        SEG_MEASURE, SEG_SEARCH, SEG_BAND, SEG_LEAVE, SEG_PARTITION, SEG_FINISHED, SEG_SHORT,
        SEG_LIMIT };
 
+/* A step's observation by the singularity monitor, as candidates the segment commits once
+   the step stands. */
+typedef struct {
+  int skip, slot, has_fall;
+  double floor_value, smin, smax, srel, rate, rate_norm, peak, peak_rate, ratio_speed;
+} seg_observation;
+
+/* SingularityMonitor.observe at the end (q_new, v_new; |v|inf = speed) of the step from
+   t_old of length h: its skip by Weyl's bound (o->skip, o->floor_value), or its
+   measurement into the free slot of the fall buffers with the clears of a passage hidden
+   in the step (_hidden_passages: the rate bound, _fall_clears, the anchored search where
+   it finds none). 0: the step is plain for the monitor; else the reason it is not. */
+static int64_t observe_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
+                            double t_old, double t_new, double h, const double *y,
+                            const double *y_new, const double *f_new, const double *q_new,
+                            const double *v_new, double speed, seg_observation *o, int *ready,
+                            int64_t *evaluations) {
+  const int64_t n = c->n, m = c->m, mn = m * n, nr = n * m;
+  o->skip = 0;
+  o->floor_value = 0.0;
+  if (s->has_prev && s->skipped < s->max_skip && s->has_measured) {
+    const double bound = py_max(2.0 * fabs(s->prev_rate), s->peak_rate);
+    const double horizon = t_new + 2.0 * (t_new - t_old) - s->prev_t;
+    if (!(s->prev_s - bound * horizon <= 2.0 * s->enter)) {
+      memcpy(pc->q, q_new, n * sizeof(double));
+      const double E = mechsim_change(pc, t_new, s->Jm, s->Jc);
+      o->floor_value = py_max(s->m_smin - E, 0.0) / (s->m_smax + E);
+      o->skip = o->floor_value > 2.0 * s->enter * s->peak;
+    }
+  }
+  const int slot = o->slot = 1 - (int)s->cur;
+  double *Jn = s->Js + slot * mn, *Dn = s->Ds + slot * mn, *Pn = s->Ps + slot * nr;
+  o->smin = o->smax = o->srel = o->rate = o->rate_norm = o->ratio_speed = 0.0;
+  o->peak = s->peak;
+  o->peak_rate = s->peak_rate;
+  o->has_fall = 0;
+  if (o->skip) return 0;
+  memcpy(pc->q, q_new, n * sizeof(double));
+  const double eps = speed > 0.0 ? s->rate_step / speed : 0.0;
+  if (eps > 0.0) memcpy(pc->v, v_new, n * sizeof(double));
+  if (mechsim_measure(pc, t_new, eps, s->measured, Jn)) return SEG_MEASURE;
+  const double smin = o->smin = s->measured[0], smax = o->smax = s->measured[1];
+  const double rate_norm = o->rate_norm = s->measured[4 + m];
+  if (!(smax > 0.0)) return SEG_MEASURE;
+  double rate = eps ? (s->measured[2] * smax - smin * s->measured[3]) / pow(smax, 2.0) : 0.0;
+  const double raw = smin / smax;
+  if (s->small && eps > 0.0) {                /* its Fall: D = dJ~/dt and fall_basis P */
+    const double scale = 1.0 / eps, *U = pc->U, *sig = pc->sig;
+    const int64_t kk = m - 1;
+    for (int64_t i = 0; i < mn; i++) Dn[i] = (pc->J1[i] - Jn[i]) * scale;
+    for (int64_t l = 0; l < m; l++) {
+      const double wl = sig[kk] > 0.0 ? sig[kk] / sig[l] : (sig[l] <= 0.0 ? 1.0 : 0.0);
+      for (int64_t j = 0; j < n; j++) Pn[j * m + l] = U[j + l * n] * wl;
+    }
+    o->has_fall = 1;
+  }
+  const double ratio_speed = o->ratio_speed = s->small ? 2.0 * rate_norm / smax : 0.0;
+  const double peak = o->peak = py_max(s->peak, raw);
+  if (peak < s->blind) return SEG_MEASURE;
+  const double srel = o->srel = raw / peak;
+  rate = o->rate = rate / peak;
+  const double peak_rate = o->peak_rate = py_max(s->peak_rate, fabs(rate));
+  /* the step's start as the search takes it */
+  int has_a = (int)s->has_prev;
+  double a_t = s->prev_t, a_s = s->prev_s, a_d = s->prev_rate;
+  if (has_a && a_t != t_old) {
+    has_a = s->skipped && s->has_floor && s->floor_t == t_old;
+    a_t = t_old;
+    a_s = s->floor_v / peak;
+    a_d = 0.0;
+  }
+  if (has_a) {                               /* _hidden_passages' clears */
+    const double hh = t_new - a_t, enter = s->enter * peak;
+    const double observed = peak * py_max(py_max(peak_rate, fabs(a_d)), fabs(rate));
+    const double speed_bound = py_max(s->ratio_speed, ratio_speed);
+    const double rate_bound = 2.0 * py_max(observed, observed > 0.0 ?
+        py_min(speed_bound, s->weyl_span * observed) : speed_bound);
+    int clear = !(hh > 0.0) || !(rate_bound > 0.0) ||
+        (a_s + srel) * peak - rate_bound * hh >= 2.0 * enter;
+    if (!clear && s->has_fall && o->has_fall) {       /* _fall_clears */
+      const int64_t cur = s->cur;
+      const double *fs_a = s->fall_scalars + 4 * cur;   /* t, smin, smax, rise */
+      const double least = 2.0 * observed;
+      const double ea = fs_a[1] / fs_a[2], eb = smin / smax, span = t_new - fs_a[0];
+      if (!(least > 0.0 && lowest(ea, eb, span, least, least) < enter)) {
+        double fin[8], rates[2];
+        fin[0] = fs_a[0]; fin[1] = t_new; fin[2] = fs_a[1]; fin[3] = fs_a[2];
+        fin[4] = fs_a[3]; fin[5] = smin; fin[6] = smax; fin[7] = rate_norm;
+        mechsim_fall_rates(m, n, m, fin, s->Js + cur * mn, s->Ds + cur * mn,
+                           s->Ps + cur * nr, Jn, Dn, Pn, s->fall_work, rates);
+        const double r0 = py_max(s->hermite_margin * rates[0], least);
+        const double r1 = py_max(s->hermite_margin * rates[1], least);
+        clear = lowest(ea, eb, span, r0, r1) >= enter;
+      }
+    }
+    if (!clear && s->small) {                 /* _anchored, where it finds no passage */
+      const double sum = (a_s + srel) * peak;
+      const double budget = py_min(4000.0, 16.0 + 4.0 * rate_bound * hh / py_max(sum, enter));
+      const double *end0 = NULL, end1[2] = {smin, smax};
+      for (int64_t j = 0; j < s->known_n; j++)
+        if (s->known[3 * j] == a_t) end0 = s->known + 3 * j + 1;
+      clear = !dense_ready(c, s, t_old, h, y, y_new, f_new, ready, evaluations) &&
+          search_clears(c, pc, s, a_t, t_new, t_old, h, y, (int64_t)budget, enter, end0,
+                        end1);
+    }
+    if (!clear) return SEG_SEARCH;
+  }
+  return srel < s->enter ? SEG_BAND : 0;
+}
+
 /* Up to s->budget accepted steps of DOP853 on the partition c (kind 1), each followed by
    what Run._advance does after a plain step of a small rigid mechanism in LU (the hybrid's LU
    phase, or "lu"): its output samples (dense output, positions and velocities) written to
@@ -1227,7 +1338,7 @@ enum { SEG_BUDGET = 0, SEG_STEP, SEG_BRANCH, SEG_SAMPLES, SEG_ROOM, SEG_DUE, SEG
    and the buffers s points to; Python reads it back (mechsim.run.segment). */
 int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s) {
   const int64_t N = 2 * c->f, f = c->f, n = c->n, m = c->m, r = n - f, S = s->stages;
-  const int64_t mn = m * n, nr = n * m, width = 1 + 2 * n;
+  const int64_t mn = m * n, width = 1 + 2 * n;
   double *y = s->y, *fy = s->fy, *K = s->K, *y_new = s->y_new, *f_new = s->f_new;
   double *in = s->in, *out = s->out;
   s->count = 0;
@@ -1273,99 +1384,17 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     }
     if (isnan(speed)) { s->reason = SEG_FINITE; break; }
     /* the monitor (SingularityMonitor.observe), its state changed only once the step
-       stands: the candidates below */
-    int skip = 0, ready = 0;             /* ready: the step's dense output formed */
-    double floor_value = 0.0;
-    if (s->has_prev && s->skipped < s->max_skip && s->has_measured) {
-      const double bound = py_max(2.0 * fabs(s->prev_rate), s->peak_rate);
-      const double horizon = t_new + 2.0 * (t_new - t_old) - s->prev_t;
-      if (!(s->prev_s - bound * horizon <= 2.0 * s->enter)) {
-        memcpy(pc->q, q_new, n * sizeof(double));
-        const double E = mechsim_change(pc, t_new, s->Jm, s->Jc);
-        floor_value = py_max(s->m_smin - E, 0.0) / (s->m_smax + E);
-        skip = floor_value > 2.0 * s->enter * s->peak;
-      }
-    }
-    const int slot = 1 - s->cur;
-    double *Jn = s->Js + slot * mn, *Dn = s->Ds + slot * mn, *Pn = s->Ps + slot * nr;
-    double smin = 0.0, smax = 0.0, raw = 0.0, rate = 0.0, rate_norm = 0.0, peak = s->peak;
-    double peak_rate = s->peak_rate, srel = 0.0, ratio_speed = 0.0;
-    int has_fall = 0;
-    if (!skip) {
-      memcpy(pc->q, q_new, n * sizeof(double));
-      const double eps = speed > 0.0 ? 1e-7 / speed : 0.0;
-      if (eps > 0.0) memcpy(pc->v, v_new, n * sizeof(double));
-      if (mechsim_measure(pc, t_new, eps, s->measured, Jn)) { s->reason = SEG_MEASURE; break; }
-      smin = s->measured[0];
-      smax = s->measured[1];
-      rate_norm = s->measured[4 + m];
-      if (!(smax > 0.0)) { s->reason = SEG_MEASURE; break; }
-      rate = eps ? (s->measured[2] * smax - smin * s->measured[3]) / pow(smax, 2.0) : 0.0;
-      raw = smin / smax;
-      if (s->small && eps > 0.0) {
-        const double scale = 1.0 / eps, *U = pc->U, *sig = pc->sig;
-        const int64_t kk = m - 1;
-        for (int64_t i = 0; i < mn; i++) Dn[i] = (pc->J1[i] - Jn[i]) * scale;
-        for (int64_t l = 0; l < m; l++) {
-          const double wl = sig[kk] > 0.0 ? sig[kk] / sig[l] : (sig[l] <= 0.0 ? 1.0 : 0.0);
-          for (int64_t j = 0; j < n; j++) Pn[j * m + l] = U[j + l * n] * wl;
-        }
-        has_fall = 1;
-      }
-      ratio_speed = s->small ? 2.0 * rate_norm / smax : 0.0;
-      peak = py_max(peak, raw);
-      if (peak < s->blind) { s->reason = SEG_MEASURE; break; }
-      srel = raw / peak;
-      rate = rate / peak;
-      peak_rate = py_max(peak_rate, fabs(rate));
-      /* the step's start as the search would take it */
-      int has_a = s->has_prev;
-      double a_t = s->prev_t, a_s = s->prev_s, a_d = s->prev_rate;
-      if (has_a && a_t != t_old) {
-        has_a = s->skipped && s->has_floor && s->floor_t == t_old;
-        a_t = t_old;
-        a_s = s->floor_v / peak;
-        a_d = 0.0;
-      }
-      if (has_a) {                     /* SingularityMonitor._hidden_passages' clears */
-        const double hh = t_new - a_t, enter = s->enter * peak;
-        const double observed = peak * py_max(py_max(peak_rate, fabs(a_d)), fabs(rate));
-        const double speed_bound = py_max(s->ratio_speed, ratio_speed);
-        const double rate_bound = 2.0 * py_max(observed, observed > 0.0 ?
-            py_min(speed_bound, s->weyl_span * observed) : speed_bound);
-        int clear = !(hh > 0.0) || !(rate_bound > 0.0) ||
-            (a_s + srel) * peak - rate_bound * hh >= 2.0 * enter;
-        if (!clear && s->has_fall && has_fall) {       /* _fall_clears */
-          const int cur = s->cur;
-          const double *fs_a = s->fall_scalars + 4 * cur;   /* t, smin, smax, rise */
-          const double least = 2.0 * observed;
-          const double ea = fs_a[1] / fs_a[2], eb = smin / smax, span = t_new - fs_a[0];
-          if (!(least > 0.0 && lowest(ea, eb, span, least, least) < enter)) {
-            double fin[8], rates[2];
-            fin[0] = fs_a[0]; fin[1] = t_new; fin[2] = fs_a[1]; fin[3] = fs_a[2];
-            fin[4] = fs_a[3]; fin[5] = smin; fin[6] = smax; fin[7] = rate_norm;
-            mechsim_fall_rates(m, n, m, fin, s->Js + cur * mn, s->Ds + cur * mn,
-                               s->Ps + cur * nr, Jn, Dn, Pn, s->fall_work, rates);
-            const double r0 = py_max(s->hermite_margin * rates[0], least);
-            const double r1 = py_max(s->hermite_margin * rates[1], least);
-            clear = lowest(ea, eb, span, r0, r1) >= enter;
-          }
-        }
-        if (!clear && s->small) {        /* SingularityMonitor._anchored, where it clears */
-          const double sum = (a_s + srel) * peak;
-          const double budget = py_min(4000.0, 16.0 + 4.0 * rate_bound * hh /
-                                       py_max(sum, enter));
-          const double *end0 = NULL, end1[2] = {smin, smax};
-          for (int64_t j = 0; j < s->known_n; j++)
-            if (s->known[3 * j] == a_t) end0 = s->known + 3 * j + 1;
-          clear = !dense_ready(c, s, t_old, h, y, y_new, f_new, &ready, &evaluations) &&
-              search_clears(c, pc, s, a_t, t_new, t_old, h, y, (int64_t)budget, enter,
-                            end0, end1);
-        }
-        if (!clear) { s->reason = SEG_SEARCH; break; }
-      }
-      if (srel < s->enter) { s->reason = SEG_BAND; break; }
-    }
+       stands: the candidates in o */
+    seg_observation o;
+    int ready = 0;                       /* the step's dense output formed */
+    const int64_t declined = observe_step(c, pc, s, t_old, t_new, h, y, y_new, f_new, q_new,
+                                          v_new, speed, &o, &ready, &evaluations);
+    if (declined) { s->reason = declined; break; }
+    const int skip = o.skip, slot = o.slot, has_fall = o.has_fall;
+    const double floor_value = o.floor_value, smin = o.smin, smax = o.smax, srel = o.srel;
+    const double rate = o.rate, rate_norm = o.rate_norm, peak = o.peak;
+    const double peak_rate = o.peak_rate, ratio_speed = o.ratio_speed;
+    double *Jn = s->Js + slot * mn;
     const double last = skip ? s->last : srel, mon_rate = skip ? s->rate : rate;
     /* the hybrid's policy (HybridPolicy.lu_limit, leave_lu) */
     int has_limit = 0, held = s->held_steps;

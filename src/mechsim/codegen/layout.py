@@ -132,14 +132,14 @@ SEGMENT = Layout("mechsim_segment", [
         "held", "capacity", "y_rows", "evaluations", "factorizations", "corrections",
         "hybrid", "held_steps", "has_limit", "policy_steps", "small", "max_skip", "skipped",
         "has_prev", "has_floor", "has_measured", "has_fall", "cur", "known_n", "nodes_cap",
-        "every_step")),
+        "every_step", "grid")),
     *(Field(name, "double") for name in (
         "t", "t_old", "h_abs", "h_previous", "t_bound", "direction", "max_step",
         "run_max_step", "rtol", "safety", "min_factor", "max_factor", "exponent",
         "min_advance", "sign", "repartition_at", "reference_span", "limit", "enter", "blind",
         "weyl_span", "hermite_margin", "peak", "peak_rate", "last", "rate", "prev_t", "prev_s",
         "prev_rate", "floor_t", "floor_v", "m_smin", "m_smax", "ratio_speed", "cond_max",
-        "growth", "keep_t")),
+        "growth", "keep_t", "chord", "machine_eps", "rank_factor", "rate_step")),
     *(Field(name, "const double*") for name in ("coef", "extra_coef", "dense", "atol", "ts")),
     *(Field(name, "double*") for name in ("rows", "Y", "log")),
     *(Field(name, "double*", lambda d: 2 * d.f) for name in (

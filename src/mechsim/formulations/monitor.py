@@ -54,6 +54,8 @@ PLAIN_OK = 1e-6
 # The passage search's bound on |d(σ_min/σ_max)/dt| inside a step: Weyl's, but at most this
 # many times the fastest rate seen (`SingularityMonitor._hidden_passages`).
 WEYL_SPAN = 100.0
+# The rates of σ_min, σ_max: from J̃ this much motion ahead (`SingularityMonitor._measure`).
+RATE_STEP = 1e-7
 # The passage search inside a step (`SingularityMonitor._anchored`): the intervals of its
 # first grid, and the margin of J̃'s path between two grid nodes over their chord.
 GRID = 8
@@ -154,7 +156,7 @@ class SingularityMonitor:
         (`J` if the caller has it), ‖dJ̃/dt‖_F along v (0 without v) and the algebra's
         `fall` (dJ̃/dt, P) where it gives one."""
         speed = float(np.max(np.abs(v))) if v is not None and v.size else 0.0
-        eps = 1e-7 / speed if speed > 0.0 else 0.0
+        eps = RATE_STEP / speed if speed > 0.0 else 0.0
         m = self.problem.m
         if m == 0:
             return (1.0, 0.0, np.zeros(0), 1.0, 1.0,

@@ -36,6 +36,10 @@ SMALL_ROWS = 60
 NODES = 64
 
 
+# Φ_q's numerical rank counts its singular values above max(m, n) ε RANK_FACTOR σ_max.
+RANK_FACTOR = 1e3
+
+
 class ConstraintAlgebra:
     """The contract of a constraint algebra: one per problem (`problem`), with
 
@@ -122,7 +126,7 @@ class ConstraintAlgebra:
         if J.shape[0] == 0:
             return 0
         s = dense.svdvals(sparse.dense(J))
-        return int(np.sum(s > max(J.shape) * np.finfo(float).eps * 1e3 * s[0]))
+        return int(np.sum(s > max(J.shape) * np.finfo(float).eps * RANK_FACTOR * s[0]))
 
     def extremes(self, Jt, k):
         return _svd_extremes(Jt, k)[0]

@@ -35,7 +35,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..formulations.hybrid import Hybrid
-from ..formulations.monitor import BLIND, HERMITE_MARGIN, WEYL_SPAN, Fall, Observation
+from ..formulations.monitor import (BLIND, CHORD, GRID, HERMITE_MARGIN, RATE_STEP, WEYL_SPAN,
+                                    Fall, Observation)
+from ..problem.algebra import RANK_FACTOR
 from ..formulations.partitioned import REFERENCE_SPAN, Partitioned
 from ..integrators.compiled import (MAX_FACTOR, MIN_FACTOR, SAFETY, CompiledDOP853,
                                     dense_matrix, extra_tableau, tableau)
@@ -151,6 +153,8 @@ class Segment:
         s.small = bool(run.problem.algebra.small)
         s.max_skip, s.enter = monitor.max_skip, monitor.enter
         s.blind, s.weyl_span, s.hermite_margin = BLIND, WEYL_SPAN, HERMITE_MARGIN
+        s.grid, s.chord, s.rate_step = GRID, 1.0 + CHORD, RATE_STEP
+        s.machine_eps, s.rank_factor = np.finfo(float).eps, RANK_FACTOR
         s.skipped = o.skipped
         s.peak, s.peak_rate, s.last, s.rate = o.peak, o.peak_rate, o.last, o.rate
         s.has_prev = o.prev is not None
