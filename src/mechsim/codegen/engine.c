@@ -1324,6 +1324,132 @@ static int64_t observe_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segme
   return srel < s->enter ? SEG_BAND : 0;
 }
 
+/* HybridPolicy.lu_limit and leave_lu after an LU step of length h, the monitor at `last`
+   falling at `rate`: the next step's limit (*has_limit, *limit) and the held steps
+   (*held) as candidates; 1 where the hybrid hands over to projection. */
+static int policy_step(const mechsim_segment *s, double h, double last, double rate,
+                       int *has_limit, double *limit, int *held) {
+  if (rate < 0.0 && last > s->enter) {
+    *has_limit = 1;
+    *limit = py_max(0.5 * (last - s->enter) / -rate, 1e-6);
+  }
+  const int was_held = s->has_limit && h >= 0.99 * s->limit;
+  *held = was_held ? *held + 1 : 0;
+  const int predicted = last < s->enter || (rate < 0.0 && last + rate * h < s->enter);
+  return predicted || *held >= 2;
+}
+
+/* The k output samples at s->ts[k0 ...] inside the step from t_old (Recorder.within,
+   Partitioned.states) into the rows after s->held: 0 done; 1 where a stage or a state is
+   declined, a sample lands on the other branch or is not finite (the loop's to solve). */
+static int samples_step(mechsim_lu *c, mechsim_segment *s, double t_old, double h,
+                        const double *y, const double *y_new, const double *f_new, int64_t k0,
+                        int64_t k, int *ready, int64_t *evaluations) {
+  const int64_t N = 2 * c->f, n = c->n, width = 1 + 2 * n;
+  if (dense_ready(c, s, t_old, h, y, y_new, f_new, ready, evaluations)) return 1;
+  mechsim_interpolate(N, s->dense_rows + 3, s->F, t_old, h, y, k, s->ts + k0, s->Y);
+  double *rows = s->rows + s->held * width;
+  for (int64_t j = 0; j < k; j++) {
+    double *row = rows + j * width, sign = 0.0;
+    row[0] = s->ts[k0 + j];
+    if (lu_state(c, row[0], s->Y + j * N, row + 1, row + 1 + n, c->J, &sign)) return 1;
+    if (sign != 0.0 && sign != s->sign) return 1;
+    for (int64_t i = 1; i < width; i++)
+      if (!isfinite(row[i])) return 1;
+  }
+  return 0;
+}
+
+/* The partition's accepted state (predictor, chord, reference, last z, w, t), kept to go
+   back to (keep_partition, restore_partition). */
+static void keep_partition(const mechsim_lu *c, mechsim_segment *s) {
+  const int64_t f = c->f, n = c->n, r = n - f;
+  memcpy(s->keep_P, c->P, r * (3 + f) * sizeof(double));
+  memcpy(s->keep_C, c->C, r * r * sizeof(double));
+  memcpy(s->keep_q_ref, c->q_ref, n * sizeof(double));
+  memcpy(s->keep_z, c->z_last, f * sizeof(double));
+  memcpy(s->keep_w, c->w_last, r * sizeof(double));
+  s->keep_t = c->t_last;
+}
+
+static void restore_partition(mechsim_lu *c, const mechsim_segment *s) {
+  const int64_t f = c->f, n = c->n, r = n - f;
+  memcpy((double *)c->P, s->keep_P, r * (3 + f) * sizeof(double));
+  memcpy((double *)c->C, s->keep_C, r * r * sizeof(double));
+  memcpy((double *)c->q_ref, s->keep_q_ref, n * sizeof(double));
+  memcpy(c->z_last, s->keep_z, f * sizeof(double));
+  memcpy(c->w_last, s->keep_w, r * sizeof(double));
+  c->t_last = s->keep_t;
+}
+
+/* The monitor's state after the step from t_old to t_new that stands, from its
+   observation o (SingularityMonitor.observe's assignments). */
+static void commit_observation(mechsim_segment *s, const seg_observation *o, int64_t mn,
+                               double t_old, double t_new) {
+  if (o->skip) {
+    s->skipped += 1;
+    s->floor_t = t_new; s->floor_v = o->floor_value; s->has_floor = 1;
+    return;
+  }
+  int64_t kept = 0;                    /* the measurements known: the one at t_old, if any */
+  for (int64_t j = 0; j < s->known_n; j++)
+    if (s->known[3 * j] == t_old) {
+      memmove(s->known, s->known + 3 * j, 3 * sizeof(double));
+      kept = 1;
+      break;
+    }
+  s->known_n = kept;
+  double *kn = s->known + 3 * s->known_n;
+  kn[0] = t_new; kn[1] = o->smin; kn[2] = o->smax;
+  s->known_n += 1;
+  memcpy(s->Jm, s->Js + o->slot * mn, mn * sizeof(double));
+  s->m_smin = o->smin; s->m_smax = o->smax; s->has_measured = 1;
+  s->ratio_speed = o->ratio_speed;
+  if (o->has_fall) {
+    double *fs = s->fall_scalars + 4 * o->slot;
+    fs[0] = t_new; fs[1] = o->smin; fs[2] = o->smax; fs[3] = o->rate_norm;
+    s->cur = o->slot;
+  }
+  s->has_fall = o->has_fall;
+  s->peak = o->peak; s->peak_rate = o->peak_rate;
+  s->prev_t = t_new; s->prev_s = o->srel; s->prev_rate = o->rate; s->has_prev = 1;
+  s->skipped = 0;
+  s->last = o->srel; s->rate = o->rate;
+}
+
+/* Partitioned.after_step's accepted end at t_new (y_new, q_new, v_new): with `shift`, the
+   reference moved to it (q_ref + B z, z_last - z) and the state shifted to z = 0 into
+   s->y_here (adapters.shift_in_place: y + (corrected - y)); the predictor formed from the
+   accepted state before it (mechsim_lu_predictor, as Partitioned._accept). */
+static void accept_end(mechsim_lu *c, mechsim_segment *s, double t_new, const double *y_new,
+                       const double *q_new, const double *v_new, int shift) {
+  const int64_t f = c->f, n = c->n, r = n - f, N = 2 * f;
+  double *z = s->z, *w = s->w, *wd = s->wd;
+  if (shift) {
+    double *q_ref = (double *)c->q_ref;
+    for (int64_t i = 0; i < f; i++) {
+      q_ref[c->ind[i]] = q_ref[c->ind[i]] + y_new[i];
+      c->z_last[i] = c->z_last[i] - y_new[i];
+      z[i] = 0.0;
+    }
+    for (int64_t i = 0; i < r; i++) q_ref[c->dep[i]] = q_ref[c->dep[i]] + 0.0;
+  } else {
+    memcpy(z, y_new, f * sizeof(double));
+  }
+  for (int64_t i = 0; i < r; i++) {
+    w[i] = q_new[c->dep[i]] - c->q_ref[c->dep[i]];
+    wd[i] = v_new[c->dep[i]];
+  }
+  memcpy(s->z0, c->z_last, f * sizeof(double));
+  memcpy(s->w0, c->w_last, r * sizeof(double));
+  mechsim_lu_predictor(c, t_new, 0, c->t_last, z, y_new + f, w, wd, s->z0, s->w0, s->reduced,
+                       s->inverse, s->P);
+  if (shift) {
+    for (int64_t i = 0; i < f; i++) s->y_here[i] = y_new[i] + (0.0 - y_new[i]);
+    for (int64_t i = f; i < N; i++) s->y_here[i] = y_new[i] + (y_new[i] - y_new[i]);
+  }
+}
+
 /* Up to s->budget accepted steps of DOP853 on the partition c (kind 1), each followed by
    what Run._advance does after a plain step of a small rigid mechanism in LU (the hybrid's LU
    phase, or "lu"): its output samples (dense output, positions and velocities) written to
@@ -1337,7 +1463,7 @@ static int64_t observe_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segme
    the same state, with the same numbers. Everything a committed step changes is in s, c
    and the buffers s points to; Python reads it back (mechsim.run.segment). */
 int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s) {
-  const int64_t N = 2 * c->f, f = c->f, n = c->n, m = c->m, r = n - f, S = s->stages;
+  const int64_t N = 2 * c->f, f = c->f, n = c->n, m = c->m, S = s->stages;
   const int64_t mn = m * n, width = 1 + 2 * n;
   double *y = s->y, *fy = s->fy, *K = s->K, *y_new = s->y_new, *f_new = s->f_new;
   double *in = s->in, *out = s->out;
@@ -1390,24 +1516,13 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     const int64_t declined = observe_step(c, pc, s, t_old, t_new, h, y, y_new, f_new, q_new,
                                           v_new, speed, &o, &ready, &evaluations);
     if (declined) { s->reason = declined; break; }
-    const int skip = o.skip, slot = o.slot, has_fall = o.has_fall;
-    const double floor_value = o.floor_value, smin = o.smin, smax = o.smax, srel = o.srel;
-    const double rate = o.rate, rate_norm = o.rate_norm, peak = o.peak;
-    const double peak_rate = o.peak_rate, ratio_speed = o.ratio_speed;
-    double *Jn = s->Js + slot * mn;
-    const double last = skip ? s->last : srel, mon_rate = skip ? s->rate : rate;
+    const double last = o.skip ? s->last : o.srel, mon_rate = o.skip ? s->rate : o.rate;
     /* the hybrid's policy (HybridPolicy.lu_limit, leave_lu) */
-    int has_limit = 0, held = s->held_steps;
+    int has_limit = 0, held = (int)s->held_steps;
     double limit = 0.0;
-    if (s->hybrid) {
-      if (mon_rate < 0.0 && last > s->enter) {
-        has_limit = 1;
-        limit = py_max(0.5 * (last - s->enter) / -mon_rate, 1e-6);
-      }
-      const int was_held = s->has_limit && h >= 0.99 * s->limit;
-      held = was_held ? held + 1 : 0;
-      const int predicted = last < s->enter || (mon_rate < 0.0 && last + mon_rate * h < s->enter);
-      if (predicted || held >= 2) { s->reason = SEG_LEAVE; break; }
+    if (s->hybrid && policy_step(s, h, last, mon_rate, &has_limit, &limit, &held)) {
+      s->reason = SEG_LEAVE;
+      break;
     }
     /* the partition (Partitioned.after_step) */
     double repartition_at = s->repartition_at;
@@ -1419,61 +1534,16 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     }
     /* the output samples (Recorder.within, Partitioned.states), before the partition
        moves its reference */
-    if (k > 0) {
-      if (dense_ready(c, s, t_old, h, y, y_new, f_new, &ready, &evaluations)) {
-        s->reason = SEG_SAMPLES;
-        break;
-      }
-      mechsim_interpolate(N, s->dense_rows + 3, s->F, t_old, h, y, k, s->ts + k0, s->Y);
-      double *rows = s->rows + s->held * width;
-      int bad = 0;
-      for (int64_t j = 0; j < k && !bad; j++) {
-        double *row = rows + j * width, sign = 0.0;
-        row[0] = s->ts[k0 + j];
-        if (lu_state(c, row[0], s->Y + j * N, row + 1, row + 1 + n, c->J, &sign)) bad = 1;
-        else if (sign != 0.0 && sign != s->sign) bad = 1;
-        else
-          for (int64_t i = 1; i < width; i++)
-            if (!isfinite(row[i])) bad = 1;
-      }
-      if (bad) { s->reason = SEG_SAMPLES; break; }
+    if (k > 0 && samples_step(c, s, t_old, h, y, y_new, f_new, k0, k, &ready, &evaluations)) {
+      s->reason = SEG_SAMPLES;
+      break;
     }
     double zmax = 0.0;
     for (int64_t i = 0; i < f; i++) zmax = py_max(zmax, fabs(y_new[i]));
-    double *z = s->z, *w = s->w, *wd = s->wd;
     const int shift = zmax > s->reference_span;
     const int resolve = shift && s->every_step;  /* the end's sample solved again, below */
-    if (resolve) {                               /* the partition as it was, to go back to */
-      memcpy(s->keep_P, c->P, r * (3 + f) * sizeof(double));
-      memcpy(s->keep_C, c->C, r * r * sizeof(double));
-      memcpy(s->keep_q_ref, c->q_ref, n * sizeof(double));
-      memcpy(s->keep_z, c->z_last, f * sizeof(double));
-      memcpy(s->keep_w, c->w_last, r * sizeof(double));
-      s->keep_t = c->t_last;
-    }
-    if (shift) {
-      double *q_ref = (double *)c->q_ref;
-      for (int64_t i = 0; i < f; i++) {
-        q_ref[c->ind[i]] = q_ref[c->ind[i]] + y_new[i];
-        c->z_last[i] = c->z_last[i] - y_new[i];
-        z[i] = 0.0;
-      }
-      for (int64_t i = 0; i < r; i++) q_ref[c->dep[i]] = q_ref[c->dep[i]] + 0.0;
-    } else {
-      memcpy(z, y_new, f * sizeof(double));
-    }
-    for (int64_t i = 0; i < r; i++) {
-      w[i] = q_new[c->dep[i]] - c->q_ref[c->dep[i]];
-      wd[i] = v_new[c->dep[i]];
-    }
-    memcpy(s->z0, c->z_last, f * sizeof(double));
-    memcpy(s->w0, c->w_last, r * sizeof(double));
-    mechsim_lu_predictor(c, t_new, 0, c->t_last, z, y_new + f, w, wd, s->z0, s->w0, s->reduced,
-                         s->inverse, s->P);
-    if (shift) {                       /* adapters.shift_in_place: y + (corrected - y) */
-      for (int64_t i = 0; i < f; i++) s->y_here[i] = y_new[i] + (0.0 - y_new[i]);
-      for (int64_t i = f; i < N; i++) s->y_here[i] = y_new[i] + (y_new[i] - y_new[i]);
-    }
+    if (resolve) keep_partition(c, s);           /* the partition as it was, to go back to */
+    accept_end(c, s, t_new, y_new, q_new, v_new, shift);
     /* A sample at every step's end (Run._accept's record_due): after a re-reference the
        loop solves it from the new reference, through the partition's state (Partitioned.
        state); where that declines, the partition goes back and the loop takes the step. */
@@ -1483,12 +1553,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
       for (int64_t i = 0; i < n && !bad; i++)
         bad = !isfinite(s->q_here[i]) || !isfinite(s->v_here[i]);
       if (bad) {
-        memcpy((double *)c->P, s->keep_P, r * (3 + f) * sizeof(double));
-        memcpy((double *)c->C, s->keep_C, r * r * sizeof(double));
-        memcpy((double *)c->q_ref, s->keep_q_ref, n * sizeof(double));
-        memcpy(c->z_last, s->keep_z, f * sizeof(double));
-        memcpy(c->w_last, s->keep_w, r * sizeof(double));
-        c->t_last = s->keep_t;
+        restore_partition(c, s);
         s->reason = SEG_DUE;
         break;
       }
@@ -1511,35 +1576,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
       s->policy_steps += 1;
       if (has_limit) s->max_step = py_min(s->run_max_step, limit);
     }
-    if (!skip) {
-      int64_t kept = 0;                /* the measurements known: the one at t_old, if any */
-      for (int64_t j = 0; j < s->known_n; j++)
-        if (s->known[3 * j] == t_old) {
-          memmove(s->known, s->known + 3 * j, 3 * sizeof(double));
-          kept = 1;
-          break;
-        }
-      s->known_n = kept;
-      double *kn = s->known + 3 * s->known_n;
-      kn[0] = t_new; kn[1] = smin; kn[2] = smax;
-      s->known_n += 1;
-      memcpy(s->Jm, Jn, mn * sizeof(double));
-      s->m_smin = smin; s->m_smax = smax; s->has_measured = 1;
-      s->ratio_speed = ratio_speed;
-      if (has_fall) {
-        double *fs = s->fall_scalars + 4 * slot;
-        fs[0] = t_new; fs[1] = smin; fs[2] = smax; fs[3] = rate_norm;
-        s->cur = slot;
-      }
-      s->has_fall = has_fall;
-      s->peak = peak; s->peak_rate = peak_rate;
-      s->prev_t = t_new; s->prev_s = srel; s->prev_rate = rate; s->has_prev = 1;
-      s->skipped = 0;
-      s->last = srel; s->rate = rate;
-    } else {
-      s->skipped += 1;
-      s->floor_t = t_new; s->floor_v = floor_value; s->has_floor = 1;
-    }
+    commit_observation(s, &o, mn, t_old, t_new);
     /* the integrator and the run */
     s->sign = s->block[0];
     memcpy(s->y_old, y, N * sizeof(double));
