@@ -131,15 +131,13 @@ class Partitioned(Formulation):
         prev = None if first else (self.t_last, self.z_last, self.w_last)
         self.t_last, self.z_last = t, z
         self._square = self.basis.r == J.shape[0]
+        reduced = None
         if self._square:
             # The chord factor: convergence is judged on ‖Φ‖, so its conditioning affects
             # only the rate.
             self._chord = self.basis.block(J) if block is None else block
             reduced = getattr(self._chord, "reduced", None)
-            G = -(self._chord.chord(self.basis.JB(J)) if reduced is None else reduced)
             self.problem.counters.factorizations += 1
-        else:
-            reduced, G = None, np.zeros((self.basis.r, self.basis.f))
         self.w_last = w
         # The prediction (see `_predict`) is w(t, z) = a0 + a1 d + a2 d² + G z, d = t − t_last:
         # the path through the accepted states bent through the one before (O(h³)), corrected
@@ -150,6 +148,8 @@ class Partitioned(Formulation):
             self._P = self.engine.predictor(t, z, zd, w, wd, prev, reduced,
                                             self._chord.inverse(), self.q_ref)
             return
+        G = -self._chord.chord(self.basis.JB(J)) if self._square else \
+            np.zeros((self.basis.r, self.basis.f))
         cw, cz = np.zeros_like(w), np.zeros_like(z)
         if prev is not None and prev[0] != t:
             t0, z0, w0 = prev
