@@ -957,10 +957,99 @@ void mechsim_interpolate(int64_t N, int64_t rows, const double *F, double t_old,
   }
 }
 
+/* s = sigma_kk / sigma_max of J~ (0 where sigma_max is not positive) at t on a step's dense
+   output (rows x N coefficients F from t_old over h, y_old), the positions solved on the
+   partition c (lu_state) or, where c is NULL, q = y[:n]; work: N + 2 n. 0: done. */
+static int s_on_step(mechsim_lu *c, mechsim_projection *pc, int64_t N, int64_t rows,
+                     const double *F, double t_old, double h, const double *y_old, int64_t kk,
+                     double t, double *work, double *s) {
+  const int64_t n = pc->n;
+  double *Y = work, *q = work + N, *v = work + N + n, ex[2];
+  mechsim_interpolate(N, rows, F, t_old, h, y_old, 1, &t, Y);
+  if (c != NULL) {
+    if (lu_state(c, t, Y, q, v, c->J, NULL)) return 1;
+  } else {
+    memcpy(q, Y, n * sizeof(double));
+  }
+  if (mechsim_extremes(pc, 1, kk, &t, q, ex)) return 1;
+  *s = ex[1] > 0.0 ? ex[0] / ex[1] : 0.0;
+  return 0;
+}
+
+static double sign_or_one(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 1.0); }
+
+/* The least of s (s_on_step) over [ta, tb] (SingularityMonitor._refine; s is V-shaped near a
+   singular configuration): Brent's bounded search, golden sections and parabolic steps to
+   the tolerance sqrt(2.2e-16) |t| + xatol / 3 (the rule of scipy's minimize_scalar
+   "bounded"), at most 500 evaluations: (t, s) into out. 0: done; 1: a state or an SVD
+   declined (Python decides). */
+int mechsim_passage_minimum(mechsim_lu *c, mechsim_projection *pc, int64_t N, int64_t rows,
+                            const double *F, double t_old, double h, const double *y_old,
+                            int64_t kk, double ta, double tb, double xatol, double *work,
+                            double *out) {
+  const double sqrt_eps = sqrt(2.2e-16), golden_mean = 0.5 * (3.0 - sqrt(5.0));
+  double a = ta, b = tb;
+  double fulc = a + golden_mean * (b - a), nfc = fulc, xf = fulc;
+  double rat = 0.0, e = 0.0, x = xf, fx, fu;
+  if (s_on_step(c, pc, N, rows, F, t_old, h, y_old, kk, x, work, &fx)) return 1;
+  int num = 1;
+  double ffulc = fx, fnfc = fx, xm = 0.5 * (a + b);
+  double tol1 = sqrt_eps * fabs(xf) + xatol / 3.0, tol2 = 2.0 * tol1;
+  while (fabs(xf - xm) > tol2 - 0.5 * (b - a)) {
+    int golden = 1;
+    if (fabs(e) > tol1) {                       /* a parabola through the three best */
+      golden = 0;
+      double r = (xf - nfc) * (fx - ffulc), q = (xf - fulc) * (fx - fnfc);
+      double p = (xf - fulc) * q - (xf - nfc) * r;
+      q = 2.0 * (q - r);
+      if (q > 0.0) p = -p;
+      q = fabs(q);
+      r = e;
+      e = rat;
+      if (fabs(p) < fabs(0.5 * q * r) && p > q * (a - xf) && p < q * (b - xf)) {
+        rat = (p + 0.0) / q;
+        x = xf + rat;
+        if (x - a < tol2 || b - x < tol2) rat = tol1 * sign_or_one(xm - xf);
+      } else {
+        golden = 1;
+      }
+    }
+    if (golden) {
+      e = xf >= xm ? a - xf : b - xf;
+      rat = golden_mean * e;
+    }
+    x = xf + sign_or_one(rat) * (fabs(rat) > tol1 ? fabs(rat) : tol1);
+    if (s_on_step(c, pc, N, rows, F, t_old, h, y_old, kk, x, work, &fu)) return 1;
+    num++;
+    if (fu <= fx) {
+      if (x >= xf) a = xf; else b = xf;
+      fulc = nfc; ffulc = fnfc;
+      nfc = xf; fnfc = fx;
+      xf = x; fx = fu;
+    } else {
+      if (x < xf) a = x; else b = x;
+      if (fu <= fnfc || nfc == xf) {
+        fulc = nfc; ffulc = fnfc;
+        nfc = x; fnfc = fu;
+      } else if (fu <= ffulc || fulc == xf || fulc == nfc) {
+        fulc = x; ffulc = fu;
+      }
+    }
+    xm = 0.5 * (a + b);
+    tol1 = sqrt_eps * fabs(xf) + xatol / 3.0;
+    tol2 = 2.0 * tol1;
+    if (num >= 500) break;
+  }
+  out[0] = xf;
+  out[1] = fx;
+  return 0;
+}
+
 /* The structures' sizes as this compiler lays them out: Python checks them against its
    ctypes twins before using the library. */
 int64_t mechsim_sizeof_lu(void) { return (int64_t)sizeof(mechsim_lu); }
 int64_t mechsim_sizeof_projection(void) { return (int64_t)sizeof(mechsim_projection); }
+int64_t mechsim_sizeof_search(void) { return (int64_t)sizeof(mechsim_search); }
 int64_t mechsim_sizeof_segment(void) { return (int64_t)sizeof(mechsim_segment); }
 
 /* ---- consecutive plain steps of a partition in one call (mechsim.run.segment) ---- */
@@ -1038,85 +1127,129 @@ static int dense_ready(mechsim_lu *c, mechsim_segment *s, double t_old, double h
   return 0;
 }
 
-static int positions_at(mechsim_lu *c, mechsim_segment *s, double t_old, double h,
-                        const double *y, int64_t k, const double *ts, double *Q) {
-  const int64_t N = 2 * c->f, n = c->n;
-  mechsim_interpolate(N, s->dense_rows + 3, s->F, t_old, h, y, k, ts, s->Yn);
-  for (int64_t j = 0; j < k; j++)
-    if (lu_state(c, ts[j], s->Yn + j * N, Q + j * n, s->vn, c->J, NULL)) return 1;
+/* The configurations at the k times ts on the search's dense output: solved on the
+   partition c (lu_state), or q = y[:n] where c is NULL. 0: done; 1: a state declined. */
+static int search_positions(mechsim_lu *c, mechsim_search *w, int64_t k, const double *ts,
+                            double *Q) {
+  const int64_t N = w->N, n = w->n;
+  mechsim_interpolate(N, w->rows, w->F, w->t_old, w->h, w->y_old, k, ts, w->Yn);
+  for (int64_t j = 0; j < k; j++) {
+    if (c == NULL) memcpy(Q + j * n, w->Yn + j * N, n * sizeof(double));
+    else if (lu_state(c, ts[j], w->Yn + j * N, Q + j * n, w->vn, c->J, NULL)) return 1;
+  }
   return 0;
 }
 
-/* The singularity monitor's search for a passage hidden inside the step [t0, t1]
-   (SingularityMonitor._anchored on a grid of GRID intervals, J~'s chords enlarged by
-   CHORD, at most `budget` SVDs), where it finds none: 1 when every interval is cleared by
-   its anchors' Weyl bounds, or the budget is spent, with no measured sigma_min/sigma_max
-   under `enter` (unnormalized); 0 where a value falls under it (a passage: the loop
-   records it), a state or an SVD the engine declines, or the grid outgrows its buffers.
-   The anchors at the step's ends are the ones measured there (known). */
-/* Whether a measured (sigma_min, sigma_max) is under `enter` as the search's values or its
-   anchors would count it (either form, or sigma_max not positive: a value of 0). */
-static int under(double smin, double smax, double enter) {
-  return !(smax > 0.0) || !(smin >= enter * smax) || smin / smax < enter;
+/* Does [ta, tb] lie within reach of the times lows (ascending), in their union? (_covered) */
+static int covered(double ta, double tb, const double *lows, int64_t nl, double reach) {
+  double edge = ta;
+  for (int64_t i = 0; i < nl; i++) {
+    const double tk = lows[i];
+    if (!(ta - reach <= tk && tk <= tb + reach)) continue;
+    if (tk - reach > edge) return 0;
+    edge = py_max(edge, tk + reach);
+    if (edge >= tb) return 1;
+  }
+  return 0;
 }
 
-static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
-                         double t0, double t1, double t_old, double h_step, const double *y,
-                         int64_t budget, double enter, const double *end0,
-                         const double *end1) {
-  const int64_t n = c->n, cap = s->nodes_cap, grid = s->grid;
-  double *T = s->nodes, *Q = s->node_q, *ch = s->node_chords, *an = s->node_anchor;
-  double *low = s->node_low, *mid = s->node_mid, *mq = s->node_mq, *ex = s->node_ex;
-  int64_t *has = (int64_t *)s->node_has;
-  const double step = (t1 - t0) / (double)grid, h = t1 - t0, chord = s->chord;
+/* The intervals of the search's `count` nodes its anchors do not clear (monitor._uncleared:
+   the nearest anchor on either side, its sigma_k less and its sigma_max plus the chords to
+   the interval's far end, above `enter`; not within `apart` of a value under it; not joined
+   to one, or to the step's start with open_at_start) into todo, in order: how many. */
+static int64_t uncleared(mechsim_search *w, int64_t count, double h, int64_t *todo) {
+  const int64_t intervals = count - 1;
+  const double *T = w->nodes, *ch = w->node_chords, *an = w->node_anchor;
+  const double enter = w->enter, leave = w->leave;
+  const int64_t *has = (const int64_t *)w->node_has;
+  double *low = w->node_low, *high = w->node_high, *lows = w->node_lows;
+  int64_t *joined = (int64_t *)w->node_joined, nl = 0;
+  for (int64_t j = 0; j < intervals; j++) {
+    low[j] = -INFINITY;
+    high[j] = INFINITY;
+    joined[j] = 0;
+  }
+  for (int side = 0; side < 2; side++) {
+    int anchored = 0;
+    double a0 = 0.0, a1 = 0.0, reach = 0.0;
+    for (int64_t jj = 0; jj < intervals; jj++) {
+      const int64_t j = side ? intervals - 1 - jj : jj, node = j + side;
+      if (has[node]) { anchored = 1; a0 = an[2 * node]; a1 = an[2 * node + 1]; reach = 0.0; }
+      reach += ch[j];
+      if (anchored) {
+        const double bound = (a0 - reach) / (a1 + reach);
+        if (bound > low[j]) low[j] = bound;
+        if (a1 > reach) {
+          const double top = (a0 + reach) / (a1 - reach);
+          if (top < high[j]) high[j] = top;
+        }
+      }
+    }
+  }
+  for (int64_t i = 0; i < count; i++)
+    if (has[i] && an[2 * i] < enter * an[2 * i + 1]) lows[nl++] = T[i];
+  for (int64_t j = 0; j < intervals;) {
+    int64_t k = j;
+    while (k < intervals && high[k] < leave) k++;
+    int hold = w->open_at_start && j == 0;
+    for (int64_t i = j; i <= k && !hold; i++)
+      hold = has[i] && an[2 * i] < enter * an[2 * i + 1];
+    if (k > j && hold)
+      for (int64_t i = j; i < k; i++) joined[i] = 1;
+    j = k + 1;
+  }
+  const double shortest = 1e-9 * h;
+  int64_t nt = 0;
+  for (int64_t j = 0; j < intervals; j++)
+    if (low[j] < enter && !joined[j] && T[j + 1] - T[j] >= shortest &&
+        !(nl && covered(T[j], T[j + 1], lows, nl, w->apart)))
+      todo[nt++] = j;
+  return nt;
+}
+
+/* Measure the search's node i (sigma_kk and sigma_max). 0: done. */
+static int measure_node(mechsim_projection *pc, mechsim_search *w, int64_t i) {
+  double *ex = w->node_ex;
+  if (mechsim_extremes(pc, 1, w->kk, w->nodes + i, w->node_q + i * w->n, ex)) return 1;
+  ((int64_t *)w->node_has)[i] = 1;
+  w->node_anchor[2 * i] = ex[0];
+  w->node_anchor[2 * i + 1] = ex[1];
+  return 0;
+}
+
+/* The singularity monitor's search for passages hidden inside the step [t0, t1] on its
+   dense output (SingularityMonitor._anchored): a grid of `grid` intervals, J~'s chords
+   between nodes enlarged by `chord`, every interval its anchors do not clear (`uncleared`)
+   measured at its nodes, then halved, at most `budget` SVDs; the anchors at the ends are
+   end0 / end1 ((sigma_kk, sigma_max) measured there) where not NULL. The measured nodes into
+   w->out (rows t, sigma_kk, sigma_max, in time order; w->found of them). 0: done; 1: a state
+   or an SVD declined, or the grid outgrew its `nodes_cap` nodes (Python searches). */
+static int anchored_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
+                           double t0, double t1, int64_t budget, const double *end0,
+                           const double *end1) {
+  const int64_t n = w->n, cap = w->nodes_cap, grid = w->grid;
+  double *T = w->nodes, *Q = w->node_q, *ch = w->node_chords, *an = w->node_anchor;
+  double *mid = w->node_mid, *mq = w->node_mq;
+  int64_t *has = (int64_t *)w->node_has;
+  const double step = (t1 - t0) / (double)grid, h = t1 - t0, chord = w->chord;
   int64_t count = grid + 1;
+  if (count > cap) return 1;
   for (int64_t i = 0; i < grid; i++) T[i] = (double)i * step + t0;
   T[grid] = t1;
-  if (positions_at(c, s, t_old, h_step, y, count, T, Q)) return 0;
+  if (search_positions(c, w, count, T, Q)) return 1;
   mechsim_chords(pc, count, T, Q, ch);
   for (int64_t i = 0; i < grid; i++) ch[i] = chord * ch[i];
   for (int64_t i = 0; i < count; i++) has[i] = 0;
   if (end0) { has[0] = 1; an[0] = end0[0]; an[1] = end0[1]; }
   if (end1) { has[grid] = 1; an[2 * grid] = end1[0]; an[2 * grid + 1] = end1[1]; }
-  int64_t spent = 0;
-  {
-    int64_t todo[2], k = 0;
-    if (!has[0]) todo[k++] = 0;
-    if (!has[grid]) todo[k++] = grid;
-    for (int64_t j = 0; j < k; j++) {
-      if (mechsim_extremes(pc, 1, pc->m - 1, T + todo[j], Q + todo[j] * n, ex)) return 0;
-      has[todo[j]] = 1;
-      an[2 * todo[j]] = ex[0];
-      an[2 * todo[j] + 1] = ex[1];
-    }
-    spent = 2;
-  }
-  for (int64_t i = 0; i < count; i++)
-    if (has[i] && under(an[2 * i], an[2 * i + 1], enter)) return 0;
-  const double shortest = 1e-9 * h;
+  if (!has[0] && measure_node(pc, w, 0)) return 1;
+  if (!has[grid] && measure_node(pc, w, grid)) return 1;
+  int64_t spent = 2;
+  int64_t *todo = (int64_t *)w->node_todo, *fresh = (int64_t *)w->node_fresh;
   while (spent < budget) {
-    const int64_t intervals = count - 1;
-    for (int64_t j = 0; j < intervals; j++) low[j] = -INFINITY;
-    for (int side = 0; side < 2; side++) {    /* from the nearest anchor on either side */
-      int anchored = 0;
-      double a0 = 0.0, a1 = 0.0, reach = 0.0;
-      for (int64_t jj = 0; jj < intervals; jj++) {
-        const int64_t j = side ? intervals - 1 - jj : jj, node = j + side;
-        if (has[node]) { anchored = 1; a0 = an[2 * node]; a1 = an[2 * node + 1]; reach = 0.0; }
-        reach += ch[j];
-        if (anchored) {
-          const double bound = (a0 - reach) / (a1 + reach);
-          if (bound > low[j]) low[j] = bound;
-        }
-      }
-    }
-    int64_t nt = 0;                              /* the uncleared intervals, in order */
-    int64_t *todo = (int64_t *)s->node_todo;
-    for (int64_t j = 0; j < intervals; j++)
-      if (low[j] < enter && T[j + 1] - T[j] >= shortest) todo[nt++] = j;
+    const int64_t nt = uncleared(w, count, h, todo);
     if (!nt) break;
     int64_t nf = 0;                              /* their nodes not measured, in order */
-    int64_t *fresh = (int64_t *)s->node_fresh;
     for (int64_t a = 0; a < nt; a++)
       for (int64_t e = 0; e < 2; e++) {
         const int64_t i = todo[a] + e;
@@ -1124,22 +1257,16 @@ static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment 
       }
     if (nf) {
       if (nf > budget - spent) nf = budget - spent;
-      for (int64_t a = 0; a < nf; a++) {
-        const int64_t i = fresh[a];
-        if (mechsim_extremes(pc, 1, pc->m - 1, T + i, Q + i * n, ex)) return 0;
-        has[i] = 1;
-        an[2 * i] = ex[0];
-        an[2 * i + 1] = ex[1];
-        if (under(ex[0], ex[1], enter)) return 0;
-      }
+      for (int64_t a = 0; a < nf; a++)
+        if (measure_node(pc, w, fresh[a])) return 1;
       spent += nf;
       continue;
     }
-    if (count + nt > cap) return 0;
+    if (count + nt > cap) return 1;
     for (int64_t a = 0; a < nt; a++) mid[a] = 0.5 * (T[todo[a]] + T[todo[a] + 1]);
-    if (positions_at(c, s, t_old, h_step, y, nt, mid, mq)) return 0;
+    if (search_positions(c, w, nt, mid, mq)) return 1;
     /* the pieces' chords: [Q[j], mid, Q[j + 1]] for each, as one list of states */
-    double *at = s->node_at, *trip = s->node_trip, *pieces = s->node_pieces;
+    double *at = w->node_at, *trip = w->node_trip, *pieces = w->node_pieces;
     for (int64_t a = 0; a < nt; a++) {
       const int64_t j = todo[a];
       at[3 * a] = T[j]; at[3 * a + 1] = mid[a]; at[3 * a + 2] = T[j + 1];
@@ -1167,6 +1294,57 @@ static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment 
       count++;
     }
   }
+  int64_t found = 0;
+  for (int64_t i = 0; i < count; i++)
+    if (has[i]) {
+      w->out[3 * found] = T[i];
+      w->out[3 * found + 1] = an[2 * i];
+      w->out[3 * found + 2] = an[2 * i + 1];
+      found++;
+    }
+  w->found = found;
+  return 0;
+}
+
+/* `anchored_search` for Python (SingularityMonitor._anchored): c the partition the
+   positions are solved on, or NULL; w's dense output and thresholds set by the caller. */
+int mechsim_anchored(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w, double t0,
+                     double t1, int64_t budget, const double *ends, int64_t which) {
+  return anchored_search(c, pc, w, t0, t1, budget, (which & 1) ? ends : NULL,
+                         (which & 2) ? ends + 2 : NULL);
+}
+
+/* Whether a measured (sigma_min, sigma_max) is under `enter` as the search's values or its
+   anchors would count it (either form, or sigma_max not positive: a value of 0). */
+static int under(double smin, double smax, double enter) {
+  return !(smax > 0.0) || !(smin >= enter * smax) || smin / smax < enter;
+}
+
+/* The monitor's search inside the step [t0, t1] of a segment (anchored_search on the step's
+   dense output, the positions solved on the partition), where it finds no passage: 1 when
+   no measured sigma_min/sigma_max is under `enter` (unnormalized); 0 where one is (a passage:
+   the loop records it), or the search declined. */
+static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
+                         double t0, double t1, double t_old, double h_step, const double *y,
+                         int64_t budget, double enter, const double *end0,
+                         const double *end1) {
+  mechsim_search *w = (mechsim_search *)s->search;
+  w->grid = s->grid;
+  w->kk = pc->m - 1;
+  w->N = 2 * c->f;
+  w->rows = s->dense_rows + 3;
+  w->open_at_start = 0;
+  w->chord = s->chord;
+  w->enter = enter;
+  w->leave = INFINITY;
+  w->apart = INFINITY;             /* a value under `enter` ends the search: it declines */
+  w->t_old = t_old;
+  w->h = h_step;
+  w->F = s->F;
+  w->y_old = y;
+  if (anchored_search(c, pc, w, t0, t1, budget, end0, end1)) return 0;
+  for (int64_t i = 0; i < w->found; i++)
+    if (under(w->out[3 * i + 1], w->out[3 * i + 2], enter)) return 0;
   return 1;
 }
 

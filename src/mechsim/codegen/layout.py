@@ -16,7 +16,7 @@ import numpy as np
 
 _C_TYPES = {"int64": "int64_t", "double": "double", "double*": "double *",
             "const double*": "const double *", "int64*": "int64_t *",
-            "const int64*": "const int64_t *", "int*": "int *"}
+            "const int64*": "const int64_t *", "int*": "int *", "void*": "void *"}
 _CTYPES = {"int64": ctypes.c_int64, "double": ctypes.c_double}
 _DTYPES = {"double*": np.float64, "const double*": np.float64, "int64*": np.int64,
            "const int64*": np.int64, "int*": np.intc}
@@ -122,6 +122,29 @@ PROJECTION = Layout("mechsim_projection", [
 # searches).
 NODES = 256
 
+# The singularity monitor's passage search on a step's dense output (`mechsim_anchored`):
+# the grid (at most `nodes_cap` = NODES nodes) and its scratch, the dense output (N state
+# entries, `rows` coefficients F from t_old over h, y_old) and the measured nodes found
+# (`found` of them, rows (t, σ_k, σ_max) in `out`). Sized for states of 2 n entries, so one
+# serves a partition's [z; ż] and a state [q; v].
+SEARCH = Layout("mechsim_search", [
+    *(Field(name, "int64") for name in ("n", "nodes_cap", "grid", "kk", "N", "rows",
+                                        "open_at_start", "found")),
+    *(Field(name, "double") for name in ("chord", "enter", "leave", "apart", "t_old", "h")),
+    Field("F", "const double*"), Field("y_old", "const double*"),
+    *(Field(name, "double*", lambda d: NODES) for name in (
+        "nodes", "node_chords", "node_low", "node_high", "node_mid", "node_lows")),
+    *(Field(name, "int64*", lambda d: NODES) for name in ("node_has", "node_todo",
+                                                          "node_fresh", "node_joined")),
+    Field("node_anchor", "double*", lambda d: 2 * NODES), Field("node_ex", "double*", lambda d: 2),
+    *(Field(name, "double*", lambda d: NODES * d.n) for name in ("node_q", "node_mq")),
+    Field("node_at", "double*", lambda d: 3 * NODES),
+    Field("node_pieces", "double*", lambda d: 3 * NODES),
+    Field("node_trip", "double*", lambda d: 3 * NODES * d.n),
+    Field("Yn", "double*", lambda d: NODES * 2 * d.n), Field("vn", "double*", lambda d: d.n),
+    Field("out", "double*", lambda d: 3 * NODES),
+])
+
 # Consecutive plain steps of a partition in one call (`mechsim.run.segment`): the integrator's,
 # the monitor's, the hybrid policy's and the run's state a step reads and changes, with the
 # buffers of one step. `stages` rows of K are DOP853's with its dense output's extra ones.
@@ -131,8 +154,8 @@ SEGMENT = Layout("mechsim_segment", [
         "stages", "extra_rows", "extra_width", "dense_rows", "dense_cols", "n_ts", "next",
         "held", "capacity", "y_rows", "evaluations", "factorizations", "corrections",
         "hybrid", "held_steps", "has_limit", "policy_steps", "small", "max_skip", "skipped",
-        "has_prev", "has_floor", "has_measured", "has_fall", "cur", "known_n", "nodes_cap",
-        "every_step", "grid")),
+        "has_prev", "has_floor", "has_measured", "has_fall", "cur", "known_n", "every_step",
+        "grid")),
     *(Field(name, "double") for name in (
         "t", "t_old", "h_abs", "h_previous", "t_bound", "direction", "max_step",
         "run_max_step", "rtol", "safety", "min_factor", "max_factor", "exponent",
@@ -158,17 +181,8 @@ SEGMENT = Layout("mechsim_segment", [
                                                                 "fall_work", "J_end")),
     *(Field(name, "double*", lambda d: 2 * d.m * d.n) for name in ("Js", "Ds", "Ps")),
     Field("fall_scalars", "double*", lambda d: 8), Field("known", "double*", lambda d: 6),
-    # the passage search's grid (at most `nodes_cap` = NODES nodes) and its scratch
-    *(Field(name, "double*", lambda d: NODES) for name in (
-        "nodes", "node_chords", "node_low", "node_mid")),
-    *(Field(name, "int64*", lambda d: NODES) for name in ("node_has", "node_todo",
-                                                          "node_fresh")),
-    Field("node_anchor", "double*", lambda d: 2 * NODES), Field("node_ex", "double*", lambda d: 2),
-    *(Field(name, "double*", lambda d: NODES * d.n) for name in ("node_q", "node_mq")),
-    Field("node_at", "double*", lambda d: 3 * NODES),
-    Field("node_pieces", "double*", lambda d: 3 * NODES),
-    Field("node_trip", "double*", lambda d: 3 * NODES * d.n),
-    Field("Yn", "double*", lambda d: NODES * 2 * d.f), Field("vn", "double*", lambda d: d.n),
+    # the passage search's grid and scratch (a `SEARCH` structure the segment owns)
+    Field("search", "void*"),
     # a step's end re-solved after a re-reference, and the partition before it
     Field("y_here", "double*", lambda d: 2 * d.f),
     *(Field(name, "double*", lambda d: d.n) for name in ("q_here", "v_here", "keep_q_ref")),
@@ -193,7 +207,8 @@ SIGNATURES = {
     "mechsim_extremes": "pllppp>i", "mechsim_dop853": "pll" + "p" * 11 + ">i",
     "mechsim_dop853_extra": "pll" + "p" * 7 + ">i", "mechsim_interpolate": "llpddplpp>-",
     "mechsim_change": "pdpp>d", "mechsim_fall_rates": "lll" + "p" * 9 + ">-",
-    "mechsim_dense_coefficients": "lllpppppdp>-", "mechsim_multipliers": "plppppddppp>l",
+    "mechsim_dense_coefficients": "lllpppppdp>-",
+    "mechsim_passage_minimum": "ppllpddpldddpp>i", "mechsim_anchored": "pppddlpl>i", "mechsim_multipliers": "plppppddppp>l",
 }
 _CODES = {"p": ctypes.c_void_p, "d": ctypes.c_double, "l": ctypes.c_int64, "i": ctypes.c_int,
           "-": None}

@@ -12,7 +12,7 @@ import ctypes
 
 import numpy as np
 
-from .layout import NODES, SEGMENT, Dims
+from .layout import NODES, SEARCH, SEGMENT, Dims
 
 # Steps one call takes at most before Python looks in (progress, the stream).
 BUDGET = 256
@@ -27,13 +27,17 @@ class PlainSteps:
         self.lib, self.shape = lib, (n, m, f)
         self.buffers = SEGMENT.buffers(Dims(n, m, f))
         self.log = np.zeros((BUDGET, 4))
+        # the passage search's grid and scratch
+        self.search_buffers = SEARCH.buffers(Dims(n, m, f))
+        self.search = SEARCH.make({"n": n, "nodes_cap": NODES},     # F, y_old: per search
+                                  {**self.search_buffers, "F": self.log, "y_old": self.log})
         self.Y = np.zeros((max(int(sample_rows), 1), 2 * f))
         coef, extra, dense = tableaus
         self._arrays = {**self.buffers, "coef": coef, "extra_coef": extra, "dense": dense,
                         "atol": np.zeros(1), "ts": np.zeros(1), "rows": np.zeros(1),
                         "Y": self.Y, "log": self.log}
-        self.s = SEGMENT.make({"budget": BUDGET, "y_rows": len(self.Y), "nodes_cap": NODES},
-                              self._arrays)
+        self.s = SEGMENT.make({"budget": BUDGET, "y_rows": len(self.Y),
+                               "search": ctypes.addressof(self.search)}, self._arrays)
         self._address = ctypes.addressof(self.s)
 
     def point(self, name, array) -> None:

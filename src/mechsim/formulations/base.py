@@ -199,6 +199,14 @@ class Formulation:
         solve overrides it to solve for all at once."""
         return np.array([self.state(t, y)[0] for t, y in zip(ts, Y)])
 
+    def positions_context(self):
+        """How the compiled engine finds the positions of a state on a step's dense output,
+        for the singularity monitor's search there (`ConstraintAlgebra.anchored`,
+        `passage_minimum`): the address of the partition's compiled context it solves them
+        on, 0 where they are the state's first n entries, None where the engine does not
+        (the monitor then searches in Python)."""
+        return None
+
     def after_step(self, t: float, y: np.ndarray, step: float) -> Correction:
         return KEEP
 

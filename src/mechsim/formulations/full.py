@@ -55,6 +55,9 @@ class FullCoordinates(Formulation):
     def positions(self, ts, Y):
         return np.array(Y[:, :self.n])
 
+    def positions_context(self):
+        return 0
+
     def accelerations(self, t, q, v) -> np.ndarray:
         raise NotImplementedError
 

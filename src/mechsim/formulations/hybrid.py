@@ -187,6 +187,9 @@ class Hybrid(Formulation):
     def positions(self, ts, Y):
         return self.active.positions(ts, Y)
 
+    def positions_context(self):
+        return self.active.positions_context()
+
     def derivative(self, t, q, v):
         return self.active.derivative(t, q, v)
 

@@ -64,6 +64,9 @@ CHORD = 0.25
 # through J̃'s values and rates at the step's ends (`mechsim.linalg.dense.fall_rates`), for J̃'s departure from
 # that cubic.
 HERMITE_MARGIN = 1.25
+# A passage's minimum inside a step is located to this fraction of the interval searched
+# (`SingularityMonitor._refine`, `mechsim_passage_minimum`).
+REFINE_TOL = 1e-5
 
 
 @dataclass
@@ -220,12 +223,14 @@ class SingularityMonitor:
         self._measured, self._ratio_speed, self._fall = o.measured, o.ratio_speed, o.fall
         self._known = dict(o.known)
 
-    def observe(self, t, q, v=None, state_at=None, t_old=None, positions_at=None) -> float:
+    def observe(self, t, q, v=None, state_at=None, t_old=None, positions_at=None,
+                on_step=None) -> float:
         """Take the state at an accepted step that began at `t_old`. `state_at(t) -> (q, v)`
         evaluates the step's dense output, used to confirm a minimum hidden inside the
         step; `positions_at(times) -> Q` (k, n), where given, the configurations at many
-        times at once, which the search measures together. Returns s/peak (the latest
-        measured value when this step was skipped)."""
+        times at once, which the search measures together; `on_step`, where given, lets
+        the compiled engine search the step (`_hidden_passages`). Returns s/peak (the
+        latest measured value when this step was skipped)."""
         if self._prev is None:
             self.t_first = t
         floor = self._floor if self._skipped else None
@@ -263,7 +268,7 @@ class SingularityMonitor:
             falls = (fall_before, self._fall) if fall_before is not None else None
             for dip in self._hidden_passages(prev, (t, s, rate), state_at,
                                              max(speed_before, self._ratio_speed),
-                                             positions_at, falls):
+                                             positions_at, falls, on_step):
                 here = self.open_passage
                 if here is not None and dip.at_start:          # the open passage goes on
                     if dip.s_min < here.s_min:
@@ -310,7 +315,7 @@ class SingularityMonitor:
         return 2.0 * rate_norm / smax
 
     def _hidden_passages(self, a, b, state_at, ratio_speed=0.0,
-                         positions_at=None, falls=None) -> list[Dip]:
+                         positions_at=None, falls=None, on_step=None) -> list[Dip]:
         """The dips of s inside the step from a = (t0, s0/peak, rate) to b, in time order
         (s0 may be a lower bound of s at t0, with rate 0); a dip that holds t0 continues
         the open passage.
@@ -328,7 +333,11 @@ class SingularityMonitor:
         Steps clear of any passage cost nothing: their ends already exclude it, by that bound
         or by `_fall_clears` (`falls`). Where the algebra measures many states together (a
         small mechanism) the values come from `_anchored` (Weyl's inequality along J̃'s
-        path), elsewhere from `_bisect` on the rate bound, one `measure` each."""
+        path), elsewhere from `_bisect` on the rate bound, one `measure` each.
+        `on_step() -> (positions context, dense output) or None`, where given, lets the
+        compiled engine search the step and locate a dip's minimum
+        (`ConstraintAlgebra.anchored`, `passage_minimum`); where it declines, the search
+        is Python's."""
         t0, s0, d0 = a
         t1, s1, d1 = b
         h = t1 - t0
@@ -349,6 +358,14 @@ class SingularityMonitor:
         def s_at(tk):
             return self.measure(state_at(tk)[0], tk)[0]
 
+        kk = self.problem.m - 1 - self.redundant
+        step = None if on_step is None else on_step()
+
+        def refine(ta, tb):
+            found = None if step is None else self.problem.algebra.passage_minimum(
+                *step, ta, tb, kk, REFINE_TOL * (tb - ta))
+            return self._refine(s_at, ta, tb) if found is None else found
+
         # Enough evaluations to cover the step with intervals the bound can clear (a
         # large mechanism's SVD costs milliseconds: there the rates seen bound the search).
         budget = int(min(4000, 16 + 4 * rate_bound * h / max((s0 + s1) * peak, enter)))
@@ -356,7 +373,7 @@ class SingularityMonitor:
             budget = min(budget, 64)
         apart = 2.0 * (leave - enter) / rate_bound
         if positions_at is not None and self.problem.algebra.batched:
-            seen = self._anchored((t0, t1), positions_at, budget, apart, self._known)
+            seen = self._anchored((t0, t1), positions_at, budget, apart, self._known, step)
         else:
             seen = self._bisect((t0, s0 * peak, t1, s1 * peak), s_at, rate_bound, budget,
                                 apart)
@@ -369,7 +386,7 @@ class SingularityMonitor:
             k = min(run, key=values.__getitem__)
             tm, sm = times[k], values[k]
             if 0 < k < last:
-                tr, sr = self._refine(s_at, times[k - 1], times[k + 1])
+                tr, sr = refine(times[k - 1], times[k + 1])
                 if sr < sm:
                     tm, sm = tr, sr
             elif last > 0:
@@ -379,7 +396,7 @@ class SingularityMonitor:
                 j = 1 if k == 0 else last - 1
                 inside = times[k] + 1e-3 * (times[j] - times[k])
                 if s_at(inside) < sm:
-                    tr, sr = self._refine(s_at, *sorted((times[k], times[j])))
+                    tr, sr = refine(*sorted((times[k], times[j])))
                     if sr < sm:
                         tm, sm = tr, sr
             _, _, um = self.measure(state_at(tm)[0], tm)
@@ -407,7 +424,7 @@ class SingularityMonitor:
         r0, r1 = (max(HERMITE_MARGIN * r, least) for r in self.problem.algebra.fall_rates(fa, fb))
         return _lowest(*ends, r0, r1) >= enter
 
-    def _anchored(self, ends, positions_at, budget, apart, known=None) -> dict:
+    def _anchored(self, ends, positions_at, budget, apart, known=None, step=None) -> dict:
         """{t: s} over the step `ends` = (t0, t1) (not normalized), measured where the
         changes of J̃ along the step cannot keep s above `enter`. Weyl's inequality bounds
         every singular value at t by its value at a measured state a (an anchor: one SVD)
@@ -417,9 +434,17 @@ class SingularityMonitor:
         neighbouring anchor keeps above `enter`, and that is not joined to a passage found
         (`_uncleared`), has its nodes measured, then is halved;
         near a value under `enter` the search stops as `_bisect`'s does (`apart`). At most
-        `budget` SVDs; `known`: time -> (σ_k, σ_max) measured already (the step's ends)."""
+        `budget` SVDs; `known`: time -> (σ_k, σ_max) measured already (the step's ends).
+        `step`: (positions context, dense output), where the compiled engine may search
+        (`ConstraintAlgebra.anchored`: the same search in one call)."""
         t0, t1 = ends
         algebra, k = self.problem.algebra, self.problem.m - 1 - self.redundant
+        enter, leave = self.enter * self.peak, self.leave * self.peak
+        anchors = None if step is None else algebra.anchored(
+            *step, ends, budget, known or {}, k,
+            (GRID, 1.0 + CHORD, enter, leave, apart, self.open_passage is not None))
+        if anchors is not None:
+            return {tk: (sm / sx if sx > 0.0 else 0.0) for tk, (sm, sx) in anchors.items()}
         times = np.linspace(t0, t1, GRID + 1).tolist()
         Q = list(positions_at(np.array(times)))
         chords = ((1.0 + CHORD) * algebra.chords(times, Q)).tolist()
@@ -439,8 +464,7 @@ class SingularityMonitor:
         spent = 2
         joined = self.open_passage is not None
         while spent < budget:
-            todo = _uncleared(times, chords, anchors, self.enter * self.peak,
-                              self.leave * self.peak, apart, t1 - t0, joined)
+            todo = _uncleared(times, chords, anchors, enter, leave, apart, t1 - t0, joined)
             if not todo:
                 break
             fresh = sorted({i for j in todo for i in (j, j + 1) if times[i] not in anchors})
@@ -491,7 +515,7 @@ class SingularityMonitor:
         configuration: a bounded scalar search, about 20 evaluations)."""
         from scipy.optimize import minimize_scalar
         found = minimize_scalar(s_at, bounds=(ta, tb), method="bounded",
-                                options={"xatol": 1e-5 * (tb - ta)})
+                                options={"xatol": REFINE_TOL * (tb - ta)})
         return float(found.x), float(found.fun)
 
     @property

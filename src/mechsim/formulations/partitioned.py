@@ -343,6 +343,12 @@ class Partitioned(Formulation):
             return super().positions(ts, Y)
         return self._solve_samples(ts, Y, alone=self._alone)[0]
 
+    def positions_context(self):
+        engine = self.engine
+        if engine is None or not engine.ready or self.basis.sparse:
+            return None
+        return engine.context
+
     def _alone(self, ts, Y):
         return super().positions(ts, Y), None, None
 

@@ -218,6 +218,12 @@ class Interpolant(DenseOutput):
             self._kernel = (kernel, F.shape[1], F.shape[0], F.ctypes.data, float(t_old),
                             float(self.h), y_old.ctypes.data)
 
+    @property
+    def coefficients(self):
+        """(t_old, h, y_old, F): the interpolant as the engine evaluates it
+        (`mechsim_interpolate`), for searches over the step in C."""
+        return self.t_old, self.h, self.y_old, self.F
+
     def _call_impl(self, t):
         """y at t (0-d: shape (n,)) or at each of the times t (1-d: shape (n, len(t)))."""
         if self._kernel is not None:

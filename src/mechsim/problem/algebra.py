@@ -72,6 +72,14 @@ class ConstraintAlgebra:
       (dJ̃/dt, `mechsim.linalg.dense.fall_basis`) where small and eps > 0, else None
     - ``chords(times, Q)``, ``singular_extremes(times, Q, k)``: bounds of ‖J̃ᵢ₊₁ − J̃ᵢ‖₂
       (`chord_bound`), (σ_k, σ_max) at each configuration: the passage search's grid
+    - ``anchored(lu_context, dense, ends, budget, known, k, search)``: the singularity
+      monitor's search over a step (`SingularityMonitor._anchored`) in the compiled
+      engine, {t: (σ_k, σ_max)} measured, on the step's dense output `dense` (the
+      positions solved on the partition whose engine context is `lu_context`, or
+      q = y[:n] where it is 0: `Formulation.positions_context`); None where nothing is
+      compiled or the engine declined
+    - ``passage_minimum(lu_context, dense, ta, tb, k, xatol)``: (t, s) at the least of
+      s = σ_k/σ_max over [ta, tb] of a step's dense output, likewise
     - ``compiled_accelerations(t, q, v, Q, cut, bound, far)``: q̈ at (t, q, v) under the
       applied forces Q by the compiled engine where it takes the state, else None (then
       `clear_accelerations` on the terms the caller evaluates once)
@@ -182,6 +190,12 @@ class ConstraintAlgebra:
 
     def chords(self, times, Q):
         return chord_bound(np.diff(self._scaled_at(times, Q), axis=0))
+
+    def passage_minimum(self, lu_context, dense, ta, tb, k, xatol):
+        return None
+
+    def anchored(self, lu_context, dense, ends, budget, known, k, search):
+        return None
 
     def singular_extremes(self, times, Q, k):
         sig = np.linalg.svd(self._scaled_at(times, Q), compute_uv=False)
@@ -319,6 +333,32 @@ class DenseAlgebra(ConstraintAlgebra):
         if self.engine is not None:
             return self.engine.chords(times, Q)
         return super().chords(times, Q)
+
+    def passage_minimum(self, lu_context, dense, ta, tb, k, xatol):
+        engine = self._on_step(dense, k)
+        return None if engine is None else \
+            engine.passage_minimum(lu_context or None, dense, ta, tb, k, xatol)
+
+    def anchored(self, lu_context, dense, ends, budget, known, k, search):
+        engine = self._on_step(dense, k)
+        return None if engine is None else \
+            engine.anchored(lu_context or None, dense, ends, budget, known, k, search)
+
+    def _on_step(self, dense, k):
+        """The engine where it may search on the step's dense output `dense` (DOP853's
+        interpolant, `mechsim.integrators.compiled.Interpolant`: its `coefficients`,
+        C-contiguous floats), else None."""
+        engine = self._compiled(k)
+        found = getattr(dense, "coefficients", None)
+        if engine is None or found is None:
+            return None
+        _, h, y_old, F = found
+        if not isinstance(F, np.ndarray) or F.ndim != 2 or F.dtype != np.float64 or \
+                not F.flags.c_contiguous or not isinstance(y_old, np.ndarray) or \
+                y_old.dtype != np.float64 or not y_old.flags.c_contiguous or \
+                y_old.shape != F.shape[1:] or not h != 0.0 or F.shape[1] > 2 * self.problem.n:
+            return None
+        return engine
 
     def singular_extremes(self, times, Q, k):
         engine = self._compiled(k)

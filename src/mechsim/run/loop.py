@@ -290,10 +290,13 @@ class Run:
         # the work integral and the monitor's search for a minimum inside the step.
         interpolant = []
 
-        def dense(tk):
+        def step_output():
             if not interpolant:
                 interpolant.append(solver.dense_output())
-            return interpolant[0](tk)
+            return interpolant[0]
+
+        def dense(tk):
+            return step_output()(tk)
 
         recorded = out.count
         if out.ts is not None:
@@ -306,7 +309,8 @@ class Run:
         self.runaway.note(self.stats.steps, t_new - t_old, v_new)
         self.monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
                              t_old=t_old, positions_at=lambda ts: form.positions(
-                                 ts, np.atleast_2d(dense(ts).T)))
+                                 ts, np.atleast_2d(dense(ts).T)),
+                             on_step=lambda: on_step(form, step_output))
         self.passage_times.note(t_old, t_new, lambda tk: form.split(tk, dense(tk)))
         correction = form.after_step(t_new, y_new, t_new - t_old)
         self.bound.after_step(solver, correction.step_limit)
@@ -594,3 +598,10 @@ def crossing(g, t_old, t_new, g_old) -> float:
         start = float(peak.x)
     return float(brentq(g, start, t_new, xtol=xtol))
 
+
+
+def on_step(form, step_output):
+    """(the formulation's positions context, the step's dense output) where the compiled
+    engine may search the step for a passage (`Formulation.positions_context`), else None."""
+    context = form.positions_context()
+    return None if context is None else (context, step_output())

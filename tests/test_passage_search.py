@@ -1,0 +1,121 @@
+"""The singularity monitor's search for a passage inside a step, in the compiled engine
+(`ConstraintAlgebra.anchored`, `passage_minimum`): the Python search's numbers, and
+Brent's bounded minimum as scipy finds it."""
+
+import os
+import shutil
+import sysconfig
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize_scalar
+
+from mechsim.app.bench import PROBLEMS
+from mechsim.formulations.partitioned import Partitioned
+from mechsim.problem.algebra import DenseAlgebra
+
+needs_compiler = pytest.mark.skipif(
+    shutil.which((os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0])
+    is None or bool(os.environ.get("MECHSIM_NO_COMPILE")), reason="no C compiler")
+
+
+def _run(name, method, rtol):
+    p = PROBLEMS[name]
+    mech = p.build()
+    return mech, dict(t_end=p.t_end, method=method, rtol=rtol, atol=rtol * 1e-2,
+                      output_step=p.t_end / 1000, max_step=p.max_step)
+
+
+@needs_compiler
+@pytest.mark.parametrize("name, method, rtol", [
+    ("double-four-bar", "lu", 3e-3),          # positions solved on the partition
+    ("double-four-bar", "projection", 1e-6),  # positions the state's first entries
+    ("double-four-bar", "hybrid", 1e-8),
+    ("parallelogram", "hybrid", 1e-6),
+])
+def test_the_compiled_search_is_the_python_search_to_the_bit(name, method, rtol,
+                                                             monkeypatch):
+    """With the search in the engine and without it (Python's `_anchored` on the same
+    positions and singular values) the runs are the same to the bit: samples, steps and
+    every passage's span, minimum and time; and the engine searched."""
+    mech, run = _run(name, method, rtol)
+    searched = []
+    anchored = DenseAlgebra.anchored
+
+    def counted(self, *args):
+        got = anchored(self, *args)
+        searched.append(got is not None)
+        return got
+    monkeypatch.setattr(DenseAlgebra, "anchored", counted)
+    fast = mech.simulate(**run)
+    monkeypatch.setattr(DenseAlgebra, "anchored", lambda self, *args: None)
+    slow = mech.simulate(**run)
+    assert fast.success and sum(searched) >= 10
+    for a, b in ((fast.t, slow.t), (fast.q, slow.q), (fast.v, slow.v)):
+        assert a.shape == b.shape and a.tobytes() == b.tobytes()
+    assert fast.stats["steps"] == slow.stats["steps"]
+    assert len(fast.singular_passages) >= 3
+    assert [(p.t_start, p.t_end, p.min_sigma, p.t_min) for p in fast.singular_passages] == \
+        [(p.t_start, p.t_end, p.min_sigma, p.t_min) for p in slow.singular_passages]
+
+
+def _brent_by_scipy(algebra, dense, ta, tb, k, xatol, positions):
+    """(t, s) of scipy's bounded minimum of σ_k/σ_max over [ta, tb] of the step `dense`,
+    the configurations by `positions(t, y)`, the singular values the engine's."""
+    def s_at(t):
+        smin, smax = algebra.singular_extremes([t], positions(t, dense(t))[None, :], k)[0]
+        return smin / smax
+    found = minimize_scalar(s_at, bounds=(ta, tb), method="bounded", options={"xatol": xatol})
+    return float(found.x), float(found.fun)
+
+
+@needs_compiler
+def test_a_passage_s_minimum_is_brent_s_as_scipy_finds_it(monkeypatch):
+    """The engine's minimum of σ_min/σ_max over an interval of a step (Brent's bounded
+    search), the positions solved on the partition, lands where scipy's
+    `minimize_scalar(method="bounded")` lands on the same function (the engine's
+    positions and singular values, called from Python), to the bit; and its minimum is a
+    passage's: under 1e-6 at the double four-bar's change points."""
+    mech, run = _run("double-four-bar", "lu", 3e-3)
+    forms, compared = [], []
+    context = Partitioned.positions_context
+
+    def recorded(self):
+        forms.append(self)
+        return context(self)
+    monkeypatch.setattr(Partitioned, "positions_context", recorded)
+    minimum = DenseAlgebra.passage_minimum
+
+    def checked(self, lu_context, dense, ta, tb, k, xatol):
+        got = minimum(self, lu_context, dense, ta, tb, k, xatol)
+        compared.append((got, _brent_by_scipy(self, dense, ta, tb, k, xatol,
+                                              lambda t, y: forms[-1].engine.state(t, y)[0])))
+        return got
+    monkeypatch.setattr(DenseAlgebra, "passage_minimum", checked)
+    res = mech.simulate(**run)
+    assert res.success and len(compared) >= 5
+    for got, expected in compared:
+        assert got == expected
+        assert got[1] < 1e-6
+
+
+@needs_compiler
+def test_the_minimum_on_a_state_in_all_coordinates_is_brent_s_too(monkeypatch):
+    """The projection method's steps (positions the state's first entries): on every step
+    the search looks into, the engine's minimum over the step is scipy's to the bit."""
+    mech, run = _run("double-four-bar", "projection", 1e-6)
+    compared = []
+    anchored = DenseAlgebra.anchored
+
+    def checked(self, lu_context, dense, ends, budget, known, k, search):
+        assert lu_context == 0
+        ta, tb = ends
+        xatol = 1e-5 * (tb - ta)
+        compared.append((self.passage_minimum(0, dense, ta, tb, k, xatol),
+                         _brent_by_scipy(self, dense, ta, tb, k, xatol,
+                                         lambda t, y: y[:self.problem.n])))
+        return anchored(self, lu_context, dense, ends, budget, known, k, search)
+    monkeypatch.setattr(DenseAlgebra, "anchored", checked)
+    assert mech.simulate(**run).success and len(compared) >= 10
+    for got, expected in compared:
+        assert got == expected
