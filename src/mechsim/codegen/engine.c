@@ -147,13 +147,11 @@ static int velocities(mechsim_lu *c, double t, const double *zd, const double *q
 }
 
 /* Positions by the chord Newton from the prediction (Partitioned._positions: where it
-   fails, by following the path from the last accepted state), Phi_q there and the
-   velocities, into q, v, J, and (where sign is not NULL) the sign of det(Phi_q D).
-   0: done; 1: Newton failed (Python decides); 2: Phi_q D singular. */
-static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double *v,
-                    double *J, double *sign) {
+   fails, by following the path from the last accepted state) into q (J: scratch).
+   0: done; 1: Newton failed (Python decides). */
+static int lu_positions(mechsim_lu *c, double t, const double *y, double *q, double *J) {
   const int64_t f = c->f, r = c->n - f, cols = 3 + f;
-  const double *z = y, *zd = y + f;
+  const double *z = y;
   double *w = c->w;
   const double d = t - c->t_last;
   for (int64_t i = 0; i < r; i++) {
@@ -162,8 +160,16 @@ static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double 
     for (int64_t k = 0; k < f; k++) s += Pi[3 + k] * z[k];
     w[i] = s;
   }
-  if (newton_w(c, t, z, w, q, J, 0) && follow(c, t, z, w, q, J, 4)) return 1;
-  return velocities(c, t, zd, q, v, J, sign);
+  return newton_w(c, t, z, w, q, J, 0) && follow(c, t, z, w, q, J, 4);
+}
+
+/* lu_positions, then Phi_q there and the velocities into J, v, and (where sign is not NULL)
+   the sign of det(Phi_q D). 0: done; 1: Newton failed (Python decides); 2: Phi_q D
+   singular. */
+static int lu_state(mechsim_lu *c, double t, const double *y, double *q, double *v,
+                    double *J, double *sign) {
+  if (lu_positions(c, t, y, q, J)) return 1;
+  return velocities(c, t, y + c->f, q, v, J, sign);
 }
 
 int mechsim_lu_state(mechsim_lu *c, double t) {
@@ -325,7 +331,7 @@ static int cholesky(mechsim_projection *c, double *S, double diag, double min_rc
 /* A = J W^(1/2) (row-major m x n; A may be J). */
 static void scale_columns(const mechsim_projection *c, const double *J, double *A) {
   for (int64_t i = 0; i < c->m; i++)
-    for (int64_t j = 0; j < c->n; j++) A[i * c->n + j] = J[i * c->n + j] * sqrt(c->winv[j]);
+    for (int64_t j = 0; j < c->n; j++) A[i * c->n + j] = J[i * c->n + j] * c->wsqrt[j];
 }
 
 /* The thin SVD of A = J~ (row-major m x n, m <= n; destroyed) by LAPACK's dgesdd into
@@ -353,7 +359,7 @@ static int svd_accelerations(mechsim_projection *c, const double *J, const doubl
   if (m > n) return 1;
   scale_columns(c, J, c->A);
   if (scaled_svd(c, c->A) || !(sig[0] > 0.0) || !(sig[m - 1] > cut * sig[0])) return 1;
-  for (int64_t j = 0; j < n; j++) x[j] = sqrt(c->winv[j]) * c->Q[j];
+  for (int64_t j = 0; j < n; j++) x[j] = c->wsqrt[j] * c->Q[j];
   for (int64_t k = 0; k < m; k++) {            /* y_k = V_k^T x - (U^T g)_k / sigma_k */
     double vx = 0.0, ug = 0.0;
     for (int64_t j = 0; j < n; j++) vx += U[j + k * n] * x[j];
@@ -364,7 +370,7 @@ static int svd_accelerations(mechsim_projection *c, const double *J, const doubl
   for (int64_t j = 0; j < n; j++) {
     double s = 0.0;
     for (int64_t k = 0; k < m; k++) s += U[j + k * n] * y[k];
-    c->out[n + j] = sqrt(c->winv[j]) * (x[j] - s);
+    c->out[n + j] = c->wsqrt[j] * (x[j] - s);
   }
   return 0;
 }
@@ -967,7 +973,7 @@ static int s_on_step(mechsim_lu *c, mechsim_projection *pc, int64_t N, int64_t r
   double *Y = work, *q = work + N, *v = work + N + n, ex[2];
   mechsim_interpolate(N, rows, F, t_old, h, y_old, 1, &t, Y);
   if (c != NULL) {
-    if (lu_state(c, t, Y, q, v, c->J, NULL)) return 1;
+    if (lu_positions(c, t, Y, q, c->J)) return 1;
   } else {
     memcpy(q, Y, n * sizeof(double));
   }
@@ -1135,7 +1141,7 @@ static int search_positions(mechsim_lu *c, mechsim_search *w, int64_t k, const d
   mechsim_interpolate(N, w->rows, w->F, w->t_old, w->h, w->y_old, k, ts, w->Yn);
   for (int64_t j = 0; j < k; j++) {
     if (c == NULL) memcpy(Q + j * n, w->Yn + j * N, n * sizeof(double));
-    else if (lu_state(c, ts[j], w->Yn + j * N, Q + j * n, w->vn, c->J, NULL)) return 1;
+    else if (lu_positions(c, ts[j], w->Yn + j * N, Q + j * n, c->J)) return 1;
   }
   return 0;
 }

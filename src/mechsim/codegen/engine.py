@@ -417,8 +417,9 @@ class ProjectionEngine:
         self._ahead = self.buffers["J1"].reshape(m, n)
         self._right = self.buffers["U"].reshape(m, n)
         self._sig = self.buffers["sig"]
-        arrays = {**self.buffers, "p": self.p, "winv": self.winv, "q": self.q, "v": self.v,
-                  "Q": self.Q, "out": self.out}
+        self.wsqrt = np.sqrt(self.winv)
+        arrays = {**self.buffers, "p": self.p, "winv": self.winv, "wsqrt": self.wsqrt,
+                  "q": self.q, "v": self.v, "Q": self.Q, "out": self.out}
         self.ctx = PROJECTION.make(dict(
             n=n, m=m, count=0, lwork=self.buffers["svd_work"].size,
             stall_ratio=STALL_RATIO, stall_span=STALL_SPAN), arrays)

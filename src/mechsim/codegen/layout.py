@@ -104,6 +104,7 @@ PROJECTION = Layout("mechsim_projection", [
     *(Field(name, "int64") for name in ("n", "m", "count", "lwork")),
     *(Field(name, "double") for name in ("stall_ratio", "stall_span")),
     Field("p", "const double*"), Field("winv", "const double*"),
+    Field("wsqrt", "const double*"),       # √winv, correctly rounded as C's sqrt
     *(Field(name, "double*") for name in ("q", "v", "Q", "out")),
     Field("J", "double*", lambda d: d.m * d.n), Field("J1", "double*", lambda d: d.m * d.n),
     Field("A", "double*", lambda d: d.m * d.n), Field("S", "double*", lambda d: d.m * d.m),
