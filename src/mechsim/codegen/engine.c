@@ -712,18 +712,24 @@ void mechsim_chords(mechsim_projection *c, int64_t k, const double *T, const dou
 
 /* sigma_kk and sigma_max of J~ at each of the k states (T[i], Q[i, :]) into out[2 i],
    out[2 i + 1] (dgesdd without vectors). 1 where an SVD fails. */
+/* sigma_kk and sigma_max of J~ in c->A (destroyed) into out[0], out[1]. 1 where the SVD
+   fails. */
+static int svd_extremes(mechsim_projection *c, int64_t kk, double *out) {
+  char jobz = 'N';
+  int N = (int)c->n, M = (int)c->m, LW = (int)c->lwork, info = 0;
+  mechsim_dgesdd(&jobz, &N, &M, c->A, &N, c->sig, c->U, &N, c->VT, &M, c->svd_work, &LW,
+                 c->iwork, &info);
+  if (info != 0) return 1;
+  out[0] = c->sig[kk];
+  out[1] = c->sig[0];
+  return 0;
+}
+
 int mechsim_extremes(mechsim_projection *c, int64_t k, int64_t kk, const double *T,
                      const double *Q, double *out) {
-  const int64_t n = c->n, m = c->m;
-  char jobz = 'N';
-  int N = (int)n, M = (int)m, LW = (int)c->lwork, info = 0;
   for (int64_t i = 0; i < k; i++) {
-    scaled_jacobian(c, Q + i * n, T[i], c->A);
-    mechsim_dgesdd(&jobz, &N, &M, c->A, &N, c->sig, c->U, &N, c->VT, &M, c->svd_work, &LW,
-                   c->iwork, &info);
-    if (info != 0) return 1;
-    out[2 * i] = c->sig[kk];
-    out[2 * i + 1] = c->sig[0];
+    scaled_jacobian(c, Q + i * c->n, T[i], c->A);
+    if (svd_extremes(c, kk, out + 2 * i)) return 1;
   }
   return 0;
 }
@@ -1213,10 +1219,16 @@ static int64_t uncleared(mechsim_search *w, int64_t count, double h, int64_t *to
   return nt;
 }
 
-/* Measure the search's node i (sigma_kk and sigma_max). 0: done. */
+/* J~ of the search's node i: its slot of node_J (J~ is evaluated once a node). */
+static double *node_jacobian(mechsim_search *w, int64_t i) {
+  return w->node_J + ((int64_t *)w->node_slot)[i] * w->m * w->n;
+}
+
+/* Measure the search's node i (sigma_kk and sigma_max of its J~). 0: done. */
 static int measure_node(mechsim_projection *pc, mechsim_search *w, int64_t i) {
   double *ex = w->node_ex;
-  if (mechsim_extremes(pc, 1, w->kk, w->nodes + i, w->node_q + i * w->n, ex)) return 1;
+  memcpy(pc->A, node_jacobian(w, i), w->m * w->n * sizeof(double));
+  if (svd_extremes(pc, w->kk, ex)) return 1;
   ((int64_t *)w->node_has)[i] = 1;
   w->node_anchor[2 * i] = ex[0];
   w->node_anchor[2 * i + 1] = ex[1];
@@ -1233,17 +1245,23 @@ static int measure_node(mechsim_projection *pc, mechsim_search *w, int64_t i) {
 static int anchored_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
                            double t0, double t1, int64_t budget, const double *end0,
                            const double *end1) {
-  const int64_t n = w->n, cap = w->nodes_cap, grid = w->grid;
+  const int64_t n = w->n, mn = w->m * w->n, cap = w->nodes_cap, grid = w->grid;
   double *T = w->nodes, *Q = w->node_q, *ch = w->node_chords, *an = w->node_anchor;
   double *mid = w->node_mid, *mq = w->node_mq;
-  int64_t *has = (int64_t *)w->node_has;
+  int64_t *has = (int64_t *)w->node_has, *slot = (int64_t *)w->node_slot;
   const double step = (t1 - t0) / (double)grid, h = t1 - t0, chord = w->chord;
   int64_t count = grid + 1;
   if (count > cap) return 1;
   for (int64_t i = 0; i < grid; i++) T[i] = (double)i * step + t0;
   T[grid] = t1;
   if (search_positions(c, w, count, T, Q)) return 1;
-  mechsim_chords(pc, count, T, Q, ch);
+  for (int64_t i = 0; i < count; i++) {       /* J~ at the nodes, and the chords between */
+    slot[i] = i;
+    scaled_jacobian(pc, Q + i * n, T[i], node_jacobian(w, i));
+    if (i > 0) ch[i - 1] = difference_norm(w->m, n, node_jacobian(w, i),
+                                           node_jacobian(w, i - 1), pc->x);
+  }
+  int64_t slots = count;
   for (int64_t i = 0; i < grid; i++) ch[i] = chord * ch[i];
   for (int64_t i = 0; i < count; i++) has[i] = 0;
   if (end0) { has[0] = 1; an[0] = end0[0]; an[1] = end0[1]; }
@@ -1271,23 +1289,23 @@ static int anchored_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search
     if (count + nt > cap) return 1;
     for (int64_t a = 0; a < nt; a++) mid[a] = 0.5 * (T[todo[a]] + T[todo[a] + 1]);
     if (search_positions(c, w, nt, mid, mq)) return 1;
-    /* the pieces' chords: [Q[j], mid, Q[j + 1]] for each, as one list of states */
-    double *at = w->node_at, *trip = w->node_trip, *pieces = w->node_pieces;
+    /* J~ at each midpoint (a fresh slot), the chords to its interval's ends */
+    double *pieces = w->node_pieces;
     for (int64_t a = 0; a < nt; a++) {
       const int64_t j = todo[a];
-      at[3 * a] = T[j]; at[3 * a + 1] = mid[a]; at[3 * a + 2] = T[j + 1];
-      memcpy(trip + (3 * a) * n, Q + j * n, n * sizeof(double));
-      memcpy(trip + (3 * a + 1) * n, mq + a * n, n * sizeof(double));
-      memcpy(trip + (3 * a + 2) * n, Q + (j + 1) * n, n * sizeof(double));
+      double *Jm = w->node_J + (slots + a) * mn;
+      scaled_jacobian(pc, mq + a * n, mid[a], Jm);
+      pieces[2 * a] = chord * difference_norm(w->m, n, Jm, node_jacobian(w, j), pc->x);
+      pieces[2 * a + 1] = chord * difference_norm(w->m, n, node_jacobian(w, j + 1), Jm,
+                                                  pc->x);
     }
-    mechsim_chords(pc, 3 * nt, at, trip, pieces);
-    for (int64_t a = 0; a < 3 * nt - 1; a++) pieces[a] = chord * pieces[a];
     for (int64_t a = nt - 1; a >= 0; a--) {      /* insert each midpoint, last first */
       const int64_t j = todo[a];
       for (int64_t i = count; i > j + 1; i--) {
         T[i] = T[i - 1];
         memcpy(Q + i * n, Q + (i - 1) * n, n * sizeof(double));
         has[i] = has[i - 1];
+        slot[i] = slot[i - 1];
         an[2 * i] = an[2 * (i - 1)];
         an[2 * i + 1] = an[2 * (i - 1) + 1];
       }
@@ -1295,10 +1313,12 @@ static int anchored_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search
       T[j + 1] = mid[a];
       memcpy(Q + (j + 1) * n, mq + a * n, n * sizeof(double));
       has[j + 1] = 0;
-      ch[j] = pieces[3 * a];
-      ch[j + 1] = pieces[3 * a + 1];
+      slot[j + 1] = slots + a;
+      ch[j] = pieces[2 * a];
+      ch[j + 1] = pieces[2 * a + 1];
       count++;
     }
+    slots += nt;
   }
   int64_t found = 0;
   for (int64_t i = 0; i < count; i++)

@@ -434,7 +434,7 @@ class ProjectionEngine:
         self._minimum = lib.mechsim_passage_minimum
         self._anchored = lib.mechsim_anchored
         self._search_buffers = SEARCH.buffers(Dims(n, m))
-        self._search = SEARCH.make({"n": n, "nodes_cap": NODES},     # F, y_old: per call
+        self._search = SEARCH.make({"n": n, "m": m, "nodes_cap": NODES},     # F, y_old: per call
                                    {**self._search_buffers, "F": self.out, "y_old": self.out})
         self._search_at = ctypes.addressof(self._search)
         self._ends = np.zeros(4)

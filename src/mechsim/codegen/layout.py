@@ -129,19 +129,19 @@ NODES = 256
 # (`found` of them, rows (t, σ_k, σ_max) in `out`). Sized for states of 2 n entries, so one
 # serves a partition's [z; ż] and a state [q; v].
 SEARCH = Layout("mechsim_search", [
-    *(Field(name, "int64") for name in ("n", "nodes_cap", "grid", "kk", "N", "rows",
+    *(Field(name, "int64") for name in ("n", "m", "nodes_cap", "grid", "kk", "N", "rows",
                                         "open_at_start", "found")),
     *(Field(name, "double") for name in ("chord", "enter", "leave", "apart", "t_old", "h")),
     Field("F", "const double*"), Field("y_old", "const double*"),
     *(Field(name, "double*", lambda d: NODES) for name in (
         "nodes", "node_chords", "node_low", "node_high", "node_mid", "node_lows")),
     *(Field(name, "int64*", lambda d: NODES) for name in ("node_has", "node_todo",
-                                                          "node_fresh", "node_joined")),
+                                                          "node_fresh", "node_joined",
+                                                          "node_slot")),
+    Field("node_J", "double*", lambda d: NODES * d.m * d.n),     # J̃ at each node's slot
     Field("node_anchor", "double*", lambda d: 2 * NODES), Field("node_ex", "double*", lambda d: 2),
     *(Field(name, "double*", lambda d: NODES * d.n) for name in ("node_q", "node_mq")),
-    Field("node_at", "double*", lambda d: 3 * NODES),
-    Field("node_pieces", "double*", lambda d: 3 * NODES),
-    Field("node_trip", "double*", lambda d: 3 * NODES * d.n),
+    Field("node_pieces", "double*", lambda d: 2 * NODES),
     Field("Yn", "double*", lambda d: NODES * 2 * d.n), Field("vn", "double*", lambda d: d.n),
     Field("out", "double*", lambda d: 3 * NODES),
 ])

@@ -29,7 +29,7 @@ class PlainSteps:
         self.log = np.zeros((BUDGET, 4))
         # the passage search's grid and scratch
         self.search_buffers = SEARCH.buffers(Dims(n, m, f))
-        self.search = SEARCH.make({"n": n, "nodes_cap": NODES},     # F, y_old: per search
+        self.search = SEARCH.make({"n": n, "m": m, "nodes_cap": NODES},     # F, y_old: per search
                                   {**self.search_buffers, "F": self.log, "y_old": self.log})
         self.Y = np.zeros((max(int(sample_rows), 1), 2 * f))
         coef, extra, dense = tableaus
