@@ -36,6 +36,64 @@ void mechsim_engine_init(void *gesv, void *posv, void *potrf, void *pocon, void 
   mechsim_dgetrf = (mechsim_getrf_t)getrf;
 }
 
+/* A = P L U in place (r x r, column-major), partial pivoting on the first largest |entry|
+   of each column (as LAPACK's dgetf2 chooses), ipiv 1-based as LAPACK's. The partitions'
+   blocks are a few rows: a library call costs more than the arithmetic there. 0: done;
+   1: a zero pivot (A singular). */
+static int small_lu(int64_t r, double *A, int *ipiv) {
+  for (int64_t j = 0; j < r; j++) {
+    int64_t p = j;
+    double best = fabs(A[j + j * r]);
+    for (int64_t i = j + 1; i < r; i++)
+      if (fabs(A[i + j * r]) > best) { best = fabs(A[i + j * r]); p = i; }
+    ipiv[j] = (int)(p + 1);
+    if (!(best > 0.0)) return 1;
+    if (p != j)
+      for (int64_t k = 0; k < r; k++) {
+        const double keep = A[j + k * r];
+        A[j + k * r] = A[p + k * r];
+        A[p + k * r] = keep;
+      }
+    const double pivot = A[j + j * r];
+    for (int64_t i = j + 1; i < r; i++) A[i + j * r] /= pivot;
+    for (int64_t k = j + 1; k < r; k++) {
+      const double a = A[j + k * r];
+      if (a != 0.0)
+        for (int64_t i = j + 1; i < r; i++) A[i + k * r] -= A[i + j * r] * a;
+    }
+  }
+  return 0;
+}
+
+/* B (r x nrhs, column-major) = A^-1 B from small_lu's factors of A. */
+static void small_solve(int64_t r, const double *LU, const int *ipiv, int64_t nrhs, double *B) {
+  for (int64_t c = 0; c < nrhs; c++) {
+    double *b = B + c * r;
+    for (int64_t i = 0; i < r; i++) {
+      const int64_t p = ipiv[i] - 1;
+      if (p != i) { const double keep = b[i]; b[i] = b[p]; b[p] = keep; }
+    }
+    for (int64_t i = 1; i < r; i++) {
+      double s = b[i];
+      for (int64_t k = 0; k < i; k++) s -= LU[i + k * r] * b[k];
+      b[i] = s;
+    }
+    for (int64_t i = r - 1; i >= 0; i--) {
+      double s = b[i];
+      for (int64_t k = i + 1; k < r; k++) s -= LU[i + k * r] * b[k];
+      b[i] = s / LU[i + i * r];
+    }
+  }
+}
+
+/* A X = B by small_lu and small_solve (A overwritten by its factors). 0: done; 1: A
+   singular. */
+static int small_gesv(int64_t r, double *A, int *ipiv, int64_t nrhs, double *B) {
+  if (small_lu(r, A, ipiv)) return 1;
+  small_solve(r, A, ipiv, nrhs, B);
+  return 0;
+}
+
 static double max_abs(int64_t m, const double *x) {
   double e = 0.0;
   for (int64_t i = 0; i < m; i++) {
@@ -71,14 +129,12 @@ static int newton_w(mechsim_lu *c, double t, const double *z, double *w, double 
     if (!(err <= c->chord_contraction * err_prev)) fresh = 1;
     err_prev = err;
     if (fresh) {                       /* w -= (Phi_q D)^-1 Phi at this q */
-      int N = (int)r, nrhs = 1, info = 0;
       memset(J, 0, m * n * sizeof(double));
       mechsim_phi_q(q, t, c->p, J);
       for (int64_t i = 0; i < r; i++)
         for (int64_t j = 0; j < r; j++) A[i + j * r] = J[i * n + c->dep[j]];
       memcpy(b, phi, r * sizeof(double));
-      mechsim_dgesv(&N, &nrhs, A, &N, c->ipiv, b, &N, &info);
-      if (info != 0) return 1;
+      if (small_gesv(r, A, c->ipiv, 1, b)) return 1;
       for (int64_t i = 0; i < r; i++) w[i] -= b[i];
       c->fresh++;
       continue;
@@ -130,9 +186,10 @@ static int velocities(mechsim_lu *c, double t, const double *zd, const double *q
     b[i] = -s - phit[i];
     for (int64_t j = 0; j < r; j++) A[i + j * r] = Ji[c->dep[j]];   /* column-major */
   }
-  int N = (int)r, nrhs = 1, info = 0;
-  mechsim_dgesv(&N, &nrhs, A, &N, c->ipiv, b, &N, &info);
-  if (info != 0) return 2;
+  memcpy(c->A0, A, r * r * sizeof(double));
+  if (small_gesv(r, A, c->ipiv, 1, b)) return 2;
+  memcpy(c->LU, A, r * r * sizeof(double));      /* kept for the accelerations (same A) */
+  memcpy(c->LUpiv, c->ipiv, r * sizeof(int));
   if (sign) {                          /* P A = L U: det A = (-1)^swaps prod U_ii */
     double s = 1.0;
     for (int64_t i = 0; i < r; i++) {
@@ -222,9 +279,7 @@ int mechsim_lu_end(mechsim_lu *c, double t, double *Ainv, double *Xo, double *ou
     for (int64_t i = 0; i < r; i++) col += fabs(A[i + j * r]);
     if (col > norm) norm = col;
   }
-  int R = (int)r, nrhs = (int)n, info = 0;
-  mechsim_dgesv(&R, &nrhs, A, &R, c->ipiv, E, &R, &info);
-  if (info != 0) return 2;
+  if (small_gesv(r, A, c->ipiv, n, E)) return 2;
   double sign = 1.0, inorm = 0.0;                   /* P A = L U: det A = (-1)^swaps prod U_ii */
   for (int64_t i = 0; i < r; i++) {
     if (A[i + i * r] < 0.0) sign = -sign;
@@ -262,9 +317,10 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
     for (int64_t k = 0; k < f; k++) X[i + k * r] = Ji[c->ind[k]];
     s[i] = g[i];
   }
-  int R = (int)r, nrhs = (int)(f + 1), info = 0;
-  mechsim_dgesv(&R, &nrhs, A, &R, c->ipiv, X, &R, &info);
-  if (info != 0) return 1;
+  if (memcmp(A, c->A0, r * r * sizeof(double)) == 0)
+    small_solve(r, c->LU, c->LUpiv, f + 1, X);     /* the velocities' matrix: its factors */
+  else if (small_gesv(r, A, c->ipiv, f + 1, X))
+    return 1;
   for (int64_t k = 0; k < f; k++) {
     const double *Xk = X + k * r;
     double qk = Q[c->ind[k]];
@@ -282,7 +338,7 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
     }
   }
   char uplo = 'U';
-  int F = (int)f, one = 1;
+  int F = (int)f, one = 1, info = 0;
   if (f > 0) {
     mechsim_dposv(&uplo, &F, &one, Mh, &F, Qh, &F, &info);
     if (info != 0) return 1;

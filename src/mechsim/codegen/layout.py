@@ -90,6 +90,10 @@ PARTITION = Layout("mechsim_lu", [
     *(Field(name, "double*") for name in ("y", "q", "v", "J", "Q", "out")),
     Field("w", "double*", lambda d: d.r), Field("phi", "double*", lambda d: d.m),
     Field("A", "double*", lambda d: d.r * d.r), Field("b", "double*", lambda d: d.r),
+    # the velocities' Φ_q D (A0) and its LU factors, which the accelerations at the same
+    # state reuse
+    Field("A0", "double*", lambda d: d.r * d.r), Field("LU", "double*", lambda d: d.r * d.r),
+    Field("LUpiv", "int*", lambda d: d.r),
     Field("phit", "double*", lambda d: d.m), Field("g", "double*", lambda d: d.m),
     Field("X", "double*", lambda d: d.r * (d.f + 1)), Field("Mh", "double*", lambda d: d.f * d.f),
     Field("Qh", "double*", lambda d: d.f), Field("ipiv", "int*", lambda d: d.r),
