@@ -151,3 +151,26 @@ def test_segments_record_a_sample_at_every_step(method, monkeypatch):
     assert fast.success and len(fast.t) == fast.stats["steps"] + 1
     assert taken >= 0.9 * fast.stats["steps"]
     _same(fast, slow)
+
+
+@needs_compiler
+def test_the_loop_takes_the_search_of_a_step_a_segment_declined(monkeypatch):
+    """The double four-bar's LU steps across its passages: a segment searches the step,
+    finds a passage and declines it; the loop takes that step from the same state and,
+    rather than search again, takes the segment's search (the same request, partition
+    and dense output, compared entry by entry). The run is the loop's to the bit."""
+    from mechsim.codegen.engine import ProjectionEngine
+    taken = []
+    anchored = ProjectionEngine.anchored
+
+    def counted(self, *args):
+        got = anchored(self, *args)
+        taken.append(bool(self.search.kept))
+        return got
+    monkeypatch.setattr(ProjectionEngine, "anchored", counted)
+    p = PROBLEMS["double-four-bar"]
+    fast, slow, in_segments = _both(p.build(), monkeypatch, t_end=p.t_end, method="lu",
+                                    rtol=1e-3, atol=1e-5, output_step=p.t_end / 1000)
+    assert fast.success and len(fast.singular_passages) == 10 and in_segments > 0
+    assert sum(taken) >= 10          # the fast run's passage steps (the slow run's: none)
+    _same(fast, slow)

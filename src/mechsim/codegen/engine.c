@@ -1388,12 +1388,46 @@ static int anchored_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search
   return 0;
 }
 
+/* The request of a search (its step, budget, end anchors and w's settings) into key
+   (MECHSIM_SEARCH_KEY numbers, layout.SEARCH_KEY). */
+static void search_request(const mechsim_search *w, double t0, double t1, int64_t budget,
+                           const double *end0, const double *end1, double *key) {
+  const double got[MECHSIM_SEARCH_KEY] = {t0, t1, (double)budget, end0 ? 1.0 : 0.0, end0 ? end0[0] : 0.0,
+                          end0 ? end0[1] : 0.0, end1 ? 1.0 : 0.0, end1 ? end1[0] : 0.0,
+                          end1 ? end1[1] : 0.0, (double)w->grid, (double)w->kk,
+                          (double)w->N, (double)w->rows, (double)w->open_at_start, w->chord,
+                          w->enter, w->leave, w->apart, w->t_old, w->h};
+  memcpy(key, got, sizeof(got));
+}
+
+/* Keep the search just made (its request, partition and dense output) for the loop's
+   search of the same step (mechsim_anchored). */
+static void keep_search(mechsim_lu *c, mechsim_search *w, double t0, double t1,
+                        int64_t budget, const double *end0, const double *end1) {
+  search_request(w, t0, t1, budget, end0, end1, w->key);
+  w->key_c = c;
+  memcpy(w->key_F, w->F, w->rows * w->N * sizeof(double));
+  memcpy(w->key_y, w->y_old, w->N * sizeof(double));
+  w->kept = 1;
+}
+
 /* `anchored_search` for Python (SingularityMonitor._anchored): c the partition the
-   positions are solved on, or NULL; w's dense output and thresholds set by the caller. */
+   positions are solved on, or NULL; w's dense output and thresholds set by the caller.
+   Where a segment searched the same step (the same request, partition, coefficients and
+   start: the loop takes a step a segment declined from the same state) its result is
+   taken as it stands. */
 int mechsim_anchored(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w, double t0,
                      double t1, int64_t budget, const double *ends, int64_t which) {
-  return anchored_search(c, pc, w, t0, t1, budget, (which & 1) ? ends : NULL,
-                         (which & 2) ? ends + 2 : NULL);
+  const double *end0 = (which & 1) ? ends : NULL, *end1 = (which & 2) ? ends + 2 : NULL;
+  if (w->kept) {
+    search_request(w, t0, t1, budget, end0, end1, w->asked);
+    if (w->key_c == c && !memcmp(w->asked, w->key, MECHSIM_SEARCH_KEY * sizeof(double)) &&
+        !memcmp(w->F, w->key_F, w->rows * w->N * sizeof(double)) &&
+        !memcmp(w->y_old, w->key_y, w->N * sizeof(double)))
+      return 0;
+  }
+  w->kept = 0;
+  return anchored_search(c, pc, w, t0, t1, budget, end0, end1);
 }
 
 /* Whether a measured (sigma_min, sigma_max) is under `enter` as the search's values or its
@@ -1403,13 +1437,14 @@ static int under(double smin, double smax, double enter) {
 }
 
 /* The monitor's search inside the step [t0, t1] of a segment (anchored_search on the step's
-   dense output, the positions solved on the partition), where it finds no passage: 1 when
-   no measured sigma_min/sigma_max is under `enter` (unnormalized); 0 where one is (a passage:
-   the loop records it), or the search declined. */
+   dense output, the positions solved on the partition, with the loop's thresholds), where
+   it finds no passage: 1 when no measured sigma_min/sigma_max is under `enter`
+   (unnormalized); 0 where one is (a passage: the loop records it, taking this search as
+   it stands), or the search declined. */
 static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
                          double t0, double t1, double t_old, double h_step, const double *y,
-                         int64_t budget, double enter, const double *end0,
-                         const double *end1) {
+                         int64_t budget, double enter, double leave, double apart,
+                         const double *end0, const double *end1) {
   mechsim_search *w = (mechsim_search *)s->search;
   w->grid = s->grid;
   w->kk = pc->m - 1;
@@ -1418,13 +1453,15 @@ static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment 
   w->open_at_start = 0;
   w->chord = s->chord;
   w->enter = enter;
-  w->leave = INFINITY;
-  w->apart = INFINITY;             /* a value under `enter` ends the search: it declines */
+  w->leave = leave;
+  w->apart = apart;
   w->t_old = t_old;
   w->h = h_step;
   w->F = s->F;
   w->y_old = y;
+  w->kept = 0;
   if (anchored_search(c, pc, w, t0, t1, budget, end0, end1)) return 0;
+  keep_search(c, w, t0, t1, budget, end0, end1);
   for (int64_t i = 0; i < w->found; i++)
     if (under(w->out[3 * i + 1], w->out[3 * i + 2], enter)) return 0;
   return 1;
@@ -1576,7 +1613,8 @@ static int64_t observe_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segme
       for (int64_t j = 0; j < s->known_n; j++)
         if (s->known[3 * j] == a_t) end0 = s->known + 3 * j + 1;
       clear = !dense_ready(c, s, t_old, h, y, y_new, f_new, ready, evaluations) &&
-          search_clears(c, pc, s, a_t, t_new, t_old, h, y, (int64_t)budget, enter, end0,
+          search_clears(c, pc, s, a_t, t_new, t_old, h, y, (int64_t)budget, enter,
+                        s->leave * peak, 2.0 * (s->leave * peak - enter) / rate_bound, end0,
                         end1);
     }
     if (!clear) return SEG_SEARCH;

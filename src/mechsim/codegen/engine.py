@@ -59,7 +59,7 @@ from ..linalg.dense import fall_basis
 from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
 from .cache import adopt, env_flag, verified_file
 from .compiled import build_library, compiler, compiler_identity, flags_digest, shared_library
-from .layout import NODES, PARTITION, PROJECTION, SEARCH, SEGMENT, Dims, declare
+from .layout import NODES, PARTITION, PROJECTION, SEARCH, SEARCH_KEY, SEGMENT, Dims, declare
 
 # The engine's own C (shipped beside this module), after the declarations of the model's C
 # twins it calls and the structures' typedefs (`layout`).
@@ -79,9 +79,10 @@ void mechsim_gamma(const double *q, const double *v, double t, const double *p, 
 def source() -> str:
     """The engine's C: headers, the declarations of the model's C twins it calls, the
     typedefs of `layout.PARTITION`, `layout.PROJECTION`, `layout.SEARCH` and
-    `layout.SEGMENT`, and `engine.c`."""
+    `layout.SEGMENT` (with `layout.SEARCH_KEY`), and `engine.c`."""
     text = resources.files(__package__).joinpath(_ENGINE_C).read_text(encoding="utf-8")
-    return (_HEADERS + _MODEL + PARTITION.typedef() + "\n" + PROJECTION.typedef() + "\n" +
+    return (_HEADERS + _MODEL + f"#define MECHSIM_SEARCH_KEY {SEARCH_KEY}\n" +
+            PARTITION.typedef() + "\n" + PROJECTION.typedef() + "\n" +
             SEARCH.typedef() + "\n" + SEGMENT.typedef() + "\n" + text)
 
 
@@ -433,10 +434,10 @@ class ProjectionEngine:
         self._extremes = lib.mechsim_extremes
         self._minimum = lib.mechsim_passage_minimum
         self._anchored = lib.mechsim_anchored
-        self._search_buffers = SEARCH.buffers(Dims(n, m))
-        self._search = SEARCH.make({"n": n, "m": m, "nodes_cap": NODES},     # F, y_old: per call
-                                   {**self._search_buffers, "F": self.out, "y_old": self.out})
-        self._search_at = ctypes.addressof(self._search)
+        self.search_buffers = SEARCH.buffers(Dims(n, m))
+        self.search = SEARCH.make({"n": n, "m": m, "nodes_cap": NODES},     # F, y_old: per call
+                                   {**self.search_buffers, "F": self.out, "y_old": self.out})
+        self._search_address = ctypes.addressof(self.search)
         self._ends = np.zeros(4)
         self._ends_at = self._ends.ctypes.data
         self._project_many = lib.mechsim_project_states
@@ -574,7 +575,7 @@ class ProjectionEngine:
         t0, t1 = ends
         t_old, h, y_old, F = dense.coefficients
         grid, chord, enter, leave, apart, open_at_start = search
-        w = self._search
+        w = self.search
         w.grid, w.kk, w.N, w.rows, w.open_at_start = grid, k, F.shape[1], F.shape[0], \
             int(open_at_start)
         w.chord, w.enter, w.leave, w.apart = chord, enter, leave, apart
@@ -584,10 +585,10 @@ class ProjectionEngine:
             if tk in known:
                 self._ends[2 * j:2 * j + 2] = known[tk]
                 which |= 1 << j
-        if self._anchored(lu_context, self.context, self._search_at, t0, t1, budget,
+        if self._anchored(lu_context, self.context, self._search_address, t0, t1, budget,
                           self._ends_at, which):
             return None
-        rows = self._search_buffers["out"][:3 * w.found].reshape(-1, 3).tolist()
+        rows = self.search_buffers["out"][:3 * w.found].reshape(-1, 3).tolist()
         return {t: (smin, smax) for t, smin, smax in rows}
 
     def extremes(self, T, Q, k):

@@ -127,6 +127,8 @@ PROJECTION = Layout("mechsim_projection", [
 # searches).
 NODES = 256
 
+# The numbers that make a passage search's request (`search_request` in the engine).
+SEARCH_KEY = 20
 # The singularity monitor's passage search on a step's dense output (`mechsim_anchored`):
 # the grid (at most `nodes_cap` = NODES nodes) and its scratch, the dense output (N state
 # entries, `rows` coefficients F from t_old over h, y_old) and the measured nodes found
@@ -134,9 +136,15 @@ NODES = 256
 # serves a partition's [z; ż] and a state [q; v].
 SEARCH = Layout("mechsim_search", [
     *(Field(name, "int64") for name in ("n", "m", "nodes_cap", "grid", "kk", "N", "rows",
-                                        "open_at_start", "found")),
+                                        "open_at_start", "found", "kept")),
     *(Field(name, "double") for name in ("chord", "enter", "leave", "apart", "t_old", "h")),
     Field("F", "const double*"), Field("y_old", "const double*"),
+    # what the kept search was asked (`kept`: a segment's search, which the loop's search
+    # of the same step takes instead of searching again): its inputs, the partition it
+    # solved positions on, the dense output's coefficients and start
+    Field("key_c", "void*"), Field("key", "double*", lambda d: SEARCH_KEY),
+    Field("asked", "double*", lambda d: SEARCH_KEY),
+    Field("key_F", "double*", lambda d: 8 * 2 * d.n), Field("key_y", "double*", lambda d: 2 * d.n),
     *(Field(name, "double*", lambda d: NODES) for name in (
         "nodes", "node_chords", "node_low", "node_high", "node_mid", "node_lows")),
     *(Field(name, "int64*", lambda d: NODES) for name in ("node_has", "node_todo",
@@ -164,7 +172,8 @@ SEGMENT = Layout("mechsim_segment", [
     *(Field(name, "double") for name in (
         "t", "t_old", "h_abs", "h_previous", "t_bound", "direction", "max_step",
         "run_max_step", "rtol", "safety", "min_factor", "max_factor", "exponent",
-        "min_advance", "sign", "repartition_at", "reference_span", "limit", "enter", "blind",
+        "min_advance", "sign", "repartition_at", "reference_span", "limit", "enter", "leave",
+        "blind",
         "weyl_span", "hermite_margin", "peak", "peak_rate", "last", "rate", "prev_t", "prev_s",
         "prev_rate", "floor_t", "floor_v", "m_smin", "m_smax", "ratio_speed", "cond_max",
         "growth", "keep_t", "chord", "machine_eps", "rank_factor", "rate_step")),

@@ -12,7 +12,7 @@ import ctypes
 
 import numpy as np
 
-from .layout import NODES, SEARCH, SEGMENT, Dims
+from .layout import SEGMENT, Dims
 
 # Steps one call takes at most before Python looks in (progress, the stream).
 BUDGET = 256
@@ -21,16 +21,16 @@ BUDGET = 256
 class PlainSteps:
     """The structure (`s`, its fields by their C names), its buffers (`buffers`), the
     steps' log (`log`: t, h, |v|∞, the next step proposed, a row per step) and a step's
-    samples' scratch (`Y`, at most `sample_rows` samples a step)."""
+    samples' scratch (`Y`, at most `sample_rows` samples a step); `search`: the passage
+    search's structure (`layout.SEARCH`) it shares with the engine."""
 
-    def __init__(self, lib, n, m, f, sample_rows, tableaus):
+    def __init__(self, lib, n, m, f, sample_rows, tableaus, search):
         self.lib, self.shape = lib, (n, m, f)
         self.buffers = SEGMENT.buffers(Dims(n, m, f))
         self.log = np.zeros((BUDGET, 4))
-        # the passage search's grid and scratch
-        self.search_buffers = SEARCH.buffers(Dims(n, m, f))
-        self.search = SEARCH.make({"n": n, "m": m, "nodes_cap": NODES},     # F, y_old: per search
-                                  {**self.search_buffers, "F": self.log, "y_old": self.log})
+        # the passage search's grid and scratch: the engine's (`ProjectionEngine.search`),
+        # so that the loop's search of a step a segment declined takes the segment's
+        self.search = search
         self.Y = np.zeros((max(int(sample_rows), 1), 2 * f))
         coef, extra, dense = tableaus
         self._arrays = {**self.buffers, "coef": coef, "extra_coef": extra, "dense": dense,

@@ -316,7 +316,7 @@ class DenseAlgebra(ConstraintAlgebra):
             from ..codegen.steps import PlainSteps
             p = self.problem
             kept = self._plain[f] = PlainSteps(self.engine.lib, p.n, p.m, f, sample_rows,
-                                               tableaus)
+                                               tableaus, self.engine.search)
         return kept
 
     def change(self, q, t, Jm):

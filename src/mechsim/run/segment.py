@@ -151,7 +151,7 @@ class Segment:
             s.limit = policy.limit if policy.limit is not None else 0.0
         monitor = run.monitor
         s.small = bool(run.problem.algebra.small)
-        s.max_skip, s.enter = monitor.max_skip, monitor.enter
+        s.max_skip, s.enter, s.leave = monitor.max_skip, monitor.enter, monitor.leave
         s.blind, s.weyl_span, s.hermite_margin = BLIND, WEYL_SPAN, HERMITE_MARGIN
         s.grid, s.chord, s.rate_step = GRID, 1.0 + CHORD, RATE_STEP
         s.machine_eps, s.rank_factor = np.finfo(float).eps, RANK_FACTOR
