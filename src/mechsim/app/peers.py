@@ -14,6 +14,11 @@ precision beside mechsim's, each peer modelled as its own documentation recommen
 Each run traces one body point, sampled every `output_step`; its error is measured as the
 bench measures mechsim's (`mechsim.app.bench.Problem.point_error`). Times are the integration
 alone (model building excluded for all three tools).
+
+Beside them, on the parallelogram-family problems (a crank angle whose exact motion is one
+equation, M_eff θ̈ = −K cos θ), scipy's DOP853 on that equation at rtol 1e-2 … 1e-12
+("exact 1-DOF DOP853"; its row's `step` is the rtol): what the same motion costs without
+constraints, the floor a mechanism simulator is measured against.
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ import numpy as np
 class PeerRow:
     problem: str
     tool: str            # "mujoco implicitfast", "mujoco RK4", "exudyn"
-    step: float          # the fixed step [s]
+    step: float          # the fixed step [s] (the rtol for "exact 1-DOF DOP853")
     error: float
     wall_time: float
 
@@ -200,10 +205,31 @@ CHAIN_STEPS = {"mujoco implicitfast": (1e-2, 2e-3, 1e-3, 2e-4),
                "exudyn": (1e-2, 2e-3, 1e-3)}
 
 
+# The tolerances of scipy's DOP853 on a parallelogram's exact 1-DOF equation.
+EXACT_RTOLS = tuple(10.0 ** -e for e in range(2, 13))
+
+
+def exact_run(problem, rtol, output_step):
+    """(wall time, t, the traced crank tip's path) of scipy's DOP853 on the problem's exact
+    1-DOF equation at `rtol` (atol rtol/100), sampled every `output_step`."""
+    from scipy.integrate import solve_ivp
+    from .. import examples
+    m_eff, k = examples.parallelogram_constants(problem.windows)
+    rate = -k / m_eff
+    t = np.linspace(0.0, problem.t_end, int(round(problem.t_end / output_step)) + 1)
+    start = time.perf_counter()
+    sol = solve_ivp(lambda _, y: [y[1], rate * math.cos(y[0])], (0.0, problem.t_end),
+                    [problem.theta0, problem.omega0], method="DOP853", rtol=rtol,
+                    atol=rtol * 1e-2, t_eval=t)
+    wall = time.perf_counter() - start
+    return wall, sol.t, np.column_stack([np.cos(sol.y[0]), np.sin(sol.y[0])])
+
+
 def run(problems, repeat: int = 1, steps=None) -> list[PeerRow]:
     """Rows of every peer at every step of `steps` (default `STEPS`, `CHAIN_STEPS` for a
     chain of 40 windows or more) on each problem of `mechsim.app.bench.PROBLEMS` named,
-    each run's shortest wall time of `repeat`."""
+    each run's shortest wall time of `repeat`; on a problem with an exact 1-DOF equation,
+    scipy's DOP853 on it at each of `EXACT_RTOLS` (best of at least 3)."""
     from .bench import PROBLEMS
     rows = []
     for name in problems:
@@ -224,11 +250,20 @@ def run(problems, repeat: int = 1, steps=None) -> list[PeerRow]:
                     best = min(best, wall)
                     err = problem.point_error(t, xy)
                 rows.append(PeerRow(name, tool, h, err, best))
+        if problem.reference is None and problem.exact is None:
+            for rtol in EXACT_RTOLS:
+                best, err = math.inf, math.nan
+                for _ in range(max(repeat, 3)):
+                    wall, t, xy = exact_run(problem, rtol, output_step)
+                    best = min(best, wall)
+                    err = problem.point_error(t, xy)
+                rows.append(PeerRow(name, "exact 1-DOF DOP853", rtol, err, best))
     return rows
 
 
 def format_row(r: PeerRow) -> str:
-    return (f"{r.problem:16s} {r.tool:20s} h {r.step:7.0e}  error {r.error:9.2e}  "
+    step = "rtol" if r.tool.startswith("exact") else "h   "
+    return (f"{r.problem:16s} {r.tool:20s} {step} {r.step:7.0e}  error {r.error:9.2e}  "
             f"wall {r.wall_time:7.3f} s")
 
 
