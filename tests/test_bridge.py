@@ -297,10 +297,10 @@ def test_the_search_skips_intervals_joined_to_a_passage_it_has_found(at, chords,
     """Weyl's bounds from the nodes (σ_k ∓ path, σ_max ± path) decide: an interval whose s
     may dip under `enter` is searched unless s stays under `leave` all the way from it to
     a value under `enter`, where any dip it hides belongs to that value's passage."""
-    from mechsim.formulations.monitor import _uncleared
+    from mechsim.formulations.intervals import uncleared
     times = [0.0, 1.0, 2.0, 3.0]
     anchors = {tk: (s, 1.0) for tk, s in zip(times, at)}
-    assert _uncleared(times, list(chords), anchors, 0.07, 0.14, 0.0, 3.0,
+    assert uncleared(times, list(chords), anchors, 0.07, 0.14, 0.0, 3.0,
                       open_at_start) == expected
 
 
@@ -341,18 +341,18 @@ def test_a_step_s_fall_rates_bound_sigma_min_over_sigma_max_inside_it(build, win
 
 
 def test_the_lowest_of_two_falling_lines_is_found_and_falls_with_either_rate(rng):
-    """`_lowest` (what the fall pre-check compares with `enter`) against the least over a
+    """`lowest` (what the fall pre-check compares with `enter`) against the least over a
     fine grid of the larger of the two lines, where they cross inside the span and where
     one stays above the other throughout; and a faster fall from either end never raises
     it (so a step the slowest rates seen cannot clear needs no rates of its own)."""
-    from mechsim.formulations.monitor import _lowest
+    from mechsim.formulations.intervals import lowest
     tau = np.linspace(0.0, 1.0, 20001)
     for _ in range(300):
         sa, sb = rng.uniform(0.0, 1.0, 2)
         h = rng.uniform(0.01, 2.0)
         ra, rb = 10.0 ** rng.uniform(-2, 2, 2)
         lines = np.maximum(sa - ra * h * tau, sb - rb * h * (1.0 - tau))
-        assert _lowest(sa, sb, h, ra, rb) == pytest.approx(lines.min(), abs=1e-3 * (ra + rb) * h)
-        assert _lowest(sa, sb, h, 2.0 * ra, rb) <= _lowest(sa, sb, h, ra, rb) + 1e-15
-        assert _lowest(sa, sb, h, ra, 2.0 * rb) <= _lowest(sa, sb, h, ra, rb) + 1e-15
-    assert _lowest(0.5, 0.5, 1.0, 0.0, 1.0) == -math.inf
+        assert lowest(sa, sb, h, ra, rb) == pytest.approx(lines.min(), abs=1e-3 * (ra + rb) * h)
+        assert lowest(sa, sb, h, 2.0 * ra, rb) <= lowest(sa, sb, h, ra, rb) + 1e-15
+        assert lowest(sa, sb, h, ra, 2.0 * rb) <= lowest(sa, sb, h, ra, rb) + 1e-15
+    assert lowest(0.5, 0.5, 1.0, 0.0, 1.0) == -math.inf

@@ -6,7 +6,6 @@ import os
 import shutil
 import sysconfig
 
-import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 

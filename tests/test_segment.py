@@ -159,15 +159,15 @@ def test_the_loop_takes_the_search_of_a_step_a_segment_declined(monkeypatch):
     finds a passage and declines it; the loop takes that step from the same state and,
     rather than search again, takes the segment's search (the same request, partition
     and dense output, compared entry by entry). The run is the loop's to the bit."""
-    from mechsim.codegen.engine import ProjectionEngine
+    from mechsim.codegen.search import StepSearch
     taken = []
-    anchored = ProjectionEngine.anchored
+    anchored = StepSearch.anchored
 
     def counted(self, *args):
         got = anchored(self, *args)
         taken.append(bool(self.search.kept))
         return got
-    monkeypatch.setattr(ProjectionEngine, "anchored", counted)
+    monkeypatch.setattr(StepSearch, "anchored", counted)
     p = PROBLEMS["double-four-bar"]
     fast, slow, in_segments = _both(p.build(), monkeypatch, t_end=p.t_end, method="lu",
                                     rtol=1e-3, atol=1e-5, output_step=p.t_end / 1000)

@@ -1027,12 +1027,12 @@ void mechsim_interpolate(int64_t N, int64_t rows, const double *F, double t_old,
 
 /* s = sigma_kk / sigma_max of J~ (0 where sigma_max is not positive) at t on a step's dense
    output (rows x N coefficients F from t_old over h, y_old), the positions solved on the
-   partition c (lu_state) or, where c is NULL, q = y[:n]; work: N + 2 n. 0: done. */
+   partition c (lu_positions) or, where c is NULL, q = y[:n]; work: N + n. 0: done. */
 static int s_on_step(mechsim_lu *c, mechsim_projection *pc, int64_t N, int64_t rows,
                      const double *F, double t_old, double h, const double *y_old, int64_t kk,
                      double t, double *work, double *s) {
   const int64_t n = pc->n;
-  double *Y = work, *q = work + N, *v = work + N + n, ex[2];
+  double *Y = work, *q = work + N, ex[2];
   mechsim_interpolate(N, rows, F, t_old, h, y_old, 1, &t, Y);
   if (c != NULL) {
     if (lu_positions(c, t, Y, q, c->J)) return 1;
@@ -1162,7 +1162,7 @@ void mechsim_lu_predictor(mechsim_lu *c, double t, int64_t first, double t0, con
 static double py_max(double a, double b) { return b > a ? b : a; }   /* Python's max(a, b) */
 static double py_min(double a, double b) { return b < a ? b : a; }   /* Python's min(a, b) */
 
-/* The monitor's _lowest: the least over [0, h] of max(sa - ra tau, sb - rb (h - tau)). */
+/* intervals.lowest: the least over [0, h] of max(sa - ra tau, sb - rb (h - tau)). */
 static double lowest(double sa, double sb, double h, double ra, double rb) {
   if (!(ra > 0.0 && rb > 0.0)) return -INFINITY;
   const double tau = py_min(py_max((sa - sb + rb * h) / (ra + rb), 0.0), h);
@@ -1208,7 +1208,7 @@ static int search_positions(mechsim_lu *c, mechsim_search *w, int64_t k, const d
   return 0;
 }
 
-/* Does [ta, tb] lie within reach of the times lows (ascending), in their union? (_covered) */
+/* Does [ta, tb] lie within reach of the times lows (ascending)? (intervals.covered) */
 static int covered(double ta, double tb, const double *lows, int64_t nl, double reach) {
   double edge = ta;
   for (int64_t i = 0; i < nl; i++) {
@@ -1221,7 +1221,7 @@ static int covered(double ta, double tb, const double *lows, int64_t nl, double 
   return 0;
 }
 
-/* The intervals of the search's `count` nodes its anchors do not clear (monitor._uncleared:
+/* The intervals of the search's `count` nodes its anchors do not clear (intervals.uncleared:
    the nearest anchor on either side, its sigma_k less and its sigma_max plus the chords to
    the interval's far end, above `enter`; not within `apart` of a value under it; not joined
    to one, or to the step's start with open_at_start) into todo, in order: how many. */

@@ -59,7 +59,8 @@ from ..linalg.dense import fall_basis
 from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
 from .cache import adopt, env_flag, verified_file
 from .compiled import build_library, compiler, compiler_identity, flags_digest, shared_library
-from .layout import NODES, PARTITION, PROJECTION, SEARCH, SEARCH_KEY, SEGMENT, Dims, declare
+from .layout import PARTITION, PROJECTION, SEARCH, SEARCH_KEY, SEGMENT, Dims, declare
+from .search import StepSearch
 
 # The engine's own C (shipped beside this module), after the declarations of the model's C
 # twins it calls and the structures' typedefs (`layout`).
@@ -432,14 +433,7 @@ class ProjectionEngine:
         self._measure = lib.mechsim_measure
         self._chords = lib.mechsim_chords
         self._extremes = lib.mechsim_extremes
-        self._minimum = lib.mechsim_passage_minimum
-        self._anchored = lib.mechsim_anchored
-        self.search_buffers = SEARCH.buffers(Dims(n, m))
-        self.search = SEARCH.make({"n": n, "m": m, "nodes_cap": NODES},     # F, y_old: per call
-                                   {**self.search_buffers, "F": self.out, "y_old": self.out})
-        self._search_address = ctypes.addressof(self.search)
-        self._ends = np.zeros(4)
-        self._ends_at = self._ends.ctypes.data
+        self.steps = StepSearch(lib, self.context, n, m)   # the monitor's search in a step
         self._project_many = lib.mechsim_project_states
         self._lu_condition = lib.mechsim_lu_condition
         self._multipliers = lib.mechsim_multipliers
@@ -548,48 +542,6 @@ class ProjectionEngine:
         self._chords(self.context, k, scratch.put("T", T), scratch.put("Q", Q, self.n),
                      at_out)
         return out.copy()
-
-    def passage_minimum(self, lu_context, dense, ta, tb, k, xatol):
-        """(t, s) at the least of s = σ_k/σ_max of J̃ over [ta, tb] inside a step (Brent's
-        bounded search, `mechsim_passage_minimum`), the states from `dense` (an
-        `Interpolant`: its `coefficients` over the step), the positions solved on the
-        partition whose engine context is `lu_context`, or q = y[:n] where it is None;
-        None where a state or an SVD declined (the caller searches in Python)."""
-        t_old, h, y_old, F = dense.coefficients
-        N = F.shape[1]
-        work = np.empty(N + 2 * self.n)
-        out = np.empty(2)
-        if self._minimum(lu_context, self.context, N, F.shape[0], F.ctypes.data,
-                         float(t_old), float(h), y_old.ctypes.data, k,
-                         float(ta), float(tb), float(xatol), work.ctypes.data, out.ctypes.data):
-            return None
-        return float(out[0]), float(out[1])
-
-    def anchored(self, lu_context, dense, ends, budget, known, k, search):
-        """`SingularityMonitor._anchored` in one call (`mechsim_anchored`): {t: (σ_k, σ_max)}
-        measured over the step `ends` = (t0, t1) of `dense` (as `passage_minimum`), `known`
-        the ends' measurements (time -> (σ_k, σ_max)), `search` = (grid, chord, enter,
-        leave, apart, open at the start) as the monitor's; None where a state or an SVD
-        declined or the grid outgrew `layout.NODES` nodes (the caller searches in
-        Python)."""
-        t0, t1 = ends
-        t_old, h, y_old, F = dense.coefficients
-        grid, chord, enter, leave, apart, open_at_start = search
-        w = self.search
-        w.grid, w.kk, w.N, w.rows, w.open_at_start = grid, k, F.shape[1], F.shape[0], \
-            int(open_at_start)
-        w.chord, w.enter, w.leave, w.apart = chord, enter, leave, apart
-        w.t_old, w.h, w.F, w.y_old = t_old, h, F.ctypes.data, y_old.ctypes.data
-        which = 0
-        for j, tk in enumerate(ends):
-            if tk in known:
-                self._ends[2 * j:2 * j + 2] = known[tk]
-                which |= 1 << j
-        if self._anchored(lu_context, self.context, self._search_address, t0, t1, budget,
-                          self._ends_at, which):
-            return None
-        rows = self.search_buffers["out"][:3 * w.found].reshape(-1, 3).tolist()
-        return {t: (smin, smax) for t, smin, smax in rows}
 
     def extremes(self, T, Q, k):
         """(σ_k, σ_max) of J̃ at each state (T[i], Q[i]), shape (len(T), 2); None where an

@@ -28,7 +28,7 @@ class PlainSteps:
         self.lib, self.shape = lib, (n, m, f)
         self.buffers = SEGMENT.buffers(Dims(n, m, f))
         self.log = np.zeros((BUDGET, 4))
-        # the passage search's grid and scratch: the engine's (`ProjectionEngine.search`),
+        # the passage search's grid and scratch: the engine's (`StepSearch.search`),
         # so that the loop's search of a step a segment declined takes the segment's
         self.search = search
         self.Y = np.zeros((max(int(sample_rows), 1), 2 * f))

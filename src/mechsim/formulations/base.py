@@ -207,6 +207,12 @@ class Formulation:
         (the monitor then searches in Python)."""
         return None
 
+    def compiled_step(self, dense_output):
+        """(`positions_context()`, `dense_output()`: the step's interpolant) where the
+        compiled engine may search the step for a passage, else None."""
+        context = self.positions_context()
+        return None if context is None else (context, dense_output())
+
     def after_step(self, t: float, y: np.ndarray, step: float) -> Correction:
         return KEEP
 

@@ -32,7 +32,6 @@ while large steps, which move J̃ a lot, are measured every time.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +39,7 @@ import numpy as np
 from ..linalg import sparse
 from ..linalg.dense import Fall
 from ..records import SingularPassage
+from .intervals import covered, dips, lowest, uncleared
 
 
 # Mechanisms that are not small (`ConstraintAlgebra.small`) bound the search for passages
@@ -377,12 +377,21 @@ class SingularityMonitor:
         else:
             seen = self._bisect((t0, s0 * peak, t1, s1 * peak), s_at, rate_bound, budget,
                                 apart)
+        return self._dips_seen(seen, (t0, t1), enter / (rate_bound / 2.0), refine, s_at,
+                               state_at)
+
+    def _dips_seen(self, seen, ends, width, refine, s_at, state_at) -> list[Dip]:
+        """The `Dip`s of the values `seen` ({t: s}, not normalized) over the step `ends`:
+        runs under `enter` not parted by a value above `leave` (`intervals.dips`), each at
+        its least value refined by `refine(ta, tb) -> (t, s)` between its neighbours, its
+        span `width` either side of it within the step."""
+        t0, t1 = ends
+        enter, leave = self.enter * self.peak, self.leave * self.peak
         times = sorted(seen)
         values = [seen[tk] for tk in times]
         last = len(times) - 1
-        width = enter / (rate_bound / 2.0)
-        dips = []
-        for run, closed in _dips(values, enter, leave, self.open_passage is not None):
+        found = []
+        for run, closed in dips(values, enter, leave, self.open_passage is not None):
             k = min(run, key=values.__getitem__)
             tm, sm = times[k], values[k]
             if 0 < k < last:
@@ -401,10 +410,10 @@ class SingularityMonitor:
                         tm, sm = tr, sr
             _, _, um = self.measure(state_at(tm)[0], tm)
             at_start, at_end = run[0] == 0, not closed
-            dips.append(Dip(tm, sm, self.joints_of(um),
-                            t0 if at_start else max(t0, tm - width),
-                            t1 if at_end else min(t1, tm + width), at_start, at_end))
-        return dips
+            found.append(Dip(tm, sm, self.joints_of(um),
+                             t0 if at_start else max(t0, tm - width),
+                             t1 if at_end else min(t1, tm + width), at_start, at_end))
+        return found
 
     def _fall_clears(self, falls, observed) -> bool:
         """Do the lines s_a − R_a |t − t_a| keep s above `enter` over the span of `falls`,
@@ -419,10 +428,10 @@ class SingularityMonitor:
         fa, fb = falls
         enter, least = self.enter * self.peak, 2.0 * observed
         ends = (fa.smin / fa.smax, fb.smin / fb.smax, fb.t - fa.t)
-        if least > 0.0 and _lowest(*ends, least, least) < enter:
+        if least > 0.0 and lowest(*ends, least, least) < enter:
             return False                        # no faster fall can clear it either
         r0, r1 = (max(HERMITE_MARGIN * r, least) for r in self.problem.algebra.fall_rates(fa, fb))
-        return _lowest(*ends, r0, r1) >= enter
+        return lowest(*ends, r0, r1) >= enter
 
     def _anchored(self, ends, positions_at, budget, apart, known=None, step=None) -> dict:
         """{t: s} over the step `ends` = (t0, t1) (not normalized), measured where the
@@ -432,7 +441,7 @@ class SingularityMonitor:
         the step bounds by the sum of its chords (J̃ at the nodes, no SVD: the problem's
         algebra's `chords`), each enlarged by `CHORD` for the arc. An interval that neither
         neighbouring anchor keeps above `enter`, and that is not joined to a passage found
-        (`_uncleared`), has its nodes measured, then is halved;
+        (`intervals.uncleared`), has its nodes measured, then is halved;
         near a value under `enter` the search stops as `_bisect`'s does (`apart`). At most
         `budget` SVDs; `known`: time -> (σ_k, σ_max) measured already (the step's ends).
         `step`: (positions context, dense output), where the compiled engine may search
@@ -464,7 +473,7 @@ class SingularityMonitor:
         spent = 2
         joined = self.open_passage is not None
         while spent < budget:
-            todo = _uncleared(times, chords, anchors, enter, leave, apart, t1 - t0, joined)
+            todo = uncleared(times, chords, anchors, enter, leave, apart, t1 - t0, joined)
             if not todo:
                 break
             fresh = sorted({i for j in todo for i in (j, j + 1) if times[i] not in anchors})
@@ -498,7 +507,7 @@ class SingularityMonitor:
         while level and budget > 0:
             todo = [(ta, sa, tb, sb) for ta, sa, tb, sb in level
                     if not ((sa + sb) - rate_bound * (tb - ta) >= 2.0 * enter or
-                            tb - ta < 1e-9 * h or _covered(ta, tb, lows, apart))][:budget]
+                            tb - ta < 1e-9 * h or covered(ta, tb, lows, apart))][:budget]
             mids = [0.5 * (ta + tb) for ta, _, tb, _ in todo]
             budget -= len(mids)
             level = []
@@ -534,91 +543,3 @@ class SingularityMonitor:
             self.passages.append(SingularPassage(here.t_start, t, here.s_min, here.joints,
                                                  here.t_min, here.bridged))
             self.open_passage = None
-
-
-def _lowest(sa, sb, h, ra, rb) -> float:
-    """The least over a span of length h of max(sa − ra τ, sb − rb (h − τ)), the lines
-    falling from its two ends at rates ra, rb (−inf unless both are positive): it only
-    falls as either rate grows."""
-    if not (ra > 0.0 and rb > 0.0):
-        return -math.inf
-    tau = min(max((sa - sb + rb * h) / (ra + rb), 0.0), h)
-    return max(sa - ra * tau, sb - rb * (h - tau))
-
-
-def _uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=False) -> list:
-    """The grid intervals (indices j of [times[j], times[j+1]]) that neither the nearest
-    anchor before nor the one after keeps above `enter` (its σ_k less, its σ_max plus, the
-    path length `chords` from it to the interval's far end), that lie farther than `apart`
-    from a value under `enter`, and that are not joined to one.
-
-    Joined: the same anchors keep s under `leave` in the interval (σ_k plus, σ_max less)
-    and in every interval between it and a value under `enter` (or the step's start, with
-    `open_at_start`: a passage open there). A dip hidden there is part of that value's
-    passage, as no value above `leave` can part them (the monitor's hysteresis, `_dips`),
-    so it adds no passage; the passage's minimum is refined from its lowest value found."""
-    count = len(times) - 1
-    marks = [anchors.get(tk) for tk in times]
-    under = [mark is not None and mark[0] < enter * mark[1] for mark in marks]
-    lows = [tk for tk, below in zip(times, under) if below]
-    low, high = [-np.inf] * count, [np.inf] * count
-    # (Plain loops over the few nodes of a step: the search asks this several times a
-    # step, and numpy's per-call cost on arrays this short is larger.)
-    for order, side in ((range(count), 0), (range(count - 1, -1, -1), 1)):
-        anchor, reach = None, 0.0
-        for j in order:
-            mark = marks[j + side]
-            if mark is not None:
-                anchor, reach = mark, 0.0
-            reach += chords[j]
-            if anchor is not None:
-                bound = (anchor[0] - reach) / (anchor[1] + reach)
-                if bound > low[j]:
-                    low[j] = bound
-                if anchor[1] > reach:
-                    top = (anchor[0] + reach) / (anchor[1] - reach)
-                    if top < high[j]:
-                        high[j] = top
-    joined = [False] * count
-    j = 0
-    while j < count:
-        k = j
-        while k < count and high[k] < leave:
-            k += 1
-        if k > j and ((open_at_start and j == 0) or any(under[j:k + 1])):
-            joined[j:k] = [True] * (k - j)
-        j = k + 1
-    shortest = 1e-9 * h
-    return [j for j in range(count) if low[j] < enter and not joined[j]
-            and times[j + 1] - times[j] >= shortest
-            and not (lows and _covered(times[j], times[j + 1], lows, apart))]
-
-
-def _covered(ta, tb, lows, reach) -> bool:
-    """Does [ta, tb] lie within `reach` of the times `lows` (in their union)?"""
-    near = sorted(tk for tk in lows if ta - reach <= tk <= tb + reach)
-    edge = ta
-    for tk in near:
-        if tk - reach > edge:
-            return False
-        edge = max(edge, tk + reach)
-        if edge >= tb:
-            return True
-    return False
-
-
-def _dips(values, enter, leave, open_at_start=False):
-    """The runs of indices of `values` under `enter`, two runs joined unless a value
-    above `leave` parts them (the monitor's hysteresis), each with whether such a value
-    closed it; with `open_at_start`, the first value opens a run whatever it is."""
-    dips, run = [], [0] if open_at_start and values else []
-    for k, value in enumerate(values):
-        if value < enter and k not in run[:1]:
-            run.append(k)
-        elif value > leave and run:
-            dips.append((run, True))
-            run = []
-    if run:
-        dips.append((run, False))
-    return dips
-

@@ -72,14 +72,7 @@ class ConstraintAlgebra:
       (dJ̃/dt, `mechsim.linalg.dense.fall_basis`) where small and eps > 0, else None
     - ``chords(times, Q)``, ``singular_extremes(times, Q, k)``: bounds of ‖J̃ᵢ₊₁ − J̃ᵢ‖₂
       (`chord_bound`), (σ_k, σ_max) at each configuration: the passage search's grid
-    - ``anchored(lu_context, dense, ends, budget, known, k, search)``: the singularity
-      monitor's search over a step (`SingularityMonitor._anchored`) in the compiled
-      engine, {t: (σ_k, σ_max)} measured, on the step's dense output `dense` (the
-      positions solved on the partition whose engine context is `lu_context`, or
-      q = y[:n] where it is 0: `Formulation.positions_context`); None where nothing is
-      compiled or the engine declined
-    - ``passage_minimum(lu_context, dense, ta, tb, k, xatol)``: (t, s) at the least of
-      s = σ_k/σ_max over [ta, tb] of a step's dense output, likewise
+    - ``anchored``, ``passage_minimum``: the search in a step in C (`codegen.search`), or None
     - ``compiled_accelerations(t, q, v, Q, cut, bound, far)``: q̈ at (t, q, v) under the
       applied forces Q by the compiled engine where it takes the state, else None (then
       `clear_accelerations` on the terms the caller evaluates once)
@@ -316,7 +309,7 @@ class DenseAlgebra(ConstraintAlgebra):
             from ..codegen.steps import PlainSteps
             p = self.problem
             kept = self._plain[f] = PlainSteps(self.engine.lib, p.n, p.m, f, sample_rows,
-                                               tableaus, self.engine.search)
+                                               tableaus, self.engine.steps.search)
         return kept
 
     def change(self, q, t, Jm):
@@ -337,12 +330,12 @@ class DenseAlgebra(ConstraintAlgebra):
     def passage_minimum(self, lu_context, dense, ta, tb, k, xatol):
         engine = self._on_step(dense, k)
         return None if engine is None else \
-            engine.passage_minimum(lu_context or None, dense, ta, tb, k, xatol)
+            engine.steps.passage_minimum(lu_context or None, dense, ta, tb, k, xatol)
 
     def anchored(self, lu_context, dense, ends, budget, known, k, search):
         engine = self._on_step(dense, k)
         return None if engine is None else \
-            engine.anchored(lu_context or None, dense, ends, budget, known, k, search)
+            engine.steps.anchored(lu_context or None, dense, ends, budget, known, k, search)
 
     def _on_step(self, dense, k):
         """The engine where it may search on the step's dense output `dense` (DOP853's

@@ -310,7 +310,7 @@ class Run:
         self.monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
                              t_old=t_old, positions_at=lambda ts: form.positions(
                                  ts, np.atleast_2d(dense(ts).T)),
-                             on_step=lambda: on_step(form, step_output))
+                             on_step=lambda: form.compiled_step(step_output))
         self.passage_times.note(t_old, t_new, lambda tk: form.split(tk, dense(tk)))
         correction = form.after_step(t_new, y_new, t_new - t_old)
         self.bound.after_step(solver, correction.step_limit)
@@ -598,10 +598,3 @@ def crossing(g, t_old, t_new, g_old) -> float:
         start = float(peak.x)
     return float(brentq(g, start, t_new, xtol=xtol))
 
-
-
-def on_step(form, step_output):
-    """(the formulation's positions context, the step's dense output) where the compiled
-    engine may search the step for a passage (`Formulation.positions_context`), else None."""
-    context = form.positions_context()
-    return None if context is None else (context, step_output())

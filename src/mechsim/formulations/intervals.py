@@ -1,0 +1,99 @@
+"""The interval rules of the singularity monitor's passage search inside a step
+(`mechsim.formulations.monitor.SingularityMonitor._hidden_passages`; the compiled engine's
+`mechsim_anchored` follows them in C): the least of two falling lines, the intervals a
+search's anchors do not clear, the times near a value found under the band, and the dips
+a row of values makes under the monitor's hysteresis."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def lowest(sa, sb, h, ra, rb) -> float:
+    """The least over a span of length h of max(sa − ra τ, sb − rb (h − τ)), the lines
+    falling from its two ends at rates ra, rb (−inf unless both are positive): it only
+    falls as either rate grows."""
+    if not (ra > 0.0 and rb > 0.0):
+        return -math.inf
+    tau = min(max((sa - sb + rb * h) / (ra + rb), 0.0), h)
+    return max(sa - ra * tau, sb - rb * (h - tau))
+
+
+def uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=False) -> list:
+    """The grid intervals (indices j of [times[j], times[j+1]]) that neither the nearest
+    anchor before nor the one after keeps above `enter` (its σ_k less, its σ_max plus, the
+    path length `chords` from it to the interval's far end), that lie farther than `apart`
+    from a value under `enter`, and that are not joined to one.
+
+    Joined: the same anchors keep s under `leave` in the interval (σ_k plus, σ_max less)
+    and in every interval between it and a value under `enter` (or the step's start, with
+    `open_at_start`: a passage open there). A dip hidden there is part of that value's
+    passage, as no value above `leave` can part them (the monitor's hysteresis, `dips`),
+    so it adds no passage; the passage's minimum is refined from its lowest value found."""
+    count = len(times) - 1
+    marks = [anchors.get(tk) for tk in times]
+    under = [mark is not None and mark[0] < enter * mark[1] for mark in marks]
+    lows = [tk for tk, below in zip(times, under) if below]
+    low, high = [-np.inf] * count, [np.inf] * count
+    # (Plain loops over the few nodes of a step: the search asks this several times a
+    # step, and numpy's per-call cost on arrays this short is larger.)
+    for order, side in ((range(count), 0), (range(count - 1, -1, -1), 1)):
+        anchor, reach = None, 0.0
+        for j in order:
+            mark = marks[j + side]
+            if mark is not None:
+                anchor, reach = mark, 0.0
+            reach += chords[j]
+            if anchor is not None:
+                bound = (anchor[0] - reach) / (anchor[1] + reach)
+                if bound > low[j]:
+                    low[j] = bound
+                if anchor[1] > reach:
+                    top = (anchor[0] + reach) / (anchor[1] - reach)
+                    if top < high[j]:
+                        high[j] = top
+    joined = [False] * count
+    j = 0
+    while j < count:
+        k = j
+        while k < count and high[k] < leave:
+            k += 1
+        if k > j and ((open_at_start and j == 0) or any(under[j:k + 1])):
+            joined[j:k] = [True] * (k - j)
+        j = k + 1
+    shortest = 1e-9 * h
+    return [j for j in range(count) if low[j] < enter and not joined[j]
+            and times[j + 1] - times[j] >= shortest
+            and not (lows and covered(times[j], times[j + 1], lows, apart))]
+
+
+def covered(ta, tb, lows, reach) -> bool:
+    """Does [ta, tb] lie within `reach` of the times `lows` (in their union)?"""
+    near = sorted(tk for tk in lows if ta - reach <= tk <= tb + reach)
+    edge = ta
+    for tk in near:
+        if tk - reach > edge:
+            return False
+        edge = max(edge, tk + reach)
+        if edge >= tb:
+            return True
+    return False
+
+
+def dips(values, enter, leave, open_at_start=False):
+    """The runs of indices of `values` under `enter`, two runs joined unless a value
+    above `leave` parts them (the monitor's hysteresis), each with whether such a value
+    closed it; with `open_at_start`, the first value opens a run whatever it is."""
+    dips, run = [], [0] if open_at_start and values else []
+    for k, value in enumerate(values):
+        if value < enter and k not in run[:1]:
+            run.append(k)
+        elif value > leave and run:
+            dips.append((run, True))
+            run = []
+    if run:
+        dips.append((run, False))
+    return dips
+
