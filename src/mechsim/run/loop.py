@@ -428,9 +428,11 @@ class Run:
         return False
 
     def _bridge_samples(self, tk, Y):
-        """A bridge's output samples, onto the constraints as the steps' are."""
+        """A bridge's output samples, onto the constraints as the steps' are (compiled
+        where the bridge's own projections are)."""
         Q, V = _split(np.array(Y), self.problem.n)
-        settle_samples(self.problem, tk, Q, V, self.form.tol.manifold)
+        settle_samples(self.problem, tk, Q, V, self.form.tol.manifold,
+                       getattr(self.bridge, "compiled", False))
         return Q, V
 
     def _add_work(self, a, b, states, recorded, more) -> None:
