@@ -285,9 +285,8 @@ class Run:
         """Samples, work, monitor and the formulation's correction for the step just
         accepted; returns the state the run goes on from."""
         form, out, solver = self.form, self.out, self.solver
-        # The step's interpolant, built at most once (scipy's RK methods spend extra
-        # right-hand sides on each `dense_output()` call) and shared by the output samples,
-        # the work integral and the monitor's search for a minimum inside the step.
+        # The step's interpolant, built at most once (scipy's RK methods spend extra right-
+        # hand sides on each `dense_output()` call), shared by the samples, work and monitor.
         interpolant = []
 
         def step_output():
@@ -428,11 +427,10 @@ class Run:
         return False
 
     def _bridge_samples(self, tk, Y):
-        """A bridge's output samples, onto the constraints as the steps' are (compiled
-        where the bridge's own projections are)."""
+        """A bridge's output samples, onto the constraints as the steps' are."""
         Q, V = _split(np.array(Y), self.problem.n)
-        settle_samples(self.problem, tk, Q, V, self.form.tol.manifold,
-                       getattr(self.bridge, "compiled", False))
+        compiled = getattr(self.bridge, "compiled", False)    # as its own projections
+        settle_samples(self.problem, tk, Q, V, self.form.tol.manifold, compiled)
         return Q, V
 
     def _add_work(self, a, b, states, recorded, more) -> None:
