@@ -211,18 +211,15 @@ EXACT_RTOLS = tuple(10.0 ** -e for e in range(2, 13))
 
 def exact_run(problem, rtol, output_step):
     """(wall time, t, the traced crank tip's path) of scipy's DOP853 on the problem's exact
-    1-DOF equation at `rtol` (atol rtol/100), sampled every `output_step`."""
-    from scipy.integrate import solve_ivp
+    1-DOF equation at `rtol` (`mechsim.examples.parallelogram_exact`: atol rtol/1000),
+    sampled every `output_step`."""
     from .. import examples
-    m_eff, k = examples.parallelogram_constants(problem.windows)
-    rate = -k / m_eff
     t = np.linspace(0.0, problem.t_end, int(round(problem.t_end / output_step)) + 1)
     start = time.perf_counter()
-    sol = solve_ivp(lambda _, y: [y[1], rate * math.cos(y[0])], (0.0, problem.t_end),
-                    [problem.theta0, problem.omega0], method="DOP853", rtol=rtol,
-                    atol=rtol * 1e-2, t_eval=t)
+    theta, _ = examples.parallelogram_exact(t, problem.theta0, problem.omega0,
+                                            n=problem.windows, rtol=rtol)
     wall = time.perf_counter() - start
-    return wall, sol.t, np.column_stack([np.cos(sol.y[0]), np.sin(sol.y[0])])
+    return wall, t, np.column_stack([np.cos(theta), np.sin(theta)])
 
 
 def run(problems, repeat: int = 1, steps=None) -> list[PeerRow]:

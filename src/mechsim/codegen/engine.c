@@ -1025,94 +1025,6 @@ void mechsim_interpolate(int64_t N, int64_t rows, const double *F, double t_old,
   }
 }
 
-/* s = sigma_kk / sigma_max of J~ (0 where sigma_max is not positive) at t on a step's dense
-   output (rows x N coefficients F from t_old over h, y_old), the positions solved on the
-   partition c (lu_positions) or, where c is NULL, q = y[:n]; work: N + n. 0: done. */
-static int s_on_step(mechsim_lu *c, mechsim_projection *pc, int64_t N, int64_t rows,
-                     const double *F, double t_old, double h, const double *y_old, int64_t kk,
-                     double t, double *work, double *s) {
-  const int64_t n = pc->n;
-  double *Y = work, *q = work + N, ex[2];
-  mechsim_interpolate(N, rows, F, t_old, h, y_old, 1, &t, Y);
-  if (c != NULL) {
-    if (lu_positions(c, t, Y, q, c->J)) return 1;
-  } else {
-    memcpy(q, Y, n * sizeof(double));
-  }
-  if (mechsim_extremes(pc, 1, kk, &t, q, ex)) return 1;
-  *s = ex[1] > 0.0 ? ex[0] / ex[1] : 0.0;
-  return 0;
-}
-
-static double sign_or_one(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 1.0); }
-
-/* The least of s (s_on_step) over [ta, tb] (SingularityMonitor._refine; s is V-shaped near a
-   singular configuration): Brent's bounded search, golden sections and parabolic steps to
-   the tolerance sqrt(2.2e-16) |t| + xatol / 3 (the rule of scipy's minimize_scalar
-   "bounded"), at most 500 evaluations: (t, s) into out. 0: done; 1: a state or an SVD
-   declined (Python decides). */
-int mechsim_passage_minimum(mechsim_lu *c, mechsim_projection *pc, int64_t N, int64_t rows,
-                            const double *F, double t_old, double h, const double *y_old,
-                            int64_t kk, double ta, double tb, double xatol, double *work,
-                            double *out) {
-  const double sqrt_eps = sqrt(2.2e-16), golden_mean = 0.5 * (3.0 - sqrt(5.0));
-  double a = ta, b = tb;
-  double fulc = a + golden_mean * (b - a), nfc = fulc, xf = fulc;
-  double rat = 0.0, e = 0.0, x = xf, fx, fu;
-  if (s_on_step(c, pc, N, rows, F, t_old, h, y_old, kk, x, work, &fx)) return 1;
-  int num = 1;
-  double ffulc = fx, fnfc = fx, xm = 0.5 * (a + b);
-  double tol1 = sqrt_eps * fabs(xf) + xatol / 3.0, tol2 = 2.0 * tol1;
-  while (fabs(xf - xm) > tol2 - 0.5 * (b - a)) {
-    int golden = 1;
-    if (fabs(e) > tol1) {                       /* a parabola through the three best */
-      golden = 0;
-      double r = (xf - nfc) * (fx - ffulc), q = (xf - fulc) * (fx - fnfc);
-      double p = (xf - fulc) * q - (xf - nfc) * r;
-      q = 2.0 * (q - r);
-      if (q > 0.0) p = -p;
-      q = fabs(q);
-      r = e;
-      e = rat;
-      if (fabs(p) < fabs(0.5 * q * r) && p > q * (a - xf) && p < q * (b - xf)) {
-        rat = (p + 0.0) / q;
-        x = xf + rat;
-        if (x - a < tol2 || b - x < tol2) rat = tol1 * sign_or_one(xm - xf);
-      } else {
-        golden = 1;
-      }
-    }
-    if (golden) {
-      e = xf >= xm ? a - xf : b - xf;
-      rat = golden_mean * e;
-    }
-    x = xf + sign_or_one(rat) * (fabs(rat) > tol1 ? fabs(rat) : tol1);
-    if (s_on_step(c, pc, N, rows, F, t_old, h, y_old, kk, x, work, &fu)) return 1;
-    num++;
-    if (fu <= fx) {
-      if (x >= xf) a = xf; else b = xf;
-      fulc = nfc; ffulc = fnfc;
-      nfc = xf; fnfc = fx;
-      xf = x; fx = fu;
-    } else {
-      if (x < xf) a = x; else b = x;
-      if (fu <= fnfc || nfc == xf) {
-        fulc = nfc; ffulc = fnfc;
-        nfc = x; fnfc = fu;
-      } else if (fu <= ffulc || fulc == xf || fulc == nfc) {
-        fulc = x; ffulc = fu;
-      }
-    }
-    xm = 0.5 * (a + b);
-    tol1 = sqrt_eps * fabs(xf) + xatol / 3.0;
-    tol2 = 2.0 * tol1;
-    if (num >= 500) break;
-  }
-  out[0] = xf;
-  out[1] = fx;
-  return 0;
-}
-
 /* The structures' sizes as this compiler lays them out: Python checks them against its
    ctypes twins before using the library. */
 int64_t mechsim_sizeof_lu(void) { return (int64_t)sizeof(mechsim_lu); }
@@ -1205,6 +1117,84 @@ static int search_positions(mechsim_lu *c, mechsim_search *w, int64_t k, const d
     if (c == NULL) memcpy(Q + j * n, w->Yn + j * N, n * sizeof(double));
     else if (lu_positions(c, ts[j], w->Yn + j * N, Q + j * n, c->J)) return 1;
   }
+  return 0;
+}
+
+/* s = sigma_kk / sigma_max of J~ (0 where sigma_max is not positive) at t on the search's
+   dense output, the positions as search_positions finds them. 0: done. */
+static int s_on_step(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w, double t,
+                     double *s) {
+  double ex[2];
+  if (search_positions(c, w, 1, &t, w->node_mq)) return 1;
+  if (mechsim_extremes(pc, 1, w->kk, &t, w->node_mq, ex)) return 1;
+  *s = ex[1] > 0.0 ? ex[0] / ex[1] : 0.0;
+  return 0;
+}
+
+static double sign_or_one(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 1.0); }
+
+/* The least of s (s_on_step) over [ta, tb] (SingularityMonitor._refine; s is V-shaped near a
+   singular configuration): Brent's bounded search, golden sections and parabolic steps to
+   the tolerance sqrt(2.2e-16) |t| + xatol / 3 (the rule of scipy's minimize_scalar
+   "bounded"), at most 500 evaluations: (t, s) into out. 0: done; 1: a state or an SVD
+   declined (Python decides). */
+int mechsim_passage_minimum(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
+                            double ta, double tb, double xatol, double *out) {
+  const double sqrt_eps = sqrt(2.2e-16), golden_mean = 0.5 * (3.0 - sqrt(5.0));
+  double a = ta, b = tb;
+  double fulc = a + golden_mean * (b - a), nfc = fulc, xf = fulc;
+  double rat = 0.0, e = 0.0, x = xf, fx, fu;
+  if (s_on_step(c, pc, w, x, &fx)) return 1;
+  int num = 1;
+  double ffulc = fx, fnfc = fx, xm = 0.5 * (a + b);
+  double tol1 = sqrt_eps * fabs(xf) + xatol / 3.0, tol2 = 2.0 * tol1;
+  while (fabs(xf - xm) > tol2 - 0.5 * (b - a)) {
+    int golden = 1;
+    if (fabs(e) > tol1) {                       /* a parabola through the three best */
+      golden = 0;
+      double r = (xf - nfc) * (fx - ffulc), q = (xf - fulc) * (fx - fnfc);
+      double p = (xf - fulc) * q - (xf - nfc) * r;
+      q = 2.0 * (q - r);
+      if (q > 0.0) p = -p;
+      q = fabs(q);
+      r = e;
+      e = rat;
+      if (fabs(p) < fabs(0.5 * q * r) && p > q * (a - xf) && p < q * (b - xf)) {
+        rat = (p + 0.0) / q;
+        x = xf + rat;
+        if (x - a < tol2 || b - x < tol2) rat = tol1 * sign_or_one(xm - xf);
+      } else {
+        golden = 1;
+      }
+    }
+    if (golden) {
+      e = xf >= xm ? a - xf : b - xf;
+      rat = golden_mean * e;
+    }
+    x = xf + sign_or_one(rat) * (fabs(rat) > tol1 ? fabs(rat) : tol1);
+    if (s_on_step(c, pc, w, x, &fu)) return 1;
+    num++;
+    if (fu <= fx) {
+      if (x >= xf) a = xf; else b = xf;
+      fulc = nfc; ffulc = fnfc;
+      nfc = xf; fnfc = fx;
+      xf = x; fx = fu;
+    } else {
+      if (x < xf) a = x; else b = x;
+      if (fu <= fnfc || nfc == xf) {
+        fulc = nfc; ffulc = fnfc;
+        nfc = x; fnfc = fu;
+      } else if (fu <= ffulc || fulc == xf || fulc == nfc) {
+        fulc = x; ffulc = fu;
+      }
+    }
+    xm = 0.5 * (a + b);
+    tol1 = sqrt_eps * fabs(xf) + xatol / 3.0;
+    tol2 = 2.0 * tol1;
+    if (num >= 500) break;
+  }
+  out[0] = xf;
+  out[1] = fx;
   return 0;
 }
 

@@ -222,7 +222,8 @@ SIGNATURES = {
     "mechsim_dop853_extra": "pll" + "p" * 7 + ">i", "mechsim_interpolate": "llpddplpp>-",
     "mechsim_change": "pdpp>d", "mechsim_fall_rates": "lll" + "p" * 9 + ">-",
     "mechsim_dense_coefficients": "lllpppppdp>-",
-    "mechsim_passage_minimum": "ppllpddpldddpp>i", "mechsim_anchored": "pppddlpl>i", "mechsim_multipliers": "plppppddppp>l",
+    "mechsim_passage_minimum": "pppdddp>i", "mechsim_anchored": "pppddlpl>i",
+    "mechsim_multipliers": "plppppddppp>l",
 }
 _CODES = {"p": ctypes.c_void_p, "d": ctypes.c_double, "l": ctypes.c_int64, "i": ctypes.c_int,
           "-": None}

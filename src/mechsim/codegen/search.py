@@ -18,15 +18,24 @@ class StepSearch:
     n coordinates and m constraint equations; `search` the structure."""
 
     def __init__(self, lib, projection, n, m):
-        self.projection, self.n = projection, n
+        self.projection = projection
         self._minimum, self._anchored = lib.mechsim_passage_minimum, lib.mechsim_anchored
         self.buffers = SEARCH.buffers(Dims(n, m))
         self._out = np.zeros(1)                           # F, y_old: set per call
         self.search = SEARCH.make({"n": n, "m": m, "nodes_cap": NODES},
                                   {**self.buffers, "F": self._out, "y_old": self._out})
         self._address = ctypes.addressof(self.search)
-        self._ends = np.zeros(4)
-        self._ends_at = self._ends.ctypes.data
+        self._ends, self._minimum_out = np.zeros(4), np.zeros(2)
+        self._ends_at, self._minimum_at = self._ends.ctypes.data, self._minimum_out.ctypes.data
+
+    def _on(self, dense, k):
+        """The structure, pointed at the step's dense output `dense` (`Interpolant`:
+        its `coefficients`) for σ_k."""
+        t_old, h, y_old, F = dense.coefficients
+        w = self.search
+        w.kk, w.N, w.rows = k, F.shape[1], F.shape[0]
+        w.t_old, w.h, w.F, w.y_old = t_old, h, F.ctypes.data, y_old.ctypes.data
+        return w
 
     def passage_minimum(self, lu_context, dense, ta, tb, k, xatol):
         """(t, s) at the least of s = σ_k/σ_max of J̃ over [ta, tb] inside a step (Brent's
@@ -34,15 +43,12 @@ class StepSearch:
         `Interpolant`: its `coefficients` over the step), the positions solved on the
         partition whose engine context is `lu_context`, or q = y[:n] where it is None;
         None where a state or an SVD declined (the caller searches in Python)."""
-        t_old, h, y_old, F = dense.coefficients
-        N = F.shape[1]
-        work = np.empty(N + self.n)
-        out = np.empty(2)
-        if self._minimum(lu_context, self.projection, N, F.shape[0], F.ctypes.data,
-                         float(t_old), float(h), y_old.ctypes.data, k,
-                         float(ta), float(tb), float(xatol), work.ctypes.data, out.ctypes.data):
+        self._on(dense, k)
+        if self._minimum(lu_context, self.projection, self._address, ta, tb, xatol,
+                         self._minimum_at):
             return None
-        return float(out[0]), float(out[1])
+        t, s = self._minimum_out.tolist()
+        return t, s
 
     def anchored(self, lu_context, dense, ends, budget, known, k, search):
         """`SingularityMonitor._anchored` in one call (`mechsim_anchored`): {t: (σ_k, σ_max)}
@@ -52,13 +58,10 @@ class StepSearch:
         declined or the grid outgrew `layout.NODES` nodes (the caller searches in
         Python)."""
         t0, t1 = ends
-        t_old, h, y_old, F = dense.coefficients
         grid, chord, enter, leave, apart, open_at_start = search
-        w = self.search
-        w.grid, w.kk, w.N, w.rows, w.open_at_start = grid, k, F.shape[1], F.shape[0], \
-            int(open_at_start)
-        w.chord, w.enter, w.leave, w.apart = chord, enter, leave, apart
-        w.t_old, w.h, w.F, w.y_old = t_old, h, F.ctypes.data, y_old.ctypes.data
+        w = self._on(dense, k)
+        w.grid, w.chord, w.enter, w.leave, w.apart = grid, chord, enter, leave, apart
+        w.open_at_start = int(open_at_start)
         which = 0
         for j, tk in enumerate(ends):
             if tk in known:

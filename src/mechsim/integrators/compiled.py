@@ -211,9 +211,12 @@ class Interpolant(DenseOutput):
         self.h, self.F, self.y_old = t - t_old, F, y_old
         self._reversed = F[::-1]
         self._kernel = None
-        if kernel is not None and F.ndim == 2 and F.dtype == np.float64 and \
-                F.flags.c_contiguous and y_old.dtype == np.float64 and \
-                y_old.flags.c_contiguous and y_old.shape == F.shape[1:] and self.h != 0.0:
+        # Whether C may read it as it stands (`mechsim_interpolate`, `coefficients`).
+        self._in_c = isinstance(F, np.ndarray) and F.ndim == 2 and F.dtype == np.float64 and \
+            F.flags.c_contiguous and isinstance(y_old, np.ndarray) and \
+            y_old.dtype == np.float64 and y_old.flags.c_contiguous and \
+            y_old.shape == F.shape[1:] and self.h != 0.0
+        if kernel is not None and self._in_c:
             # Its arguments' addresses taken once (kept alive by this object's F, y_old).
             self._kernel = (kernel, F.shape[1], F.shape[0], F.ctypes.data, float(t_old),
                             float(self.h), y_old.ctypes.data)
@@ -221,8 +224,9 @@ class Interpolant(DenseOutput):
     @property
     def coefficients(self):
         """(t_old, h, y_old, F): the interpolant as the engine evaluates it
-        (`mechsim_interpolate`), for searches over the step in C."""
-        return self.t_old, self.h, self.y_old, self.F
+        (`mechsim_interpolate`), for searches over the step in C; None where C cannot read
+        its arrays as they stand."""
+        return (self.t_old, self.h, self.y_old, self.F) if self._in_c else None
 
     def _call_impl(self, t):
         """y at t (0-d: shape (n,)) or at each of the times t (1-d: shape (n, len(t)))."""

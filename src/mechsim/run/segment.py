@@ -22,10 +22,11 @@ It applies to runs of "lu" and of the hybrid in its LU phase with the compiled D
 compiled partition (`Partitioned.compiled_rate`) and the compiled monitor (a dense
 algebra's engine, no redundant constraints), with an output grid or a sample at every
 step, and nothing else to do at a step: no events, work integral, streamed output, state
-extras, sensitivities or fixed step. After a segment declines its first step the loop tries it again only after twice as
-many steps as the last time (up to `BACKOFF_MAX`), so a mechanism whose steps are seldom
-plain (the double four-bar near its passages) pays little for the tries; after a segment
-that stopped on a step it declined, that step is the loop's without a try. The engine's side
+extras, sensitivities or fixed step. After a segment declines its first step the loop
+tries it again only after twice as many steps as the last time (up to `BACKOFF_MAX`), so a
+mechanism whose steps are seldom plain (the double four-bar near its passages) pays little
+for the tries; after a segment that stopped on a step it declined, that step is the
+loop's without a try (taking the segment's passage search of it). The engine's side
 is `mechsim.codegen.steps.PlainSteps`, which the problem's algebra gives
 (`plain_steps`).
 """
