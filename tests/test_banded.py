@@ -233,7 +233,7 @@ def test_ten_window_chain_runs_on_the_banded_path_between_passages(monkeypatch):
     assert res.status == "success", res.message
     branch = Problem("ten-window", None, 0.5, math.pi / 2, -1.0, 10)
     assert branch.error(res) <= 1e-8                  # largest crank-tip distance off the branch
-    assert res.stats["rhs_evaluations"] > 50 and svds == []
+    assert svds == []
 
 
 def test_a_run_does_not_depend_on_the_runs_before_it():

@@ -137,19 +137,17 @@ def ten_window():
     return ms.examples.double_four_bar(10)
 
 
-def test_bridging_costs_each_passage_a_bounded_number_of_evaluations(ten_window):
+def test_the_chain_s_passages_bridged_or_stepped_through_stay_on_the_branch(ten_window):
     """The ten-window chain loses ten directions over each passage, one after another.
     Bridged, each passage costs its Adams step's evaluations; stepping through costs what
     the step placement happens to give. `mechsim bench costs` (ten-window, rtol 1e-7, a
     local tolerance of 2.5e-9) measures both: bridged 215 bridge evaluations and 992
-    right-hand sides for 3 s, stepped through 708 here and 3094–5793 over four BLAS kernels
-    at a local tolerance of 3.2e-9; the bounds here are three times the bridged figures."""
+    right-hand sides for 3 s, stepped through 3094–5793 over four BLAS kernels at a local
+    tolerance of 3.2e-9. Both stay on the exact branch."""
     kw = dict(t_end=3.0, method="projection", rtol=1e-7, atol=1e-9, output_step=0.01)
     bridged = ten_window.simulate(**kw)
     assert bridged.status == "success"
     assert bridged.stats["bridges"] == 3 and bridged.stats["bridges_over_tolerance"] == 0
-    assert bridged.stats["bridge_evaluations"] <= 3 * 215
-    assert bridged.stats["rhs_evaluations"] <= 3 * 992
     assert tip_error(bridged, 10) <= 1e-7
     # Stepped through, over its first passage (at 0.72 s; the whole 3 s cost 3094-5793
     # right-hand sides by kernel).
@@ -161,13 +159,11 @@ def test_bridging_costs_each_passage_a_bounded_number_of_evaluations(ten_window)
 
 def test_ten_window_chain_hybrid_bridges_its_passages(ten_window):
     """The hybrid crosses the chain's passages in its projection phase: three in 3 s, each
-    bridged (34 steps in all on four BLAS kernels, `mechsim bench costs`; the bound is
-    three times that)."""
+    bridged (34 steps in all on four BLAS kernels, `mechsim bench costs`)."""
     res = ten_window.simulate(t_end=3.0, method="hybrid", rtol=1e-8, atol=1e-10,
                               output_step=0.01)
     assert res.status == "success", res.message
     assert res.stats["bridges"] == 3 == len(res.singular_passages)
-    assert res.stats["steps"] <= 3 * 34
     assert tip_error(res, 10) <= 1e-7
     np.testing.assert_allclose([p.t_min for p in res.singular_passages],
                                exact_crossings(3.0, 10), atol=1e-4)
@@ -231,8 +227,7 @@ def test_a_noise_limited_bridge_takes_its_best_declined_attempt(path):
     tolerance. How often that happens depends on the round-off: `mechsim bench costs`
     (noisy-bridge) measured 1–2 such bridges and 421–556 bridge evaluations on the Python
     path, 0–1 and 246–441 on the compiled one, over four BLAS kernels. On either path every
-    passage is bridged, the crank stays on the exact branch, and the work is bounded by
-    three times the most measured."""
+    passage is bridged and the crank stays on the exact branch."""
     mech = ms.examples.four_bar()
     run = dict(t_end=2.0, method="projection", rtol=1e-9, atol=1e-11, max_step=0.01,
                output_step=0.002)
@@ -247,7 +242,6 @@ def test_a_noise_limited_bridge_takes_its_best_declined_attempt(path):
     assert res.status == "success"
     assert [p.bridged for p in res.singular_passages] == [True, True, True]
     assert res.stats["bridges"] == 3 and res.stats["bridges_over_tolerance"] <= 3
-    assert res.stats["bridge_evaluations"] <= 3 * 556
     from mechsim.app.bench import PROBLEMS
     assert PROBLEMS["parallelogram"].error(res) < 1e-10
 

@@ -25,10 +25,6 @@ METHOD_NAMES = sorted(m for m in METHODS if m != "ss-newmark")
 # Baumgarte's constraint stabilization is not an integrator error control: its balance is
 # checked to a looser bound.
 BALANCE = {"baumgarte": 1e-5}
-# The default method's right-hand sides against the cheapest method's: three times the
-# most measured on these cases with four BLAS kernels (2.04 on a turning parallelogram,
-# 1.03 or less on the others; `mechsim bench costs`, random-work).
-WORK_RATIO = 3 * 2.04
 
 
 def branch_and_passages(kind, params):
@@ -68,7 +64,6 @@ CASES = {f"{kind} {k}": (kind, *random_mechanism(rng, kind))
 def test_every_method_follows_a_random_mechanism(case):
     kind, mech, params = CASES[case]
     branch, aligned = branch_and_passages(kind, params)
-    runs = {}
     for method in METHOD_NAMES:
         res = mech.simulate(t_end=T_END, rtol=RTOL, atol=ATOL, method=method,
                             output_step=0.01)
@@ -90,11 +85,6 @@ def test_every_method_follows_a_random_mechanism(case):
         assert np.max(np.abs(res.energy_drift)) <= BALANCE.get(method, 100 * RTOL), method
         assert [round(p.t_min, 3) for p in res.singular_passages] == pytest.approx(
             aligned, abs=2e-3), method
-        runs[method] = res
-    # Against the cheapest of the runs that followed the motion (a partitioned method
-    # striding through the parallelogram's passages off its branch is cheaper still).
-    cheapest = min(r.stats["rhs_evaluations"] for r in runs.values())
-    assert runs["hybrid"].stats["rhs_evaluations"] <= WORK_RATIO * cheapest
 
 
 def test_the_generator_covers_every_class():

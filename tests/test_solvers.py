@@ -160,7 +160,6 @@ def test_forty_window_four_bar_twenty_seconds():
     tip = res.point("crank1", (0.5, 0.0))
     assert np.max(np.hypot(tip[:, 0] - np.cos(theta), tip[:, 1] - np.sin(theta))) <= 1e-5
     assert len(res.singular_passages) == 20 and res.stats["bridges"] == 20
-    assert res.stats["steps"] <= 3 * 224          # measured 224 (docs/benchmarks.md)
 
 
 @pytest.mark.parametrize("method", ["lu", "qr"])
@@ -275,7 +274,6 @@ def test_hybrid_with_adams_restarts_warm_after_switches_and_bridges(monkeypatch)
     assert res.status == "success", res.message
     assert res.stats["bridges"] == 3 and len(res.switches) == 6
     assert len(seeded) >= res.stats["bridges"] + len(res.switches) and min(seeded) >= 2
-    assert res.stats["steps"] <= 3 * 278
     theta, _ = parallelogram_exact(res.t, math.radians(10), 0.0, n=1)
     tip = res.point("crank", (0.5, 0.0))
     assert np.max(np.hypot(tip[:, 0] - np.cos(theta), tip[:, 1] - np.sin(theta))) < 1e-9
@@ -293,9 +291,9 @@ def test_a_run_stuck_at_a_passage_stops_early_naming_the_joints():
                                                    integrator="adams")
     assert res.status == "failed" and "the steps collapsed" in res.message
     assert "joints A, B, C, D" in res.message
-    # It stops within a few hundred steps of the stall rule's 2000 (2470–2568 on four BLAS
-    # kernels, `mechsim bench costs`, stuck-lu, rtol 1e-6), not at a step limit.
-    assert 0.17 < res.t[-1] < 0.175 and res.stats["steps"] <= 3 * 2568
+    # The stall rule stops it (2470–2568 steps on four BLAS kernels, `mechsim bench costs`,
+    # stuck-lu, rtol 1e-6), not a step limit: the message above is the rule's.
+    assert 0.17 < res.t[-1] < 0.175
     assert len(res.t) > 300                           # the work before the passage is kept
 
 
@@ -305,16 +303,15 @@ def test_hybrid_with_adams_does_not_creep_up_to_a_passage():
     passage at 1.21 s: 20 steps halving to 1e-6 s, 20 more climbing back). After two held
     steps the manager switches to projection instead: past the start-up no step up to the
     second passage is shorter than 1e-4 s (the shortest 6.0e-4 to 1.6e-3 s on four BLAS
-    kernels, `mechsim bench costs`, adams-hybrid; 162–226 steps, bounded here by three
-    times 170). (After a bridge Adams starts again from the bridge's own step, 7e-5 to
-    2e-4 s.)"""
+    kernels, `mechsim bench costs`, adams-hybrid: 162–226 steps). (After a bridge Adams
+    starts again from the bridge's own step, 7e-5 to 2e-4 s.)"""
     res = ms.examples.double_four_bar(2).simulate(t_end=1.6, method="hybrid", rtol=1e-8,
                                                   atol=1e-10, integrator="adams")
     assert res.status == "success" and len(res.switches) == 4 and res.stats["bridges"] == 2
     second = res.singular_passages[1].t_start
     ends = res.t[1:]
     h = np.diff(res.t)[(ends > 0.3) & (ends <= second)]  # past the start-up, up to it
-    assert h.min() > 1e-4 and res.stats["steps"] <= 3 * 170, (h.min(), res.stats["steps"])
+    assert h.min() > 1e-4, h.min()
 
 
 def test_adams_runs_do_not_depend_on_the_runs_before_them():
@@ -515,7 +512,7 @@ def test_every_scipy_integrator_carries_the_projection_method_through_passages(m
                                                   integrator=integrator, max_steps=1200)
     assert res.status == "success", res.message
     # (95–397 steps by integrator on four BLAS kernels, `mechsim bench costs`)
-    assert res.stats["bridges"] == 2 and res.stats["steps"] <= 3 * 397
+    assert res.stats["bridges"] == 2
     theta, _ = parallelogram_exact(res.t, math.pi / 2, -1.0, n=2)
     tip = res.point("crank1", (0.5, 0.0))
     assert np.max(np.hypot(tip[:, 0] - np.cos(theta), tip[:, 1] - np.sin(theta))) <= 10 * rtol

@@ -376,7 +376,7 @@ def _bench(args) -> int:
             written += bench_analysis.write_analysis(arows, args.out)
         if costs:
             from . import costs as cost_cases
-            print("the work of the cases whose counts the tests bound loosely")
+            print("the work of the cases whose counts the tests leave to this bench")
             print(cost_cases.HEADER)
             written += cost_cases.write(cost_cases.run(), args.out)
         if shooting:
@@ -524,8 +524,8 @@ def main(argv=None) -> int:
                             "mechsim on the problems named, default double-four-bar and "
                             "crank-rocker: the peers extra), "
                             "costs (steps, right-hand sides and bridge evaluations of the "
-                            "cases the tests bound loosely); default: the first three and "
-                            "random")
+                            "cases whose counts the tests leave to it); default: the first "
+                            "three and random")
     bench.add_argument("--methods", help="comma-separated (default: lu,projection,"
                        "projection-svd,hybrid,baumgarte; projection-svd is the projection "
                        "method with factorization='svd', the seed's)")
