@@ -6,6 +6,7 @@ tolerance-scaled error helpers."""
 import atexit
 import os
 import shutil
+import sysconfig
 import tempfile
 
 import numpy as np
@@ -42,3 +43,16 @@ def scaled_error(y, y_ref, rtol, atol):
 @pytest.fixture
 def rng():
     return np.random.default_rng(20261121)
+
+
+def mechanism_models(directory):
+    """The cached modules in `directory` that model a whole mechanism or a beam (not the
+    joint types' kernels, which the fused build reads and which are modules too)."""
+    return [p for p in directory.glob("mechsim_model_*.py")
+            if b"A mechsim type kernel" not in p.read_bytes()]
+
+
+# Tests of compiled code: skipped without a C compiler (or with compiling switched off).
+needs_compiler = pytest.mark.skipif(
+    shutil.which((os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0])
+    is None or bool(os.environ.get("MECHSIM_NO_COMPILE")), reason="no C compiler")

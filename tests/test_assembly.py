@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import mechanism_models, needs_compiler
 
 import mechsim as ms
 from mechsim import examples
@@ -88,9 +89,11 @@ def _state(mech, prob, seed=3):
 
 
 @pytest.mark.parametrize("name", list(MECHANISMS))
-def test_assembled_equals_fused(name):
-    """Φ, Φ_q, Φ_t, γ and the shared-term groups equal the fused model's to round-off,
-    with the same Jacobian pattern; the loads are the same numeric code on both."""
+def test_assembled_equals_fused_to_the_last_bit(name):
+    """Φ, Φ_q, Φ_t, γ and the shared-term groups of the fused model (its joint types'
+    kernels unrolled, `mechsim.assembly.unrolled`; its C twins where it is large) equal
+    the assembled model's to the last bit, drivers' laws included, with the same Jacobian
+    pattern; the loads are the same numeric code on both."""
     mech = MECHANISMS[name]()
     fused = mech.problem(build="fused")
     assembled = mech.problem(build="assembled")
@@ -106,11 +109,40 @@ def test_assembled_equals_fused(name):
              *zip(a.dynamics_terms(q, v, t, p), f.dynamics_terms(q, v, t, p))]
     for x, y in pairs:
         assert x.shape == y.shape
-        scale = 1.0 + np.max(np.abs(y), initial=0.0)
-        assert np.max(np.abs(x - y), initial=0.0) <= 1e-13 * scale
+        np.testing.assert_array_equal(x, y)
     assert sorted(zip(a.JACOBIAN_ROWS, a.JACOBIAN_COLS)) == \
         sorted(zip(f.JACOBIAN_ROWS, f.JACOBIAN_COLS))
     assert np.array_equal(a.phi_q_csr(q, t, p).toarray(), a.phi_q(q, t, p))
+
+
+@needs_compiler
+@pytest.mark.parametrize("name", list(MECHANISMS))
+def test_a_fused_model_s_c_twins_equal_its_python_to_the_last_bit(name, tmp_path):
+    """The C twins of a fused model (the compiled engine's evaluations of a small one, the
+    functions themselves of a large one) give its Python functions' numbers to the last
+    bit: one text, C's syntax, for both (`mechsim.codegen.printer.neutral_printer`)."""
+    import ctypes
+
+    from mechsim.codegen.compiled import shared_library
+    mech = MECHANISMS[name]()
+    prob = mech.problem(build="fused")
+    model, p = prob.model, np.ascontiguousarray(prob.p, dtype=float)
+    q, v, t = _state(mech, prob)
+    lib = shared_library(model.C_SOURCE, tmp_path / "twins.so")
+    assert lib is not None
+    python = getattr(model, "PYTHON_KERNELS", {})
+    for name_, has_v, shapes in model.C_SIGNATURES:
+        outs = [np.zeros(rows * cols) for rows, cols in shapes]
+        fn = getattr(lib, f"mechsim_{name_}")
+        fn.restype = None
+        fn.argtypes = [ctypes.c_void_p] * (2 if has_v else 1) + \
+            [ctypes.c_double, ctypes.c_void_p] + [ctypes.c_void_p] * len(outs)
+        fn(*([q.ctypes.data] + ([v.ctypes.data] if has_v else []) + [ctypes.c_double(t),
+             p.ctypes.data] + [o.ctypes.data for o in outs]))
+        own = python.get(name_, getattr(model, name_))
+        expected = own(q, v, t, prob.p) if has_v else own(q, t, prob.p)
+        for out, value in zip(outs, expected if isinstance(expected, tuple) else (expected,)):
+            np.testing.assert_array_equal(out, np.ravel(value))
 
 
 @pytest.mark.parametrize("name", list(MECHANISMS))
@@ -181,23 +213,34 @@ def test_driver_laws_share_a_kernel_and_their_jets_are_exact():
                            atol=1e-14)
 
 
-@pytest.mark.parametrize("factory, method", [
-    (examples.four_bar, "hybrid"),
-    (lambda: examples.slider_crank(driven=True, crank_speed=100.0), "lu"),
-    (examples.flexible_four_bar, "projection"),
+@pytest.mark.parametrize("factory, method, t_end", [
+    (examples.four_bar, "hybrid", 0.5),
+    (lambda: examples.slider_crank(driven=True, crank_speed=100.0), "lu", 0.2),
+    (examples.flexible_four_bar, "projection", 0.2),
+    (lambda: examples.double_four_bar(4), "hybrid", 1.0),
+    (lambda: examples.double_four_bar(10), "hybrid", 0.3),
 ])
-def test_assembled_runs_equal_fused_runs(factory, method):
-    """The same simulation on both builds: states within 1e-8 (ten times rtol: the builds
-    round off differently, so a step may fall a little differently)."""
+def test_runs_are_alike_to_the_last_bit_on_either_build(factory, method, t_end):
+    """The same simulation on the fused and the assembled build gives the same times,
+    states and passages to the last bit (through the four-window chain's passages too):
+    a mechanism's first run on the assembled build and its later ones on the fused model
+    built meanwhile agree. The fused runs take the Python path here, as the assembled ones
+    do; the compiled engine (small rigid mechanisms, which "auto" fuses at once) solves
+    with its own arithmetic."""
+    from mechsim.codegen import engine
     runs = []
     for build in ("fused", "assembled"):
         mech = factory()
-        mech.problem(build=build)
-        runs.append(mech.simulate(t_end=0.2, method=method, rtol=1e-9, output_step=0.01))
+        prob = mech.problem(build=build)
+        with engine.python_path(prob.model):
+            runs.append(mech.simulate(t_end=t_end, method=method, rtol=1e-9,
+                                      output_step=t_end / 50))
     fused, assembled = runs
     assert fused.status == assembled.status == "success"
-    np.testing.assert_array_equal(fused.t, assembled.t)
-    assert np.max(np.abs(fused.q - assembled.q)) < 1e-8
+    for x, y in ((fused.t, assembled.t), (fused.q, assembled.q), (fused.v, assembled.v)):
+        np.testing.assert_array_equal(x, y)
+    assert [s.t_min for s in fused.singular_passages] == \
+        [s.t_min for s in assembled.singular_passages]
 
 
 def _python(code: str, cache: Path, **env) -> str:
@@ -221,32 +264,33 @@ print(json.dumps(dict(kind=type(prob.model).__name__, from_cache=mech.from_cache
 _STARTED = "from mechsim.build import background\nprint(len(background._started))\n"
 
 
-def test_auto_build_fuses_small_mechanisms_at_once_and_larger_ones_in_the_background(
+def test_auto_build_fuses_mechanisms_under_sixty_coordinates_at_once_and_larger_ones_later(
         tmp_path):
     """A new small mechanism (the double four-bar, 15 coordinates) is fused at once, with
-    its compiled evaluations, so its first run uses the model its later runs use. A larger
-    one (4 windows, 27 coordinates) runs assembled at once while a background process
-    fuses it; a later build loads the fused model. A new topology of the same joint types
-    (10 windows, 63 coordinates) runs assembled with no sympy import and no background
-    build (it is large)."""
+    its compiled evaluations: sympy runs only for its joint types' kernels, and a second
+    process loads it. A larger one of the same joint types (4 windows, 27 coordinates) is
+    fused at once with no sympy at all. A long one (10 windows, 63 coordinates, whose
+    fused model's C twins take a compile) runs assembled at once while a background
+    process fuses it; a later build loads the fused model."""
     small = json.loads(_python(_BUILD.format(n=2), tmp_path))
     assert small == dict(kind="module", from_cache=False, sympy=True, engine=True)
     again = json.loads(_python(_BUILD.format(n=2), tmp_path))
     assert again == dict(kind="module", from_cache=True, sympy=False, engine=True)
-    first, started = _python(_BUILD.format(n=4) + _STARTED, tmp_path).splitlines()
-    assert json.loads(first) == dict(kind="AssembledModel", from_cache=False, sympy=True,
+    larger = json.loads(_python(_BUILD.format(n=4), tmp_path))
+    assert larger == dict(kind="module", from_cache=False, sympy=False, engine=True)
+    first, started = _python(_BUILD.format(n=10) + _STARTED, tmp_path).splitlines()
+    assert json.loads(first) == dict(kind="AssembledModel", from_cache=True, sympy=False,
                                      engine=False)
     assert started == "1"                       # the fused build, in the background
     deadline = time.monotonic() + 120
     while True:
-        later = json.loads(_python(_BUILD.format(n=4), tmp_path))
+        later = json.loads(_python(_BUILD.format(n=10), tmp_path))
         if later["kind"] != "AssembledModel" or time.monotonic() > deadline:
             break
         time.sleep(1.0)
-    assert later == dict(kind="module", from_cache=True, sympy=False, engine=True)
-    chain = json.loads(_python(_BUILD.format(n=10), tmp_path))
-    assert chain == dict(kind="AssembledModel", from_cache=True, sympy=False, engine=False)
-    assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 4   # 2 kernels, 2 fused
+    assert later == dict(kind="module", from_cache=True, sympy=False, engine=False)
+    assert len(mechanism_models(tmp_path)) == 3
+    assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 5      # and 2 joint types
 
 
 _RUN = """
@@ -268,13 +312,14 @@ def test_a_small_mechanism_runs_bitwise_alike_in_every_process(tmp_path):
 
 
 def test_background_builds_can_be_switched_off(tmp_path):
-    """With MECHSIM_BACKGROUND false a larger mechanism's first build runs assembled and
-    starts no background build (the process's record of the builds it started, one by
-    default: above), so only the joint types' kernels are cached."""
-    kind, count = _python(_BUILD.format(n=4) + _STARTED, tmp_path,
+    """With MECHSIM_BACKGROUND false a long chain's first build runs assembled and starts
+    no background build (the process's record of the builds it started, one by default:
+    above), so only the joint types' kernels are cached."""
+    kind, count = _python(_BUILD.format(n=10) + _STARTED, tmp_path,
                           MECHSIM_BACKGROUND="0").splitlines()
     assert json.loads(kind)["kind"] == "AssembledModel" and count == "0"
-    assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 2   # the kernels only
+    assert mechanism_models(tmp_path) == []
+    assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 2       # the kernels
 
 
 def test_unknown_build_is_an_error(monkeypatch):
@@ -288,10 +333,10 @@ def test_unknown_build_is_an_error(monkeypatch):
 
 def test_assembled_kernels_survive_a_damaged_cache_entry(tmp_path):
     """A kernel whose cache entry was edited is rebuilt with a warning."""
-    _python(_BUILD.format(n=4), tmp_path, MECHSIM_BACKGROUND="0")
+    _python(_BUILD.format(n=10), tmp_path, MECHSIM_BACKGROUND="0")
     for path in tmp_path.glob("mechsim_model_*.py"):
         path.write_text(path.read_text().replace("numpy.zeros", "numpy.ones"))
-    code = _BUILD.format(n=4) + "print(abs(prob.phi(mech.initial_coordinates(), 0.0)).max())"
+    code = _BUILD.format(n=10) + "print(abs(prob.phi(mech.initial_coordinates(), 0.0)).max())"
     out = _python(code, tmp_path, MECHSIM_BACKGROUND="0")
     report, residual = out.splitlines()
     assert json.loads(report)["from_cache"] is False

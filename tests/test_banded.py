@@ -155,9 +155,9 @@ def test_banded_accelerations_match_the_svd_path(ten_window, theta):
 def ten_window_csr(tmp_path_factory):
     """The ten-window chain's fused model generated as those of `CSR_MIN_COORDINATES` or
     more are (Φ_q also as its non-zero entries), in a cache of its own."""
-    from mechsim.codegen import cache, printer
+    from mechsim.codegen import cache, compiled
     patch = pytest.MonkeyPatch()
-    patch.setattr(printer, "CSR_MIN_COORDINATES", 60)
+    patch.setattr(compiled, "CSR_MIN_COORDINATES", 60)
     patch.setenv("MECHSIM_CACHE_DIR", str(tmp_path_factory.mktemp("csr")))
     cache.clear_memory_cache()
     try:

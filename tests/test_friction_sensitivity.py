@@ -30,10 +30,15 @@ def coordinates(*columns):
     return (lambda res, name: res.sensitivity(name)[:, columns], lambda res: res.q[:, columns])
 
 
+def step(values, name):
+    """The central differences' step in the parameter `name`."""
+    return (3 * RTOL) ** (1 / 3) * abs(values[name])
+
+
 def central(build, values, name, times, t_end, quantities):
     """[∂quantity/∂name at `times`], ∂(event times)/∂name by central differences of
     `build(**values)` runs (the events: impacts, then switches)."""
-    h = (3 * RTOL) ** (1 / 3) * abs(values[name])
+    h = step(values, name)
     runs = [build(**{**values, name: values[name] + s * h}).simulate(
         t_end, rtol=RTOL, atol=1e-14, output_step=0.05) for s in (1.0, -1.0)]
     changes = [(value(runs[0])[at(runs[0], times)] - value(runs[1])[at(runs[1], times)]) /
@@ -46,7 +51,10 @@ def central(build, values, name, times, t_end, quantities):
 def check(build, values, names, times, t_end, *quantities, tol=1e-5):
     """The carried sensitivities of each quantity (a pair: the sensitivity from the
     result and the name, the value from a result) at `times` and of every event's time
-    agree with central differences to `tol` relative (of the largest)."""
+    agree with central differences to `tol` relative (of the largest). An event's time
+    is as accurate as the run (within 20 RTOL of it: the error ÷ rtol the runs keep), so
+    its difference quotient carries up to 2 · 20 RTOL t / (2 h) besides (3.7e-7 for a
+    switch at 0.27 s; seen 7e-8: more than 1e-5 of a small sensitivity)."""
     res = build(**values).simulate(t_end, rtol=1e-10, atol=1e-12, output_step=0.05,
                                    sensitivities=names)
     assert res.success, res.message
@@ -60,7 +68,10 @@ def check(build, values, names, times, t_end, *quantities, tol=1e-5):
             assert np.max(np.abs(exact - fd)) < tol * scale, (name, exact, fd)
         if events.size:
             scale = max(np.max(np.abs(fd_events)), 1e-3)
-            assert np.max(np.abs(events - fd_events)) < tol * scale, (name, events, fd_events)
+            located = 20 * RTOL * max(e.t for e in res.impacts + res.friction_switches) / \
+                step(values, name)
+            assert np.max(np.abs(events - fd_events)) < tol * scale + located, \
+                (name, events, fd_events)
     return res
 
 

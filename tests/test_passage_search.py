@@ -2,20 +2,14 @@
 (`ConstraintAlgebra.anchored`, `passage_minimum`): the Python search's numbers, and
 Brent's bounded minimum as scipy finds it."""
 
-import os
-import shutil
-import sysconfig
 
 import pytest
+from conftest import needs_compiler
 from scipy.optimize import minimize_scalar
 
 from mechsim.app.bench import PROBLEMS
 from mechsim.formulations.partitioned import Partitioned
 from mechsim.problem.algebra import DenseAlgebra
-
-needs_compiler = pytest.mark.skipif(
-    shutil.which((os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0])
-    is None or bool(os.environ.get("MECHSIM_NO_COMPILE")), reason="no C compiler")
 
 
 def _run(name, method, rtol):

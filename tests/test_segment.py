@@ -2,20 +2,14 @@
 loop's numbers to the bit."""
 
 import math
-import os
-import shutil
-import sysconfig
 
 import numpy as np
 import pytest
+from conftest import needs_compiler
 
 import mechsim as ms
 from mechsim.app.bench import PROBLEMS
 from mechsim.run import segment
-
-needs_compiler = pytest.mark.skipif(
-    shutil.which((os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0])
-    is None or bool(os.environ.get("MECHSIM_NO_COMPILE")), reason="no C compiler")
 
 
 def _both(mech, monkeypatch, **run):

@@ -13,6 +13,7 @@ import pytest
 from scipy import stats
 
 import mechsim as ms
+from conftest import mechanism_models
 from mechsim import examples
 from mechsim.codegen import cache
 from mechsim.study import parameter_sets
@@ -93,7 +94,7 @@ def test_one_compiled_model_serves_the_whole_study(tmp_path, monkeypatch):
     assert list(study.table["cached"]) == [1.0] * 5
     assert np.allclose(study.table["omega"], np.sqrt(3 * 9.81 / (2 * np.array(lengths))),
                        rtol=1e-8)
-    assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 1
+    assert len(mechanism_models(tmp_path)) == 1
 
 
 def _four_bar(case):

@@ -20,10 +20,11 @@ on time; a driver's kernel is its `Driver.displacement`, and its law enters nume
 
 from __future__ import annotations
 
-import sympy as sp
-from sympy.printing.numpy import NumPyPrinter
+import re
 
-from ..codegen.printer import SPLINE_IMPORT, SharedTerms, spline_call
+import sympy as sp
+
+from ..codegen.printer import SharedTerms, neutral_printer
 from ..model import Driver
 from ..symbolic import SymbolicContext, jacobian_of, second_derivative_along
 
@@ -41,63 +42,100 @@ def kernel_source(item, key: str) -> str:
     phi = sp.Matrix(rows)
     J = jacobian_of(phi, q)
     gamma = -second_derivative_along(phi, q, v, jacobian=J)
-    writer = _Writer(ctx)
-    shared = SharedTerms([phi, J, gamma])       # one cse; each function takes its terms
-    writer.function("phi", ("Q", "P"), shared.select([0]))
-    writer.function("jacobian", ("Q", "P"), shared.select([1]))
-    writer.function("position", ("Q", "P"), shared.select([0, 1]))
-    writer.function("gamma", ("Q", "V", "P"), shared.select([2]))
-    writer.function("terms", ("Q", "V", "P"), shared.select([0, 1, 2]))
-    writer.function("dynamics", ("Q", "V", "P"), shared.select([1, 2]))
     pattern = [(i, j) for i in range(J.rows) for j in range(J.cols) if J[i, j] != 0]
-    imports = ["import numpy"] + ([SPLINE_IMPORT] if any("_pspline(" in f for f in
-                                                         writer.functions) else [])
-    header = ['"""A mechsim type kernel. Generated: rebuilt when missing."""', *imports, "",
+    # sin and cos of a coordinate are inputs of the terms: a mechanism's unrolled model
+    # (`mechsim.assembly.unrolled`) takes each body's once for all its joints.
+    trig = {}
+    for k, x in enumerate(ctx.q):
+        trig[sp.sin(x)] = sp.Symbol(f"_s{k}", real=True)
+        trig[sp.cos(x)] = sp.Symbol(f"_o{k}", real=True)
+    shared = SharedTerms([m.xreplace(trig) for m in (phi, J, gamma)])
+    names = {x: f"$q{k}" for k, x in enumerate(ctx.q)}
+    names.update({x: f"$v{k}" for k, x in enumerate(ctx.v)})
+    names.update({x: f"$p{k}" for k, x in enumerate(ctx.p)})
+    names.update({sym: f"${sym.name[1]}{sym.name[2:]}" for sym in trig.values()})
+    names.update({sym: f"$c{sym.name[2:]}" for sym, _ in shared.repl})
+    printer = neutral_printer(names)
+    terms = [printer.doprint(expr) for _, expr in shared.repl]
+    entries, needs = [], []
+    for k, (_, _, nz) in enumerate(shared.layout):
+        _, repl, reduced, _ = shared.select([k])
+        entries.append([(i, j, printer.doprint(e)) for (i, j), e in zip(nz, reduced)])
+        needs.append([int(sym.name[2:]) for sym, _ in repl])
+    writer = _Writer(terms, entries, needs, [(phi.rows,), (J.rows, J.cols), (gamma.rows,)])
+    writer.function("phi", ("Q", "P"), [0])
+    writer.function("jacobian", ("Q", "P"), [1])
+    writer.function("position", ("Q", "P"), [0, 1])
+    writer.function("gamma", ("Q", "V", "P"), [2])
+    writer.function("terms", ("Q", "V", "P"), [0, 1, 2])
+    writer.function("dynamics", ("Q", "V", "P"), [1, 2])
+    header = ['"""A mechsim type kernel. Generated: rebuilt when missing."""',
+              "import math", "import numpy",
+              "from mechsim.assembly.unrolled import NUMPY_MATH as _M",
+              "from mechsim.model.splines import evaluate as pspline", "",
               f"KEY = {key!r}", f"ROWS = {phi.rows}", f"COLUMNS = {len(ctx.q)}",
-              f"PARAMETERS = {len(ctx.p)}", f"PATTERN = {pattern!r}", ""]
+              f"PARAMETERS = {len(ctx.p)}", f"PATTERN = {pattern!r}",
+              "# The terms and entries as text with placeholders ($q, $v, $p: the kernel's",
+              "# columns; $s, $o: sin, cos of a coordinate; $c: a term), for",
+              "# `mechsim.assembly.unrolled`; NEEDS: the terms each of Φ, Φ_q, γ reads.",
+              f"TERMS = {terms!r}", f"ENTRIES = {entries!r}", f"NEEDS = {needs!r}",
+              "sin, cos, tan, asin, acos, atan, atan2, sinh, cosh, tanh, exp, log, sqrt, "
+              "fabs, pow = _M", "M_PI, M_E = math.pi, math.e", ""]
     return "\n".join(header + ["\n\n".join(writer.functions), ""])
 
 
-class _KernelPrinter(NumPyPrinter):
-    def _print_PeriodicSpline(self, expr):
-        return spline_call(self, expr, "_pspline", "P[:, {0}:{1}].T")
+_PLACEHOLDER = re.compile(r"\$([qvpsocP])(\d+)(?:_(\d+))?")
+
+
+def placeholders(text: str) -> set:
+    """The placeholders ("q3", "c12", …) a template text holds."""
+    return {m.group(1) + m.group(2) for m in _PLACEHOLDER.finditer(text)}
+
+
+def fill(text: str, name) -> str:
+    """`text` with each placeholder replaced by `name(kind, index, length)` (length: a
+    parameter slice's, else None)."""
+    return _PLACEHOLDER.sub(lambda m: name(m.group(1), int(m.group(2)),
+                                           None if m.group(3) is None else int(m.group(3))),
+                            text)
+
+
+def _numpy_name(kind, index, length):
+    if kind == "P":                           # a spline's parameters, one row per joint
+        return f"P[:, {index}:{index + length}].T"
+    return f"{kind}{index}"
 
 
 class _Writer:
-    """Prints functions of the kernel's matrices with their common subexpressions shared;
-    a symbol is a column of Q, V or P (symbol names are generated, never the user's)."""
+    """Prints the kernel's numpy functions from its templates: each placeholder a local
+    name (a column of Q, V or P, a coordinate's sine or cosine, a term)."""
 
-    def __init__(self, ctx):
-        self.columns = {"Q": list(ctx.q), "V": list(ctx.v), "P": list(ctx.p)}
-        self.printer = _KernelPrinter({"fully_qualified_modules": True})
+    def __init__(self, terms, entries, needs, shapes):
+        self.terms, self.entries, self.needs, self.shapes = terms, entries, needs, shapes
         self.functions: list[str] = []
-        self._printed: dict = {}            # each expression printed once
 
-    def _print(self, expr) -> str:
-        text = self._printed.get(expr)
-        if text is None:
-            text = self._printed[expr] = self.printer.doprint(expr)
-        return text
-
-    def function(self, name: str, args: tuple[str, ...], terms: tuple):
-        """One function of `SharedTerms.select`'s `terms`."""
-        pr = self.printer
-        layout, repl, reduced, used = terms
+    def function(self, name: str, args: tuple[str, ...], outputs):
+        needed = sorted(set().union(*(self.needs[k] for k in outputs)))
+        texts = [self.terms[c] for c in needed] + \
+            [e for k in outputs for _, _, e in self.entries[k]]
+        used = set().union(*(placeholders(t) for t in texts))
         lines = [f"def {name}({', '.join(args)}):", "    n = len(Q)"]
-        for arg in args:
-            for k, sym in enumerate(self.columns[arg]):
-                if sym in used:
-                    lines.append(f"    {pr.doprint(sym)} = {arg}[:, {k}]")
-        lines += [f"    {pr.doprint(sym)} = {self._print(expr)}" for sym, expr in repl]
-        names, k = [], 0
-        for idx, (rows, cols, nz) in enumerate(layout):
+        columns = {"q": "Q", "v": "V", "p": "P"}
+        trig = sorted((int(u[1:]), u[0]) for u in used if u[0] in "so")
+        inputs = sorted({(u[0], int(u[1:])) for u in used if u[0] in "qvp"} |
+                        {("q", k) for k, _ in trig}, key=lambda x: ("qvp".index(x[0]), x[1]))
+        lines += [f"    {kind}{k} = {columns[kind]}[:, {k}]" for kind, k in inputs]
+        lines += [f"    {kind}{k} = {'sin' if kind == 's' else 'cos'}(q{k})"
+                  for k, kind in trig]
+        lines += [f"    c{c} = {fill(self.terms[c], _numpy_name)}" for c in needed]
+        names = []
+        for idx, k in enumerate(outputs):
             out = f"_o{idx}"
-            vector = cols == 1
-            shape = f"(n, {rows})" if vector else f"(n, {rows}, {cols})"
-            lines.append(f"    {out} = numpy.zeros({shape})")
-            for (i, j), e in zip(nz, reduced[k:k + len(nz)]):
-                lines.append(f"    {out}[:, {i}{'' if vector else f', {j}'}] = {self._print(e)}")
-            k += len(nz)
+            vector = k != 1
+            lines.append(f"    {out} = numpy.zeros((n, {', '.join(map(str, self.shapes[k]))}))")
+            for i, j, e in self.entries[k]:
+                lines.append(f"    {out}[:, {i}{'' if vector else f', {j}'}] = "
+                             f"{fill(e, _numpy_name)}")
             names.append(out)
         lines.append(f"    return {names[0] if len(names) == 1 else ', '.join(names)}")
         self.functions.append("\n".join(lines))

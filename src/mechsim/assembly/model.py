@@ -21,9 +21,10 @@ import numpy as np
 from ..codegen import load_model, structure_key
 from ..linalg import sparse
 from ..model import Driver
+from .laws import expression_laws
 
 # Bump when the kernels' generated code changes meaning.
-KERNEL_VERSION = 2          # 2: one cse for all of a kernel's functions
+KERNEL_VERSION = 3          # 3: terms as text for the unrolled model; sin, cos hoisted
 
 
 def _side(body):
@@ -113,7 +114,7 @@ class AssembledModel:
             first_param[id(item)] = k
             k += len(item.parameter_names)
         groups, self.from_cache = {}, True
-        row, law_rows, self.laws = 0, [], []
+        row, law_rows, self.laws, law_first = 0, [], [], []
         for item in items:
             key = json.dumps(type_key(item))
             if key not in groups:
@@ -130,12 +131,17 @@ class AssembledModel:
             if isinstance(item, Driver):
                 law_rows.append(row)
                 self.laws.append(item.law)
+                law_first.append(k)
+                k += len(item.law_constants)     # the laws' numbers follow the items' own
             row += g.kernel.ROWS
         self.M = row
         self.groups = list(groups.values())
         for g in self.groups:
             g.freeze(n)
         self.law_rows = np.array(law_rows, dtype=np.intp)
+        # An expression's law evaluated by its generated code (`mechsim.assembly.laws`),
+        # the numbers a fused model's functions compute; a table's by its spline.
+        self._expression_laws = expression_laws(self.laws, law_first)
         pattern = [(g.rows[:, i], g.cols[:, j]) for g in self.groups for i, j in g.kernel.PATTERN]
         rows = np.concatenate([r for r, _ in pattern]) if pattern else np.zeros(0, np.intp)
         cols = np.concatenate([c for _, c in pattern]) if pattern else np.zeros(0, np.intp)
@@ -154,7 +160,7 @@ class AssembledModel:
             g.csr = where[start:start + size].reshape(g.pattern[0].size, -1)
             start += size
         self._seen_p = self._tables = None
-        self._seen_t = self._law_values = None
+        self._seen_t = self._law_values = self._seen_law_p = None
 
     # --- inputs --------------------------------------------------------------------------
     def _p(self, p):
@@ -166,12 +172,19 @@ class AssembledModel:
             self._seen_p = p
         return self._tables
 
-    def _law(self, t):
+    def _law(self, t, p):
         """(f, f', f'') of every driver's law at t, each shape (drivers,)."""
-        if t != self._seen_t:
-            jets = [law.jet("t", t) for law in self.laws]
+        if t != self._seen_t or p is not self._seen_law_p:
+            jets = [None] * len(self.laws)
+            if self._expression_laws is not None:
+                laws, which = self._expression_laws
+                values = laws(t, p)
+                for k, i in enumerate(which):
+                    jets[i] = values[3 * k:3 * k + 3]
+            jets = [law.jet("t", t) if jet is None else jet
+                    for law, jet in zip(self.laws, jets)]
             self._law_values = np.array(jets, dtype=float).reshape(-1, 3).T
-            self._seen_t = t
+            self._seen_t, self._seen_law_p = t, p
         return self._law_values
 
     # --- the constraint system --------------------------------------------------------------
@@ -196,7 +209,8 @@ class AssembledModel:
                     else:
                         a[g.flat if name == "J" else g.rows] = value
         if self.laws:
-            law = dict(zip(("phi", "phi_t", "gamma"), self._law(t) * [[-1.0], [-1.0], [1.0]]))
+            law = dict(zip(("phi", "phi_t", "gamma"),
+                           self._law(t, p) * [[-1.0], [-1.0], [1.0]]))
             for a, name in zip(arrays, outputs):
                 if name in law:
                     a[self.law_rows] += law[name]
@@ -224,7 +238,7 @@ class AssembledModel:
                 out[:, target] = np.reshape(value, (k, *target.shape))
         if self.laws and output == "phi":
             for i, t in enumerate(ts):
-                out[i, self.law_rows] -= self._law(t)[0]
+                out[i, self.law_rows] -= self._law(t, p)[0]
         if output == "Jcsr":
             return [self._csr(row) for row in out]
         return out.reshape(k, self.M, self.N) if output == "J" else out

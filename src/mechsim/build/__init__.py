@@ -30,10 +30,10 @@ def body_starts(mech) -> dict:
 
 
 BUILDS = ("auto", "fused", "assembled")
-# Up to this many coordinates "auto" builds the fused model at once: there a new
-# structure's sympy run and compile cost about what assembling its kernels does, and its
-# runs are several times faster (docs/benchmarks.md, the build strategy).
-FUSE_AT_ONCE = 20
+# Up to this many coordinates a rigid mechanism is the compiled engine's customer: the
+# engine's object starts compiling as soon as its fused model is built
+# (`_prepare_engine`).
+ENGINE_AT_ONCE = 20
 
 
 def build_mode(build: str | None = None) -> str:
@@ -51,45 +51,47 @@ def constraint_model(mech, items, build: str = "auto"):
     """(the model of `mech`'s constraint equations, whether no sympy ran for it).
 
     - "fused": one generated module for the whole mechanism (`mechsim.codegen`), with the
-      compiled evaluations of small rigid ones: the fastest per evaluation, but a new
-      structure costs a sympy run and a C compile, growing with its size.
+      compiled evaluations of small rigid ones: the fastest per evaluation. It is written
+      from the joint types' kernels and the drivers' laws (`mechsim.assembly.unrolled`):
+      no sympy (but for a kernel not yet cached), and the assembled model's numbers to
+      the last bit; a large one's C twins cost a compile (~10 s at 243 coordinates).
     - "assembled": the system assembled from joint-type kernels (`mechsim.assembly`): a
       new structure of known joint types costs milliseconds at any size.
-    - "auto": the fused model where the cache has it; else, for a mechanism of at most
-      `FUSE_AT_ONCE` coordinates, the fused model built at once (as "fused"); else the
-      assembled one, and below `compiled.C_MIN_COORDINATES` coordinates (where fusing
-      still pays) the fused model is built in a background process for the runs after
-      (`mechsim.build.background`). So a small mechanism's first run uses the model its
-      later runs use (the same numbers, to the last bit), and a larger one's first run
-      does not wait for sympy.
+    - "auto": the fused model where the cache has it; else, below
+      `compiled.C_MIN_COORDINATES` coordinates (a Python module and, for the compiled
+      engine's customers, a small compile), the fused model built at once (as "fused");
+      else the assembled one, with the fused model built in a background process for the
+      runs after (`mechsim.build.background`). Either build gives the same numbers, so a
+      mechanism's runs are alike to the last bit whichever serves them.
     """
     from . import background
     from ..codegen import cached_model, load_model
+    from ..codegen.compiled import C_MIN_COORDINATES
 
     structure = mech.structure()
     if build != "assembled":
         model = cached_model(structure)
         if model is not None:
             return model, True
-        if build == "fused" or len(mech.coordinate_names) <= FUSE_AT_ONCE:
+        if build == "fused" or len(mech.coordinate_names) < C_MIN_COORDINATES:
             _prepare_engine(mech, items)
             return load_model(structure, lambda: background.fused_source(mech.bodies, items,
                                                                          structure))
     from ..assembly import AssembledModel
-    from ..codegen.compiled import C_MIN_COORDINATES
     model = AssembledModel(mech.bodies, items)
-    if build == "auto" and model.N < C_MIN_COORDINATES:
+    if build == "auto":
         background.start(mech.bodies, items, structure)
     return model, model.from_cache
 
 
 def _prepare_engine(mech, items) -> None:
-    """Before a small rigid mechanism's fused model is derived (at most `FUSE_AT_ONCE`
+    """Before a small rigid mechanism's fused model is built (at most `ENGINE_AT_ONCE`
     coordinates: the compiled engine's customers): the engine it will link starts
-    compiling beside sympy (`mechsim.codegen.engine.prepare`)."""
+    compiling beside the build, which may run sympy for a new joint type
+    (`mechsim.codegen.engine.prepare`)."""
     from ..codegen import engine
     from ..codegen.cache import store
-    if items and len(mech.coordinate_names) <= FUSE_AT_ONCE and \
+    if items and len(mech.coordinate_names) <= ENGINE_AT_ONCE and \
             not any(isinstance(body, FlexibleBeam) for body in mech.bodies):
         engine.prepare(store())
 

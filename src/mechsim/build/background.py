@@ -85,10 +85,11 @@ def main() -> None:
 
 
 def fused_source(bodies, items, structure) -> str:
-    """The fused module's text (sympy): what `mechsim.build` compiles on a miss."""
-    from ..symbolic import build_system
-    from ..codegen.printer import model_source
-    return model_source(build_system(bodies, items), structure_key(structure))
+    """The fused module's text: what `mechsim.build` compiles on a miss, the joint types'
+    kernels unrolled with the drivers' laws (`mechsim.assembly.unrolled`: the assembled
+    model's arithmetic; sympy runs only for a kernel not yet cached)."""
+    from ..assembly.unrolled import unrolled_source
+    return unrolled_source(bodies, items, structure_key(structure))
 
 
 def build(bodies, items, structure):

@@ -1,6 +1,8 @@
-"""sympy expressions → compiled numeric functions, cached on disk by model structure.
+"""Generated model modules and their compiled twins, cached on disk by model structure.
 
-`load_model(structure, build)` returns a module with the functions
+A mechanism's model is written from its joint types' kernels (`mechsim.assembly.unrolled`;
+sympy derives a kernel once per machine); `load_model(structure, build)` returns a module
+with the functions
 
     phi(q, t, p)             -> (m,)
     phi_q(q, t, p)           -> (m, n)

@@ -36,7 +36,7 @@ import numpy as np
 from ..linalg.sparse import template, with_data
 
 # Bump when the generated code changes meaning, so stale cache entries are not used.
-CODEGEN_VERSION = 15          # 15: a long chain's Φ_q also as its non-zero entries
+CODEGEN_VERSION = 16          # 16: undriven fused models unrolled from type kernels
 
 
 def cache_dir() -> Path:

@@ -54,6 +54,12 @@ CSR_MIN_COORDINATES = 200
 FLAGS = ("-O2", "-fPIC", "-ffp-contract=off")
 
 
+def spline_c() -> str:
+    """`mechsim_pspline`, the C twin of `mechsim.model.splines.evaluate` (spline.c)."""
+    from importlib import resources
+    return resources.files(__package__).joinpath("spline.c").read_text(encoding="utf-8")
+
+
 def flags_digest() -> str:
     """A short digest of `FLAGS`, for the names of compiled entries."""
     return hashlib.sha256(" ".join(FLAGS).encode()).hexdigest()[:8]

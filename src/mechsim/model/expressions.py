@@ -475,7 +475,7 @@ def _evaluate(tree, values, arrays=False):
     return FUNCTIONS[tree[1]][1](*args)
 
 
-def _structural(tree, parent) -> bool:
+def structural(tree, parent) -> bool:
     """Is the number `tree` a whole-number exponent (part of the expression's shape)?"""
     return parent is not None and parent[0] == "op" and parent[1] == "**" and \
         parent[3] is tree and float(tree[1]).is_integer()
@@ -484,7 +484,7 @@ def _structural(tree, parent) -> bool:
 def _constants(tree, out, parent=None) -> None:
     kind = tree[0]
     if kind == "num":
-        if not _structural(tree, parent):
+        if not structural(tree, parent):
             out.append(float(tree[1]))
     elif kind == "neg":
         _constants(tree[1], out, tree)
@@ -508,7 +508,7 @@ def _exact_constants(tree, values, out, parent=None) -> None:
             raise ModelError(f"the Parameter bound to {tree[1]!r} is a whole-number exponent, "
                              "which shapes the law and is not differentiated")
     elif kind == "num":
-        if not _structural(tree, parent):
+        if not structural(tree, parent):
             out.append(float(tree[1]))
     elif kind == "neg":
         _exact_constants(tree[1], values, out, tree)
@@ -524,10 +524,10 @@ def _sympy(tree, symbols, sp, stand_ins=None, parent=None):
     kind = tree[0]
     if kind == "num":
         v = tree[1]
-        if stand_ins is not None and not _structural(tree, parent):
+        if stand_ins is not None and not structural(tree, parent):
             return next(stand_ins)
         return sp.Integer(v) if isinstance(v, int) or float(v).is_integer() and \
-            _structural(tree, parent) else sp.Float(v)
+            structural(tree, parent) else sp.Float(v)
     if kind == "const":
         return {"pi": sp.pi, "e": sp.E}[tree[1]]
     if kind == "name":
@@ -571,7 +571,7 @@ def _bind(tree, values):
 def _canonical(tree, template=False, parent=None) -> str:
     kind = tree[0]
     if kind == "num":
-        return "#" if template and not _structural(tree, parent) else repr(tree[1])
+        return "#" if template and not structural(tree, parent) else repr(tree[1])
     if kind in ("const", "name"):
         return tree[1]
     if kind == "neg":
