@@ -199,7 +199,9 @@ def build_library(source: str, library: Path, command: list[str], objects=(),
                                          prefix=f"{BUILD_PREFIX}{os.getpid()}-") as tmp:
             c_file, out = Path(tmp) / "model.c", Path(tmp) / "model.so"
             c_file.write_text(source)
-            link = ["-shared", "-o", str(out), str(c_file), *map(str, objects), "-lm"] \
+            # The objects (the compiled engine) first: their code then lies at the same
+            # place in every model's library, whatever the model's own code's size.
+            link = ["-shared", "-o", str(out), *map(str, objects), str(c_file), "-lm"] \
                 if shared else ["-c", "-o", str(out), str(c_file)]
             done = subprocess.run(command + [*FLAGS, *link],
                                   capture_output=True, timeout=600)
