@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import mechanism_models, needs_compiler
+from test_gears import train
 
 import mechsim as ms
 from mechsim import examples
@@ -51,6 +52,8 @@ MECHANISMS = {
     "engine_sizing example": _engine_example,
     "cam through points": lambda: _spline_cam(),
     "table-driven slider_crank": lambda: _table_driven(),
+    "spur gear train": lambda: train()[0],
+    "internal ratio gear train": lambda: train("ratio", internal=True)[0],
 }
 
 

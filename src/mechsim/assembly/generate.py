@@ -25,6 +25,7 @@ import re
 import sympy as sp
 
 from ..codegen.printer import SharedTerms, neutral_printer
+from .unrolled import namespace_line
 from ..model import Driver
 from ..symbolic import SymbolicContext, jacobian_of, second_derivative_along
 
@@ -71,7 +72,7 @@ def kernel_source(item, key: str) -> str:
     writer.function("dynamics", ("Q", "V", "P"), [1, 2])
     header = ['"""A mechsim type kernel. Generated: rebuilt when missing."""',
               "import math", "import numpy",
-              "from mechsim.assembly.unrolled import NUMPY_MATH as _M",
+              "from mechsim.assembly.unrolled import NUMPY_MATH",
               "from mechsim.model.splines import evaluate as pspline", "",
               f"KEY = {key!r}", f"ROWS = {phi.rows}", f"COLUMNS = {len(ctx.q)}",
               f"PARAMETERS = {len(ctx.p)}", f"PATTERN = {pattern!r}",
@@ -79,8 +80,7 @@ def kernel_source(item, key: str) -> str:
               "# columns; $s, $o: sin, cos of a coordinate; $c: a term), for",
               "# `mechsim.assembly.unrolled`; NEEDS: the terms each of Φ, Φ_q, γ reads.",
               f"TERMS = {terms!r}", f"ENTRIES = {entries!r}", f"NEEDS = {needs!r}",
-              "sin, cos, tan, asin, acos, atan, atan2, sinh, cosh, tanh, exp, log, sqrt, "
-              "fabs, pow = _M", "M_PI, M_E = math.pi, math.e", ""]
+              namespace_line("NUMPY_MATH"), "M_PI, M_E = math.pi, math.e", ""]
     return "\n".join(header + ["\n\n".join(writer.functions), ""])
 
 

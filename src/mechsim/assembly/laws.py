@@ -21,10 +21,8 @@ import math
 import re
 
 from ..model.expressions import CONSTANTS, Expression, structural
+from .unrolled import MATH
 
-# What the generated text calls besides + − * /: libm's functions, in every language.
-FUNCTIONS = ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
-             "exp", "log", "sqrt", "fabs", "pow", "copysign")
 
 
 def power(x: str, e: float) -> str:
@@ -222,7 +220,7 @@ def law_code(law: Expression, prefix: str):
 
 
 # The names the Python text reads (a generated module defines the same).
-PYTHON_NAMES = {**{name: getattr(math, name) for name in FUNCTIONS},
+PYTHON_NAMES = {**{name: getattr(math, name) for name in MATH},
                 "M_PI": math.pi, "M_E": math.e}
 
 

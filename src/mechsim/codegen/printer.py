@@ -21,20 +21,13 @@ class _Printer(PythonCodePrinter):
         super().__init__({"fully_qualified_modules": True, "standard": "python3"})
 
 
-# What `neutral_printer`'s text calls, for each language that evaluates it: Python's
-# math module, C's math.h (the same libm), and numpy, where numpy's own functions round as
-# libm's (sin, cos, sqrt, fabs: checked by tests) or libm's are mapped over the values.
-NEUTRAL_MATH = ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
-                "exp", "log", "sqrt", "fabs", "pow")
-
-
 def neutral_printer(names):
     """A printer of expressions as text that Python (math, or numpy over arrays) and C
     evaluate with the same arithmetic, operation by operation: C's syntax (numbers as C
     literals, which Python reads as the same doubles; rationals as quotients of doubles),
     integer powers of magnitude 2 to 4 written as products (Python's `x**2` calls pow,
     numpy's multiplies: they round differently), x**(1/2) as sqrt, other powers as pow;
-    the functions of `NEUTRAL_MATH`; π and e as `M_PI`, `M_E`. `names`: symbol -> text
+    libm's functions (`mechsim.assembly.unrolled.MATH`); π and e as `M_PI`, `M_E`. `names`: symbol -> text
     (every symbol must have one); a periodic spline is printed as
     `pspline(order, φ, k, $P<first>_<length>)`, the placeholder to be replaced by each
     language's view of the parameters from `first` on. Integers beyond 2⁵³ are written
