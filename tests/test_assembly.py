@@ -148,6 +148,27 @@ def test_a_fused_model_s_c_twins_equal_its_python_to_the_last_bit(name, tmp_path
             np.testing.assert_array_equal(out, np.ravel(value))
 
 
+def test_numpy_s_functions_the_kernels_take_round_as_libm_s():
+    """The type kernels evaluate sin, cos, sqrt and fabs by numpy's functions over the
+    joints of a type, the fused model by libm's, one joint at a time
+    (`mechsim.assembly.unrolled.NUMPY_MATH`): the two builds agree only where these do,
+    to the last bit (the others, numpy's tan, atan2, pow … the kernels take from libm)."""
+    import math
+    from mechsim.assembly.unrolled import NUMPY_MATH
+    rng = np.random.default_rng(5)
+    x = np.concatenate([rng.uniform(-50.0, 50.0, 20000), rng.uniform(-1e-3, 1e-3, 2000),
+                        rng.uniform(-1e6, 1e6, 2000), [0.0, -0.0, math.pi, 1e-300]])
+    for name in ("sin", "cos", "fabs"):
+        expected = np.array([getattr(math, name)(v) for v in x.tolist()])
+        np.testing.assert_array_equal(NUMPY_MATH[name](x), expected, err_msg=name)
+    positive = np.abs(x)
+    np.testing.assert_array_equal(NUMPY_MATH["sqrt"](positive),
+                                  np.array([math.sqrt(v) for v in positive.tolist()]))
+    y = rng.uniform(-3.0, 3.0, x.size)
+    np.testing.assert_array_equal(NUMPY_MATH["atan2"](y, x),
+                                  np.array([math.atan2(a, b) for a, b in zip(y, x)]))
+
+
 @pytest.mark.parametrize("name", list(MECHANISMS))
 def test_many_states_at_once_equal_each_state_bitwise(name):
     """`NumericProblem.phi_many` and `phi_q_many` of the assembled model (each kernel once
