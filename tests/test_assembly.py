@@ -346,6 +346,15 @@ def test_background_builds_can_be_switched_off(tmp_path):
     assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 2       # the kernels
 
 
+def test_a_process_runs_one_background_build_at_a_time(tmp_path):
+    """Two long chains built one after the other in a process (a study over lengths):
+    the second runs assembled without a build of its own while the first's compiles."""
+    code = ("import mechsim as ms\nfrom mechsim.build import background\n"
+            "for n in (10, 11):\n    ms.examples.double_four_bar(n).problem()\n"
+            "print(len(background._started))\n")
+    assert _python(code, tmp_path).strip() == "1"
+
+
 def test_unknown_build_is_an_error(monkeypatch):
     mech = examples.four_bar()
     with pytest.raises(ms.ModelError, match="`build` must be one of auto, fused, assembled"):
