@@ -20,14 +20,12 @@ on time; a driver's kernel is its `Driver.displacement`, and its law enters nume
 
 from __future__ import annotations
 
-import re
-
 import sympy as sp
 
 from ..codegen.printer import SharedTerms, neutral_printer
-from .unrolled import namespace_line
 from ..model import Driver
 from ..symbolic import SymbolicContext, jacobian_of, second_derivative_along
+from .unrolled import fill, namespace_line, placeholders
 
 
 def kernel_source(item, key: str) -> str:
@@ -82,22 +80,6 @@ def kernel_source(item, key: str) -> str:
               f"TERMS = {terms!r}", f"ENTRIES = {entries!r}", f"NEEDS = {needs!r}",
               namespace_line("NUMPY_MATH"), "M_PI, M_E = math.pi, math.e", ""]
     return "\n".join(header + ["\n\n".join(writer.functions), ""])
-
-
-_PLACEHOLDER = re.compile(r"\$([qvpsocP])(\d+)(?:_(\d+))?")
-
-
-def placeholders(text: str) -> set:
-    """The placeholders ("q3", "c12", …) a template text holds."""
-    return {m.group(1) + m.group(2) for m in _PLACEHOLDER.finditer(text)}
-
-
-def fill(text: str, name) -> str:
-    """`text` with each placeholder replaced by `name(kind, index, length)` (length: a
-    parameter slice's, else None)."""
-    return _PLACEHOLDER.sub(lambda m: name(m.group(1), int(m.group(2)),
-                                           None if m.group(3) is None else int(m.group(3))),
-                            text)
 
 
 def _numpy_name(kind, index, length):

@@ -24,7 +24,6 @@ from ..model.expressions import CONSTANTS, Expression, structural
 from .unrolled import MATH
 
 
-
 def power(x: str, e: float) -> str:
     """x**e as text: products for whole exponents of magnitude up to 4, sqrt for 1/2."""
     if float(e).is_integer() and abs(e) <= 4:
