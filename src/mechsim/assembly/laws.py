@@ -218,6 +218,8 @@ def law_code(law: Expression, prefix: str):
     return e.lines, out
 
 
+# A generated assignment's name (`_Emitter.let`: l<driver>_<k>).
+_NAME = re.compile(r"\bl\d+_\d+\b")
 # The names the Python text reads (a generated module defines the same).
 PYTHON_NAMES = {**{name: getattr(math, name) for name in MATH},
                 "M_PI": math.pi, "M_E": math.e}
@@ -249,6 +251,18 @@ class DriverLaw:
     def lines(self, c: bool) -> list[tuple[str, str]]:
         return [(name, self._fill(c_text if c else text, c))
                 for name, text, c_text in self._lines]
+
+    def needed(self, c: bool, which) -> list[tuple[str, str]]:
+        """The assignments that the jet's entries numbered `which` (0 f, 1 f', 2 f'')
+        read, in order."""
+        texts = [self.jet(c)[k] for k in which]
+        names = set().union(*(_NAME.findall(t) for t in texts)) if texts else set()
+        kept = []
+        for name, text in reversed(self.lines(c)):
+            if name in names:
+                kept.append((name, text))
+                names |= set(_NAME.findall(text))
+        return kept[::-1]
 
     def jet(self, c: bool) -> tuple[str, str, str]:
         if self._table is not None:

@@ -205,10 +205,10 @@ class _Writer:
                 text = fill(j.kernel.TERMS[c], name)
                 lines.append(f"const double c{j.number}_{c} = {text};" if c_language else
                              f"c{j.number}_{c} = {text}")
-        if set(outputs) & {0, 2, 3}:
-            for law in self.laws.values():
-                lines += [f"const double {x} = {text};" if c_language else f"{x} = {text}"
-                          for x, text in law.lines(c_language)]
+        wanted = [k for k, output in enumerate((0, 3, 2)) if output in outputs]  # f, f', f''
+        for law in self.laws.values():
+            lines += [f"const double {x} = {text};" if c_language else f"{x} = {text}"
+                      for x, text in law.needed(c_language, wanted)]
         used["q"] |= used["s"] | used["o"]
         return used, lines
 
