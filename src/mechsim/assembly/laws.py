@@ -273,10 +273,11 @@ class DriverLaw:
 
 
 def expression_laws(laws, first: list[int]):
-    """A Python function `(t, p) -> [f, f', f'', …]` of the expression laws among `laws`
-    (their constants from `first[i]` on in p), compiled from `DriverLaw`'s text (no
-    sympy; nothing a user wrote: generated names, numbers and libm's functions); None
-    where there is none."""
+    """(a Python function `(t, p) -> [f, f', f'', …]` of the expression laws among
+    `laws`, their constants from `first[i]` on in p; the indices of those laws in
+    `laws`), or None where there is none. The function is compiled from `DriverLaw`'s
+    text (no sympy; nothing a user wrote runs: generated names, the parsed tree's
+    numbers, operators and libm's functions)."""
     drivers = [(i, DriverLaw(law, i, at)) for i, (law, at) in enumerate(zip(laws, first))
                if isinstance(law, Expression)]
     if not drivers:
