@@ -346,6 +346,26 @@ def test_background_builds_can_be_switched_off(tmp_path):
     assert len(list(tmp_path.glob("mechsim_model_*.py"))) == 2       # the kernels
 
 
+@needs_compiler
+def test_a_background_build_compiles_the_engine_s_evaluations_only_where_they_serve(
+        tmp_path, monkeypatch):
+    """The double four-bar's background build (`background.build`) compiles its model's
+    twins with the engine's evaluations; the ten-window chain's only its own twins: its
+    banded algebra runs in Python, and the engine's library would compile its model's C
+    once more."""
+    from mechsim.build import background
+    from mechsim.codegen import cache
+    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path))
+    cache.clear_memory_cache()
+    try:
+        for n, libraries in ((2, 1), (10, 1)):          # (the count so far)
+            mech = examples.double_four_bar(n)
+            background.build(mech.bodies, mech.constraint_items, mech.structure())
+            assert len(list(tmp_path.glob("*.evaluations-*.so"))) == libraries
+    finally:
+        cache.clear_memory_cache()
+
+
 def test_a_process_runs_one_background_build_at_a_time(tmp_path):
     """Two long chains built one after the other in a process (a study over lengths):
     the second runs assembled without a build of its own while the first's compiles."""

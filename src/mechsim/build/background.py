@@ -105,8 +105,11 @@ def build(bodies, items, structure):
     from ..model import FlexibleBeam
     from ..codegen import engine
     from ..codegen.cache import load_model
+    from ..linalg.banded import MIN_CONSTRAINTS
     module, _ = load_model(structure, lambda: fused_source(bodies, items, structure))
-    if not any(isinstance(b, FlexibleBeam) for b in bodies):
-        engine.library(module)             # the compiled evaluations take rigid models only
+    # The compiled evaluations take rigid models on the dense algebra only: a long chain's
+    # banded one runs in Python (their library would compile its model's C once more).
+    if module.M < MIN_CONSTRAINTS and not any(isinstance(b, FlexibleBeam) for b in bodies):
+        engine.library(module)
     return module
 
