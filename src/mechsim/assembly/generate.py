@@ -53,14 +53,15 @@ def kernel_source(item, key: str) -> str:
     names.update({x: f"$v{k}" for k, x in enumerate(ctx.v)})
     names.update({x: f"$p{k}" for k, x in enumerate(ctx.p)})
     names.update({sym: f"${sym.name[1]}{sym.name[2:]}" for sym in trig.values()})
-    names.update({sym: f"$c{sym.name[2:]}" for sym, _ in shared.repl})
+    number = {sym: k for k, (sym, _) in enumerate(shared.repl)}     # a term's place
+    names.update({sym: f"$c{k}" for sym, k in number.items()})
     printer = neutral_printer(names)
     terms = [printer.doprint(expr) for _, expr in shared.repl]
     entries, needs = [], []
     for k, (_, _, nz) in enumerate(shared.layout):
         _, repl, reduced, _ = shared.select([k])
         entries.append([(i, j, printer.doprint(e)) for (i, j), e in zip(nz, reduced)])
-        needs.append([int(sym.name[2:]) for sym, _ in repl])
+        needs.append([number[sym] for sym, _ in repl])
     writer = _Writer(terms, entries, needs, [(phi.rows,), (J.rows, J.cols), (gamma.rows,)])
     writer.function("phi", ("Q", "P"), [0])
     writer.function("jacobian", ("Q", "P"), [1])
