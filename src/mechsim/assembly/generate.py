@@ -25,7 +25,7 @@ import sympy as sp
 from ..codegen.printer import SharedTerms, neutral_printer
 from ..model import Driver
 from ..symbolic import SymbolicContext, jacobian_of, second_derivative_along
-from .unrolled import fill, namespace_line, placeholders
+from .unrolled import MATH, fill, placeholders
 
 
 def kernel_source(item, key: str) -> str:
@@ -79,7 +79,8 @@ def kernel_source(item, key: str) -> str:
               "# columns; $s, $o: sin, cos of a coordinate; $c: a term), for",
               "# `mechsim.assembly.unrolled`; NEEDS: the terms each of Φ, Φ_q, γ reads.",
               f"TERMS = {terms!r}", f"ENTRIES = {entries!r}", f"NEEDS = {needs!r}",
-              namespace_line("NUMPY_MATH"), "M_PI, M_E = math.pi, math.e", ""]
+              f"{', '.join(MATH)} = ({', '.join(f'NUMPY_MATH[{n!r}]' for n in MATH)})",
+              "M_PI, M_E = math.pi, math.e", ""]
     return "\n".join(header + ["\n\n".join(writer.functions), ""])
 
 

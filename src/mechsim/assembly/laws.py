@@ -23,6 +23,9 @@ import re
 from ..model.expressions import CONSTANTS, Expression, structural
 from .unrolled import MATH
 
+# A text that is a value already: an assignment's name, t, a law's number, a literal.
+_BARE = re.compile(r"l\d+_\d+|\$t|\$L\d+|\d+\.\d+")
+
 
 def power(x: str, e: float) -> str:
     """x**e as text: products for whole exponents of magnitude up to 4, sqrt for 1/2."""
@@ -51,7 +54,8 @@ class _Emitter:
         return name
 
     def jet(self, f, d1, d2):
-        return (self.let(f), self.let(d1), self.let(d2))
+        """A jet of the texts: each a name of its own unless it is one already."""
+        return tuple(x if _BARE.fullmatch(x) else self.let(x) for x in (f, d1, d2))
 
     def chain(self, u, g, dg, ddg):
         """g(u) for a jet u, given g, g', g'' at u's value (texts)."""

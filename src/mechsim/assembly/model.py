@@ -15,6 +15,7 @@ and its law f(t) with f' and f'' comes from `Expression.jet` (Φ −= f, Φ_t = 
 from __future__ import annotations
 
 import json
+from typing import NamedTuple
 
 import numpy as np
 
@@ -75,12 +76,56 @@ def load_kernel(item):
     return load_model(structure, generate)
 
 
+class Placed(NamedTuple):
+    """A constraint item where the system puts it: its type's key and kernel, its first
+    row, the indices in q of its kernel's coordinates and in p of its kernel's
+    parameters, and (a driver's) the index in p of its law's first number (else None)."""
+    item: object
+    key: str
+    kernel: object
+    row: int
+    cols: list
+    params: list
+    law_first: int | None
+
+
+def placed(bodies, items) -> tuple[list[Placed], int, int, bool]:
+    """(each of `items` as `Placed`, the coordinates N, the equations M, whether every
+    kernel came from the cache): the tables the assembled and the unrolled model share.
+    The laws' numbers follow all the items' own parameters, in the items' order."""
+    start, starts = 0, {}
+    for b in bodies:
+        starts[id(b)] = range(start, start + len(b.coordinate_names))
+        start += len(b.coordinate_names)
+    first, k = {}, 0
+    for item in items:
+        first[id(item)] = k
+        k += len(item.parameter_names)
+    kernels, cached, out, row = {}, True, [], 0
+    for item in items:
+        key = json.dumps(type_key(item))
+        if key not in kernels:
+            kernels[key], hit = load_kernel(item)
+            cached &= hit
+        kernel_bodies, holders = kernel_items(item)
+        law_first = None
+        if isinstance(item, Driver):
+            law_first = k
+            k += len(item.law_constants)
+        out.append(Placed(item, key, kernels[key], row,
+                          [c for b in kernel_bodies for c in starts[id(b)]],
+                          [first[id(h)] + j for h in holders
+                           for j in range(len(h.parameter_names))], law_first))
+        row += kernels[key].ROWS
+    return out, start, row, cached
+
+
 class _Group:
     """The joints (or drivers) of one type: their kernel and index tables."""
 
     def __init__(self, kernel):
         self.kernel = kernel
-        self.rows, self.cols, self.params, self.laws = [], [], [], []
+        self.rows, self.cols, self.params = [], [], []
 
     def freeze(self, n: int):
         self.rows = np.array(self.rows, dtype=np.intp).reshape(-1, self.kernel.ROWS)
@@ -104,37 +149,20 @@ class AssembledModel:
     __file__ = None
 
     def __init__(self, bodies, items):
-        start, starts = 0, {}
-        for b in bodies:
-            starts[id(b)] = range(start, start + len(b.coordinate_names))
-            start += len(b.coordinate_names)
-        self.N = n = start
-        first_param, k = {}, 0
-        for item in items:
-            first_param[id(item)] = k
-            k += len(item.parameter_names)
-        groups, self.from_cache = {}, True
-        row, law_rows, self.laws, law_first = 0, [], [], []
-        for item in items:
-            key = json.dumps(type_key(item))
-            if key not in groups:
-                kernel, cached = load_kernel(item)
-                groups[key] = _Group(kernel)
-                self.from_cache &= cached
-            g = groups[key]
-            bodies, holders = kernel_items(item)
-            g.rows += range(row, row + g.kernel.ROWS)
-            g.cols += [c for b in bodies for c in starts[id(b)]]
-            for holder in holders:
-                g.params += range(first_param[id(holder)],
-                                  first_param[id(holder)] + len(holder.parameter_names))
-            if isinstance(item, Driver):
-                law_rows.append(row)
-                self.laws.append(item.law)
-                law_first.append(k)
-                k += len(item.law_constants)     # the laws' numbers follow the items' own
-            row += g.kernel.ROWS
-        self.M = row
+        tables, self.N, self.M, self.from_cache = placed(bodies, items)
+        n = self.N
+        groups, law_rows, self.laws, law_first = {}, [], [], []
+        for t in tables:
+            if t.key not in groups:
+                groups[t.key] = _Group(t.kernel)
+            g = groups[t.key]
+            g.rows += range(t.row, t.row + t.kernel.ROWS)
+            g.cols += t.cols
+            g.params += t.params
+            if t.law_first is not None:
+                law_rows.append(t.row)
+                self.laws.append(t.item.law)
+                law_first.append(t.law_first)
         self.groups = list(groups.values())
         for g in self.groups:
             g.freeze(n)

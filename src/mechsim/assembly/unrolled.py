@@ -48,12 +48,6 @@ NUMPY_MATH = {name: getattr(np, name) if name in ("sin", "cos", "sqrt", "fabs")
               else _libm(getattr(math, name)) for name in MATH}
 
 
-def namespace_line(source: str) -> str:
-    """The line of a generated module that binds `MATH`'s names to `source`'s (an
-    expression whose items are the functions by name)."""
-    return f"{', '.join(MATH)} = ({', '.join(f'{source}[{n!r}]' for n in MATH)})"
-
-
 _PLACEHOLDER = re.compile(r"\$([qvpsocP])(\d+)(?:_(\d+))?")
 
 
@@ -105,30 +99,15 @@ class _Joint:
 
 
 def joints(bodies, items):
-    """(the items as `_Joint`s, N, M, each driver's row -> its `DriverLaw`)."""
-    from ..model import Driver
+    """(the items as `_Joint`s, N, M, each driver's row -> its `DriverLaw`), from the
+    assembled model's tables (`mechsim.assembly.model.placed`)."""
     from .laws import DriverLaw
-    from .model import kernel_items, load_kernel
-    start, starts = 0, {}
-    for b in bodies:
-        starts[id(b)] = list(range(start, start + len(b.coordinate_names)))
-        start += len(b.coordinate_names)
-    first, k = {}, 0
-    for item in items:
-        first[id(item)] = k
-        k += len(item.parameter_names)
-    out, row, laws = [], 0, {}
-    for number, item in enumerate(items):
-        kernel, _ = load_kernel(item)
-        kernel_bodies, holders = kernel_items(item)
-        cols = [c for b in kernel_bodies for c in starts[id(b)]]
-        params = [first[id(h)] + j for h in holders for j in range(len(h.parameter_names))]
-        out.append(_Joint(number, kernel, row, cols, params))
-        if isinstance(item, Driver):           # its law's numbers follow the items' own
-            laws[row] = DriverLaw(item.law, number, k)
-            k += len(item.law_constants)
-        row += kernel.ROWS
-    return out, start, row, laws
+    from .model import placed
+    tables, n, m, _ = placed(bodies, items)
+    laws = {t.row: DriverLaw(t.item.law, number, t.law_first)
+            for number, t in enumerate(tables) if t.law_first is not None}
+    return [_Joint(number, t.kernel, t.row, t.cols, t.params)
+            for number, t in enumerate(tables)], n, m, laws
 
 
 # The outputs of each function: 0 Φ, 1 Φ_q (dense), 2 γ, 3 Φ_t, 4 Φ_q's non-zero entries.
@@ -299,7 +278,7 @@ def unrolled_source(bodies, items, key: str) -> str:
         "import numpy as _np",
         "from mechsim.model.splines import evaluate as pspline, evaluate_table as tspline",
         "",
-        namespace_line("vars(math)"),
+        f"from math import {', '.join(MATH)}",
         "M_PI, M_E = math.pi, math.e",
         "",
         f"KEY = {key!r}",

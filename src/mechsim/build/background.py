@@ -105,11 +105,12 @@ def build(bodies, items, structure):
     from ..model import FlexibleBeam
     from ..codegen import engine
     from ..codegen.cache import load_model
-    from ..linalg.banded import MIN_CONSTRAINTS
+    from ..linalg import banded
     module, _ = load_model(structure, lambda: fused_source(bodies, items, structure))
     # The compiled evaluations take rigid models on the dense algebra only: a long chain's
     # banded one runs in Python (their library would compile its model's C once more).
-    if module.M < MIN_CONSTRAINTS and not any(isinstance(b, FlexibleBeam) for b in bodies):
+    rigid = not any(isinstance(b, FlexibleBeam) for b in bodies)
+    if rigid and not banded.takes(module.M, rigid):
         engine.library(module)
     return module
 

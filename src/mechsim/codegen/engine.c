@@ -390,17 +390,22 @@ static void scale_columns(const mechsim_projection *c, const double *J, double *
     for (int64_t j = 0; j < c->n; j++) A[i * c->n + j] = J[i * c->n + j] * c->wsqrt[j];
 }
 
-/* The thin SVD of A = J~ (row-major m x n, m <= n; destroyed) by LAPACK's dgesdd into
-   c->sig (largest first), the right singular vectors of J~ as the columns of c->U
+/* LAPACK's dgesdd of A = J~ (row-major m x n, m <= n; destroyed) with `jobz`: c->sig
+   (largest first) and, with 'S', the right singular vectors of J~ as the columns of c->U
    (n x m, column-major) and the left ones as the rows of c->VT (m x m, column-major):
    row-major J~ is J~^T column-major, and J~^T = U S VT. 1 where dgesdd fails. */
-static int scaled_svd(mechsim_projection *c, double *A) {
-  char jobz = 'S';
+static int dgesdd_of(mechsim_projection *c, double *A, char jobz) {
   int N = (int)c->n, M = (int)c->m, LW = (int)c->lwork, info = 0;
   mechsim_dgesdd(&jobz, &N, &M, A, &N, c->sig, c->U, &N, c->VT, &M, c->svd_work, &LW,
                  c->iwork, &info);
   return info != 0;
 }
+
+/* The thin SVD (dgesdd_of with 'S'). */
+static int scaled_svd(mechsim_projection *c, double *A) { return dgesdd_of(c, A, 'S'); }
+
+/* The singular values alone (dgesdd without vectors) into c->sig, largest first. */
+static int singular_values(mechsim_projection *c, double *A) { return dgesdd_of(c, A, 'N'); }
 
 /* The accelerations by the SVD of J~ = J W^(1/2) (m <= n), as Projection.accelerations
    computes them where truncation drops nothing: every singular value above
@@ -766,21 +771,17 @@ void mechsim_chords(mechsim_projection *c, int64_t k, const double *T, const dou
   }
 }
 
-/* sigma_kk and sigma_max of J~ at each of the k states (T[i], Q[i, :]) into out[2 i],
-   out[2 i + 1] (dgesdd without vectors). 1 where an SVD fails. */
 /* sigma_kk and sigma_max of J~ in c->A (destroyed) into out[0], out[1]. 1 where the SVD
    fails. */
 static int svd_extremes(mechsim_projection *c, int64_t kk, double *out) {
-  char jobz = 'N';
-  int N = (int)c->n, M = (int)c->m, LW = (int)c->lwork, info = 0;
-  mechsim_dgesdd(&jobz, &N, &M, c->A, &N, c->sig, c->U, &N, c->VT, &M, c->svd_work, &LW,
-                 c->iwork, &info);
-  if (info != 0) return 1;
+  if (singular_values(c, c->A)) return 1;
   out[0] = c->sig[kk];
   out[1] = c->sig[0];
   return 0;
 }
 
+/* sigma_kk and sigma_max of J~ at each of the k states (T[i], Q[i, :]) into out[2 i],
+   out[2 i + 1] (dgesdd without vectors). 1 where an SVD fails. */
 int mechsim_extremes(mechsim_projection *c, int64_t k, int64_t kk, const double *T,
                      const double *Q, double *out) {
   for (int64_t i = 0; i < k; i++) {
@@ -1468,11 +1469,8 @@ static int keeps_set(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
   double *A = s->set_work;
   int64_t *mark = (int64_t *)s->set_mark;
   memcpy(A, J, m * n * sizeof(double));            /* J^T, column-major n x m */
-  char jobz = 'N';
-  int N = (int)n, M = (int)m, LW = (int)pc->lwork, info = 0;
-  mechsim_dgesdd(&jobz, &N, &M, A, &N, pc->sig, pc->U, &N, pc->VT, &M, pc->svd_work, &LW,
-                 pc->iwork, &info);
-  if (info != 0) return 0;
+  if (singular_values(pc, A)) return 0;
+  int N = (int)n, M = (int)m, info = 0;
   const double threshold = (double)(m > n ? m : n) * s->machine_eps * s->rank_factor *
       pc->sig[0];
   int64_t rank = 0;

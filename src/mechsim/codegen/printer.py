@@ -15,7 +15,6 @@ import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 
-
 class _Printer(PythonCodePrinter):
     def __init__(self):
         super().__init__({"fully_qualified_modules": True, "standard": "python3"})

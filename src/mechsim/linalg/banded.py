@@ -236,12 +236,18 @@ class BandedSchur:
         return order[perm]
 
 
+def takes(m: int, constant_mass: bool) -> bool:
+    """Does the banded path take a mechanism of `m` constraint equations (with a constant
+    diagonal mass, or not)? Where it does not, the dense one serves (and the compiled
+    engine with it)."""
+    return constant_mass and m >= MIN_CONSTRAINTS
+
+
 def for_problem(problem):
-    """The problem's BandedSchur, or None where the dense path serves (few constraints, a
-    mass matrix that is not constant and diagonal, or a model without the pattern)."""
+    """The problem's BandedSchur, or None where the dense path serves (`takes`; or a model
+    without the pattern)."""
     model = problem.model
-    if not problem.constant_mass or problem.m < MIN_CONSTRAINTS or \
-            not hasattr(model, "JACOBIAN_ROWS"):
+    if not takes(problem.m, problem.constant_mass) or not hasattr(model, "JACOBIAN_ROWS"):
         return None
     return BandedSchur(model.JACOBIAN_ROWS, model.JACOBIAN_COLS, (problem.m, problem.n),
                        problem.inverse_mass_diagonal)
