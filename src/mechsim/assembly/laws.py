@@ -23,8 +23,11 @@ import re
 from ..model.expressions import CONSTANTS, Expression, structural
 from .unrolled import MATH
 
+# A generated assignment's name (`_Emitter.let`: l<driver>_<k>).
+_NAME_TEXT = r"l\d+_\d+"
+_NAME = re.compile(rf"\b{_NAME_TEXT}\b")
 # A text that is a value already: an assignment's name, t, a law's number, a literal.
-_BARE = re.compile(r"l\d+_\d+|\$t|\$L\d+|\d+\.\d+")
+_BARE = re.compile(rf"{_NAME_TEXT}|\$t|\$L\d+|\d+\.\d+")
 
 
 def power(x: str, e: float) -> str:
@@ -222,8 +225,6 @@ def law_code(law: Expression, prefix: str):
     return e.lines, out
 
 
-# A generated assignment's name (`_Emitter.let`: l<driver>_<k>).
-_NAME = re.compile(r"\bl\d+_\d+\b")
 # The names the Python text reads (a generated module defines the same).
 PYTHON_NAMES = {**{name: getattr(math, name) for name in MATH},
                 "M_PI": math.pi, "M_E": math.e}
@@ -259,7 +260,8 @@ class DriverLaw:
     def needed(self, c: bool, which) -> list[tuple[str, str]]:
         """The assignments that the jet's entries numbered `which` (0 f, 1 f', 2 f'')
         read, in order."""
-        texts = [self.jet(c)[k] for k in which]
+        jet = self.jet(c)
+        texts = [jet[k] for k in which]
         names = set().union(*(_NAME.findall(t) for t in texts)) if texts else set()
         kept = []
         for name, text in reversed(self.lines(c)):

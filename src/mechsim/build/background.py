@@ -107,8 +107,9 @@ def build(bodies, items, structure):
     from ..codegen.cache import load_model
     from ..linalg import banded
     module, _ = load_model(structure, lambda: fused_source(bodies, items, structure))
-    # The compiled evaluations take rigid models on the dense algebra only: a long chain's
-    # banded one runs in Python (their library would compile its model's C once more).
+    # The compiled evaluations take rigid models (whose mass is constant and diagonal,
+    # `MassModel.constant`) on the dense algebra only: a long chain's banded one runs in
+    # Python (their library would compile its model's C once more).
     rigid = not any(isinstance(b, FlexibleBeam) for b in bodies)
     if rigid and not banded.takes(module.M, rigid):
         engine.library(module)
