@@ -48,6 +48,8 @@ KEEP = Correction()          # nothing corrected, no limit
 class Formulation:
     """Base class and complete contract of a formulation (scipy's `OdeSolver` is the model).
 
+    It is made with (problem, rtol, atol, monitor): the `NumericProblem`, the run's
+    tolerances (`tol` derives the others) and its `SingularityMonitor` (None: unwatched).
     A new formulation is a subclass that sets `name` (its key in `METHODS`) and implements
     `initial_state`, `rhs` and `state`; everything else has a working default. A minimal
     one, the index-1 system without stabilization::
@@ -93,11 +95,6 @@ class Formulation:
         nothing), and its `width` numbers at the output samples, which the run keeps
     project_now : None or (t, y) -> projected y or None: projection inside an integrator's
         step where it can (Adams: P E C, project, E)
-
-    Given at construction
-    ---------------------
-    problem, rtol, atol, monitor : the `NumericProblem`, the run's tolerances (`tol`
-        derives the others) and its `SingularityMonitor` (None: unwatched)
 
     Read by the run (the formulation's own state; the run never writes them)
     -------------------------------------------------------------------------
