@@ -1,5 +1,5 @@
-"""Plain LU steps taken in the compiled engine (`mechsim.run.segment`) give the Python
-loop's numbers to the bit."""
+"""Plain LU and projection steps taken in the compiled engine (`mechsim.run.segment`) give
+the Python loop's numbers to the bit."""
 
 import math
 
@@ -12,22 +12,26 @@ from mechsim.app.bench import PROBLEMS
 from mechsim.run import segment
 
 
-def _both(mech, monkeypatch, **run):
-    """The run with segments and without, and the steps the segments took."""
+def _both(mech, monkeypatch, kinds=None, **run):
+    """The run with segments and without, and the steps the segments took (`kinds`, where
+    given, gets them by the formulation: 0 projection, 1 partition)."""
     taken = []
     advance = segment.Segment.advance
 
     def counted(self):
         done = advance(self)
         if done:
-            taken.append(self.steps.s.count)
+            taken.append((self.steps.s.kind, self.steps.s.count))
         return done
     monkeypatch.setattr(segment.Segment, "advance", counted)
     fast = mech.simulate(**run)
     monkeypatch.setattr(segment, "enabled", False)
     slow = mech.simulate(**run)
     monkeypatch.setattr(segment, "enabled", True)
-    return fast, slow, sum(taken)
+    if kinds is not None:
+        for kind, count in taken:
+            kinds[kind] = kinds.get(kind, 0) + count
+    return fast, slow, sum(count for _, count in taken)
 
 
 def _same(fast, slow):
@@ -59,6 +63,32 @@ def test_segments_give_the_python_loop_s_numbers_to_the_bit(name, method, rtol, 
     assert fast.success
     _same(fast, slow)
     assert taken >= 0.2 * fast.stats["steps"]
+
+
+@needs_compiler
+@pytest.mark.parametrize("name, method, rtol, every_step", [
+    ("double-four-bar", "hybrid", 1e-4, False),   # between passages, landings of the bridge
+    ("double-four-bar", "projection", 1e-6, False),
+    ("crank-rocker", "projection", 1e-6, True),   # far from the band; a sample every step
+])
+def test_projection_segments_give_the_python_loop_s_numbers_to_the_bit(name, method, rtol,
+                                                                     every_step,
+                                                                     monkeypatch):
+    """The projection method's steps in the engine (the hybrid's projection phase after
+    and between passages, the bridge's approach, the projected state's rate evaluated
+    again, the hybrid's stable steps towards LU counted with the compiled condition test):
+    the same samples, counts, switches, bridges and passages as the loop's own steps, and
+    most of the projection steps taken there."""
+    p = PROBLEMS[name]
+    kinds = {}
+    grid = {} if every_step else {"output_step": p.t_end / 1000}
+    fast, slow, _ = _both(p.build(), monkeypatch, kinds, t_end=p.t_end, method=method,
+                          rtol=rtol, atol=1e-2 * rtol, max_step=p.max_step, **grid)
+    assert fast.success
+    _same(fast, slow)
+    assert fast.stats["projections"] == slow.stats["projections"]
+    projection_steps = fast.stats["steps"] - kinds.get(1, 0)
+    assert kinds.get(0, 0) >= 0.4 * projection_steps
 
 
 @needs_compiler

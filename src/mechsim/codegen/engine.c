@@ -592,6 +592,35 @@ int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, doub
   return 0;
 }
 
+/* The state (t, q, v) projected in place as mechsim_project_state with skip_tol = tol (no
+   condition test, no extra iterations), the velocity of a moved state projected once more
+   on the factor at its new q (the chord's factor at the old q leaves J v off by |dJ| |dv|):
+   0 (projected), 2 (within tol already, left) or 1 (declined: left, for the Python path). */
+static int settle_state(mechsim_projection *c, double t, double *q, double *v, double tol,
+                        int64_t max_iter) {
+  const int64_t n = c->n;
+  memcpy(c->q, q, n * sizeof(double));
+  memcpy(c->v, v, n * sizeof(double));
+  const int status = mechsim_project_state(c, t, tol, tol, -1.0, 0, max_iter);
+  if (status != 0) return status;
+  if (c->count > 0) {
+    /* c->J is Phi_q at the new q: its own factor makes J v + Phi_t vanish */
+    const double diag = complement(n, c->m, c->J, c->winv, c->S);
+    if (cholesky(c, c->S, diag, -1.0)) return 1;
+    memset(c->r, 0, c->m * sizeof(double));
+    mechsim_phi_t(c->q, t, c->p, c->r);
+    for (int64_t a = 0; a < c->m; a++) {
+      double s = 0.0;
+      for (int64_t j = 0; j < n; j++) s += c->J[a * n + j] * c->v[j];
+      c->r[a] += s;
+    }
+    if (correct(c, c->J, c->S, c->r, c->v)) return 1;
+  }
+  memcpy(q, c->q, n * sizeof(double));
+  memcpy(v, c->v, n * sizeof(double));
+  return 0;
+}
+
 /* The k states (T[i], Q[i, :], V[i, :]) projected in place, each as mechsim_project_state
    with skip_tol = tol = tols[i] (no condition test, no extra iterations), the velocity
    of a moved state projected once more on the factor at its new q (the chord's factor
@@ -601,35 +630,8 @@ int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, doub
 void mechsim_project_states(mechsim_projection *c, int64_t k, const double *T, double *Q,
                             double *V, const double *tols, int64_t max_iter,
                             int64_t *status) {
-  const int64_t n = c->n;
-  for (int64_t i = 0; i < k; i++) {
-    memcpy(c->q, Q + i * n, n * sizeof(double));
-    memcpy(c->v, V + i * n, n * sizeof(double));
-    status[i] = mechsim_project_state(c, T[i], tols[i], tols[i], -1.0, 0, max_iter);
-    if (status[i] == 0 && c->count > 0) {
-      /* c->J is Phi_q at the new q: its own factor makes J v + Phi_t vanish */
-      const double diag = complement(n, c->m, c->J, c->winv, c->S);
-      if (cholesky(c, c->S, diag, -1.0)) {
-        status[i] = 1;
-        continue;
-      }
-      memset(c->r, 0, c->m * sizeof(double));
-      mechsim_phi_t(c->q, T[i], c->p, c->r);
-      for (int64_t a = 0; a < c->m; a++) {
-        double s = 0.0;
-        for (int64_t j = 0; j < n; j++) s += c->J[a * n + j] * c->v[j];
-        c->r[a] += s;
-      }
-      if (correct(c, c->J, c->S, c->r, c->v)) {
-        status[i] = 1;
-        continue;
-      }
-    }
-    if (status[i] == 0) {
-      memcpy(Q + i * n, c->q, n * sizeof(double));
-      memcpy(V + i * n, c->v, n * sizeof(double));
-    }
-  }
+  for (int64_t i = 0; i < k; i++)
+    status[i] = settle_state(c, T[i], Q + i * c->n, V + i * c->n, tols[i], max_iter);
 }
 
 /* ---- the singularity monitor and the hybrid's LU test ---- */
@@ -1087,20 +1089,20 @@ static int declined_rate(double t, const double *y, double *f) {
   return 1;
 }
 
-/* The step's dense output at the k times ts (its extra stages and coefficients formed once
-   a step, into s->F; their rates counted in *evaluations), the positions there into Q
-   (k x n) as Partitioned.positions solves them (lu_state on the partition's last accepted
-   step). 0: done; 1: a stage or a state the engine declines. */
-static int dense_ready(mechsim_lu *c, mechsim_segment *s, double t_old, double h, const double *y,
+/* The step's dense output (its extra stages and coefficients formed once a step, into s->F;
+   their rates counted in *evaluations) on the step's rate (s->rate_ctx of s->kind, with
+   s->rate_rcond and s->cut), the state of N entries. 0: done; 1: a stage the engine
+   declines. */
+static int dense_ready(mechsim_segment *s, int64_t N, double t_old, double h, const double *y,
                        const double *y_new, const double *f_new, int *ready,
                        int64_t *evaluations) {
-  const int64_t N = 2 * c->f;
   if (*ready) return 0;
   double *ein = s->extra_in;
   ein[0] = (double)(s->stages + 1); ein[1] = (double)s->extra_rows;
-  ein[2] = (double)s->extra_width; ein[3] = t_old; ein[4] = h; ein[5] = -1.0; ein[6] = 0.0;
-  if (mechsim_dop853_extra(c, 1, N, s->extra_coef, ein, y, s->K, s->work, s->extra_out,
-                           (void *)declined_rate)) return 1;
+  ein[2] = (double)s->extra_width; ein[3] = t_old; ein[4] = h; ein[5] = s->rate_rcond;
+  ein[6] = s->cut;
+  if (mechsim_dop853_extra(s->rate_ctx, s->kind, N, s->extra_coef, ein, y, s->K, s->work,
+                           s->extra_out, (void *)declined_rate)) return 1;
   *evaluations += s->extra_rows;
   mechsim_dense_coefficients(N, s->dense_rows, s->dense_cols, s->dense, s->K, y, y_new, f_new,
                              h, s->F);
@@ -1428,18 +1430,20 @@ static int under(double smin, double smax, double enter) {
 }
 
 /* The monitor's search inside the step [t0, t1] of a segment (anchored_search on the step's
-   dense output, the positions solved on the partition, with the loop's thresholds), where
+   dense output of N entries, the positions solved on the partition c, or q = y[:n] where c
+   is NULL, with the loop's thresholds), where
    it finds no passage: 1 when no measured sigma_min/sigma_max is under `enter`
    (unnormalized); 0 where one is (a passage: the loop records it, taking this search as
    it stands), or the search declined. */
 static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
-                         double t0, double t1, double t_old, double h_step, const double *y,
+                         int64_t N, double t0, double t1, double t_old, double h_step,
+                         const double *y,
                          int64_t budget, double enter, double leave, double apart,
                          const double *end0, const double *end1) {
   mechsim_search *w = (mechsim_search *)s->search;
   w->grid = s->grid;
   w->kk = pc->m - 1;
-  w->N = 2 * c->f;
+  w->N = N;
   w->rows = s->dense_rows + 3;
   w->open_at_start = 0;
   w->chord = s->chord;
@@ -1497,7 +1501,7 @@ static int keeps_set(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
 /* Why a segment stopped (mechsim_segment.reason). */
 enum { SEG_BUDGET = 0, SEG_STEP, SEG_BRANCH, SEG_SAMPLES, SEG_ROOM, SEG_DUE, SEG_FINITE,
        SEG_MEASURE, SEG_SEARCH, SEG_BAND, SEG_LEAVE, SEG_PARTITION, SEG_FINISHED, SEG_SHORT,
-       SEG_LIMIT };
+       SEG_LIMIT, SEG_PROJECT, SEG_BRIDGE };
 
 /* A step's observation by the singularity monitor, as candidates the segment commits once
    the step stands. */
@@ -1507,16 +1511,14 @@ typedef struct {
 } seg_observation;
 
 /* SingularityMonitor.observe at the end (q_new, v_new; |v|inf = speed) of the step from
-   t_old of length h: its skip by Weyl's bound (o->skip, o->floor_value), or its
-   measurement into the free slot of the fall buffers with the clears of a passage hidden
-   in the step (_hidden_passages: the rate bound, _fall_clears, the anchored search where
-   it finds none). 0: the step is plain for the monitor; else the reason it is not. */
-static int64_t observe_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
-                            double t_old, double t_new, double h, const double *y,
-                            const double *y_new, const double *f_new, const double *q_new,
-                            const double *v_new, double speed, seg_observation *o, int *ready,
-                            int64_t *evaluations) {
-  const int64_t n = c->n, m = c->m, mn = m * n, nr = n * m;
+   t_old: its skip by Weyl's bound (o->skip, o->floor_value), or its measurement into the
+   free slot of the fall buffers. 0: the step is plain for the monitor so far (a passage
+   hidden in it is `hidden_clear`'s to rule out); else the reason it is not (a measurement
+   that fails, the band). */
+static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t_old,
+                            double t_new, const double *q_new, const double *v_new,
+                            double speed, seg_observation *o) {
+  const int64_t n = pc->n, m = pc->m, mn = m * n, nr = n * m;
   o->skip = 0;
   o->floor_value = 0.0;
   if (s->has_prev && s->skipped < s->max_skip && s->has_measured) {
@@ -1555,12 +1557,30 @@ static int64_t observe_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segme
     }
     o->has_fall = 1;
   }
-  const double ratio_speed = o->ratio_speed = s->small ? 2.0 * rate_norm / smax : 0.0;
+  o->ratio_speed = s->small ? 2.0 * rate_norm / smax : 0.0;
   const double peak = o->peak = py_max(s->peak, raw);
   if (peak < s->blind) return SEG_MEASURE;
   const double srel = o->srel = raw / peak;
   rate = o->rate = rate / peak;
-  const double peak_rate = o->peak_rate = py_max(s->peak_rate, fabs(rate));
+  o->peak_rate = py_max(s->peak_rate, fabs(rate));
+  return srel < s->enter ? SEG_BAND : 0;
+}
+
+/* Whether a passage hidden in the measured step (observation o) from t_old of length h
+   is ruled out as SingularityMonitor._hidden_passages rules it out (the rate bound,
+   _fall_clears, the anchored search where it finds none), the positions solved on the
+   partition c (NULL: the state is [q; v]). 0: cleared; SEG_SEARCH where not. */
+static int64_t hidden_clear(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
+                            double t_old, double t_new, double h, const double *y,
+                            const double *y_new, const double *f_new,
+                            const seg_observation *o, int *ready, int64_t *evaluations) {
+  if (o->skip) return 0;
+  const int64_t n = pc->n, m = pc->m, mn = m * n, nr = n * m, N = c ? 2 * c->f : 2 * n;
+  const int slot = o->slot;
+  const double *Jn = s->Js + slot * mn, *Dn = s->Ds + slot * mn, *Pn = s->Ps + slot * nr;
+  const double smin = o->smin, smax = o->smax, rate_norm = o->rate_norm;
+  const double peak = o->peak, srel = o->srel, rate = o->rate, peak_rate = o->peak_rate;
+  const double ratio_speed = o->ratio_speed;
   /* the step's start as the search takes it */
   int has_a = (int)s->has_prev;
   double a_t = s->prev_t, a_s = s->prev_s, a_d = s->prev_rate;
@@ -1600,14 +1620,14 @@ static int64_t observe_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segme
       const double *end0 = NULL, end1[2] = {smin, smax};
       for (int64_t j = 0; j < s->known_n; j++)
         if (s->known[3 * j] == a_t) end0 = s->known + 3 * j + 1;
-      clear = !dense_ready(c, s, t_old, h, y, y_new, f_new, ready, evaluations) &&
-          search_clears(c, pc, s, a_t, t_new, t_old, h, y, (int64_t)budget, enter,
+      clear = !dense_ready(s, N, t_old, h, y, y_new, f_new, ready, evaluations) &&
+          search_clears(c, pc, s, N, a_t, t_new, t_old, h, y, (int64_t)budget, enter,
                         s->leave * peak, 2.0 * (s->leave * peak - enter) / rate_bound, end0,
                         end1);
     }
     if (!clear) return SEG_SEARCH;
   }
-  return srel < s->enter ? SEG_BAND : 0;
+  return 0;
 }
 
 /* HybridPolicy.lu_limit and leave_lu after an LU step of length h, the monitor at `last`
@@ -1632,7 +1652,7 @@ static int samples_step(mechsim_lu *c, mechsim_segment *s, double t_old, double 
                         const double *y, const double *y_new, const double *f_new, int64_t k0,
                         int64_t k, int *ready, int64_t *evaluations) {
   const int64_t N = 2 * c->f, n = c->n, width = 1 + 2 * n;
-  if (dense_ready(c, s, t_old, h, y, y_new, f_new, ready, evaluations)) return 1;
+  if (dense_ready(s, N, t_old, h, y, y_new, f_new, ready, evaluations)) return 1;
   mechsim_interpolate(N, s->dense_rows + 3, s->F, t_old, h, y, k, s->ts + k0, s->Y);
   double *rows = s->rows + s->held * width;
   for (int64_t j = 0; j < k; j++) {
@@ -1736,6 +1756,92 @@ static void accept_end(mechsim_lu *c, mechsim_segment *s, double t_new, const do
   }
 }
 
+/* A segment's next step (CompiledDOP853.step) from (s->t, s->y, s->fy) on the step's rate
+   (s->rate_ctx of s->kind; min_rcond s->rate_rcond, s->cut), the state of N entries: its
+   end into s->y_new, s->f_new, out = (t_new, h, next h_abs, evaluations). 0: a step the
+   segment may take; else why not (the step limit, a stage declined, a step shorter than the
+   stall rule's span, the run's end). */
+static int64_t segment_step(mechsim_segment *s, int64_t N) {
+  if (s->max_steps >= 0 && s->steps + 1 > s->max_steps) return SEG_LIMIT;
+  double *in = s->in, *out = s->out;
+  in[0] = (double)s->stages; in[1] = s->t; in[2] = s->h_abs; in[3] = s->t_bound;
+  in[4] = s->direction; in[5] = s->max_step; in[6] = s->rtol; in[7] = s->rate_rcond;
+  in[8] = s->cut; in[9] = s->safety; in[10] = s->min_factor; in[11] = s->max_factor;
+  in[12] = s->exponent;
+  if (mechsim_dop853(s->rate_ctx, s->kind, N, s->coef, in, s->y, s->fy, s->atol, s->K,
+                     s->y_new, s->f_new, s->work, out, (void *)declined_rate)) return SEG_STEP;
+  if (out[1] < s->min_advance) return SEG_SHORT;
+  if (s->direction * (out[0] - s->t_bound) >= 0.0) return SEG_FINISHED;
+  return 0;
+}
+
+/* The output samples inside the step from t_old to t_new (Recorder.within): s->ts[*k0 ...
+   *k0 + *k - 1], the grid's next index after them *next. 0, or why the segment cannot
+   record them (no room; a sample due at the step's end, or a sample at every step's end
+   without room). */
+static int64_t sample_window(mechsim_segment *s, double t_old, double t_new, int64_t *k0,
+                             int64_t *k, int64_t *next) {
+  int64_t j = s->next;
+  while (j < s->n_ts && s->ts[j] < t_new) j++;
+  int64_t first = s->next;
+  while (first < j && !(s->ts[first] > t_old)) first++;
+  *k0 = first;
+  *k = j - first;
+  *next = j;
+  if (*k > 0 && (s->held + *k > s->capacity || *k > s->y_rows)) return SEG_ROOM;
+  if (j < s->n_ts && s->ts[j] == t_new) return SEG_DUE;
+  if (s->every_step && s->held + 1 > s->capacity) return SEG_ROOM;
+  return 0;
+}
+
+/* |v|inf of the step's end (q, v), NaN where an entry of q or v is not finite. */
+static double end_speed(int64_t n, const double *q, const double *v) {
+  double speed = 0.0;
+  for (int64_t i = 0; i < n; i++) {
+    if (!isfinite(q[i]) || !isfinite(v[i])) return NAN;
+    const double a = fabs(v[i]);
+    if (a > speed) speed = a;
+  }
+  return speed;
+}
+
+/* The integrator and the run after the step from t_old that stands (its end y_end, f_end,
+   N entries; k samples inside it; the sample at its end (t_new, q_end, v_end) where every
+   step records one; the log's row). */
+static void commit_step(mechsim_segment *s, int64_t N, int64_t n, double t_old,
+                        const double *y_end, const double *f_end, int64_t evaluations,
+                        int64_t next, int64_t k, const double *q_end, const double *v_end,
+                        double speed, double s_un, double rate_un) {
+  const double t_new = s->out[0], h = s->out[1], h_next = s->out[2];
+  memcpy(s->y_old, s->y, N * sizeof(double));
+  memcpy(s->y, y_end, N * sizeof(double));
+  memcpy(s->fy, f_end, N * sizeof(double));
+  s->t_old = t_old;
+  s->t = t_new;
+  s->h_previous = h;
+  s->h_abs = h_next;
+  s->evaluations += evaluations;
+  s->steps += 1;
+  s->next = next;
+  s->held += k;
+  if (s->every_step) {                         /* Recorder.record_due at the step's end */
+    double *row = s->rows + s->held * (1 + 2 * n);
+    row[0] = t_new;
+    memcpy(row + 1, q_end, n * sizeof(double));
+    memcpy(row + 1 + n, v_end, n * sizeof(double));
+    s->held += 1;
+  }
+  double *log = s->log + 6 * s->count;
+  log[0] = t_new; log[1] = h; log[2] = speed; log[3] = h_next; log[4] = s_un;
+  log[5] = rate_un;
+  s->count += 1;
+}
+
+/* Whether the runaway rule looks at the run after its latest step (Run._advance). */
+static int runaway_due(const mechsim_segment *s) {
+  return s->steps >= s->runaway_from && s->steps % s->runaway_every == 0;
+}
+
 /* Up to s->budget accepted steps of DOP853 on the partition c (kind 1), each followed by
    what Run._advance does after a plain step of a small rigid mechanism in LU (the hybrid's LU
    phase, or "lu"): its output samples (dense output, positions and velocities) written to
@@ -1749,25 +1855,20 @@ static void accept_end(mechsim_lu *c, mechsim_segment *s, double t_new, const do
    the same state, with the same numbers. Everything a committed step changes is in s, c
    and the buffers s points to; Python reads it back (mechsim.run.segment). */
 int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s) {
-  const int64_t N = 2 * c->f, f = c->f, n = c->n, m = c->m, S = s->stages;
-  const int64_t mn = m * n, width = 1 + 2 * n;
-  double *y = s->y, *fy = s->fy, *K = s->K, *y_new = s->y_new, *f_new = s->f_new;
-  double *in = s->in, *out = s->out;
+  const int64_t N = 2 * c->f, f = c->f, n = c->n, m = c->m;
+  const int64_t mn = m * n;
+  double *y = s->y, *y_new = s->y_new, *f_new = s->f_new;
+  s->rate_ctx = c;
+  s->kind = 1;
+  s->rate_rcond = -1.0;
+  s->cut = 0.0;
   s->count = 0;
   s->reason = SEG_BUDGET;
   while (s->count < s->budget) {
-    if (s->max_steps >= 0 && s->steps + 1 > s->max_steps) { s->reason = SEG_LIMIT; break; }
-    /* the step (CompiledDOP853.step) */
-    in[0] = (double)S; in[1] = s->t; in[2] = s->h_abs; in[3] = s->t_bound;
-    in[4] = s->direction; in[5] = s->max_step; in[6] = s->rtol; in[7] = -1.0; in[8] = 0.0;
-    in[9] = s->safety; in[10] = s->min_factor; in[11] = s->max_factor; in[12] = s->exponent;
-    int status = mechsim_dop853(c, 1, N, s->coef, in, y, fy, s->atol, K, y_new, f_new,
-                                s->work, out, (void *)declined_rate);
-    if (status) { s->reason = SEG_STEP; break; }
-    int64_t evaluations = (int64_t)out[3];
-    const double t_old = s->t, t_new = out[0], h = out[1], h_next = out[2];
-    if (h < s->min_advance) { s->reason = SEG_SHORT; break; }
-    if (s->direction * (t_new - s->t_bound) >= 0.0) { s->reason = SEG_FINISHED; break; }
+    int64_t why = segment_step(s, N);
+    if (why) { s->reason = why; break; }
+    int64_t evaluations = (int64_t)s->out[3];
+    const double t_old = s->t, t_new = s->out[0], h = s->out[1];
     /* the step's end (Partitioned.keeps_branch, after_step: one LU of Phi_q D) */
     memcpy(c->y, y_new, N * sizeof(double));
     if (mechsim_lu_end(c, t_new, s->inverse, s->reduced, s->block) ||
@@ -1780,28 +1881,17 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     memcpy(v_new, c->v, n * sizeof(double));
     /* the output samples inside the step (Recorder.within): computed once the step is
        known to stand, below */
-    int64_t next = s->next;
-    while (next < s->n_ts && s->ts[next] < t_new) next++;
-    int64_t k0 = s->next;
-    while (k0 < next && !(s->ts[k0] > t_old)) k0++;
-    const int64_t k = next - k0;
-    if (k > 0 && (s->held + k > s->capacity || k > s->y_rows)) { s->reason = SEG_ROOM; break; }
-    if (next < s->n_ts && s->ts[next] == t_new) { s->reason = SEG_DUE; break; }
-    if (s->every_step && s->held + 1 > s->capacity) { s->reason = SEG_ROOM; break; }
-    double speed = 0.0;
-    for (int64_t i = 0; i < n; i++) {
-      if (!isfinite(q_new[i]) || !isfinite(v_new[i])) { speed = NAN; break; }
-      const double a = fabs(v_new[i]);
-      if (a > speed) speed = a;
-    }
+    int64_t k0, k, next;
+    why = sample_window(s, t_old, t_new, &k0, &k, &next);
+    if (why) { s->reason = why; break; }
+    const double speed = end_speed(n, q_new, v_new);
     if (isnan(speed)) { s->reason = SEG_FINITE; break; }
     /* the monitor (SingularityMonitor.observe), its state changed only once the step
        stands: the candidates in o */
     seg_observation o;
     int ready = 0;                       /* the step's dense output formed */
-    const int64_t declined = observe_step(c, pc, s, t_old, t_new, h, y, y_new, f_new, q_new,
-                                          v_new, speed, &o, &ready, &evaluations);
-    if (declined) { s->reason = declined; break; }
+    why = observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
+    if (why) { s->reason = why; break; }
     const double last = o.skip ? s->last : o.srel, mon_rate = o.skip ? s->rate : o.rate;
     /* the hybrid's policy (HybridPolicy.lu_limit, leave_lu) */
     int has_limit = 0, held = (int)s->held_steps;
@@ -1810,6 +1900,10 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
       s->reason = SEG_LEAVE;
       break;
     }
+    /* a passage hidden in the step, ruled out (the search last: a step the loop takes
+       anyway spends none) */
+    why = hidden_clear(c, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready, &evaluations);
+    if (why) { s->reason = why; break; }
     /* the partition (Partitioned.after_step) */
     double repartition_at = s->repartition_at;
     if (fresh >= 2 || condition > repartition_at) {
@@ -1863,30 +1957,214 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
       if (has_limit) s->max_step = py_min(s->run_max_step, limit);
     }
     commit_observation(s, &o, mn, t_old, t_new);
-    /* the integrator and the run */
     s->sign = s->block[0];
-    memcpy(s->y_old, y, N * sizeof(double));
-    memcpy(y, y_new, N * sizeof(double));
-    memcpy(fy, f_new, N * sizeof(double));
-    s->t_old = t_old;
-    s->t = t_new;
-    s->h_previous = h;
-    s->h_abs = h_next;
-    s->evaluations += evaluations;
-    s->steps += 1;
-    s->next = next;
-    s->held += k;
-    if (s->every_step) {                       /* Recorder.record_due at the step's end */
-      double *row = s->rows + s->held * width;
-      row[0] = t_new;
-      memcpy(row + 1, q_end, n * sizeof(double));
-      memcpy(row + 1 + n, v_end, n * sizeof(double));
-      s->held += 1;
+    commit_step(s, N, n, t_old, y_new, f_new, evaluations, next, k, q_end, v_end, speed, 0.0,
+                0.0);
+    if (runaway_due(s)) break;
+  }
+  return s->count;
+}
+
+/* SingularityMonitor.predicted_within(h) at s/peak = last falling at `rate`. */
+static int predicted_within(double last, double rate, double h, double enter) {
+  return last < enter || (rate < 0.0 && last + rate * h < enter);
+}
+
+/* The passage bridge's plan as a segment carries it (PassageBridge's _prev, landing,
+   free_step, _free_bound; not standing down, nothing declined). */
+typedef struct {
+  int has_prev, has_landing, has_free, free_bound;
+  double prev_t, prev_rate, landing, free_step;
+} seg_bridge;
+
+/* PassageBridge.plan after a step ending at t with sigma_min/sigma_max = sv falling at
+   `rate` (unnormalized), the next step h_next (`bound`: the run's max_step), from the plan
+   b carries, which it changes as plan does: 1 where it returns None, 2 where it lands
+   (the next step up to *land), 0 where it would cross or stand down (the loop's). */
+static int bridge_plan(const mechsim_segment *s, seg_bridge *b, double t, double sv,
+                       double rate, double h_next, int bound, double *land) {
+  const int has_prev = b->has_prev;
+  const double prev_t = b->prev_t, prev_rate = b->prev_rate;
+  b->has_prev = 1;
+  b->prev_t = t;
+  b->prev_rate = rate;
+  if (rate >= 0.0) b->has_landing = b->has_prev = b->has_free = 0;
+  if (!(rate < 0.0)) return 1;
+  if (sv < s->edge) return 0;
+  const double curv = has_prev && t > prev_t ? (rate - prev_rate) / (t - prev_t) : 0.0;
+  const double disc = rate * rate - 2.0 * curv * sv;
+  const double to_star = disc > 0.0 ? 2.0 * sv / (-rate + sqrt(disc)) : sv / -rate;
+  if (!b->has_landing) {
+    if (to_star > 3.0 * h_next) {                  /* note_step */
+      if (!b->has_free || h_next >= b->free_step) {
+        b->has_free = 1;
+        b->free_step = h_next;
+        b->free_bound = bound;
+      }
+      return 1;
     }
-    double *log = s->log + 4 * s->count;
-    log[0] = t_new; log[1] = h; log[2] = speed; log[3] = h_next;
-    s->count += 1;
-    if (s->steps >= s->runaway_from && s->steps % s->runaway_every == 0) break;
+    const double floor = (b->free_bound ? 3.2 : 1.6) * s->edge / -rate;
+    const double base = b->has_free && b->free_step != 0.0 ? b->free_step : h_next;
+    b->landing = py_max(s->landing_share * base, floor);
+    b->has_landing = 1;
+  }
+  if (to_star <= 1.5 * b->landing) return 0;
+  const double reach = to_star - py_max(b->landing, 0.25 * to_star);
+  if (reach <= 0.0) return 0;
+  if (!(reach < h_next)) return 1;
+  *land = reach;
+  return 2;
+}
+
+/* The output samples at s->ts[k0 ...] inside the step from t_old (Recorder.within,
+   FullCoordinates.states: each put onto the constraints as settle_samples does in the
+   engine, to ROUND_OFF of its largest coordinate) into the rows after s->held, the
+   projections counted in *projections. 0: done; 1 where a stage is declined, a sample's
+   projection is the Python path's, or a sample is not finite. */
+static int projection_samples(mechsim_projection *pc, mechsim_segment *s, double t_old,
+                              double h, const double *y, const double *y_new,
+                              const double *f_new, int64_t k0, int64_t k, int *ready,
+                              int64_t *evaluations, int64_t *projections) {
+  const int64_t n = pc->n, N = 2 * n, width = 1 + 2 * n;
+  if (dense_ready(s, N, t_old, h, y, y_new, f_new, ready, evaluations)) return 1;
+  mechsim_interpolate(N, s->dense_rows + 3, s->F, t_old, h, y, k, s->ts + k0, s->Y);
+  double *rows = s->rows + s->held * width;
+  for (int64_t j = 0; j < k; j++) {
+    double *row = rows + j * width, *q = row + 1, *v = row + 1 + n;
+    row[0] = s->ts[k0 + j];
+    memcpy(q, s->Y + j * N, n * sizeof(double));
+    memcpy(v, s->Y + j * N + n, n * sizeof(double));
+    const double top = max_abs(n, q);
+    const double tol = s->round_off * (top > 1.0 ? top : 1.0);
+    const int status = settle_state(pc, row[0], q, v, tol, 8);
+    if (status == 1) return 1;
+    *projections += status == 0;
+    for (int64_t i = 1; i < width; i++)
+      if (!isfinite(row[i])) return 1;
+  }
+  return 0;
+}
+
+/* Up to s->budget accepted steps of DOP853 of the projection method on its compiled
+   accelerations (kind 0, pc; the Cholesky path with s->min_rcond and s->cut, or without the
+   condition estimate while far from the band, as Projection._far_from_band decides after
+   each step), each followed by what Run._advance does after a plain step of the projection
+   method (the hybrid's projection phase, or "projection") clear of a passage: the output
+   samples put onto the constraints, the singularity monitor's observation (as in
+   mechsim_lu_segment, the positions q = y[:n]), the state projected onto the constraints
+   (Projection.after_step, NumericProblem.project_state compiled) and its rate evaluated
+   again there (adapters.correct_in_place), the hybrid's count of stable steps towards LU
+   (SwitchPolicy.back_to_lu, its condition test mechsim_lu_condition), the passage bridge's
+   plan (nothing, or the approach's landing as the next step's bound). Where anything else
+   would happen (a switch to LU, a crossing, a passage's band, a projection or a rate the
+   engine declines, and the reasons of mechsim_lu_segment) the step is dropped and the
+   segment ends before it with s->reason: the Python loop takes it from the same state. */
+int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
+  const int64_t n = pc->n, m = pc->m, N = 2 * n, mn = m * n;
+  double *y = s->y, *y_new = s->y_new, *f_new = s->f_new, *y_here = s->y_here;
+  s->rate_ctx = pc;
+  s->kind = 0;
+  s->count = 0;
+  s->reason = SEG_BUDGET;
+  while (s->count < s->budget) {
+    s->rate_rcond = s->far ? -1.0 : s->min_rcond;
+    int64_t why = segment_step(s, N);
+    if (why) { s->reason = why; break; }
+    int64_t evaluations = (int64_t)s->out[3], projections = 0;
+    const double t_old = s->t, t_new = s->out[0], h = s->out[1], h_next = s->out[2];
+    const double *q_new = y_new, *v_new = y_new + n;
+    int64_t k0, k, next;
+    why = sample_window(s, t_old, t_new, &k0, &k, &next);
+    if (why) { s->reason = why; break; }
+    const double speed = end_speed(n, q_new, v_new);
+    if (isnan(speed)) { s->reason = SEG_FINITE; break; }
+    seg_observation o;
+    int ready = 0;
+    why = observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
+    if (why) { s->reason = why; break; }
+    const double last = o.skip ? s->last : o.srel, mon_rate = o.skip ? s->rate : o.rate;
+    const double peak = o.peak;
+    /* Projection.after_step: the far flag for the next step, the state projected */
+    const int far = s->leave * peak > 100.0 * s->cut && last >= s->leave &&
+        !predicted_within(last, mon_rate, 3.0 * h, s->enter);
+    memcpy(pc->q, q_new, n * sizeof(double));
+    memcpy(pc->v, v_new, n * sizeof(double));
+    const int status = mechsim_project_state(pc, t_new, s->skip_tol, s->project_tol,
+                                             s->min_rcond, 0, 8);
+    if (status == 1) { s->reason = SEG_PROJECT; break; }
+    const int moved = status == 0;
+    if (moved) {
+      projections += pc->count;
+      memcpy(y_here, pc->q, n * sizeof(double));
+      memcpy(y_here + n, pc->v, n * sizeof(double));
+    } else {
+      memcpy(y_here, y_new, N * sizeof(double));
+    }
+    /* the hybrid's way back to LU (SwitchPolicy.back_to_lu, Hybrid._lu_ready) */
+    int64_t stable = 0;
+    if (s->hybrid) {
+      const int growing = h >= 0.99 * s->previous;
+      const int clear = last > s->leave && !predicted_within(last, mon_rate, h, s->enter);
+      int fit = clear && growing;
+      if (fit) {
+        if (!(last * peak > 1e-6)) { s->reason = SEG_LEAVE; break; }   /* Python's choice */
+        memcpy(pc->q, y_here, n * sizeof(double));
+        fit = mechsim_lu_condition(pc, t_new) < s->lu_limit;
+      }
+      stable = fit ? s->stable + 1 : 0;
+      if (stable >= s->stable_steps) { s->reason = SEG_LEAVE; break; }
+    }
+    /* the passage bridge's plan (Run._bridge, bridge_passage): nothing, or a landing */
+    const double s_un = last * peak, rate_un = mon_rate * peak;
+    seg_bridge b = {(int)s->has_bprev, (int)s->has_landing, (int)s->has_free,
+                    (int)s->free_bound, s->bprev_t, s->bprev_rate, s->landing, s->free_step};
+    int plan = 1;
+    double land = 0.0;
+    if (s->bridging) {
+      plan = h_next != 0.0 ? bridge_plan(s, &b, t_new, s_un, rate_un,
+                                         py_min(h_next, s->run_max_step),
+                                         h_next >= s->run_max_step, &land) : 0;
+      if (!plan) { s->reason = SEG_BRIDGE; break; }
+    }
+    why = hidden_clear(NULL, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready,
+                       &evaluations);
+    if (why) { s->reason = why; break; }
+    if (k > 0 && projection_samples(pc, s, t_old, h, y, y_new, f_new, k0, k, &ready,
+                                    &evaluations, &projections)) {
+      s->reason = SEG_SAMPLES;
+      break;
+    }
+    /* the projected state's rate (adapters.correct_in_place), on the next step's far */
+    const double *f_end = f_new;
+    if (moved) {
+      memcpy(pc->q, y_here, n * sizeof(double));
+      memcpy(pc->v, y_here + n, n * sizeof(double));
+      if (mechsim_projection_accelerations(pc, t_new, far ? -1.0 : s->min_rcond, s->cut)) {
+        s->reason = SEG_PROJECT;
+        break;
+      }
+      memcpy(s->f_here, pc->out, N * sizeof(double));
+      f_end = s->f_here;
+    }
+    /* committed from here */
+    s->projections += projections;
+    s->corrections += moved;
+    s->refreshed += moved;
+    s->far_taken = s->far;
+    s->far = far;
+    s->max_step = plan == 2 ? py_min(s->run_max_step, land) : s->run_max_step;
+    if (s->hybrid) {
+      s->stable = stable;
+      s->previous = h;
+      s->policy_steps += 1;
+    }
+    s->has_bprev = b.has_prev; s->bprev_t = b.prev_t; s->bprev_rate = b.prev_rate;
+    s->has_landing = b.has_landing; s->landing = b.landing;
+    s->has_free = b.has_free; s->free_step = b.free_step; s->free_bound = b.free_bound;
+    commit_observation(s, &o, mn, t_old, t_new);
+    commit_step(s, N, n, t_old, y_here, f_end, evaluations, next, k, y_here, y_here + n, speed,
+                s_un, rate_un);
+    if (runaway_due(s)) break;
   }
   return s->count;
 }

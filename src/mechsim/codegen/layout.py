@@ -168,7 +168,12 @@ SEGMENT = Layout("mechsim_segment", [
         "held", "capacity", "y_rows", "evaluations", "factorizations", "corrections",
         "hybrid", "held_steps", "has_limit", "policy_steps", "small", "max_skip", "skipped",
         "has_prev", "has_floor", "has_measured", "has_fall", "cur", "known_n", "every_step",
-        "grid")),
+        "grid",
+        # the step's rate: its context's kind (0 projection, 1 partition); the projection
+        # method's steps (`mechsim_projection_segment`): its far flag now and for the last
+        # step, the hybrid's stable steps, the bridge's previous plan, what was counted
+        "kind", "far", "far_taken", "stable", "stable_steps", "bridging", "has_bprev",
+        "has_landing", "has_free", "free_bound", "projections", "refreshed")),
     *(Field(name, "double") for name in (
         "t", "t_old", "h_abs", "h_previous", "t_bound", "direction", "max_step",
         "run_max_step", "rtol", "safety", "min_factor", "max_factor", "exponent",
@@ -176,7 +181,10 @@ SEGMENT = Layout("mechsim_segment", [
         "blind",
         "weyl_span", "hermite_margin", "peak", "peak_rate", "last", "rate", "prev_t", "prev_s",
         "prev_rate", "floor_t", "floor_v", "m_smin", "m_smax", "ratio_speed", "cond_max",
-        "growth", "keep_t", "chord", "machine_eps", "rank_factor", "rate_step")),
+        "growth", "keep_t", "chord", "machine_eps", "rank_factor", "rate_step",
+        "rate_rcond", "cut", "min_rcond", "previous", "lu_limit", "project_tol", "skip_tol",
+        "bprev_t", "bprev_rate", "landing", "free_step", "landing_share", "edge",
+        "round_off")),
     *(Field(name, "const double*") for name in ("coef", "extra_coef", "dense", "atol", "ts")),
     *(Field(name, "double*") for name in ("rows", "Y", "log")),
     *(Field(name, "double*", lambda d: 2 * d.f) for name in (
@@ -195,8 +203,10 @@ SEGMENT = Layout("mechsim_segment", [
                                                                 "fall_work", "J_end")),
     *(Field(name, "double*", lambda d: 2 * d.m * d.n) for name in ("Js", "Ds", "Ps")),
     Field("fall_scalars", "double*", lambda d: 8), Field("known", "double*", lambda d: 6),
-    # the passage search's grid and scratch (a `SEARCH` structure the segment owns)
-    Field("search", "void*"),
+    # the passage search's grid and scratch (a `SEARCH` structure the segment owns), the
+    # step's rate's context
+    Field("search", "void*"), Field("rate_ctx", "void*"),
+    Field("f_here", "double*", lambda d: 2 * d.f),
     # a step's end re-solved after a re-reference, and the partition before it
     Field("y_here", "double*", lambda d: 2 * d.f),
     *(Field(name, "double*", lambda d: d.n) for name in ("q_here", "v_here", "keep_q_ref")),
@@ -215,6 +225,7 @@ SIGNATURES = {
     "mechsim_lu_state": "pd>i", "mechsim_lu_accelerations": "pd>i", "mechsim_lu_rhs": "pd>i",
     "mechsim_lu_states": "plpppppp>i", "mechsim_lu_end": "pdppp>i",
     "mechsim_lu_predictor": "pdldppppppppp>-", "mechsim_lu_segment": "ppp>l",
+    "mechsim_projection_segment": "pp>l",
     "mechsim_projection_accelerations": "pddd>i", "mechsim_project_state": "pddddll>i",
     "mechsim_lu_condition": "pd>d", "mechsim_measure": "pddpp>i",
     "mechsim_project_states": "plpppplp>-", "mechsim_chords": "plppp>-",

@@ -1,8 +1,10 @@
-"""The engine's side of consecutive plain steps (`mechsim_lu_segment`, `mechsim.run.segment`).
+"""The engine's side of consecutive plain steps (`mechsim_lu_segment`,
+`mechsim_projection_segment`, `mechsim.run.segment`).
 
 `PlainSteps` holds the structure `layout.SEGMENT` describes and the buffers it points to,
-for one mechanism and one count of independent coordinates; `run` takes steps on a
-partition's and the monitor's compiled contexts. The dense algebra builds it
+for one mechanism and one count of independent coordinates (all n of them for the
+projection method's state [q; v]); `run` takes steps on a partition's and the monitor's
+compiled contexts, `run_projection` the projection method's on its own. The dense algebra builds it
 (`DenseAlgebra.plain_steps`); the run reads and writes its fields by name.
 """
 
@@ -20,14 +22,15 @@ BUDGET = 256
 
 class PlainSteps:
     """The structure (`s`, its fields by their C names), its buffers (`buffers`), the
-    steps' log (`log`: t, h, |v|∞, the next step proposed, a row per step) and a step's
+    steps' log (`log`: t, h, |v|∞, the next step proposed, and for the projection method
+    σ_min/σ_max and its rate as the passage bridge reads them, a row per step) and a step's
     samples' scratch (`Y`, at most `sample_rows` samples a step); `search`: the passage
     search's structure (`layout.SEARCH`) it shares with the engine."""
 
     def __init__(self, lib, n, m, f, sample_rows, tableaus, search):
         self.lib, self.shape = lib, (n, m, f)
         self.buffers = SEGMENT.buffers(Dims(n, m, f))
-        self.log = np.zeros((BUDGET, 4))
+        self.log = np.zeros((BUDGET, 6))
         # the passage search's grid and scratch: the engine's (`StepSearch.search`),
         # so that the loop's search of a step a segment declined takes the segment's
         self.search = search
@@ -55,3 +58,8 @@ class PlainSteps:
         """Steps on the partition's and the monitor's compiled contexts (their addresses):
         how many were committed (`mechsim_lu_segment`)."""
         return int(self.lib.mechsim_lu_segment(partition, projection, self._address))
+
+    def run_projection(self, projection) -> int:
+        """Steps of the projection method on its compiled context (its address): how many
+        were committed (`mechsim_projection_segment`)."""
+        return int(self.lib.mechsim_projection_segment(projection, self._address))

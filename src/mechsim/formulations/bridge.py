@@ -137,6 +137,16 @@ class PassageBridge:
         return PassageBridge(self.problem, self.accelerations, self._cut, self.rtol,
                              self.atol, self.order, self.compiled, extension, self.rate)
 
+    def plain_start(self):
+        """(`edge`, `LANDING`, the previous plan's (t, rate), the landing distance and the
+        free step (each None where there is none), whether that step was the run's
+        max_step) where the bridge is not standing down: steps may be taken elsewhere
+        (`mechsim.run.segment`) while `plan` lands or plans nothing, and their plans
+        replayed; else None."""
+        if self.standing_down:
+            return None
+        return self.edge, LANDING, self._prev, self.landing, self.free_step, self._free_bound
+
     def note_step(self, h_next, max_step_bound=False):
         """Keep the longest step proposed since the last passage (also while another
         formulation integrates, e.g. the hybrid's LU phase): right after a restart the

@@ -202,6 +202,16 @@ class Hybrid(Formulation):
         """What went wrong last in the formulation running now (or in the other one)."""
         return self.active.failure or self.lu.failure or self.proj.failure
 
+    def lu_condition_limit(self) -> float | None:
+        """The bound under which cond₁ of LU's block lets the run go back to LU
+        (`_lu_ready`), where that test is compiled (a dense block, the engine, no redundant
+        constraints; `mechsim.run.segment`); else None."""
+        mon = self.monitor
+        if not self._dense_block or mon is None or mon.redundant or \
+                self.problem.algebra.engine is None:
+            return None
+        return 0.1 * self.lu.cond_max
+
     def _lu_ready(self, q, t) -> bool:
         """Would LU partitioning be well conditioned here? cond(Φ_u) of the set its pivoting
         picks, against a tenth of its re-partition threshold."""

@@ -236,6 +236,25 @@ class Projection(FullCoordinates):
                 return out
         return np.concatenate([v, self._accelerations(t, q, v, Q, None, compiled=False)])
 
+    def plain_start(self):
+        """(min_rcond, cut, far, the projection's tolerance, the residual under which a
+        state is left as it is) where the next steps can be taken in the engine
+        (`mechsim.run.segment`): the compiled Cholesky path, projection on, and the
+        truncation cut at `rcond` (the monitor's peak at the algebra's `cut_reference` or
+        above, so the cut stays through the steps); else None."""
+        mon, prob = self.monitor, self.problem
+        if self.engine is None or not self._cholesky or not self.projection or not prob.m or \
+                type(self) is not Projection or mon is None or \
+                not mon.peak >= prob.algebra.cut_reference:
+            return None
+        return (self._min_rcond, self.cut, self._far, 0.01 * self.projection_tol,
+                self.projection_tol)
+
+    def accepted_in_engine(self, far) -> None:
+        """Steps were accepted in the engine (`mechsim.run.segment`); after the last,
+        `_far_from_band` decided `far`."""
+        self._far = far
+
     def compiled_rate(self, far=None):
         """The engine's rate for the next step where it is `rhs`'s first choice at every
         state: the Cholesky path, the engine built and the applied forces constant. `far`:

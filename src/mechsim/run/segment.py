@@ -39,7 +39,9 @@ from ..formulations.hybrid import Hybrid
 from ..formulations.monitor import (BLIND, CHORD, GRID, HERMITE_MARGIN, RATE_STEP, WEYL_SPAN,
                                     Fall, Observation)
 from ..problem.algebra import RANK_FACTOR
+from ..formulations.full import ROUND_OFF
 from ..formulations.partitioned import REFERENCE_SPAN, Partitioned
+from ..formulations.projection import Projection
 from ..integrators.compiled import (MAX_FACTOR, MIN_FACTOR, SAFETY, CompiledDOP853,
                                     dense_matrix, extra_tableau, tableau)
 from .runaway import RUNAWAY_EVERY, RUNAWAY_FROM
@@ -53,14 +55,18 @@ enabled = True
 class Segment:
     """The segments of one run (`for_run`); `advance()` takes one, or says it did not."""
 
-    def __init__(self, run, lu, steps, min_advance):
-        self.run, self.lu, self.steps = run, lu, steps
+    def __init__(self, run, lu, proj, plain, min_advance):
+        self.run, self.lu, self.proj = run, lu, proj
         self.hybrid = run.form if isinstance(run.form, Hybrid) else None
+        self.plain = plain                 # formulation -> its engine's `PlainSteps`
+        self.steps = None                  # the `PlainSteps` of the latest segment
         self.min_advance = min_advance
-        self.wait = self.backoff = 0
+        self.wait = dict.fromkeys(plain, 0)
+        self.backoff = dict.fromkeys(plain, 0)
         self.every_step = run.out.ts is None          # a sample at every step's end
         if not self.every_step:
-            steps.point("ts", run.out.ts)
+            for steps in plain.values():
+                steps.point("ts", run.out.ts)
 
     @classmethod
     def for_run(cls, run, min_advance) -> "Segment | None":
@@ -70,55 +76,107 @@ class Segment:
         form, s, prob = run.form, run.s, run.problem
         if not enabled or not issubclass(run.solver_cls, CompiledDOP853) or SAFETY is None:
             return None
-        lu = form.lu if isinstance(form, Hybrid) else form
-        if type(lu) is not Partitioned or (form is not lu and type(form) is not Hybrid):
-            return None
+        hybrid = form if type(form) is Hybrid else None
+        lu = hybrid.lu if hybrid is not None else form if type(form) is Partitioned else None
+        proj = hybrid.proj if hybrid is not None else form if type(form) is Projection else None
         if s.events is not None or s.stream is not None or s.h is not None or \
                 run.work is not None or run.out.extras is not None or \
                 run.passage_times.form is not None or run.keep_past or \
                 run.monitor is None or run.monitor.redundant:
             return None
-        basis = getattr(lu, "basis", None)
-        if lu.engine is None or basis is None or basis.sparse:
-            return None
         rows = 1 if s.ts is None else min(len(s.ts), 4096)
-        steps = prob.algebra.plain_steps(basis.f, rows,
-                                         (tableau(), extra_tableau(), dense_matrix()))
-        return None if steps is None else cls(run, lu, steps, min_advance)
+        tableaus = (tableau(), extra_tableau(), dense_matrix())
+        plain = {}
+        basis = getattr(lu, "basis", None)
+        if lu is not None and type(lu) is Partitioned and lu.engine is not None and \
+                basis is not None and not basis.sparse:
+            plain[lu] = prob.algebra.plain_steps(basis.f, rows, tableaus)
+        if proj is not None and proj.engine is not None:
+            plain[proj] = prob.algebra.plain_steps(prob.n, rows, tableaus)
+        plain = {k: v for k, v in plain.items() if v is not None}
+        return cls(run, lu, proj, plain, min_advance) if plain else None
 
     def advance(self) -> bool:
         """Steps taken in a segment from the run's present state (True), or none (False:
         the loop takes the next step)."""
-        if self.wait:
-            self.wait -= 1
+        run = self.run
+        form = self.hybrid.active if self.hybrid is not None else run.form
+        steps = self.plain.get(form)
+        if steps is None:
             return False
-        run, lu = self.run, self.lu
+        if self.wait[form]:
+            self.wait[form] -= 1
+            return False
         solver, monitor = run.solver, run.monitor
-        if (self.hybrid is not None and self.hybrid.active is not lu) or \
-                not isinstance(solver, CompiledDOP853) or solver.status != "running" or \
+        if not isinstance(solver, CompiledDOP853) or solver.status != "running" or \
                 solver.t == solver.t_bound or solver.y.dtype != np.float64 or \
                 monitor.open_passage is not None or monitor.blind or \
                 run.tolerances != run.local or solver.rate is None:
             return False
-        start = lu.plain_start()
+        lu = form is self.lu
+        start = form.plain_start()
         if start is None:
             return False
         compiled = solver.rate()
-        if compiled is None or compiled.kind != 1 or compiled.context != lu.engine.context:
+        if compiled is None or compiled.kind != int(lu) or \
+                compiled.context != form.engine.context:
             return False
-        self._load(run, solver, monitor.observation(), start)
-        count = self.steps.run(lu.engine.context, run.problem.algebra.engine.context)
+        if not lu and (compiled.min_rcond, compiled.cut) != \
+                (-1.0 if start[2] else start[0], start[1]):
+            return False                 # not the rate the segment's steps take
+        self.steps = steps
+        self._load(run, solver, monitor.observation())
+        if lu:
+            self._load_partition(start)
+            count = steps.run(form.engine.context, run.problem.algebra.engine.context)
+        elif self._load_projection(start, form):
+            count = steps.run_projection(form.engine.context)
+        else:
+            return False
         if not count:
-            self.wait = self.backoff = min(max(2 * self.backoff, 1), BACKOFF_MAX)
+            self.wait[form] = self.backoff[form] = min(max(2 * self.backoff[form], 1),
+                                                       BACKOFF_MAX)
             return False
         # A segment that stopped on a step it declined leaves that very step next: the
         # loop's, without another try.
-        self.backoff, self.wait = 0, int(self.steps.declined)
-        self._store(run, lu, solver, monitor, compiled, count)
+        self.backoff[form], self.wait[form] = 0, int(steps.declined)
+        if lu:
+            self._store_partition(form, solver, compiled)
+        else:
+            self._store_projection(form, solver)
+        self._store(run, monitor, count)
         return True
 
-    def _load(self, run, solver, o, start) -> None:
-        """The run's state into the engine's structure and buffers."""
+    def _load_projection(self, start, proj) -> bool:
+        """The projection method's numbers (`Projection.plain_start`), the passage bridge's
+        plan and the hybrid's way back to LU into the structure, where the bridge has
+        nothing planned and that way is tested compiled; False where not."""
+        s, bridge = self.steps.s, self.run.bridge
+        plan = bridge.plain_start() if bridge is not None else (0.0, 0.0, None, None, None,
+                                                                False)
+        limit = self.hybrid.lu_condition_limit() if self.hybrid is not None else 0.0
+        if plan is None or limit is None:
+            return False
+        s.min_rcond, s.cut, far, s.project_tol, s.skip_tol = start
+        s.far, s.round_off = bool(far), ROUND_OFF
+        s.edge, s.landing_share, prev, landing, free, free_bound = plan
+        s.free_bound = bool(free_bound)
+        s.bridging = bridge is not None and bool((self.hybrid or proj).bridging)
+        s.has_bprev, s.has_landing, s.has_free = (x is not None for x in (prev, landing, free))
+        s.bprev_t, s.bprev_rate = prev if prev is not None else (0.0, 0.0)
+        s.landing = landing if landing is not None else 0.0
+        s.free_step = free if free is not None else 0.0
+        s.projections = s.refreshed = 0
+        if self.hybrid is not None:
+            policy = self.hybrid.policy
+            s.policy_steps, s.stable, s.stable_steps = policy.steps, policy.stable, \
+                policy.stable_steps
+            s.previous, s.lu_limit = policy.previous, limit
+        return True
+
+    def _load(self, run, solver, o) -> None:
+        """The run's state into the engine's structure and buffers: the integrator's, the
+        samples' and the monitor's."""
         steps = self.steps
         s, b, (n, m, _) = steps.s, steps.buffers, steps.shape
         samples = run.out.samples
@@ -142,14 +200,7 @@ class Segment:
         s.min_advance = self.min_advance
         b["y"][:] = solver.y
         b["fy"][:] = solver.f
-        s.sign, s.repartition_at, s.cond_max, s.growth = start
-        s.reference_span = REFERENCE_SPAN
-        policy = self.hybrid.policy if self.hybrid is not None else None
-        s.hybrid = policy is not None
-        if policy is not None:
-            s.held_steps, s.policy_steps = policy.held, policy.steps
-            s.has_limit = policy.limit is not None
-            s.limit = policy.limit if policy.limit is not None else 0.0
+        s.hybrid = self.hybrid is not None
         monitor = run.monitor
         s.small = bool(run.problem.algebra.small)
         s.max_skip, s.enter, s.leave = monitor.max_skip, monitor.enter, monitor.leave
@@ -180,24 +231,63 @@ class Segment:
         for j, (tk, (smin, smax)) in enumerate(known):
             b["known"][3 * j:3 * j + 3] = tk, smin, smax
 
-    def _store(self, run, lu, solver, monitor, compiled, count) -> None:
-        """What `count` committed steps changed, back into the run's objects."""
+    def _load_partition(self, start) -> None:
+        """The partition's numbers (`Partitioned.plain_start`) and the hybrid's LU policy
+        into the structure."""
+        s = self.steps.s
+        s.sign, s.repartition_at, s.cond_max, s.growth = start
+        s.reference_span = REFERENCE_SPAN
+        if self.hybrid is not None:
+            policy = self.hybrid.policy
+            s.held_steps, s.policy_steps = policy.held, policy.steps
+            s.has_limit = policy.limit is not None
+            s.limit = policy.limit if policy.limit is not None else 0.0
+
+    def _store_partition(self, lu, solver, compiled) -> None:
+        """What the committed steps changed in the integrator, the partition and the
+        hybrid's LU policy."""
         steps = self.steps
         s, b, (n, m, f) = steps.s, steps.buffers, steps.shape
-        N, r, size = 2 * f, n - f, m * n
+        N, r = 2 * f, n - f
         solver.stepped_in_engine(compiled, s.t, s.t_old, s.h_abs, s.h_previous,
                                  b["y"][:N].copy(), b["fy"][:N].copy(), b["y_old"][:N].copy(),
                                  b["K"].reshape(solver.K_extended.shape), s.evaluations)
-        solver.max_step = s.max_step
         lu.accepted_in_engine(b["J_end"].reshape(m, n).copy(),
                               b["inverse"][:r * r].reshape(r, r).copy(),
                               b["reduced"][:r * f].reshape(r, f).copy(), int(s.sign),
                               float(b["block"][1]), s.repartition_at)
-        run.problem.counters.factorizations += s.factorizations
+        self.run.problem.counters.factorizations += s.factorizations
         if self.hybrid is not None:
             policy = self.hybrid.policy
             policy.held, policy.steps = s.held_steps, s.policy_steps
             policy.limit = s.limit if s.has_limit else None
+
+    def _store_projection(self, proj, solver) -> None:
+        """What the committed steps changed in the integrator (its state's rate evaluated
+        again after each projection, as `adapters.correct_in_place` does), the projection
+        method and the hybrid's count towards LU."""
+        steps = self.steps
+        s, b, N = steps.s, steps.buffers, 2 * steps.shape[0]
+        solver.stepped_in_engine(proj.compiled_rate(far=bool(s.far_taken)), s.t, s.t_old,
+                                 s.h_abs, s.h_previous, b["y"][:N].copy(), b["fy"][:N].copy(),
+                                 b["y_old"][:N].copy(), b["K"].reshape(solver.K_extended.shape),
+                                 s.evaluations)
+        solver.nfev += s.refreshed
+        counters = self.run.problem.counters
+        counters.rhs += s.refreshed
+        counters.factorizations += s.refreshed
+        counters.projections += s.projections
+        proj.accepted_in_engine(bool(s.far))
+        if self.hybrid is not None:
+            policy = self.hybrid.policy
+            policy.steps, policy.stable, policy.previous = s.policy_steps, s.stable, s.previous
+
+    def _store(self, run, monitor, count) -> None:
+        """What `count` committed steps changed in the monitor and the run."""
+        steps = self.steps
+        s, b, (n, m, _) = steps.s, steps.buffers, steps.shape
+        size = m * n
+        run.solver.max_step = s.max_step
         fall = None
         if s.has_fall:
             c = s.cur
@@ -224,7 +314,10 @@ class Segment:
         run.t_reached = s.t
         run.recent.extend(log[:, 0].tolist())
         bridge, bound = run.bridge, run.bound.max_step
-        for j, (_, h, speed, h_free) in enumerate(log.tolist()):
+        planned = bridge is not None and s.kind == 0 and s.bridging
+        for j, (t, h, speed, h_free, sv, rate) in enumerate(log.tolist()):
             run.runaway.note_speed(first + j, h, speed)
-            if bridge is not None:
+            if planned:              # Run._bridge's plan, which planned nothing (the engine)
+                bridge.plan(sv, rate, t, min(h_free, bound), h_free >= bound)
+            elif bridge is not None:
                 bridge.note_step(min(h_free, bound), h_free >= bound)
