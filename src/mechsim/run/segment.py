@@ -1,30 +1,37 @@
-"""Consecutive plain steps of a small rigid mechanism in LU, taken in the compiled engine.
+"""Consecutive plain steps of a small rigid mechanism, in LU or by the projection method,
+taken in the compiled engine.
 
-A step of LU partitioning on a small rigid mechanism costs the compiled engine tens of
-microseconds and the Python loop around it several times that: the output samples, the
-singularity monitor's observation, the hybrid's policy, the partition's end, the run's
+A step of LU partitioning or of the projection method on a small rigid mechanism costs the
+compiled engine tens of microseconds and the Python loop around it several times that: the
+output samples, the singularity monitor's observation, the hybrid's policy, the
+partition's end or the state's projection, the passage bridge's plan, the run's
 bookkeeping, each a few numpy calls on arrays of a dozen numbers. Where a step is plain
-(nothing happens but the step, its samples and the partition's predictor: no passage in
-reach, no change of partition or of formulation, no sample due at its end), all of that is
-arithmetic that `mechsim_lu_segment` does in C, step after step, until a step is not
-plain. That step it drops; the Python loop (`mechsim.run.loop.Run`) takes it from the same
-state, with its own decisions.
+(nothing happens but the step, its samples, the monitor's measurement, the partition's
+predictor or the projection: no passage in reach, no change of partition or of
+formulation, no crossing, no sample due at its end), all of that is arithmetic that
+`mechsim_lu_segment` (LU) or `mechsim_projection_segment` (projection: the hybrid's
+projection phase between passages and after them, the bridge's approach to a landing
+point included) does in C, step after step, until a step is not plain. That step it
+drops; the Python loop (`mechsim.run.loop.Run`) takes it from the same state, with its
+own decisions.
 
 The contract is the Python loop's numbers to the bit: the segment makes the decisions the
 loop would make (the same comparisons in the same order on the same doubles) and calls the
 engine's functions the loop calls (the DOP853 step, its dense output, the partition's end
-and predictor, the samples' and the monitor's evaluations); the few formulas the loop
-evaluates in Python floats (the monitor's rates and bounds, the policy's limit, the
-re-reference) it evaluates in the same order. A run with segments and one without them give
-bitwise the same samples, steps and counts (a test).
+and predictor, the projections, the samples' and the monitor's evaluations); the few
+formulas the loop evaluates in Python floats (the monitor's rates and bounds, the
+policy's limit, the re-reference, the bridge's prediction of the singular instant) it
+evaluates in the same order. The bridge's own state after the steps is replayed by its
+`plan`, called with the numbers each step logged. A run with segments and one without
+them give bitwise the same samples, steps and counts (tests).
 
-It applies to runs of "lu" and of the hybrid in its LU phase with the compiled DOP853 on a
-compiled partition (`Partitioned.compiled_rate`) and the compiled monitor (a dense
-algebra's engine, no redundant constraints), with an output grid or a sample at every
-step, and nothing else to do at a step: no events, work integral, streamed output, state
-extras, sensitivities or fixed step. After a segment declines its first step the loop
-tries it again only after twice as many steps as the last time (up to `BACKOFF_MAX`), so a
-mechanism whose steps are seldom plain (the double four-bar near its passages) pays little
+It applies to runs of "lu", "projection" and the hybrid with the compiled DOP853 on a
+compiled rate (`Partitioned.compiled_rate`, `Projection.compiled_rate`) and the compiled
+monitor (a dense algebra's engine, no redundant constraints), with an output grid or a
+sample at every step, and nothing else to do at a step: no events, work integral,
+streamed output, state extras, sensitivities or fixed step. After a segment declines its
+first step the loop tries that formulation's again only after twice as many steps as the
+last time (up to `BACKOFF_MAX`), so a mechanism whose steps are seldom plain pays little
 for the tries; after a segment that stopped on a step it declined, that step is the
 loop's without a try (taking the segment's passage search of it). The engine's side
 is `mechsim.codegen.steps.PlainSteps`, which the problem's algebra gives
