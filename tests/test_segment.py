@@ -22,6 +22,8 @@ def _both(mech, monkeypatch, kinds=None, **run):
         done = advance(self)
         if done:
             taken.append((self.steps.s.kind, self.steps.s.count))
+            if self.pending is not None:
+                taken.append(("pending", 0))
         return done
     monkeypatch.setattr(segment.Segment, "advance", counted)
     fast = mech.simulate(**run)
@@ -30,7 +32,7 @@ def _both(mech, monkeypatch, kinds=None, **run):
     monkeypatch.setattr(segment, "enabled", True)
     if kinds is not None:
         for kind, count in taken:
-            kinds[kind] = kinds.get(kind, 0) + count
+            kinds[kind] = kinds.get(kind, 0) + (1 if kind == "pending" else count)
     return fast, slow, sum(count for _, count in taken)
 
 
@@ -76,9 +78,11 @@ def test_projection_segments_give_the_python_loop_s_numbers_to_the_bit(name, met
                                                                      monkeypatch):
     """The projection method's steps in the engine (the hybrid's projection phase after
     and between passages, the bridge's approach, the projected state's rate evaluated
-    again, the hybrid's stable steps towards LU counted with the compiled condition test):
-    the same samples, counts, switches, bridges and passages as the loop's own steps, and
-    most of the projection steps taken there."""
+    again, the hybrid's stable steps towards LU counted with the compiled condition test),
+    and the steps after which the hybrid switches or the bridge crosses taken there up to
+    their observation (pending: the loop finishes them): the same samples, counts,
+    switches, bridges and passages as the loop's own steps, and most of the projection
+    steps taken there."""
     p = PROBLEMS[name]
     kinds = {}
     grid = {} if every_step else {"output_step": p.t_end / 1000}
@@ -89,6 +93,8 @@ def test_projection_segments_give_the_python_loop_s_numbers_to_the_bit(name, met
     assert fast.stats["projections"] == slow.stats["projections"]
     projection_steps = fast.stats["steps"] - kinds.get(1, 0)
     assert kinds.get(0, 0) >= 0.4 * projection_steps
+    if method == "hybrid":                 # its ten switches, most of them pending
+        assert fast.stats["switches"] == 10 and kinds.get("pending", 0) >= 8
 
 
 @needs_compiler

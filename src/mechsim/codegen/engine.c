@@ -1812,6 +1812,7 @@ static void commit_step(mechsim_segment *s, int64_t N, int64_t n, double t_old,
                         const double *y_end, const double *f_end, int64_t evaluations,
                         int64_t next, int64_t k, const double *q_end, const double *v_end,
                         double speed, double s_un, double rate_un) {
+  /* q_end NULL: the step's end is the loop's to record (a pending step) */
   const double t_new = s->out[0], h = s->out[1], h_next = s->out[2];
   memcpy(s->y_old, s->y, N * sizeof(double));
   memcpy(s->y, y_end, N * sizeof(double));
@@ -1824,7 +1825,7 @@ static void commit_step(mechsim_segment *s, int64_t N, int64_t n, double t_old,
   s->steps += 1;
   s->next = next;
   s->held += k;
-  if (s->every_step) {                         /* Recorder.record_due at the step's end */
+  if (s->every_step && q_end) {                /* Recorder.record_due at the step's end */
     double *row = s->rows + s->held * (1 + 2 * n);
     row[0] = t_new;
     memcpy(row + 1, q_end, n * sizeof(double));
@@ -1847,13 +1848,16 @@ static int runaway_due(const mechsim_segment *s) {
    phase, or "lu"): its output samples (dense output, positions and velocities) written to
    the rows of s->rows, the singularity monitor's observation (its skip by Weyl's bound, or
    its measurement and the cheap clears of a hidden passage), the hybrid's policy and step
-   limit, the partition's end (branch, condition, re-reference, predictor). Where anything
+   limit, the partition's end (branch, condition, re-reference, predictor). Where the
+   hybrid switches to the projection method or the partition changes, the step is taken up
+   to the monitor's observation and its samples and the segment ends with it pending
+   (s->pending, s->reason): the Python loop finishes it (Run._after_step). Where anything
    else would happen (a stage or state the engine declines, a step that needs the monitor's
-   search, a passage's band, a change of partition or of formulation, a sample due at the
-   step's end, no room for the samples, a step shorter than the stall rule's span), the step
-   is dropped and the segment ends before it with s->reason: the Python loop takes it, from
-   the same state, with the same numbers. Everything a committed step changes is in s, c
-   and the buffers s points to; Python reads it back (mechsim.run.segment). */
+   search, a passage's band, a sample due at the step's end, no room for the samples, a
+   step shorter than the stall rule's span), the step is dropped and the segment ends
+   before it with s->reason: the Python loop takes it, from the same state, with the same
+   numbers. Everything a committed step changes is in s, c and the buffers s points to;
+   Python reads it back (mechsim.run.segment). */
 int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s) {
   const int64_t N = 2 * c->f, f = c->f, n = c->n, m = c->m;
   const int64_t mn = m * n;
@@ -1862,6 +1866,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
   s->kind = 1;
   s->rate_rcond = -1.0;
   s->cut = 0.0;
+  s->pending = 0;
   s->count = 0;
   s->reason = SEG_BUDGET;
   while (s->count < s->budget) {
@@ -1893,29 +1898,38 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     why = observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
     if (why) { s->reason = why; break; }
     const double last = o.skip ? s->last : o.srel, mon_rate = o.skip ? s->rate : o.rate;
-    /* the hybrid's policy (HybridPolicy.lu_limit, leave_lu) */
+    /* The hybrid's policy (HybridPolicy.lu_limit, leave_lu) and the partition's choice
+       (Partitioned.after_step): where either is the loop's (`pending`: a switch to the
+       projection method, a new partition), the step is still taken here up to the
+       monitor's observation and its samples, and the loop finishes it. */
+    int64_t pending = 0;
     int has_limit = 0, held = (int)s->held_steps;
     double limit = 0.0;
-    if (s->hybrid && policy_step(s, h, last, mon_rate, &has_limit, &limit, &held)) {
-      s->reason = SEG_LEAVE;
-      break;
-    }
+    if (s->hybrid && policy_step(s, h, last, mon_rate, &has_limit, &limit, &held))
+      pending = SEG_LEAVE;
     /* a passage hidden in the step, ruled out (the search last: a step the loop takes
        anyway spends none) */
     why = hidden_clear(c, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready, &evaluations);
     if (why) { s->reason = why; break; }
-    /* the partition (Partitioned.after_step) */
     double repartition_at = s->repartition_at;
-    if (fresh >= 2 || condition > repartition_at) {
+    if (!pending && (fresh >= 2 || condition > repartition_at)) {
       /* Partitioned.after_step's choose: the same set stands until its condition grows as
          much again; another is a new partition (the loop's) */
-      if (!keeps_set(c, pc, s, s->Jq)) { s->reason = SEG_PARTITION; break; }
-      repartition_at = py_min(s->cond_max, s->growth * py_max(condition, 1.0));
+      if (!keeps_set(c, pc, s, s->Jq)) pending = SEG_PARTITION;
+      else repartition_at = py_min(s->cond_max, s->growth * py_max(condition, 1.0));
     }
     /* the output samples (Recorder.within, Partitioned.states), before the partition
        moves its reference */
     if (k > 0 && samples_step(c, s, t_old, h, y, y_new, f_new, k0, k, &ready, &evaluations)) {
       s->reason = SEG_SAMPLES;
+      break;
+    }
+    if (pending) {
+      commit_observation(s, &o, mn, t_old, t_new);
+      commit_step(s, N, n, t_old, y_new, f_new, evaluations, next, k, NULL, NULL, speed, 0.0,
+                  0.0);
+      s->pending = 1;
+      s->reason = pending;
       break;
     }
     double zmax = 0.0;
@@ -1942,6 +1956,9 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     }
     /* committed from here: nothing below declines */
     memcpy(s->J_end, s->Jq, mn * sizeof(double));
+    memcpy(s->kept_inverse, s->inverse, (n - f) * (n - f) * sizeof(double));
+    memcpy(s->kept_reduced, s->reduced, (n - f) * f * sizeof(double));
+    memcpy(s->kept_block, s->block, 2 * sizeof(double));
     s->factorizations += 1;
     s->repartition_at = repartition_at;
     if (shift) {
@@ -2055,16 +2072,20 @@ static int projection_samples(mechsim_projection *pc, mechsim_segment *s, double
    (Projection.after_step, NumericProblem.project_state compiled) and its rate evaluated
    again there (adapters.correct_in_place), the hybrid's count of stable steps towards LU
    (SwitchPolicy.back_to_lu, its condition test mechsim_lu_condition), the passage bridge's
-   plan (nothing, or the approach's landing as the next step's bound). Where anything else
-   would happen (a switch to LU, a crossing, a passage's band, a projection or a rate the
-   engine declines, and the reasons of mechsim_lu_segment) the step is dropped and the
-   segment ends before it with s->reason: the Python loop takes it from the same state. */
+   plan (nothing, or the approach's landing as the next step's bound). Where the formulation
+   or the bridge decides something else (a switch to LU, a crossing, a projection or a rate
+   the engine declines) the step is taken up to the monitor's observation and the segment
+   ends with it pending (s->pending, s->reason): the Python loop finishes that step
+   (Run.finish_step). Where anything else would happen (a passage's band, a search that
+   finds a dip, and the reasons of mechsim_lu_segment) the step is dropped and the segment
+   ends before it with s->reason: the Python loop takes it from the same state. */
 int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
   const int64_t n = pc->n, m = pc->m, N = 2 * n, mn = m * n;
   double *y = s->y, *y_new = s->y_new, *f_new = s->f_new, *y_here = s->y_here;
   s->rate_ctx = pc;
   s->kind = 0;
   s->count = 0;
+  s->pending = 0;
   s->reason = SEG_BUDGET;
   while (s->count < s->budget) {
     s->rate_rcond = s->far ? -1.0 : s->min_rcond;
@@ -2084,35 +2105,39 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     if (why) { s->reason = why; break; }
     const double last = o.skip ? s->last : o.srel, mon_rate = o.skip ? s->rate : o.rate;
     const double peak = o.peak;
-    /* Projection.after_step: the far flag for the next step, the state projected */
+    /* What the formulation and the bridge decide after the step (Projection.after_step,
+       SwitchPolicy.back_to_lu, bridge_passage): where that is the loop's (`pending`: a
+       projection or a rate the engine declines, a switch to LU, a crossing), the step is
+       still taken here up to the monitor's observation, and the loop finishes it. */
+    int64_t pending = 0;
     const int far = s->leave * peak > 100.0 * s->cut && last >= s->leave &&
         !predicted_within(last, mon_rate, 3.0 * h, s->enter);
     memcpy(pc->q, q_new, n * sizeof(double));
     memcpy(pc->v, v_new, n * sizeof(double));
     const int status = mechsim_project_state(pc, t_new, s->skip_tol, s->project_tol,
                                              s->min_rcond, 0, 8);
-    if (status == 1) { s->reason = SEG_PROJECT; break; }
     const int moved = status == 0;
-    if (moved) {
-      projections += pc->count;
+    if (status == 1) pending = SEG_PROJECT;
+    else if (moved) {
       memcpy(y_here, pc->q, n * sizeof(double));
       memcpy(y_here + n, pc->v, n * sizeof(double));
     } else {
       memcpy(y_here, y_new, N * sizeof(double));
     }
+    const int64_t end_projections = moved ? pc->count : 0;
     /* the hybrid's way back to LU (SwitchPolicy.back_to_lu, Hybrid._lu_ready) */
     int64_t stable = 0;
-    if (s->hybrid) {
+    if (!pending && s->hybrid) {
       const int growing = h >= 0.99 * s->previous;
       const int clear = last > s->leave && !predicted_within(last, mon_rate, h, s->enter);
       int fit = clear && growing;
-      if (fit) {
-        if (!(last * peak > 1e-6)) { s->reason = SEG_LEAVE; break; }   /* Python's choice */
+      if (fit && !(last * peak > 1e-6)) pending = SEG_LEAVE;   /* Python's choice */
+      else if (fit) {
         memcpy(pc->q, y_here, n * sizeof(double));
         fit = mechsim_lu_condition(pc, t_new) < s->lu_limit;
       }
       stable = fit ? s->stable + 1 : 0;
-      if (stable >= s->stable_steps) { s->reason = SEG_LEAVE; break; }
+      if (stable >= s->stable_steps) pending = SEG_LEAVE;
     }
     /* the passage bridge's plan (Run._bridge, bridge_passage): nothing, or a landing */
     const double s_un = last * peak, rate_un = mon_rate * peak;
@@ -2120,11 +2145,11 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
                     (int)s->free_bound, s->bprev_t, s->bprev_rate, s->landing, s->free_step};
     int plan = 1;
     double land = 0.0;
-    if (s->bridging) {
+    if (!pending && s->bridging) {
       plan = h_next != 0.0 ? bridge_plan(s, &b, t_new, s_un, rate_un,
                                          py_min(h_next, s->run_max_step),
                                          h_next >= s->run_max_step, &land) : 0;
-      if (!plan) { s->reason = SEG_BRIDGE; break; }
+      if (!plan) pending = SEG_BRIDGE;
     }
     why = hidden_clear(NULL, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready,
                        &evaluations);
@@ -2136,18 +2161,28 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     }
     /* the projected state's rate (adapters.correct_in_place), on the next step's far */
     const double *f_end = f_new;
-    if (moved) {
+    if (!pending && moved) {
       memcpy(pc->q, y_here, n * sizeof(double));
       memcpy(pc->v, y_here + n, n * sizeof(double));
-      if (mechsim_projection_accelerations(pc, t_new, far ? -1.0 : s->min_rcond, s->cut)) {
-        s->reason = SEG_PROJECT;
-        break;
+      if (mechsim_projection_accelerations(pc, t_new, far ? -1.0 : s->min_rcond, s->cut))
+        pending = SEG_PROJECT;
+      else {
+        memcpy(s->f_here, pc->out, N * sizeof(double));
+        f_end = s->f_here;
       }
-      memcpy(s->f_here, pc->out, N * sizeof(double));
-      f_end = s->f_here;
     }
-    /* committed from here */
+    /* committed from here: the observation, samples and the step; the rest where it is
+       not pending */
     s->projections += projections;
+    commit_observation(s, &o, mn, t_old, t_new);
+    if (pending) {
+      commit_step(s, N, n, t_old, y_new, f_new, evaluations, next, k, NULL, NULL, speed,
+                  s_un, rate_un);
+      s->pending = 1;
+      s->reason = pending;
+      break;
+    }
+    s->projections += end_projections;
     s->corrections += moved;
     s->refreshed += moved;
     s->far_taken = s->far;
@@ -2161,10 +2196,86 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     s->has_bprev = b.has_prev; s->bprev_t = b.prev_t; s->bprev_rate = b.prev_rate;
     s->has_landing = b.has_landing; s->landing = b.landing;
     s->has_free = b.has_free; s->free_step = b.free_step; s->free_bound = b.free_bound;
-    commit_observation(s, &o, mn, t_old, t_new);
     commit_step(s, N, n, t_old, y_here, f_end, evaluations, next, k, y_here, y_here + n, speed,
                 s_un, rate_un);
     if (runaway_due(s)) break;
   }
   return s->count;
+}
+
+/* The rate [v; qdd] of the projection method at the state y (2n entries) at t into f, on its
+   compiled accelerations with min_rcond and cut (mechsim_projection_accelerations). 0: done;
+   1: declined. */
+static int projection_rate(mechsim_projection *pc, double t, const double *y, double min_rcond,
+                           double cut, double *f) {
+  const int64_t n = pc->n;
+  memcpy(pc->q, y, n * sizeof(double));
+  memcpy(pc->v, y + n, n * sizeof(double));
+  if (mechsim_projection_accelerations(pc, t, min_rcond, cut)) return 1;
+  memcpy(f, pc->out, 2 * n * sizeof(double));
+  return 0;
+}
+
+/* The passage bridge's history (PassageBridge._history and the rates of _start): DOP853
+   from (s->t, s->y, s->fy) towards s->t_bound on the projection method's compiled
+   accelerations (s->rate_rcond, s->cut), as CompiledDOP853.step takes its steps, the state
+   at each of the k times ts it passes taken from the step's dense output and put onto the
+   constraints (mechsim_project_state to 1e-13 with one more chord iteration, as
+   PassageBridge._consistent) into the rows of `states` (k x 2n); then the rates at the
+   start and at each of those states into the rows of F ((k + 1) x 2n; min_rcond
+   s->min_rcond). s->evaluations: the integrator's count so far, which may not exceed
+   `budget` after a step (the history grinds); the rates of the steps and their dense
+   output add to it, the chord iterations to s->projections. Returns k; -1 where a stage, a
+   projection or a rate is declined (the Python path takes the history from its start);
+   -2 where the step falls below scipy's smallest or the count exceeds the budget (the
+   bridge declines). */
+int64_t mechsim_history(mechsim_projection *pc, mechsim_segment *s, int64_t k,
+                        const double *ts, double budget, double *states, double *F) {
+  const int64_t n = pc->n, N = 2 * n;
+  double *y = s->y, *fy = s->fy, *y_new = s->y_new, *f_new = s->f_new, *in = s->in;
+  double *out = s->out, *row = s->y_here;
+  const double t0 = s->t;
+  s->rate_ctx = pc;
+  s->kind = 0;
+  s->projections = 0;
+  if (projection_rate(pc, t0, y, s->min_rcond, s->cut, F)) return -1;
+  int64_t j = 0;
+  while (j < k) {
+    in[0] = (double)s->stages; in[1] = s->t; in[2] = s->h_abs; in[3] = s->t_bound;
+    in[4] = s->direction; in[5] = s->max_step; in[6] = s->rtol; in[7] = s->rate_rcond;
+    in[8] = s->cut; in[9] = s->safety; in[10] = s->min_factor; in[11] = s->max_factor;
+    in[12] = s->exponent;
+    const int status = mechsim_dop853(pc, 0, N, s->coef, in, y, fy, s->atol, s->K, y_new,
+                                      f_new, s->work, out, (void *)declined_rate);
+    if (status == 1) return -1;
+    if (status == 2) return -2;
+    s->evaluations += (int64_t)out[3];
+    if ((double)s->evaluations > budget) return -2;
+    const double t_old = s->t, t_new = out[0], h = out[1];
+    const int64_t first = j;
+    while (j < k && s->direction * (t_new - ts[j]) >= 0.0) j++;
+    if (j > first) {
+      int ready = 0;
+      int64_t extra = 0;
+      if (dense_ready(s, N, t_old, h, y, y_new, f_new, &ready, &extra)) return -1;
+      s->evaluations += extra;
+      for (int64_t i = first; i < j; i++) {
+        mechsim_interpolate(N, s->dense_rows + 3, s->F, t_old, h, y, 1, ts + i, row);
+        memcpy(pc->q, row, n * sizeof(double));
+        memcpy(pc->v, row + n, n * sizeof(double));
+        if (mechsim_project_state(pc, ts[i], -1.0, 1e-13, -1.0, 1, 8)) return -1;
+        s->projections += pc->count;
+        memcpy(states + i * N, pc->q, n * sizeof(double));
+        memcpy(states + i * N + n, pc->v, n * sizeof(double));
+      }
+    }
+    memcpy(y, y_new, N * sizeof(double));
+    memcpy(fy, f_new, N * sizeof(double));
+    s->t = t_new;
+    s->h_abs = out[2];
+  }
+  for (int64_t i = 0; i < k; i++)
+    if (projection_rate(pc, ts[i], states + i * N, s->min_rcond, s->cut, F + (i + 1) * N))
+      return -1;
+  return k;
 }

@@ -173,7 +173,7 @@ SEGMENT = Layout("mechsim_segment", [
         # method's steps (`mechsim_projection_segment`): its far flag now and for the last
         # step, the hybrid's stable steps, the bridge's previous plan, what was counted
         "kind", "far", "far_taken", "stable", "stable_steps", "bridging", "has_bprev",
-        "has_landing", "has_free", "free_bound", "projections", "refreshed")),
+        "has_landing", "has_free", "free_bound", "projections", "refreshed", "pending")),
     *(Field(name, "double") for name in (
         "t", "t_old", "h_abs", "h_previous", "t_bound", "direction", "max_step",
         "run_max_step", "rtol", "safety", "min_factor", "max_factor", "exponent",
@@ -194,6 +194,10 @@ SEGMENT = Layout("mechsim_segment", [
     Field("extra_in", "double*", lambda d: 7), Field("extra_out", "double*", lambda d: 2),
     Field("inverse", "double*", lambda d: d.r * d.r),
     Field("reduced", "double*", lambda d: d.r * d.f), Field("block", "double*", lambda d: 2),
+    # the partition's end at the last step committed whole (a pending step's follows it)
+    Field("kept_inverse", "double*", lambda d: d.r * d.r),
+    Field("kept_reduced", "double*", lambda d: d.r * d.f),
+    Field("kept_block", "double*", lambda d: 2),
     *(Field(name, "double*", lambda d: d.n) for name in ("q_new", "v_new")),
     *(Field(name, "double*", lambda d: d.f) for name in ("z", "z0")),
     *(Field(name, "double*", lambda d: d.r) for name in ("w", "wd", "w0")),
@@ -225,7 +229,7 @@ SIGNATURES = {
     "mechsim_lu_state": "pd>i", "mechsim_lu_accelerations": "pd>i", "mechsim_lu_rhs": "pd>i",
     "mechsim_lu_states": "plpppppp>i", "mechsim_lu_end": "pdppp>i",
     "mechsim_lu_predictor": "pdldppppppppp>-", "mechsim_lu_segment": "ppp>l",
-    "mechsim_projection_segment": "pp>l",
+    "mechsim_projection_segment": "pp>l", "mechsim_history": "pplpdpp>l",
     "mechsim_projection_accelerations": "pddd>i", "mechsim_project_state": "pddddll>i",
     "mechsim_lu_condition": "pd>d", "mechsim_measure": "pddpp>i",
     "mechsim_project_states": "plpppplp>-", "mechsim_chords": "plppp>-",

@@ -14,6 +14,7 @@ import ctypes
 
 import numpy as np
 
+from ..integrators.compiled import MAX_FACTOR, MIN_FACTOR, SAFETY
 from .layout import SEGMENT, Dims
 
 # Steps one call takes at most before Python looks in (progress, the stream).
@@ -58,6 +59,36 @@ class PlainSteps:
         """Steps on the partition's and the monitor's compiled contexts (their addresses):
         how many were committed (`mechsim_lu_segment`)."""
         return int(self.lib.mechsim_lu_segment(partition, projection, self._address))
+
+    def history(self, projection, solver, rate, ts, budget):
+        """The passage bridge's history in the engine (`mechsim_history`) on the
+        projection context `projection` (its address), from the state of `solver` (a
+        `CompiledDOP853` just made, whose `rate` is `rate`): (states (k, 2n) at the k
+        times `ts`, the rates F (k + 1, 2n) at solver's start and at them, the rates the
+        steps evaluated, the chord iterations of the projections); None where the engine
+        declined a stage, a projection or a rate (the caller's Python path takes the
+        history), False where the integration failed or spent more than `budget`
+        evaluations."""
+        s, b, N = self.s, self.buffers, 2 * self.shape[0]
+        self.point("atol", solver.atol_array)
+        s.stages = solver.n_stages
+        s.extra_rows, s.extra_width = solver.A_EXTRA.shape
+        s.dense_rows, s.dense_cols = solver.D.shape
+        s.t, s.h_abs, s.t_bound, s.direction = solver.t, solver.h_abs, solver.t_bound, \
+            solver.direction
+        s.max_step, s.rtol, s.exponent = solver.max_step, solver.rtol, solver.error_exponent
+        s.safety, s.min_factor, s.max_factor = SAFETY, MIN_FACTOR, MAX_FACTOR
+        s.rate_rcond = s.min_rcond = rate.min_rcond
+        s.cut, s.evaluations = rate.cut, solver.nfev
+        b["y"][:N] = solver.y
+        b["fy"][:N] = solver.f
+        ts = np.ascontiguousarray(ts, dtype=float)
+        states, F = np.empty((len(ts), N)), np.empty((len(ts) + 1, N))
+        done = self.lib.mechsim_history(projection, self._address, len(ts), ts.ctypes.data,
+                                        float(budget), states.ctypes.data, F.ctypes.data)
+        if done < 0:
+            return None if done == -1 else False
+        return states, F, s.evaluations - solver.nfev, s.projections
 
     def run_projection(self, projection) -> int:
         """Steps of the projection method on its compiled context (its address): how many

@@ -44,7 +44,8 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..integrators.adams import error_norm, integration_weights, step_weights
-from ..integrators.compiled import CompiledDOP853
+from ..integrators.compiled import (SAFETY, CompiledDOP853, dense_matrix, extra_tableau,
+                                    tableau)
 from ..integrators.adapters import proposed_step
 from ..tolerances import Tolerances
 
@@ -239,11 +240,15 @@ class PassageBridge:
         through y_n: integrated backwards, away from the configuration, at a hundredth of
         the run's tolerances (DOP853, its steps compiled where `rate` gives the engine's
         rate); None if that integration fails or grinds (`HISTORY_BUDGET` evaluations a
-        point: a configuration it cannot resolve)."""
+        point: a configuration it cannot resolve). With them the rates at t_n and at
+        them where the engine computed those too (`_history_in_engine`), else None."""
         inner = self.tol.inner()
         solver = CompiledDOP853(self._f, t_n, y_n, ts[-1], rtol=inner.rtol, atol=inner.atol)
         if self.rate is not None and self.extension is None:
             solver.rate = self._history_rate
+            done = self._history_in_engine(solver, ts)
+            if done is not None:
+                return done or None
         states, k = [], 0
         while k < len(ts):
             solver.step()
@@ -256,7 +261,30 @@ class PassageBridge:
             if passed:
                 interpolant = solver.dense_output()
                 states += [self._settled(interpolant(tk), tk) for tk in passed]
-        return states
+        return states, None
+
+    def _history_in_engine(self, solver, ts):
+        """`_history` taken in the engine where it has the steps (`mechsim_history`: the
+        same steps, states and rates, the same counts): (states, the rates at t_n and at
+        them), False where the integration fails or grinds, None where the engine does not
+        take it (the Python loop does)."""
+        rate = self.rate() if self.compiled else None
+        steps = self.problem.algebra.plain_steps(
+            self.problem.n, 1, (tableau(), extra_tableau(), dense_matrix())) \
+            if rate is not None and SAFETY is not None else None
+        done = None if steps is None else steps.history(rate.context, solver, rate, ts,
+                                                        HISTORY_BUDGET * len(ts))
+        if not done:
+            return done
+        states, F, evaluations, projections = done
+        rate.counted(evaluations)
+        rates = len(F)                          # as `_f` counts them
+        counters = self.problem.counters
+        counters.projections += projections
+        counters.rhs += rates
+        counters.factorizations += rates
+        self.evaluations += evaluations + rates
+        return list(states), F
 
     def _history_rate(self):
         """The engine's rate for the history's steps (`rate`), its evaluations counted as
@@ -359,11 +387,13 @@ class PassageBridge:
             return None
         ts = t_n - D * np.arange(points)
         y_n = self._settled(y_n, t_n)
-        states = self._history(t_n, y_n, ts[1:])
-        if states is None:
+        done = self._history(t_n, y_n, ts[1:])
+        if done is None:
             self.landing, self.standing_down = None, True
             return None
-        F = np.array([self._f(tk, y) for tk, y in zip(ts, [y_n] + states)])
+        states, F = done
+        if F is None:
+            F = np.array([self._f(tk, y) for tk, y in zip(ts, [y_n] + states)])
         history = [(tk, y[:n], y[n:2 * n]) for tk, y in zip(ts[::-1], states[::-1] + [y_n])]
         return ts, F, y_n, history
 

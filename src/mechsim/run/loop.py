@@ -38,6 +38,8 @@ from ..records import Status, WorkRecord
 from ..results.stream import begin_stream
 from ..results.work import WorkIntegral
 from .bounds import Statistics, StepBound
+from ..progress import Progress
+from .events import EVENT_SLACK, crossing
 from .passage_times import PassageTimes
 from .runaway import Runaway
 from .segment import Segment
@@ -50,10 +52,6 @@ from .samples import (FAILURES, NonFiniteState, Recorder, check_finite, fastest_
 # A run stops as stuck when this many steps together advance less than this fraction of
 # its span (LU alone at the flexible four-bar's passage: 2000 steps of 2e-12–7e-12 s).
 STALL_STEPS = 2000
-# An event value counts as crossed below −EVENT_SLACK (a stop left at its limit reads ±1e-16);
-# its time, where it passes 0, is found to EVENT_XTOL (relative to t, at least 1 s).
-EVENT_SLACK = 1e-12
-EVENT_XTOL = 1e-13
 STALL_SPAN = 1e-7
 # A step that left the assembly branch (`Formulation.keeps_branch`) is taken again at a
 # quarter of its length, up to this many times in a row, by the methods that resolve
@@ -78,27 +76,6 @@ class Settings:
     progress: bool = False          # a progress bar (tqdm) over [t_start, t_end]
     stream: object = None           # a directory the samples are streamed to, or None
     events: object = None           # where the run ends early (`Events`), or None
-
-
-class Progress:
-    """A progress bar of simulated time (tqdm, where it is installed; without it a warning
-    once and no bar)."""
-
-    def __init__(self, t_start, t_end, title):
-        from ..progress import tqdm_bar
-        self.t = t_start
-        self.bar = tqdm_bar(total=t_end - t_start, desc=title, unit="s", unit_scale=True,
-                            bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g} of "
-                                       "{total:.4g} s [{elapsed}<{remaining}]")
-
-    def update(self, t):
-        if self.bar is not None and t > self.t:
-            self.bar.update(t - self.t)
-            self.t = t
-
-    def close(self):
-        if self.bar is not None:
-            self.bar.close()
 
 
 class Run:
@@ -190,7 +167,17 @@ class Run:
         """One accepted step (or a step retaken, or an LSODA restart for a new bound);
         False where the run stops."""
         if self.segment is not None and self.segment.advance():
-            # Plain steps taken in the engine, up to one the loop decides on (`Segment`).
+            # Plain steps taken in the engine, up to one the loop decides on (`Segment`),
+            # the last of them perhaps taken up to its observation (`pending`): the
+            # formulation's and the bridge's decisions after it are the loop's.
+            pending = self.segment.pending
+            if pending is not None:
+                t_old, t_new, y_new = pending
+                self.form.keeps_branch(t_new, y_new)      # its end as the loop had it
+                q_new, v_new = self.form.state(t_new, y_new)
+                y_here = self._after_step(t_old, t_new, y_new, q_new, v_new,
+                                          self.out.due(t_new))
+                return self._after_accept(t_new, y_here)
             why = self.runaway.verdict(self.stats.steps, self.solver.t, self.s.t_end)
             if why:
                 return self._stop(why + fastest_motion(self.problem, self.solver.t, self.form.state(
@@ -227,11 +214,16 @@ class Run:
                               f"t = {solver.t:.9g}")
         if self.s.events is not None and self._event(t_old, solver.t, solver.y):
             return False
-        y_here = self._accept(t_old, solver.t, solver.y)
-        why = self.runaway.verdict(self.stats.steps, solver.t, self.s.t_end)
+        return self._after_accept(solver.t, self._accept(t_old, solver.t, solver.y))
+
+    def _after_accept(self, t, y_here) -> bool:
+        """What follows an accepted step that ended at t and goes on from y_here: the
+        runaway rule, the tolerances through a passage, the passage bridge, the stream;
+        False where the run stops."""
+        why = self.runaway.verdict(self.stats.steps, t, self.s.t_end)
         if why:
-            return self._stop(why + fastest_motion(self.problem, solver.t,
-                                                    self.form.state(solver.t, y_here)[1]))
+            return self._stop(why + fastest_motion(self.problem, t,
+                                                    self.form.state(t, y_here)[1]))
         if self.solver.status == "running":
             self._tolerances_for_passages()
         if self.bridge is not None and self.solver.status == "running":
@@ -311,6 +303,13 @@ class Run:
                                  ts, np.atleast_2d(dense(ts).T)),
                              on_step=lambda: form.compiled_step(step_output))
         self.passage_times.note(t_old, t_new, lambda tk: form.split(tk, dense(tk)))
+        return self._after_step(t_old, t_new, y_new, q_new, v_new, due)
+
+    def _after_step(self, t_old, t_new, y_new, q_new, v_new, due):
+        """The formulation's correction of the step from t_old accepted at (t_new, y_new)
+        (q_new, v_new there), its bound on the next step and the sample at its end where
+        `due`; returns the state the run goes on from."""
+        form, out, solver = self.form, self.out, self.solver
         correction = form.after_step(t_new, y_new, t_new - t_old)
         self.bound.after_step(solver, correction.step_limit)
         corrected = correction.y
@@ -580,21 +579,3 @@ def _split(Y, n):
     """(Q, V) from rows [q, v, …] (a bridge's extension's numbers after them)."""
     Y = np.atleast_2d(Y)
     return Y[:, :n], Y[:, n:2 * n]
-
-
-def crossing(g, t_old, t_new, g_old) -> float:
-    """The first time in [t_old, t_new] where g falls through 0, g(t_new) being below it:
-    from t_old where g was above 0, else (a run begun at the stop it left) from where g
-    peaks in the step, by Brent's method to `EVENT_XTOL`; t_old where g never rose above 0
-    (the joint went straight into the stop)."""
-    from scipy.optimize import brentq, minimize_scalar
-    xtol = EVENT_XTOL * max(1.0, abs(t_new))
-    start = t_old
-    if not g_old > 0.0:
-        peak = minimize_scalar(lambda t: -g(t), bounds=(t_old, t_new), method="bounded",
-                               options={"xatol": xtol})
-        if not -peak.fun > 0.0:
-            return t_old
-        start = float(peak.x)
-    return float(brentq(g, start, t_new, xtol=xtol))
-

@@ -67,6 +67,10 @@ class Segment:
         self.hybrid = run.form if isinstance(run.form, Hybrid) else None
         self.plain = plain                 # formulation -> its engine's `PlainSteps`
         self.steps = None                  # the `PlainSteps` of the latest segment
+        # The latest segment's last step where it is pending, (t_old, t_new, y_new): taken
+        # up to the monitor's observation, its formulation's and the bridge's decisions
+        # after it are the loop's (`Run._after_step`); else None.
+        self.pending = None
         self.min_advance = min_advance
         self.wait = dict.fromkeys(plain, 0)
         self.backoff = dict.fromkeys(plain, 0)
@@ -146,7 +150,7 @@ class Segment:
             return False
         # A segment that stopped on a step it declined leaves that very step next: the
         # loop's, without another try.
-        self.backoff[form], self.wait[form] = 0, int(steps.declined)
+        self.backoff[form], self.wait[form] = 0, int(steps.declined and not steps.s.pending)
         if lu:
             self._store_partition(form, solver, compiled)
         else:
@@ -259,10 +263,11 @@ class Segment:
         solver.stepped_in_engine(compiled, s.t, s.t_old, s.h_abs, s.h_previous,
                                  b["y"][:N].copy(), b["fy"][:N].copy(), b["y_old"][:N].copy(),
                                  b["K"].reshape(solver.K_extended.shape), s.evaluations)
-        lu.accepted_in_engine(b["J_end"].reshape(m, n).copy(),
-                              b["inverse"][:r * r].reshape(r, r).copy(),
-                              b["reduced"][:r * f].reshape(r, f).copy(), int(s.sign),
-                              float(b["block"][1]), s.repartition_at)
+        if s.count > s.pending:                  # a step committed whole: the partition's end
+            lu.accepted_in_engine(b["J_end"].reshape(m, n).copy(),
+                                  b["kept_inverse"][:r * r].reshape(r, r).copy(),
+                                  b["kept_reduced"][:r * f].reshape(r, f).copy(), int(s.sign),
+                                  float(b["kept_block"][1]), s.repartition_at)
         self.run.problem.counters.factorizations += s.factorizations
         if self.hybrid is not None:
             policy = self.hybrid.policy
@@ -275,7 +280,9 @@ class Segment:
         method and the hybrid's count towards LU."""
         steps = self.steps
         s, b, N = steps.s, steps.buffers, 2 * steps.shape[0]
-        solver.stepped_in_engine(proj.compiled_rate(far=bool(s.far_taken)), s.t, s.t_old,
+        # the rate of the last step (a pending step's: the far flag it was taken with)
+        far = s.far if s.pending else s.far_taken
+        solver.stepped_in_engine(proj.compiled_rate(far=bool(far)), s.t, s.t_old,
                                  s.h_abs, s.h_previous, b["y"][:N].copy(), b["fy"][:N].copy(),
                                  b["y_old"][:N].copy(), b["K"].reshape(solver.K_extended.shape),
                                  s.evaluations)
@@ -317,13 +324,19 @@ class Segment:
         stats.steps, stats.retries = s.steps, 0
         stats.corrections += s.corrections
         run.out.samples.held = s.held
-        run.out.next = run.out.next + count if self.every_step else s.next
+        # a pending step's end sample is the loop's to record (`pending`)
+        run.out.next = run.out.next + count - s.pending if self.every_step else s.next
         run.t_reached = s.t
         run.recent.extend(log[:, 0].tolist())
         bridge, bound = run.bridge, run.bound.max_step
         planned = bridge is not None and s.kind == 0 and s.bridging
+        self.pending = None
+        if s.pending:
+            self.pending = (s.t_old, s.t, run.solver.y)
         for j, (t, h, speed, h_free, sv, rate) in enumerate(log.tolist()):
             run.runaway.note_speed(first + j, h, speed)
+            if s.pending and j == count - 1:
+                break                    # the loop's own plan, after the step's end
             if planned:              # Run._bridge's plan, which planned nothing (the engine)
                 bridge.plan(sv, rate, t, min(h_free, bound), h_free >= bound)
             elif bridge is not None:
