@@ -23,7 +23,7 @@ def _both(mech, monkeypatch, kinds=None, **run):
         if done:
             taken.append((self.steps.s.kind, self.steps.s.count))
             if self.pending is not None:
-                taken.append(("pending", 0))
+                taken.append(("observe" if self.pending.observe else "pending", 0))
         return done
     monkeypatch.setattr(segment.Segment, "advance", counted)
     fast = mech.simulate(**run)
@@ -32,7 +32,7 @@ def _both(mech, monkeypatch, kinds=None, **run):
     monkeypatch.setattr(segment, "enabled", True)
     if kinds is not None:
         for kind, count in taken:
-            kinds[kind] = kinds.get(kind, 0) + (1 if kind == "pending" else count)
+            kinds[kind] = kinds.get(kind, 0) + (count if kind in (0, 1) else 1)
     return fast, slow, sum(count for _, count in taken)
 
 
@@ -79,10 +79,11 @@ def test_projection_segments_give_the_python_loop_s_numbers_to_the_bit(name, met
     """The projection method's steps in the engine (the hybrid's projection phase after
     and between passages, the bridge's approach, the projected state's rate evaluated
     again, the hybrid's stable steps towards LU counted with the compiled condition test),
-    and the steps after which the hybrid switches or the bridge crosses taken there up to
-    their observation (pending: the loop finishes them): the same samples, counts,
-    switches, bridges and passages as the loop's own steps, and most of the projection
-    steps taken there."""
+    the steps after which the hybrid switches or the bridge crosses taken there up to
+    their observation, and those the monitor must look at itself (a passage open at the
+    start, the band, a dip found) up to it (pending: the loop finishes them): the same
+    samples, counts, switches, bridges and passages as the loop's own steps, and most of
+    the projection steps taken there."""
     p = PROBLEMS[name]
     kinds = {}
     grid = {} if every_step else {"output_step": p.t_end / 1000}
@@ -95,6 +96,7 @@ def test_projection_segments_give_the_python_loop_s_numbers_to_the_bit(name, met
     assert kinds.get(0, 0) >= 0.4 * projection_steps
     if method == "hybrid":                 # its ten switches, most of them pending
         assert fast.stats["switches"] == 10 and kinds.get("pending", 0) >= 8
+        assert kinds.get("observe", 0) >= 10      # a passage open after each crossing
 
 
 @needs_compiler
@@ -185,8 +187,8 @@ def test_segments_record_a_sample_at_every_step(method, monkeypatch):
 
 @needs_compiler
 def test_the_loop_takes_the_search_of_a_step_a_segment_declined(monkeypatch):
-    """The double four-bar's LU steps across its passages: a segment searches the step,
-    finds a passage and declines it; the loop takes that step from the same state and,
+    """The double four-bar's LU steps across its passages: a segment searches the step
+    and finds a passage, which is the loop's to record; the loop observes that step and,
     rather than search again, takes the segment's search (the same request, partition
     and dense output, compared entry by entry). The run is the loop's to the bit."""
     from mechsim.codegen.search import StepSearch

@@ -1501,7 +1501,14 @@ static int keeps_set(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
 /* Why a segment stopped (mechsim_segment.reason). */
 enum { SEG_BUDGET = 0, SEG_STEP, SEG_BRANCH, SEG_SAMPLES, SEG_ROOM, SEG_DUE, SEG_FINITE,
        SEG_MEASURE, SEG_SEARCH, SEG_BAND, SEG_LEAVE, SEG_PARTITION, SEG_FINISHED, SEG_SHORT,
-       SEG_LIMIT, SEG_PROJECT, SEG_BRIDGE };
+       SEG_LIMIT, SEG_PROJECT, SEG_BRIDGE, SEG_OPEN };
+
+/* A pending step (s->pending): its observation by the monitor taken (PENDING_DECIDE: the
+   formulation's and the bridge's decisions after it are the loop's), or not
+   (PENDING_OBSERVE: a measurement the engine declines, the band, a dip the search does not
+   rule out, a passage open at the step's start; the loop observes it, and decides). */
+enum { PENDING_DECIDE = 1, PENDING_OBSERVE = 2 };
+
 
 /* A step's observation by the singularity monitor, as candidates the segment commits once
    the step stands. */
@@ -1843,6 +1850,26 @@ static int runaway_due(const mechsim_segment *s) {
   return s->steps >= s->runaway_from && s->steps % s->runaway_every == 0;
 }
 
+/* Whether the monitor's verdict on a step (observe_step, hidden_clear) leaves its
+   observation to the loop: the step is still taken, pending. */
+static int observed_by_loop(int64_t why) {
+  return why == SEG_MEASURE || why == SEG_BAND || why == SEG_SEARCH || why == SEG_OPEN;
+}
+
+/* Commit a pending step (its end y_new, f_new; k samples inside it) and what it leaves to
+   the loop: PENDING_DECIDE with its observation o committed, PENDING_OBSERVE without. */
+static void commit_pending(mechsim_segment *s, int64_t N, int64_t n, int64_t mn, double t_old,
+                           const seg_observation *o, int64_t kind, int64_t why,
+                           int64_t evaluations, int64_t next, int64_t k, double speed,
+                           int ready) {
+  if (kind == PENDING_DECIDE) commit_observation(s, o, mn, t_old, s->out[0]);
+  commit_step(s, N, n, t_old, s->y_new, s->f_new, evaluations, next, k, NULL, NULL, speed,
+              0.0, 0.0);
+  s->pending = kind;
+  s->dense_formed = ready;
+  s->reason = why;
+}
+
 /* Up to s->budget accepted steps of DOP853 on the partition c (kind 1), each followed by
    what Run._advance does after a plain step of a small rigid mechanism in LU (the hybrid's LU
    phase, or "lu"): its output samples (dense output, positions and velocities) written to
@@ -1895,8 +1922,19 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
        stands: the candidates in o */
     seg_observation o;
     int ready = 0;                       /* the step's dense output formed */
-    why = observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
-    if (why) { s->reason = why; break; }
+    why = s->open_at_start && !s->count ? SEG_OPEN :
+        observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
+    if (why && !observed_by_loop(why)) { s->reason = why; break; }
+    if (why) {                     /* the loop's observation: the step's samples, pending */
+      if (k > 0 && samples_step(c, s, t_old, h, y, y_new, f_new, k0, k, &ready,
+                                &evaluations)) {
+        s->reason = SEG_SAMPLES;
+        break;
+      }
+      commit_pending(s, N, n, mn, t_old, &o, PENDING_OBSERVE, why, evaluations, next, k,
+                     speed, ready);
+      break;
+    }
     const double last = o.skip ? s->last : o.srel, mon_rate = o.skip ? s->rate : o.rate;
     /* The hybrid's policy (HybridPolicy.lu_limit, leave_lu) and the partition's choice
        (Partitioned.after_step): where either is the loop's (`pending`: a switch to the
@@ -1910,7 +1948,16 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     /* a passage hidden in the step, ruled out (the search last: a step the loop takes
        anyway spends none) */
     why = hidden_clear(c, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready, &evaluations);
-    if (why) { s->reason = why; break; }
+    if (why) {             /* a dip not ruled out: the loop observes (the kept search) */
+      if (k > 0 && samples_step(c, s, t_old, h, y, y_new, f_new, k0, k, &ready,
+                                &evaluations)) {
+        s->reason = SEG_SAMPLES;
+        break;
+      }
+      commit_pending(s, N, n, mn, t_old, &o, PENDING_OBSERVE, why, evaluations, next, k,
+                     speed, ready);
+      break;
+    }
     double repartition_at = s->repartition_at;
     if (!pending && (fresh >= 2 || condition > repartition_at)) {
       /* Partitioned.after_step's choose: the same set stands until its condition grows as
@@ -1925,11 +1972,8 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
       break;
     }
     if (pending) {
-      commit_observation(s, &o, mn, t_old, t_new);
-      commit_step(s, N, n, t_old, y_new, f_new, evaluations, next, k, NULL, NULL, speed, 0.0,
-                  0.0);
-      s->pending = 1;
-      s->reason = pending;
+      commit_pending(s, N, n, mn, t_old, &o, PENDING_DECIDE, pending, evaluations, next, k,
+                     speed, ready);
       break;
     }
     double zmax = 0.0;
@@ -2101,8 +2145,20 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     if (isnan(speed)) { s->reason = SEG_FINITE; break; }
     seg_observation o;
     int ready = 0;
-    why = observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
-    if (why) { s->reason = why; break; }
+    why = s->open_at_start && !s->count ? SEG_OPEN :
+        observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
+    if (why && !observed_by_loop(why)) { s->reason = why; break; }
+    if (why) {                     /* the loop's observation: the step's samples, pending */
+      if (k > 0 && projection_samples(pc, s, t_old, h, y, y_new, f_new, k0, k, &ready,
+                                      &evaluations, &projections)) {
+        s->reason = SEG_SAMPLES;
+        break;
+      }
+      s->projections += projections;
+      commit_pending(s, N, n, mn, t_old, &o, PENDING_OBSERVE, why, evaluations, next, k,
+                     speed, ready);
+      break;
+    }
     const double last = o.skip ? s->last : o.srel, mon_rate = o.skip ? s->rate : o.rate;
     const double peak = o.peak;
     /* What the formulation and the bridge decide after the step (Projection.after_step,
@@ -2153,10 +2209,15 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     }
     why = hidden_clear(NULL, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready,
                        &evaluations);
-    if (why) { s->reason = why; break; }
     if (k > 0 && projection_samples(pc, s, t_old, h, y, y_new, f_new, k0, k, &ready,
                                     &evaluations, &projections)) {
       s->reason = SEG_SAMPLES;
+      break;
+    }
+    if (why) {             /* a dip not ruled out: the loop observes (the kept search) */
+      s->projections += projections;
+      commit_pending(s, N, n, mn, t_old, &o, PENDING_OBSERVE, why, evaluations, next, k,
+                     speed, ready);
       break;
     }
     /* the projected state's rate (adapters.correct_in_place), on the next step's far */
@@ -2174,14 +2235,12 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     /* committed from here: the observation, samples and the step; the rest where it is
        not pending */
     s->projections += projections;
-    commit_observation(s, &o, mn, t_old, t_new);
     if (pending) {
-      commit_step(s, N, n, t_old, y_new, f_new, evaluations, next, k, NULL, NULL, speed,
-                  s_un, rate_un);
-      s->pending = 1;
-      s->reason = pending;
+      commit_pending(s, N, n, mn, t_old, &o, PENDING_DECIDE, pending, evaluations, next, k,
+                     speed, ready);
       break;
     }
+    commit_observation(s, &o, mn, t_old, t_new);
     s->projections += end_projections;
     s->corrections += moved;
     s->refreshed += moved;

@@ -47,7 +47,7 @@ from ..tolerances import Tolerances
 from ..formulations.basis import ConstraintSolveError
 from ..model.checks import LoadError
 from .samples import (FAILURES, NonFiniteState, Recorder, check_finite, fastest_motion,
-                      troubled_drivers)
+                      split_rows, troubled_drivers)
 
 # A run stops as stuck when this many steps together advance less than this fraction of
 # its span (LU alone at the flexible four-bar's passage: 2000 steps of 2e-12–7e-12 s).
@@ -168,16 +168,9 @@ class Run:
         False where the run stops."""
         if self.segment is not None and self.segment.advance():
             # Plain steps taken in the engine, up to one the loop decides on (`Segment`),
-            # the last of them perhaps taken up to its observation (`pending`): the
-            # formulation's and the bridge's decisions after it are the loop's.
-            pending = self.segment.pending
-            if pending is not None:
-                t_old, t_new, y_new = pending
-                self.form.keeps_branch(t_new, y_new)      # its end as the loop had it
-                q_new, v_new = self.form.state(t_new, y_new)
-                y_here = self._after_step(t_old, t_new, y_new, q_new, v_new,
-                                          self.out.due(t_new))
-                return self._after_accept(t_new, y_here)
+            # the last of them perhaps pending: the loop finishes it.
+            if self.segment.pending is not None:
+                return self._finish_pending(self.segment.pending)
             why = self.runaway.verdict(self.stats.steps, self.solver.t, self.s.t_end)
             if why:
                 return self._stop(why + fastest_motion(self.problem, self.solver.t, self.form.state(
@@ -298,12 +291,40 @@ class Run:
         q_new, v_new = form.state(t_new, y_new)
         check_finite(self.problem, t_new, q_new, v_new)
         self.runaway.note(self.stats.steps, t_new - t_old, v_new)
+        self._observe(t_old, t_new, q_new, v_new, step_output)
+        return self._after_step(t_old, t_new, y_new, q_new, v_new, due)
+
+    def _observe(self, t_old, t_new, q_new, v_new, step_output) -> None:
+        """The monitor's observation of the step from t_old accepted at t_new (q_new,
+        v_new there; `step_output()` its dense output) and the passage times' note."""
+        form = self.form
+
+        def dense(tk):
+            return step_output()(tk)
         self.monitor.observe(t_new, q_new, v_new, lambda tk: form.state(tk, dense(tk)),
                              t_old=t_old, positions_at=lambda ts: form.positions(
                                  ts, np.atleast_2d(dense(ts).T)),
                              on_step=lambda: form.compiled_step(step_output))
         self.passage_times.note(t_old, t_new, lambda tk: form.split(tk, dense(tk)))
-        return self._after_step(t_old, t_new, y_new, q_new, v_new, due)
+
+    def _finish_pending(self, pending) -> bool:
+        """Finish a segment's pending step (`mechsim.run.segment.Pending`), taken in the
+        engine with its samples (and its observation, unless `pending.observe`): what
+        `_accept` and `_advance` do after that."""
+        t_old, t_new, y_new = pending.t_old, pending.t_new, pending.y_new
+        form = self.form
+        form.keeps_branch(t_new, y_new)              # its end as the loop had it
+        q_new, v_new = form.state(t_new, y_new)
+        if pending.observe:
+            formed = [pending.interpolant] if pending.interpolant is not None else []
+
+            def step_output():
+                if not formed:
+                    formed.append(self.solver.dense_output())
+                return formed[0]
+            self._observe(t_old, t_new, q_new, v_new, step_output)
+        y_here = self._after_step(t_old, t_new, y_new, q_new, v_new, self.out.due(t_new))
+        return self._after_accept(t_new, y_here)
 
     def _after_step(self, t_old, t_new, y_new, q_new, v_new, due):
         """The formulation's correction of the step from t_old accepted at (t_new, y_new)
@@ -375,7 +396,7 @@ class Run:
             self.out.within(t, t_b, True, interp, self._bridge_samples)
         else:
             self.out.record(t_b, q_b, v_b, interp(t_b))
-        self._add_work(t, t_b, lambda tk: _split(interp(tk).T, n), recorded, [])
+        self._add_work(t, t_b, lambda tk: split_rows(interp(tk).T, n), recorded, [])
         self.monitor.crossed(t, t_b, t_star, interp(t_star)[:n])
         self.monitor.observe(t_b, q_b, v_b)
         self.passage_times.note(t, t_b, lambda tk: np.split(interp(tk), [n, 2 * n]))
@@ -427,7 +448,7 @@ class Run:
 
     def _bridge_samples(self, tk, Y):
         """A bridge's output samples, onto the constraints as the steps' are."""
-        Q, V = _split(np.array(Y), self.problem.n)
+        Q, V = split_rows(np.array(Y), self.problem.n)
         compiled = getattr(self.bridge, "compiled", False)    # as its own projections
         settle_samples(self.problem, tk, Q, V, self.form.tol.manifold, compiled)
         return Q, V
@@ -573,9 +594,3 @@ class Run:
             notes.append(f"{work.unresolved} piece(s) of steps not resolved to the "
                          "quadrature's tolerance")
         return WorkRecord(tuple(work.channels), self.out.work.take(), "; ".join(notes))
-
-
-def _split(Y, n):
-    """(Q, V) from rows [q, v, …] (a bridge's extension's numbers after them)."""
-    Y = np.atleast_2d(Y)
-    return Y[:, :n], Y[:, n:2 * n]

@@ -312,3 +312,9 @@ class Recorder:
                 self.record(inside[k], q[0], v[0], Y[k])
             return
         self.record_many(inside, Q, V, Y)
+
+
+def split_rows(Y, n):
+    """(Q, V) from rows [q, v, …] (a bridge's extension's numbers after them)."""
+    Y = np.atleast_2d(Y)
+    return Y[:, :n], Y[:, n:2 * n]

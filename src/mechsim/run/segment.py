@@ -11,9 +11,13 @@ predictor or the projection: no passage in reach, no change of partition or of
 formulation, no crossing, no sample due at its end), all of that is arithmetic that
 `mechsim_lu_segment` (LU) or `mechsim_projection_segment` (projection: the hybrid's
 projection phase between passages and after them, the bridge's approach to a landing
-point included) does in C, step after step, until a step is not plain. That step it
-drops; the Python loop (`mechsim.run.loop.Run`) takes it from the same state, with its
-own decisions.
+point included) does in C, step after step, until a step is not plain. A step whose end
+is the loop's to decide (a switch of the hybrid, a new partition, a crossing by the
+passage bridge) or to observe (a passage open at its start, the band, a dip the monitor's
+search finds) the segment still takes, with its samples, up to that point, and hands it
+over pending (`Pending`: the loop finishes it, `Run._finish_pending`); any other step it
+drops, and the Python loop (`mechsim.run.loop.Run`) takes it from the same state, with
+its own decisions.
 
 The contract is the Python loop's numbers to the bit: the segment makes the decisions the
 loop would make (the same comparisons in the same order on the same doubles) and calls the
@@ -40,6 +44,8 @@ is `mechsim.codegen.steps.PlainSteps`, which the problem's algebra gives
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..formulations.hybrid import Hybrid
@@ -50,13 +56,29 @@ from ..formulations.full import ROUND_OFF
 from ..formulations.partitioned import REFERENCE_SPAN, Partitioned
 from ..formulations.projection import Projection
 from ..integrators.compiled import (MAX_FACTOR, MIN_FACTOR, SAFETY, CompiledDOP853,
-                                    dense_matrix, extra_tableau, tableau)
+                                    Interpolant, dense_matrix, extra_tableau, tableau)
 from .runaway import RUNAWAY_EVERY, RUNAWAY_FROM
 
 # The longest wait, in steps, before a segment is tried again after it declined its first.
 BACKOFF_MAX = 64
 # Segments can be switched off (`enabled = False`), for the test that compares.
 enabled = True
+# A pending step whose observation is the loop's (`mechsim_segment.pending`; 1: its
+# decisions only).
+PENDING_OBSERVE = 2
+
+
+class Pending(NamedTuple):
+    """A segment's last step, taken in the engine up to its observation by the monitor
+    (`observe` False: the formulation's and the bridge's decisions after it are the
+    loop's) or without it (`observe` True: the loop observes it, then decides), from
+    t_old to t_new with its end y_new; `interpolant`: its dense output where the engine
+    formed it (for the samples or the search), else None (`Run._finish_pending`)."""
+    t_old: float
+    t_new: float
+    y_new: np.ndarray
+    observe: bool
+    interpolant: object
 
 
 class Segment:
@@ -67,9 +89,7 @@ class Segment:
         self.hybrid = run.form if isinstance(run.form, Hybrid) else None
         self.plain = plain                 # formulation -> its engine's `PlainSteps`
         self.steps = None                  # the `PlainSteps` of the latest segment
-        # The latest segment's last step where it is pending, (t_old, t_new, y_new): taken
-        # up to the monitor's observation, its formulation's and the bridge's decisions
-        # after it are the loop's (`Run._after_step`); else None.
+        # The latest segment's last step where the loop finishes it (`Pending`), else None.
         self.pending = None
         self.min_advance = min_advance
         self.wait = dict.fromkeys(plain, 0)
@@ -121,7 +141,7 @@ class Segment:
         solver, monitor = run.solver, run.monitor
         if not isinstance(solver, CompiledDOP853) or solver.status != "running" or \
                 solver.t == solver.t_bound or solver.y.dtype != np.float64 or \
-                monitor.open_passage is not None or monitor.blind or \
+                monitor.blind or \
                 run.tolerances != run.local or solver.rate is None:
             return False
         lu = form is self.lu
@@ -152,10 +172,10 @@ class Segment:
         # loop's, without another try.
         self.backoff[form], self.wait[form] = 0, int(steps.declined and not steps.s.pending)
         if lu:
-            self._store_partition(form, solver, compiled)
+            compiled = self._store_partition(form, solver, compiled)
         else:
-            self._store_projection(form, solver)
-        self._store(run, monitor, count)
+            compiled = self._store_projection(form, solver)
+        self._store(run, monitor, count, compiled)
         return True
 
     def _load_projection(self, start, proj) -> bool:
@@ -213,6 +233,7 @@ class Segment:
         b["fy"][:] = solver.f
         s.hybrid = self.hybrid is not None
         monitor = run.monitor
+        s.open_at_start = monitor.open_passage is not None     # its first step: pending
         s.small = bool(run.problem.algebra.small)
         s.max_skip, s.enter, s.leave = monitor.max_skip, monitor.enter, monitor.leave
         s.blind, s.weyl_span, s.hermite_margin = BLIND, WEYL_SPAN, HERMITE_MARGIN
@@ -254,16 +275,16 @@ class Segment:
             s.has_limit = policy.limit is not None
             s.limit = policy.limit if policy.limit is not None else 0.0
 
-    def _store_partition(self, lu, solver, compiled) -> None:
+    def _store_partition(self, lu, solver, compiled):
         """What the committed steps changed in the integrator, the partition and the
-        hybrid's LU policy."""
+        hybrid's LU policy; returns the rate the last step was taken on."""
         steps = self.steps
         s, b, (n, m, f) = steps.s, steps.buffers, steps.shape
         N, r = 2 * f, n - f
         solver.stepped_in_engine(compiled, s.t, s.t_old, s.h_abs, s.h_previous,
                                  b["y"][:N].copy(), b["fy"][:N].copy(), b["y_old"][:N].copy(),
                                  b["K"].reshape(solver.K_extended.shape), s.evaluations)
-        if s.count > s.pending:                  # a step committed whole: the partition's end
+        if s.count > bool(s.pending):            # a step committed whole: the partition's end
             lu.accepted_in_engine(b["J_end"].reshape(m, n).copy(),
                                   b["kept_inverse"][:r * r].reshape(r, r).copy(),
                                   b["kept_reduced"][:r * f].reshape(r, f).copy(), int(s.sign),
@@ -273,16 +294,18 @@ class Segment:
             policy = self.hybrid.policy
             policy.held, policy.steps = s.held_steps, s.policy_steps
             policy.limit = s.limit if s.has_limit else None
+        return compiled
 
-    def _store_projection(self, proj, solver) -> None:
+    def _store_projection(self, proj, solver):
         """What the committed steps changed in the integrator (its state's rate evaluated
         again after each projection, as `adapters.correct_in_place` does), the projection
-        method and the hybrid's count towards LU."""
+        method and the hybrid's count towards LU; returns the rate the last step was
+        taken on."""
         steps = self.steps
         s, b, N = steps.s, steps.buffers, 2 * steps.shape[0]
         # the rate of the last step (a pending step's: the far flag it was taken with)
-        far = s.far if s.pending else s.far_taken
-        solver.stepped_in_engine(proj.compiled_rate(far=bool(far)), s.t, s.t_old,
+        compiled = proj.compiled_rate(far=bool(s.far if s.pending else s.far_taken))
+        solver.stepped_in_engine(compiled, s.t, s.t_old,
                                  s.h_abs, s.h_previous, b["y"][:N].copy(), b["fy"][:N].copy(),
                                  b["y_old"][:N].copy(), b["K"].reshape(solver.K_extended.shape),
                                  s.evaluations)
@@ -295,9 +318,24 @@ class Segment:
         if self.hybrid is not None:
             policy = self.hybrid.policy
             policy.steps, policy.stable, policy.previous = s.policy_steps, s.stable, s.previous
+        return compiled
 
-    def _store(self, run, monitor, count) -> None:
-        """What `count` committed steps changed in the monitor and the run."""
+    def _interpolant(self, solver, compiled):
+        """A pending step's dense output as `CompiledDOP853.dense_output` would form it,
+        from the coefficients the engine formed (the same extra stages, counted there);
+        None where it formed none."""
+        steps = self.steps
+        s = steps.s
+        if not (s.pending == PENDING_OBSERVE and s.dense_formed):
+            return None
+        rows, N = s.dense_rows + 3, 2 * steps.shape[2]
+        F = steps.buffers["F"][:rows * N].reshape(rows, N).copy()
+        return Interpolant(s.t_old, s.t, np.ascontiguousarray(solver.y_old, dtype=float), F,
+                           compiled.interpolate)
+
+    def _store(self, run, monitor, count, compiled) -> None:
+        """What `count` committed steps changed in the monitor and the run (the last on the
+        rate `compiled`), and what a pending step leaves to the loop (`pending`)."""
         steps = self.steps
         s, b, (n, m, _) = steps.s, steps.buffers, steps.shape
         size = m * n
@@ -325,14 +363,15 @@ class Segment:
         stats.corrections += s.corrections
         run.out.samples.held = s.held
         # a pending step's end sample is the loop's to record (`pending`)
-        run.out.next = run.out.next + count - s.pending if self.every_step else s.next
+        run.out.next = run.out.next + count - bool(s.pending) if self.every_step else s.next
         run.t_reached = s.t
         run.recent.extend(log[:, 0].tolist())
         bridge, bound = run.bridge, run.bound.max_step
         planned = bridge is not None and s.kind == 0 and s.bridging
         self.pending = None
         if s.pending:
-            self.pending = (s.t_old, s.t, run.solver.y)
+            self.pending = Pending(s.t_old, s.t, run.solver.y, s.pending == PENDING_OBSERVE,
+                                   self._interpolant(run.solver, compiled))
         for j, (t, h, speed, h_free, sv, rate) in enumerate(log.tolist()):
             run.runaway.note_speed(first + j, h, speed)
             if s.pending and j == count - 1:
