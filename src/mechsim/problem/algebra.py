@@ -112,6 +112,7 @@ class ConstraintAlgebra:
         self.problem = problem
         self._nodes = {}               # J̃ of the passage search's latest states (`_scaled_at`)
         self._plain = {}               # f -> the engine's plain steps (`plain_steps`)
+        self._partitions = {}          # the engine's partitions made (`partition_solver`)
 
     @property
     def small(self) -> bool:
@@ -386,9 +387,19 @@ class DenseAlgebra(ConstraintAlgebra):
                          round_off=None):
         if self.engine is None or len(dependent) != self.problem.m:
             return None
-        from ..codegen import engine
-        return engine.PartitionedEngine(self.engine.lib, self.problem, independent, dependent,
-                                        newton_tol, max_newton, rheonomic, round_off)
+        # One per partition and settings, kept for the problem's later runs: a partition
+        # that comes back (the hybrid's after each passage) loads its state again
+        # (`accept`, `predictor`) and needs no new buffers.
+        key = (tuple(int(i) for i in independent), tuple(int(i) for i in dependent),
+               float(newton_tol), int(max_newton), bool(rheonomic), round_off)
+        kept = self._partitions.get(key)
+        if kept is None:
+            from ..codegen import engine
+            kept = self._partitions[key] = engine.PartitionedEngine(
+                self.engine.lib, self.problem, independent, dependent, newton_tol,
+                max_newton, rheonomic, round_off)
+        kept.ready = False
+        return kept
 
     def lu_condition(self, t, q):
         return None if self.engine is None else self.engine.lu_condition(t, q)
