@@ -1925,17 +1925,6 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     why = s->open_at_start && !s->count ? SEG_OPEN :
         observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
     if (why && !observed_by_loop(why)) { s->reason = why; break; }
-    if (why) {                     /* the loop's observation: the step's samples, pending */
-      if (k > 0 && samples_step(c, s, t_old, h, y, y_new, f_new, k0, k, &ready,
-                                &evaluations)) {
-        s->reason = SEG_SAMPLES;
-        break;
-      }
-      commit_pending(s, N, n, mn, t_old, &o, PENDING_OBSERVE, why, evaluations, next, k,
-                     speed, ready);
-      break;
-    }
-    const double last = o.skip ? s->last : o.srel, mon_rate = o.skip ? s->rate : o.rate;
     /* The hybrid's policy (HybridPolicy.lu_limit, leave_lu) and the partition's choice
        (Partitioned.after_step): where either is the loop's (`pending`: a switch to the
        projection method, a new partition), the step is still taken here up to the
@@ -1943,12 +1932,16 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     int64_t pending = 0;
     int has_limit = 0, held = (int)s->held_steps;
     double limit = 0.0;
-    if (s->hybrid && policy_step(s, h, last, mon_rate, &has_limit, &limit, &held))
-      pending = SEG_LEAVE;
-    /* a passage hidden in the step, ruled out (the search last: a step the loop takes
-       anyway spends none) */
-    why = hidden_clear(c, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready, &evaluations);
-    if (why) {             /* a dip not ruled out: the loop observes (the kept search) */
+    if (!why) {
+      const double last = o.skip ? s->last : o.srel, mon_rate = o.skip ? s->rate : o.rate;
+      if (s->hybrid && policy_step(s, h, last, mon_rate, &has_limit, &limit, &held))
+        pending = SEG_LEAVE;
+      /* a passage hidden in the step, ruled out (the search last: a step the loop takes
+         anyway spends none) */
+      why = hidden_clear(c, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready,
+                         &evaluations);
+    }
+    if (why) {     /* the loop's observation (of a dip found: the kept search), pending */
       if (k > 0 && samples_step(c, s, t_old, h, y, y_new, f_new, k0, k, &ready,
                                 &evaluations)) {
         s->reason = SEG_SAMPLES;
