@@ -1763,6 +1763,19 @@ static void accept_end(mechsim_lu *c, mechsim_segment *s, double t_new, const do
   }
 }
 
+/* mechsim_dop853 from (s->t, s->y, s->fy) with the integrator's settings in s, on the
+   step's rate (s->rate_ctx of s->kind; min_rcond s->rate_rcond, s->cut), the state of N
+   entries: its end into s->y_new, s->f_new, s->out. Its status (0 accepted). */
+static int dop853_step(mechsim_segment *s, int64_t N) {
+  double *in = s->in;
+  in[0] = (double)s->stages; in[1] = s->t; in[2] = s->h_abs; in[3] = s->t_bound;
+  in[4] = s->direction; in[5] = s->max_step; in[6] = s->rtol; in[7] = s->rate_rcond;
+  in[8] = s->cut; in[9] = s->safety; in[10] = s->min_factor; in[11] = s->max_factor;
+  in[12] = s->exponent;
+  return mechsim_dop853(s->rate_ctx, s->kind, N, s->coef, in, s->y, s->fy, s->atol, s->K,
+                        s->y_new, s->f_new, s->work, s->out, (void *)declined_rate);
+}
+
 /* A segment's next step (CompiledDOP853.step) from (s->t, s->y, s->fy) on the step's rate
    (s->rate_ctx of s->kind; min_rcond s->rate_rcond, s->cut), the state of N entries: its
    end into s->y_new, s->f_new, out = (t_new, h, next h_abs, evaluations). 0: a step the
@@ -1770,13 +1783,8 @@ static void accept_end(mechsim_lu *c, mechsim_segment *s, double t_new, const do
    stall rule's span, the run's end). */
 static int64_t segment_step(mechsim_segment *s, int64_t N) {
   if (s->max_steps >= 0 && s->steps + 1 > s->max_steps) return SEG_LIMIT;
-  double *in = s->in, *out = s->out;
-  in[0] = (double)s->stages; in[1] = s->t; in[2] = s->h_abs; in[3] = s->t_bound;
-  in[4] = s->direction; in[5] = s->max_step; in[6] = s->rtol; in[7] = s->rate_rcond;
-  in[8] = s->cut; in[9] = s->safety; in[10] = s->min_factor; in[11] = s->max_factor;
-  in[12] = s->exponent;
-  if (mechsim_dop853(s->rate_ctx, s->kind, N, s->coef, in, s->y, s->fy, s->atol, s->K,
-                     s->y_new, s->f_new, s->work, out, (void *)declined_rate)) return SEG_STEP;
+  const double *out = s->out;
+  if (dop853_step(s, N)) return SEG_STEP;
   if (out[1] < s->min_advance) return SEG_SHORT;
   if (s->direction * (out[0] - s->t_bound) >= 0.0) return SEG_FINISHED;
   return 0;
@@ -2019,6 +2027,16 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
   return s->count;
 }
 
+/* The rate [v; qdd] of the projection method at the state y (2n entries) at t into f, on its
+   compiled accelerations with min_rcond and cut (compiled_rate, no fallback). 0: done;
+   1: declined. */
+static int projection_rate(mechsim_projection *pc, double t, const double *y, double min_rcond,
+                           double cut, double *f) {
+  int64_t declined = 0;
+  return compiled_rate(pc, 0, t, y, f, 2 * pc->n, min_rcond, cut,
+                       (mechsim_rate_t)declined_rate, &declined);
+}
+
 /* SingularityMonitor.predicted_within(h) at s/peak = last falling at `rate`. */
 static int predicted_within(double last, double rate, double h, double enter) {
   return last < enter || (rate < 0.0 && last + rate * h < enter);
@@ -2216,14 +2234,10 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     /* the projected state's rate (adapters.correct_in_place), on the next step's far */
     const double *f_end = f_new;
     if (!pending && moved) {
-      memcpy(pc->q, y_here, n * sizeof(double));
-      memcpy(pc->v, y_here + n, n * sizeof(double));
-      if (mechsim_projection_accelerations(pc, t_new, far ? -1.0 : s->min_rcond, s->cut))
+      if (projection_rate(pc, t_new, y_here, far ? -1.0 : s->min_rcond, s->cut, s->f_here))
         pending = SEG_PROJECT;
-      else {
-        memcpy(s->f_here, pc->out, N * sizeof(double));
+      else
         f_end = s->f_here;
-      }
     }
     /* committed from here: the observation, samples and the step; the rest where it is
        not pending */
@@ -2235,8 +2249,7 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     }
     commit_observation(s, &o, mn, t_old, t_new);
     s->projections += end_projections;
-    s->corrections += moved;
-    s->refreshed += moved;
+    s->corrections += moved;       /* each with its rate evaluated again */
     s->far_taken = s->far;
     s->far = far;
     s->max_step = plan == 2 ? py_min(s->run_max_step, land) : s->run_max_step;
@@ -2255,18 +2268,6 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
   return s->count;
 }
 
-/* The rate [v; qdd] of the projection method at the state y (2n entries) at t into f, on its
-   compiled accelerations with min_rcond and cut (mechsim_projection_accelerations). 0: done;
-   1: declined. */
-static int projection_rate(mechsim_projection *pc, double t, const double *y, double min_rcond,
-                           double cut, double *f) {
-  const int64_t n = pc->n;
-  memcpy(pc->q, y, n * sizeof(double));
-  memcpy(pc->v, y + n, n * sizeof(double));
-  if (mechsim_projection_accelerations(pc, t, min_rcond, cut)) return 1;
-  memcpy(f, pc->out, 2 * n * sizeof(double));
-  return 0;
-}
 
 /* The passage bridge's history (PassageBridge._history and the rates of _start): DOP853
    from (s->t, s->y, s->fy) towards s->t_bound on the projection method's compiled
@@ -2284,7 +2285,7 @@ static int projection_rate(mechsim_projection *pc, double t, const double *y, do
 int64_t mechsim_history(mechsim_projection *pc, mechsim_segment *s, int64_t k,
                         const double *ts, double budget, double *states, double *F) {
   const int64_t n = pc->n, N = 2 * n;
-  double *y = s->y, *fy = s->fy, *y_new = s->y_new, *f_new = s->f_new, *in = s->in;
+  double *y = s->y, *fy = s->fy, *y_new = s->y_new, *f_new = s->f_new;
   double *out = s->out, *row = s->y_here;
   const double t0 = s->t;
   s->rate_ctx = pc;
@@ -2293,12 +2294,7 @@ int64_t mechsim_history(mechsim_projection *pc, mechsim_segment *s, int64_t k,
   if (projection_rate(pc, t0, y, s->min_rcond, s->cut, F)) return -1;
   int64_t j = 0;
   while (j < k) {
-    in[0] = (double)s->stages; in[1] = s->t; in[2] = s->h_abs; in[3] = s->t_bound;
-    in[4] = s->direction; in[5] = s->max_step; in[6] = s->rtol; in[7] = s->rate_rcond;
-    in[8] = s->cut; in[9] = s->safety; in[10] = s->min_factor; in[11] = s->max_factor;
-    in[12] = s->exponent;
-    const int status = mechsim_dop853(pc, 0, N, s->coef, in, y, fy, s->atol, s->K, y_new,
-                                      f_new, s->work, out, (void *)declined_rate);
+    const int status = dop853_step(s, N);
     if (status == 1) return -1;
     if (status == 2) return -2;
     s->evaluations += (int64_t)out[3];

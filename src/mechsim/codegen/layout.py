@@ -173,7 +173,7 @@ SEGMENT = Layout("mechsim_segment", [
         # method's steps (`mechsim_projection_segment`): its far flag now and for the last
         # step, the hybrid's stable steps, the bridge's previous plan, what was counted
         "kind", "far", "far_taken", "stable", "stable_steps", "bridging", "has_bprev",
-        "has_landing", "has_free", "free_bound", "projections", "refreshed", "pending",
+        "has_landing", "has_free", "free_bound", "projections", "pending",
         "dense_formed", "open_at_start")),
     *(Field(name, "double") for name in (
         "t", "t_old", "h_abs", "h_previous", "t_bound", "direction", "max_step",

@@ -60,6 +60,22 @@ class PlainSteps:
         how many were committed (`mechsim_lu_segment`)."""
         return int(self.lib.mechsim_lu_segment(partition, projection, self._address))
 
+    def load_integrator(self, solver) -> None:
+        """The state and settings of `solver` (a `CompiledDOP853`) into the structure: its
+        tableau's sizes, t, h, bound, direction, max_step, tolerances, controller, y and
+        f (its state's entries first in `y`, `fy`)."""
+        s, b, N = self.s, self.buffers, solver.n
+        self.point("atol", solver.atol_array)
+        s.stages = solver.n_stages
+        s.extra_rows, s.extra_width = solver.A_EXTRA.shape
+        s.dense_rows, s.dense_cols = solver.D.shape
+        s.t, s.h_abs, s.t_bound, s.direction = solver.t, solver.h_abs, solver.t_bound, \
+            solver.direction
+        s.max_step, s.rtol, s.exponent = solver.max_step, solver.rtol, solver.error_exponent
+        s.safety, s.min_factor, s.max_factor = SAFETY, MIN_FACTOR, MAX_FACTOR
+        b["y"][:N] = solver.y
+        b["fy"][:N] = solver.f
+
     def history(self, projection, solver, rate, ts, budget):
         """The passage bridge's history in the engine (`mechsim_history`) on the
         projection context `projection` (its address), from the state of `solver` (a
@@ -69,19 +85,10 @@ class PlainSteps:
         declined a stage, a projection or a rate (the caller's Python path takes the
         history), False where the integration failed or spent more than `budget`
         evaluations."""
-        s, b, N = self.s, self.buffers, 2 * self.shape[0]
-        self.point("atol", solver.atol_array)
-        s.stages = solver.n_stages
-        s.extra_rows, s.extra_width = solver.A_EXTRA.shape
-        s.dense_rows, s.dense_cols = solver.D.shape
-        s.t, s.h_abs, s.t_bound, s.direction = solver.t, solver.h_abs, solver.t_bound, \
-            solver.direction
-        s.max_step, s.rtol, s.exponent = solver.max_step, solver.rtol, solver.error_exponent
-        s.safety, s.min_factor, s.max_factor = SAFETY, MIN_FACTOR, MAX_FACTOR
+        s, N = self.s, 2 * self.shape[0]
+        self.load_integrator(solver)
         s.rate_rcond = s.min_rcond = rate.min_rcond
         s.cut, s.evaluations = rate.cut, solver.nfev
-        b["y"][:N] = solver.y
-        b["fy"][:N] = solver.f
         ts = np.ascontiguousarray(ts, dtype=float)
         states, F = np.empty((len(ts), N)), np.empty((len(ts) + 1, N))
         done = self.lib.mechsim_history(projection, self._address, len(ts), ts.ctypes.data,

@@ -244,8 +244,7 @@ class Projection(FullCoordinates):
         above, so the cut stays through the steps); else None."""
         mon, prob = self.monitor, self.problem
         if self.engine is None or not self._cholesky or not self.projection or not prob.m or \
-                type(self) is not Projection or mon is None or \
-                not mon.peak >= prob.algebra.cut_reference:
+                mon is None or not mon.peak >= prob.algebra.cut_reference:
             return None
         return (self._min_rcond, self.cut, self._far, 0.01 * self.projection_tol,
                 self.projection_tol)

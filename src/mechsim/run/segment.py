@@ -55,8 +55,8 @@ from ..problem.algebra import RANK_FACTOR
 from ..formulations.full import ROUND_OFF
 from ..formulations.partitioned import REFERENCE_SPAN, Partitioned
 from ..formulations.projection import Projection
-from ..integrators.compiled import (MAX_FACTOR, MIN_FACTOR, SAFETY, CompiledDOP853,
-                                    Interpolant, dense_matrix, extra_tableau, tableau)
+from ..integrators.compiled import (SAFETY, CompiledDOP853, Interpolant, dense_matrix,
+                                    extra_tableau, tableau)
 from .runaway import RUNAWAY_EVERY, RUNAWAY_FROM
 
 # The longest wait, in steps, before a segment is tried again after it declined its first.
@@ -197,7 +197,7 @@ class Segment:
         s.bprev_t, s.bprev_rate = prev if prev is not None else (0.0, 0.0)
         s.landing = landing if landing is not None else 0.0
         s.free_step = free if free is not None else 0.0
-        s.projections = s.refreshed = 0
+        s.projections = 0
         if self.hybrid is not None:
             policy = self.hybrid.policy
             s.policy_steps, s.stable, s.stable_steps = policy.steps, policy.stable, \
@@ -214,23 +214,14 @@ class Segment:
         s.steps = run.stats.steps
         s.max_steps = -1 if run.s.max_steps is None else run.s.max_steps
         s.runaway_from, s.runaway_every = RUNAWAY_FROM, RUNAWAY_EVERY
-        s.stages = solver.n_stages
-        s.extra_rows, s.extra_width = solver.A_EXTRA.shape
-        s.dense_rows, s.dense_cols = solver.D.shape
+        steps.load_integrator(solver)
         s.every_step = self.every_step
         s.n_ts, s.next = (0, 0) if self.every_step else (len(run.out.ts), run.out.next)
         s.held, s.capacity = samples.held, len(samples.data)
         steps.point("rows", samples.data)
-        steps.point("atol", solver.atol_array)
         s.evaluations = s.factorizations = s.corrections = 0
-        s.t, s.h_abs, s.t_bound, s.direction = solver.t, solver.h_abs, solver.t_bound, \
-            solver.direction
-        s.max_step, s.run_max_step, s.rtol = solver.max_step, run.bound.max_step, solver.rtol
-        s.safety, s.min_factor, s.max_factor = SAFETY, MIN_FACTOR, MAX_FACTOR
-        s.exponent = solver.error_exponent
+        s.run_max_step = run.bound.max_step
         s.min_advance = self.min_advance
-        b["y"][:] = solver.y
-        b["fy"][:] = solver.f
         s.hybrid = self.hybrid is not None
         monitor = run.monitor
         s.open_at_start = monitor.open_passage is not None     # its first step: pending
@@ -309,10 +300,11 @@ class Segment:
                                  s.h_abs, s.h_previous, b["y"][:N].copy(), b["fy"][:N].copy(),
                                  b["y_old"][:N].copy(), b["K"].reshape(solver.K_extended.shape),
                                  s.evaluations)
-        solver.nfev += s.refreshed
+        # each correction in place evaluated the rate again (`correct_in_place`)
+        solver.nfev += s.corrections
         counters = self.run.problem.counters
-        counters.rhs += s.refreshed
-        counters.factorizations += s.refreshed
+        counters.rhs += s.corrections
+        counters.factorizations += s.corrections
         counters.projections += s.projections
         proj.accepted_in_engine(bool(s.far))
         if self.hybrid is not None:
