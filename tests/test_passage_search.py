@@ -3,6 +3,7 @@
 Brent's bounded minimum as scipy finds it."""
 
 
+import numpy as np
 import pytest
 from conftest import needs_compiler
 from scipy.optimize import minimize_scalar
@@ -112,3 +113,60 @@ def test_the_minimum_on_a_state_in_all_coordinates_is_brent_s_too(monkeypatch):
     assert mech.simulate(**run).success and len(compared) >= 10
     for got, expected in compared:
         assert got == expected
+
+
+def _states(name, rtol=1e-6):
+    """A run's configurations and its mechanism's constraint algebra (with the engine)."""
+    p = PROBLEMS[name]
+    mech = p.build()
+    res = mech.simulate(t_end=p.t_end, method="hybrid", rtol=rtol, atol=rtol * 1e-2,
+                        output_step=p.t_end / 400, max_step=p.max_step)
+    return res, mech.problem().algebra
+
+
+@needs_compiler
+@pytest.mark.parametrize("name", ["double-four-bar", "crank-rocker", "parallelogram"])
+def test_floor_anchors_bound_the_extreme_singular_values_without_an_svd(name):
+    """The passage search's floor anchors (`ProjectionEngine.extreme_bounds`) hold σ_min of
+    J̃ from below and σ_max from above at every configuration of a run, through its
+    passages, within m^(1/8) of each as their construction promises; they decline (NaN)
+    only where J̃J̃ᵀ is ill-conditioned, near a passage."""
+    res, algebra = _states(name)
+    bounds = algebra.engine.extreme_bounds(res.t, res.q)
+    sig = np.array([np.linalg.svd(algebra.scaled_jacobian(q, t), compute_uv=False)
+                    for t, q in zip(res.t, res.q)])
+    m = sig.shape[1]
+    smin, smax = sig[:, -1], sig[:, 0]
+    fine = ~np.isnan(bounds[:, 0])
+    assert fine.mean() > 0.9
+    floor, ceiling = bounds[fine, 0], bounds[fine, 1]
+    assert np.all(floor <= smin[fine]) and np.all(ceiling >= smax[fine])
+    spread = m ** 0.125 * (1.0 + 1e-6)
+    assert np.all(floor * spread >= smin[fine]) and np.all(ceiling <= spread * smax[fine])
+    ratio = smin / smax
+    assert np.all(ratio[~fine] < 1e-3 * ratio.max())       # declined near passages only
+
+
+@needs_compiler
+@pytest.mark.parametrize("name, method, rtol", [
+    ("double-four-bar", "lu", 1e-3),
+    ("double-four-bar", "hybrid", 1e-4),
+    ("crank-rocker", "lu", 3e-3),
+])
+def test_floor_anchors_change_no_number_of_a_run(name, method, rtol):
+    """Floors only clear where s stays above `enter`, and a step they cannot prove clear is
+    searched as without them: runs with and without floor anchors are the same to the bit
+    (samples, steps, every passage), and the run with them took floors."""
+    mech, run = _run(name, method, rtol)
+    search = mech.problem().algebra.engine.steps.search
+    runs = []
+    for floors in (1, 0):
+        search.floors, search.floors_taken = floors, 0
+        runs.append((mech.simulate(**run), search.floors_taken))
+    search.floors = 1
+    (fast, taken), (slow, none) = runs
+    assert fast.success and taken > 0 and none == 0
+    for a, b in ((fast.t, slow.t), (fast.q, slow.q), (fast.v, slow.v)):
+        assert a.shape == b.shape and a.tobytes() == b.tobytes()
+    assert [(p.t_start, p.t_end, p.min_sigma, p.t_min) for p in fast.singular_passages] == \
+        [(p.t_start, p.t_end, p.min_sigma, p.t_min) for p in slow.singular_passages]

@@ -793,6 +793,21 @@ int mechsim_extremes(mechsim_projection *c, int64_t k, int64_t kk, const double 
   return 0;
 }
 
+static int extreme_bounds(int64_t m, int64_t n, const double *J, double *G, double *H,
+                          double *out);
+
+/* `extreme_bounds` of J~ at each of the k states (T[i], Q[i, :]) into out[2 i], out[2 i + 1]
+   (a lower bound of sigma_min, an upper bound of sigma_max; NaN where the bounds decline),
+   c->S and c->X as scratch. */
+void mechsim_extreme_bounds(mechsim_projection *c, int64_t k, const double *T,
+                            const double *Q, double *out) {
+  for (int64_t i = 0; i < k; i++) {
+    scaled_jacobian(c, Q + i * c->n, T[i], c->A);
+    if (extreme_bounds(c->m, c->n, c->A, c->S, c->X, out + 2 * i))
+      out[2 * i] = out[2 * i + 1] = NAN;
+  }
+}
+
 /* ||A||_1 ||A^-1||_1 of the block A = Phi_q D that Partitioned.choose picks at (c->q, t)
    for a Phi_q of full row rank (m <= n): the dependent coordinates are the first m of
    the row permutation of LU with partial pivoting of Phi_q^T. INFINITY where the
@@ -1217,7 +1232,11 @@ static int covered(double ta, double tb, const double *lows, int64_t nl, double 
 /* The intervals of the search's `count` nodes its anchors do not clear (intervals.uncleared:
    the nearest anchor on either side, its sigma_k less and its sigma_max plus the chords to
    the interval's far end, above `enter`; not within `apart` of a value under it; not joined
-   to one, or to the step's start with open_at_start) into todo, in order: how many. */
+   to one, or to the step's start with open_at_start) into todo, in order: how many. A node's
+   anchor (node_has) is measured (1: sigma_k and sigma_max by an SVD) or a floor (2:
+   `extreme_bounds`, a lower bound of sigma_k and an upper bound of sigma_max): a floor
+   serves the lower bounds only; values under `enter`, the upper bounds that join intervals
+   to them and the values that part passages are the measured anchors'. */
 static int64_t uncleared(mechsim_search *w, int64_t count, double h, int64_t *todo) {
   const int64_t intervals = count - 1;
   const double *T = w->nodes, *ch = w->node_chords, *an = w->node_anchor;
@@ -1231,30 +1250,36 @@ static int64_t uncleared(mechsim_search *w, int64_t count, double h, int64_t *to
     joined[j] = 0;
   }
   for (int side = 0; side < 2; side++) {
-    int anchored = 0;
-    double a0 = 0.0, a1 = 0.0, reach = 0.0;
+    int anchored = 0, measured = 0;
+    double a0 = 0.0, a1 = 0.0, reach = 0.0, m0 = 0.0, m1 = 0.0, mreach = 0.0;
     for (int64_t jj = 0; jj < intervals; jj++) {
       const int64_t j = side ? intervals - 1 - jj : jj, node = j + side;
       if (has[node]) { anchored = 1; a0 = an[2 * node]; a1 = an[2 * node + 1]; reach = 0.0; }
+      if (has[node] == 1) { measured = 1; m0 = a0; m1 = a1; mreach = 0.0; }
       reach += ch[j];
+      mreach += ch[j];
       if (anchored) {
         const double bound = (a0 - reach) / (a1 + reach);
         if (bound > low[j]) low[j] = bound;
-        if (a1 > reach) {
-          const double top = (a0 + reach) / (a1 - reach);
+      }
+      if (measured) {
+        const double bound = (m0 - mreach) / (m1 + mreach);
+        if (bound > low[j]) low[j] = bound;
+        if (m1 > mreach) {
+          const double top = (m0 + mreach) / (m1 - mreach);
           if (top < high[j]) high[j] = top;
         }
       }
     }
   }
   for (int64_t i = 0; i < count; i++)
-    if (has[i] && an[2 * i] < enter * an[2 * i + 1]) lows[nl++] = T[i];
+    if (has[i] == 1 && an[2 * i] < enter * an[2 * i + 1]) lows[nl++] = T[i];
   for (int64_t j = 0; j < intervals;) {
     int64_t k = j;
     while (k < intervals && high[k] < leave) k++;
     int hold = w->open_at_start && j == 0;
     for (int64_t i = j; i <= k && !hold; i++)
-      hold = has[i] && an[2 * i] < enter * an[2 * i + 1];
+      hold = has[i] == 1 && an[2 * i] < enter * an[2 * i + 1];
     if (k > j && hold)
       for (int64_t i = j; i < k; i++) joined[i] = 1;
     j = k + 1;
@@ -1268,38 +1293,138 @@ static int64_t uncleared(mechsim_search *w, int64_t count, double h, int64_t *to
   return nt;
 }
 
+/* |S^2|_F^2 of the symmetric m x m S (row-major): its largest eigenvalue's fourth power at
+   most. */
+static double square_frobenius2(int64_t m, const double *S) {
+  double total = 0.0;
+  for (int64_t i = 0; i < m; i++)
+    for (int64_t j = i; j < m; j++) {
+      double e = 0.0;
+      for (int64_t k = 0; k < m; k++) e += S[i * m + k] * S[k * m + j];
+      total += (i == j ? 1.0 : 2.0) * e * e;
+    }
+  return total;
+}
+
+/* Bounds of sigma_min and sigma_max of J (m x n row-major, m <= n) without an SVD, for the
+   passage search's floor anchors: with G = J J^T = L L^T (Cholesky) and H = G^-1 = L^-T L^-1,
+   sigma_min^2 = 1 / lambda_max(H) and sigma_max^2 = lambda_max(G), and the largest
+   eigenvalue of a symmetric positive definite S is at most |S|_F and |S^2|_F^(1/2)
+   (within m^(1/4) of it). out = (a lower bound of sigma_min lowered by 1e-6 of itself for
+   round-off, an upper bound of sigma_max raised by 1e-12); G and H: m x m scratch.
+   1 where G is not positive definite in floating point or so ill-conditioned that
+   round-off (about (m + n) eps cond(G) of the bound) could reach that margin: the node
+   takes an SVD. */
+static int extreme_bounds(int64_t m, int64_t n, const double *J, double *G, double *H,
+                          double *out) {
+  for (int64_t i = 0; i < m; i++)
+    for (int64_t j = 0; j <= i; j++) {
+      double e = 0.0;
+      for (int64_t k = 0; k < n; k++) e += J[i * n + k] * J[j * n + k];
+      G[i * m + j] = G[j * m + i] = e;
+    }
+  double frob = 0.0;
+  for (int64_t i = 0; i < m * m; i++) frob += G[i] * G[i];
+  const double top = fmin(sqrt(frob), pow(square_frobenius2(m, G), 0.25));
+  for (int64_t j = 0; j < m; j++) {                /* L (lower) into H */
+    double d = G[j * m + j];
+    for (int64_t k = 0; k < j; k++) d -= H[j * m + k] * H[j * m + k];
+    if (!(d > 0.0)) return 1;
+    const double ljj = sqrt(d);
+    H[j * m + j] = ljj;
+    for (int64_t i = j + 1; i < m; i++) {
+      double e = G[i * m + j];
+      for (int64_t k = 0; k < j; k++) e -= H[i * m + k] * H[j * m + k];
+      H[i * m + j] = e / ljj;
+    }
+  }
+  for (int64_t j = 0; j < m; j++) {                /* M = L^-1 (lower) into G */
+    G[j * m + j] = 1.0 / H[j * m + j];
+    for (int64_t i = j + 1; i < m; i++) {
+      double e = 0.0;
+      for (int64_t k = j; k < i; k++) e += H[i * m + k] * G[k * m + j];
+      G[i * m + j] = -e / H[i * m + i];
+    }
+  }
+  for (int64_t i = 0; i < m; i++)                  /* H = M^T M */
+    for (int64_t j = 0; j <= i; j++) {
+      double e = 0.0;
+      for (int64_t k = i; k < m; k++) e += G[k * m + i] * G[k * m + j];
+      H[i * m + j] = H[j * m + i] = e;
+    }
+  double hfrob = 0.0;
+  for (int64_t i = 0; i < m * m; i++) hfrob += H[i] * H[i];
+  const double inverse_top = fmin(sqrt(hfrob), pow(square_frobenius2(m, H), 0.25));
+  if (!(inverse_top > 0.0) || !isfinite(inverse_top) || !(top > 0.0)) return 1;
+  const double cond = top * inverse_top;           /* at least cond(G) */
+  if (!(4.0 * (double)(m + n) * 2.220446049250313e-16 * cond <= 1e-7)) return 1;
+  out[0] = (1.0 - 1e-6) / sqrt(inverse_top);
+  out[1] = (1.0 + 1e-12) * sqrt(top);
+  return 0;
+}
+
 /* J~ of the search's node i: its slot of node_J (J~ is evaluated once a node). */
 static double *node_jacobian(mechsim_search *w, int64_t i) {
   return w->node_J + ((int64_t *)w->node_slot)[i] * w->m * w->n;
 }
 
-/* Measure the search's node i (sigma_kk and sigma_max of its J~). 0: done. */
+/* The row of w->node_cache (w->cached rows t, sigma_kk, sigma_max, in time order) at time
+   t, or NULL. */
+static const double *cached_node(const mechsim_search *w, double t) {
+  int64_t lo = 0, hi = w->cached;
+  while (lo < hi) {
+    const int64_t mid = (lo + hi) / 2;
+    if (w->node_cache[3 * mid] < t) lo = mid + 1;
+    else hi = mid;
+  }
+  return lo < w->cached && w->node_cache[3 * lo] == t ? w->node_cache + 3 * lo : NULL;
+}
+
+/* Measure the search's node i (sigma_kk and sigma_max of its J~; taken from w->node_cache
+   where the search before measured the same time, the same J~). 0: done. */
 static int measure_node(mechsim_projection *pc, mechsim_search *w, int64_t i) {
   double *ex = w->node_ex;
-  memcpy(pc->A, node_jacobian(w, i), w->m * w->n * sizeof(double));
-  if (svd_extremes(pc, w->kk, ex)) return 1;
+  const double *row = cached_node(w, w->nodes[i]);
+  if (row) {
+    ex[0] = row[1];
+    ex[1] = row[2];
+  } else {
+    memcpy(pc->A, node_jacobian(w, i), w->m * w->n * sizeof(double));
+    if (svd_extremes(pc, w->kk, ex)) return 1;
+  }
   ((int64_t *)w->node_has)[i] = 1;
   w->node_anchor[2 * i] = ex[0];
   w->node_anchor[2 * i + 1] = ex[1];
   return 0;
 }
 
-/* The singularity monitor's search for passages hidden inside the step [t0, t1] on its
-   dense output (SingularityMonitor._anchored): a grid of `grid` intervals, J~'s chords
-   between nodes enlarged by `chord`, every interval its anchors do not clear (`uncleared`)
-   measured at its nodes, then halved, at most `budget` SVDs; the anchors at the ends are
-   end0 / end1 ((sigma_kk, sigma_max) measured there) where not NULL. The measured nodes into
-   w->out (rows t, sigma_kk, sigma_max, in time order; w->found of them). 0: done; 1: a state
-   or an SVD declined, or the grid outgrew its `nodes_cap` nodes (Python searches). */
-static int anchored_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
-                           double t0, double t1, int64_t budget, const double *end0,
-                           const double *end1) {
+/* A floor anchor at the search's node i (`extreme_bounds` of its J~). 0: done; 1: the
+   bounds declined (the node takes an SVD). */
+static int floor_node(mechsim_search *w, int64_t i) {
+  if (extreme_bounds(w->m, w->n, node_jacobian(w, i), w->gram, w->inverse,
+                     w->node_anchor + 2 * i))
+    return 1;
+  ((int64_t *)w->node_has)[i] = 2;
+  w->floors_taken++;
+  return 0;
+}
+
+/* `anchored_search`'s grid, with floor anchors where `floors`: an uncleared interval's nodes
+   without an anchor take a floor first, an SVD where the interval stays uncleared (or the
+   floor declines), and the search stops at the first measured value under `enter`.
+   *proved: 1 where the search ended with every interval cleared and no measured value
+   under `enter` (s >= enter over the step: no passage in it). */
+static int grid_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
+                       double t0, double t1, int64_t budget, const double *end0,
+                       const double *end1, int floors, int *proved) {
   const int64_t n = w->n, mn = w->m * w->n, cap = w->nodes_cap, grid = w->grid;
   double *T = w->nodes, *Q = w->node_q, *ch = w->node_chords, *an = w->node_anchor;
   double *mid = w->node_mid, *mq = w->node_mq;
   int64_t *has = (int64_t *)w->node_has, *slot = (int64_t *)w->node_slot;
   const double step = (t1 - t0) / (double)grid, h = t1 - t0, chord = w->chord;
   int64_t count = grid + 1;
+  *proved = 0;
+  w->floored = 0;
   if (count > cap) return 1;
   for (int64_t i = 0; i < grid; i++) T[i] = (double)i * step + t0;
   T[grid] = t1;
@@ -1321,18 +1446,30 @@ static int anchored_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search
   int64_t *todo = (int64_t *)w->node_todo, *fresh = (int64_t *)w->node_fresh;
   while (spent < budget) {
     const int64_t nt = uncleared(w, count, h, todo);
-    if (!nt) break;
-    int64_t nf = 0;                              /* their nodes not measured, in order */
+    if (!nt) {
+      *proved = 1;
+      break;
+    }
+    int64_t nf = 0;                   /* their nodes not measured, in order */
     for (int64_t a = 0; a < nt; a++)
       for (int64_t e = 0; e < 2; e++) {
         const int64_t i = todo[a] + e;
-        if (!has[i] && (nf == 0 || fresh[nf - 1] != i)) fresh[nf++] = i;
+        if (has[i] != 1 && (nf == 0 || fresh[nf - 1] != i)) fresh[nf++] = i;
       }
     if (nf) {
+      int64_t floored = 0;
+      for (int64_t a = 0; floors && a < nf; a++)
+        if (!has[fresh[a]] && !floor_node(w, fresh[a])) floored++;
+      w->floored += floored;
+      if (floored) continue;                   /* what the floors clear, first */
       if (nf > budget - spent) nf = budget - spent;
-      for (int64_t a = 0; a < nf; a++)
+      int low = 0;
+      for (int64_t a = 0; a < nf; a++) {
         if (measure_node(pc, w, fresh[a])) return 1;
+        low |= an[2 * fresh[a]] < w->enter * an[2 * fresh[a] + 1];
+      }
       spent += nf;
+      if (floors && low) break;        /* a passage: the search without floors finds it */
       continue;
     }
     if (count + nt > cap) return 1;
@@ -1371,14 +1508,46 @@ static int anchored_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search
   }
   int64_t found = 0;
   for (int64_t i = 0; i < count; i++)
-    if (has[i]) {
+    if (has[i] == 1) {
       w->out[3 * found] = T[i];
       w->out[3 * found + 1] = an[2 * i];
       w->out[3 * found + 2] = an[2 * i + 1];
+      if (an[2 * i] < w->enter * an[2 * i + 1]) *proved = 0;
       found++;
     }
   w->found = found;
   return 0;
+}
+
+/* The singularity monitor's search for passages hidden inside the step [t0, t1] on its
+   dense output (SingularityMonitor._anchored): a grid of `grid` intervals, J~'s chords
+   between nodes enlarged by `chord`, every interval its anchors do not clear (`uncleared`)
+   measured at its nodes, then halved, at most `budget` SVDs; the anchors at the ends are
+   end0 / end1 ((sigma_kk, sigma_max) measured there) where not NULL. The measured nodes into
+   w->out (rows t, sigma_kk, sigma_max, in time order; w->found of them). 0: done; 1: a state
+   or an SVD declined, or the grid outgrew its `nodes_cap` nodes (Python searches).
+   With w->floors (sigma_kk the least singular value, no passage open at the start), floor
+   anchors (`extreme_bounds`) clear first what they can: where they prove s >= enter over
+   the whole step, the measured nodes are those it took; elsewhere (a value under `enter`,
+   the budget spent) the search is made again without floors, so that a step with a
+   passage, its dips and the values that part them, are found as before, each node's
+   values taken from the first search where it measured the same time (the same node, the
+   same numbers: only the SVDs the first search did not take are taken). Either way the
+   verdict is the same: floors only clear where s is above `enter`. */
+static int anchored_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
+                           double t0, double t1, int64_t budget, const double *end0,
+                           const double *end1) {
+  int proved = 0;
+  w->cached = 0;
+  if (w->floors && !w->open_at_start && w->kk == w->m - 1) {
+    if (grid_search(c, pc, w, t0, t1, budget, end0, end1, 1, &proved)) return 1;
+    if (proved || !w->floored) return 0;      /* proved, or searched as without floors */
+    memcpy(w->node_cache, w->out, 3 * w->found * sizeof(double));
+    w->cached = w->found;
+  }
+  const int done = grid_search(c, pc, w, t0, t1, budget, end0, end1, 0, &proved);
+  w->cached = 0;
+  return done;
 }
 
 /* The request of a search (its step, budget, end anchors and w's settings) into key

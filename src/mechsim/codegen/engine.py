@@ -433,6 +433,7 @@ class ProjectionEngine:
         self._measure = lib.mechsim_measure
         self._chords = lib.mechsim_chords
         self._extremes = lib.mechsim_extremes
+        self._extreme_bounds = lib.mechsim_extreme_bounds
         self.steps = StepSearch(lib, self.context, n, m)   # the monitor's search in a step
         self._project_many = lib.mechsim_project_states
         self._lu_condition = lib.mechsim_lu_condition
@@ -551,6 +552,17 @@ class ProjectionEngine:
         if self._extremes(self.context, len(T), k, scratch.put("T", T),
                           scratch.put("Q", Q, self.n), at_out):
             return None
+        return out.copy()
+
+    def extreme_bounds(self, T, Q):
+        """Bounds of σ_min and σ_max of J̃ at each state (T[i], Q[i]) without an SVD, shape
+        (len(T), 2): a lower bound of σ_min, an upper bound of σ_max (the passage search's
+        floor anchors: from the Cholesky factor of J̃J̃ᵀ, within m^(1/8) of each); NaN
+        where J̃J̃ᵀ is too ill-conditioned for them (the search measures there)."""
+        scratch = self._scratch
+        out, at_out = scratch.take("bounds", len(T), 2)
+        self._extreme_bounds(self.context, len(T), scratch.put("T", T),
+                             scratch.put("Q", Q, self.n), at_out)
         return out.copy()
 
     def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam, phi_t=None):

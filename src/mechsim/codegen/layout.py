@@ -133,10 +133,12 @@ SEARCH_KEY = 20
 # the grid (at most `nodes_cap` = NODES nodes) and its scratch, the dense output (N state
 # entries, `rows` coefficients F from t_old over h, y_old) and the measured nodes found
 # (`found` of them, rows (t, σ_k, σ_max) in `out`). Sized for states of 2 n entries, so one
-# serves a partition's [z; ż] and a state [q; v].
+# serves a partition's [z; ż] and a state [q; v]. `floors`: whether floor anchors clear first
+# (`extreme_bounds`); `floored` of them in the last search, `floors_taken` in all.
 SEARCH = Layout("mechsim_search", [
     *(Field(name, "int64") for name in ("n", "m", "nodes_cap", "grid", "kk", "N", "rows",
-                                        "open_at_start", "found", "kept")),
+                                        "open_at_start", "found", "kept", "floors",
+                                        "floored", "cached", "floors_taken")),
     *(Field(name, "double") for name in ("chord", "enter", "leave", "apart", "t_old", "h")),
     Field("F", "const double*"), Field("y_old", "const double*"),
     # what the kept search was asked (`kept`: a segment's search, which the loop's search
@@ -156,6 +158,11 @@ SEARCH = Layout("mechsim_search", [
     Field("node_pieces", "double*", lambda d: 2 * NODES),
     Field("Yn", "double*", lambda d: NODES * 2 * d.n), Field("vn", "double*", lambda d: d.n),
     Field("out", "double*", lambda d: 3 * NODES),
+    # the floor anchors' scratch (`extreme_bounds`: J̃ J̃ᵀ, its Cholesky factor, its inverse)
+    Field("gram", "double*", lambda d: d.m * d.m), Field("inverse", "double*", lambda d: d.m * d.m),
+    # the measured nodes of a search with floors that did not prove its step clear (rows
+    # t, σ_k, σ_max, `cached` of them), for the search without floors made after it
+    Field("node_cache", "double*", lambda d: 3 * NODES),
 ])
 
 # Consecutive plain steps of a partition in one call (`mechsim.run.segment`): the integrator's,
@@ -234,7 +241,7 @@ SIGNATURES = {
     "mechsim_projection_accelerations": "pddd>i", "mechsim_project_state": "pddddll>i",
     "mechsim_lu_condition": "pd>d", "mechsim_measure": "pddpp>i",
     "mechsim_project_states": "plpppplp>-", "mechsim_chords": "plppp>-",
-    "mechsim_extremes": "pllppp>i", "mechsim_dop853": "pll" + "p" * 11 + ">i",
+    "mechsim_extremes": "pllppp>i", "mechsim_extreme_bounds": "plppp>-", "mechsim_dop853": "pll" + "p" * 11 + ">i",
     "mechsim_dop853_extra": "pll" + "p" * 7 + ">i", "mechsim_interpolate": "llpddplpp>-",
     "mechsim_change": "pdpp>d", "mechsim_fall_rates": "lll" + "p" * 9 + ">-",
     "mechsim_dense_coefficients": "lllpppppdp>-",

@@ -22,7 +22,7 @@ class StepSearch:
         self._minimum, self._anchored = lib.mechsim_passage_minimum, lib.mechsim_anchored
         self.buffers = SEARCH.buffers(Dims(n, m))
         self._out = np.zeros(1)                           # F, y_old: set per call
-        self.search = SEARCH.make({"n": n, "m": m, "nodes_cap": NODES},
+        self.search = SEARCH.make({"n": n, "m": m, "nodes_cap": NODES, "floors": 1},
                                   {**self.buffers, "F": self._out, "y_old": self._out})
         self._address = ctypes.addressof(self.search)
         self._ends, self._minimum_out = np.zeros(4), np.zeros(2)
