@@ -64,6 +64,12 @@ def tableau() -> np.ndarray:
         np.asarray(DOP853.E5, float)[:S + 1]]))
 
 
+@functools.lru_cache(maxsize=None)
+def _address(table) -> int:
+    """The address of the array `table()` gives (a cached tableau: it lives as long)."""
+    return table().ctypes.data
+
+
 class CompiledDOP853(DOP853):
     """scipy's DOP853; `rate` (set by the run: a callable giving the formulation's
     `CompiledRate` for the next step, or None) moves a step into the engine (module
@@ -73,27 +79,26 @@ class CompiledDOP853(DOP853):
 
     def __init__(self, fun, t0, y0, t_bound, **options):
         super().__init__(fun, t0, y0, t_bound, **options)
-        self._atol = np.ascontiguousarray(np.broadcast_to(np.asarray(self.atol, float),
-                                                          self.y.shape))
-        self._in, self._extra_in = np.zeros(13), np.zeros(7)
-        self._out = np.zeros(5)
-        self._work = np.empty(self.n)
+        n = self.n
+        # The engine reads and writes these buffers only: views of one array, whose
+        # address is taken once (an array's `.ctypes.data` costs more than copying a small
+        # state in and out; an integrator is made at every restart and bridge).
+        buffer = np.empty(25 + 6 * n)
+        self._in, self._extra_in, self._out = buffer[:13], buffer[13:20], buffer[20:25]
+        self._work, self._y, self._f, self._y_new, self._f_new, self._atol = \
+            (buffer[25 + i * n:25 + (i + 1) * n] for i in range(6))
+        self._in[:], self._extra_in[:], self._out[:] = 0.0, 0.0, 0.0
+        self._atol[:] = np.broadcast_to(np.asarray(self.atol, float), self.y.shape)
         self._fallback = _RATE(self._python_rate)
         self._raised = None
         self._taken = None          # the rate the last step was taken on (None: scipy's)
-        # The engine reads and writes these buffers only: their addresses, taken once
-        # (an array's `.ctypes.data` costs more than copying a small state in and out).
-        self._y, self._f = np.empty(self.n), np.empty(self.n)
-        self._y_new, self._f_new = np.empty(self.n), np.empty(self.n)
-        self._step_args = (tableau().ctypes.data, self._in.ctypes.data,
-                           self._y.ctypes.data, self._f.ctypes.data, self._atol.ctypes.data,
-                           self.K.ctypes.data, self._y_new.ctypes.data,
-                           self._f_new.ctypes.data, self._work.ctypes.data,
-                           self._out.ctypes.data, ctypes.cast(self._fallback, ctypes.c_void_p))
-        self._extra_args = (extra_tableau().ctypes.data, self._extra_in.ctypes.data,
-                            self._y.ctypes.data, self.K_extended.ctypes.data,
-                            self._work.ctypes.data, self._out.ctypes.data,
-                            ctypes.cast(self._fallback, ctypes.c_void_p))
+        base, stages = buffer.ctypes.data, self.K_extended.ctypes.data   # K: its first rows
+        fallback = ctypes.cast(self._fallback, ctypes.c_void_p)
+        at = [base + 8 * (25 + i * n) for i in range(6)]       # work, y, f, y_new, f_new, atol
+        self._step_args = (_address(tableau), base, at[1], at[2], at[5], stages, at[3], at[4],
+                           at[0], base + 8 * 20, fallback)
+        self._extra_args = (_address(extra_tableau), base + 8 * 13, at[1], stages, at[0],
+                            base + 8 * 20, fallback)
 
     @property
     def atol_array(self) -> np.ndarray:
