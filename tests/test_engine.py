@@ -678,3 +678,34 @@ def test_a_run_leaves_the_engine_s_shared_rates_as_it_found_them():
     assert rates
     for rate in rates:
         assert rate.counted == prob.counters.compiled_rates
+
+
+@needs_compiler
+def test_the_cholesky_shortcut_accepts_only_what_lapack_s_estimate_accepts(rng):
+    """The engine skips LAPACK's condition estimate where `mechsim_inverse_norm_bound`
+    (from the Cholesky factor's inverse) bounds ‖S⁻¹‖₁ from above so that 1/κ₁ is above
+    twice the threshold: the bound holds on matrices from well- to ill-conditioned, and
+    wherever it accepts, dpocon's estimate (as `dense.cholesky_rcond` takes it) accepts
+    too; it accepts most well-conditioned ones."""
+    from mechsim.linalg import dense
+    prob = ms.examples.double_four_bar(2).problem()
+    lib = engine.library(prob.model)
+    bound_of = lib.mechsim_inverse_norm_bound
+    accepted = 0
+    for trial in range(400):
+        m = int(rng.integers(2, 16))
+        Q, _ = np.linalg.qr(rng.standard_normal((m, m)))
+        lam = np.logspace(0.0, -rng.uniform(0.0, 10.0), m)
+        S = (Q * lam) @ Q.T
+        R = np.linalg.cholesky(S).T
+        Rc = np.asfortranarray(R)
+        W = np.zeros((m, m), order="F")
+        bound = bound_of(m, Rc.ctypes.data, W.ctypes.data)
+        kappa = lam[0] / lam[-1]                    # the round-off of both scales with it
+        assert bound >= np.linalg.norm(np.linalg.inv(S), 1) * (1.0 - 1e-13 * kappa)
+        anorm = m * S.diagonal().max()
+        if anorm * bound * 2e-4 < 1.0:              # the engine's shortcut at 1e-4
+            accepted += 1
+            _, rcond = dense.cholesky_rcond(S)
+            assert rcond > 1e-4
+    assert accepted > 50

@@ -368,9 +368,40 @@ static double complement(int64_t n, int64_t m, const double *J, const double *wi
   return diag;
 }
 
+/* An upper bound of ||S^-1||_1 from the upper Cholesky factor R of S = R^T R (column-major,
+   m x m, upper triangle): with W = R^-1 (into Winv), S^-1 = W W^T, so ||S^-1||_1 is at most
+   ||W||_1 ||W||_inf and sqrt(m) ||W||_F^2. */
+double mechsim_inverse_norm_bound(int64_t m, const double *R, double *Winv) {
+  double frob = 0.0, rows = 0.0, cols = 0.0;
+  for (int64_t j = 0; j < m; j++) {
+    Winv[j + j * m] = 1.0 / R[j + j * m];
+    for (int64_t i = j - 1; i >= 0; i--) {
+      double e = 0.0;
+      for (int64_t k = i + 1; k <= j; k++) e += R[i + k * m] * Winv[k + j * m];
+      Winv[i + j * m] = -e / R[i + i * m];
+    }
+    double col = 0.0;
+    for (int64_t i = 0; i <= j; i++) {
+      col += fabs(Winv[i + j * m]);
+      frob += Winv[i + j * m] * Winv[i + j * m];
+    }
+    if (col > cols) cols = col;
+  }
+  for (int64_t i = 0; i < m; i++) {
+    double row = 0.0;
+    for (int64_t j = i; j < m; j++) row += fabs(Winv[i + j * m]);
+    if (row > rows) rows = row;
+  }
+  return fmin(rows * cols, sqrt((double)m) * frob);
+}
+
 /* The Cholesky factor of S = J W J^T in place (upper triangle); 1 where it fails or, with
    min_rcond >= 0, LAPACK's estimate of 1/cond_1 is not above min_rcond. The norm is
-   bounded by m max S_ii, as dense.cholesky_conditioned bounds it. */
+   bounded by m max S_ii, as dense.cholesky_conditioned bounds it. LAPACK's estimate
+   (dpocon) bounds ||S^-1||_1 from below, so where the rigorous upper bound of
+   `mechsim_inverse_norm_bound` already puts 1/cond_1 above twice min_rcond (the factor for
+   the round-off of both), dpocon would accept too and is not called: the same decisions,
+   a few triangular sums instead of LAPACK's estimator. */
 static int cholesky(mechsim_projection *c, double *S, double diag, double min_rcond) {
   char uplo = 'U';
   int M = (int)c->m, info = 0;
@@ -378,6 +409,8 @@ static int cholesky(mechsim_projection *c, double *S, double diag, double min_rc
   if (info != 0) return 1;
   if (min_rcond >= 0.0) {
     double anorm = (double)c->m * diag, rcond = 0.0;
+    const double bound = anorm * mechsim_inverse_norm_bound(c->m, S, c->Winv);
+    if (isfinite(bound) && bound * (2.0 * min_rcond) < 1.0) return 0;
     mechsim_dpocon(&uplo, &M, S, &M, &anorm, &rcond, c->cw, c->iwork, &info);
     if (info != 0 || !(rcond > min_rcond)) return 1;
   }

@@ -113,6 +113,7 @@ PROJECTION = Layout("mechsim_projection", [
     Field("J", "double*", lambda d: d.m * d.n), Field("J1", "double*", lambda d: d.m * d.n),
     Field("A", "double*", lambda d: d.m * d.n), Field("S", "double*", lambda d: d.m * d.m),
     Field("X", "double*", lambda d: d.m * d.m), Field("sig", "double*", lambda d: d.m),
+    Field("Winv", "double*", lambda d: d.m * d.m),     # `cholesky`'s inverse factor
     Field("U", "double*", lambda d: d.n * d.m), Field("VT", "double*", lambda d: d.m * d.m),
     *(Field(name, "double*", lambda d: d.m) for name in ("g", "lam", "phi", "r", "y")),
     *(Field(name, "double*", lambda d: d.n) for name in ("wq", "x", "q1")),
@@ -240,8 +241,9 @@ SIGNATURES = {
     "mechsim_projection_segment": "pp>l", "mechsim_history": "pplpdpp>l",
     "mechsim_projection_accelerations": "pddd>i", "mechsim_project_state": "pddddll>i",
     "mechsim_lu_condition": "pd>d", "mechsim_measure": "pddpp>i",
+    "mechsim_inverse_norm_bound": "lpp>d", "mechsim_extreme_bounds": "plppp>-",
     "mechsim_project_states": "plpppplp>-", "mechsim_chords": "plppp>-",
-    "mechsim_extremes": "pllppp>i", "mechsim_extreme_bounds": "plppp>-", "mechsim_dop853": "pll" + "p" * 11 + ">i",
+    "mechsim_extremes": "pllppp>i", "mechsim_dop853": "pll" + "p" * 11 + ">i",
     "mechsim_dop853_extra": "pll" + "p" * 7 + ">i", "mechsim_interpolate": "llpddplpp>-",
     "mechsim_change": "pdpp>d", "mechsim_fall_rates": "lll" + "p" * 9 + ">-",
     "mechsim_dense_coefficients": "lllpppppdp>-",
