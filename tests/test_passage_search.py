@@ -170,3 +170,22 @@ def test_floor_anchors_change_no_number_of_a_run(name, method, rtol):
         assert a.shape == b.shape and a.tobytes() == b.tobytes()
     assert [(p.t_start, p.t_end, p.min_sigma, p.t_min) for p in fast.singular_passages] == \
         [(p.t_start, p.t_end, p.min_sigma, p.t_min) for p in slow.singular_passages]
+
+
+@needs_compiler
+@pytest.mark.parametrize("name", ["double-four-bar", "crank-rocker", "parallelogram"])
+def test_the_engine_s_extreme_singular_values_are_lapack_s_to_round_off(name):
+    """The search's σ_k and σ_max (`ProjectionEngine.extremes`: Householder bidiagonal in
+    plain loops, LAPACK's dqds) equal numpy's SVD of J̃ to round-off at every
+    configuration of a run through its passages: σ_max to a few ulps, σ_min within
+    m ε σ_max (both backward stable: an absolute error of ε‖J̃‖, relative near a
+    passage)."""
+    res, algebra = _states(name, rtol=1e-8)
+    m = algebra.problem.m
+    got = algebra.engine.extremes(res.t, res.q, m - 1)
+    sig = np.array([np.linalg.svd(algebra.scaled_jacobian(q, t), compute_uv=False)
+                    for t, q in zip(res.t, res.q)])
+    np.testing.assert_allclose(got[:, 1], sig[:, 0], rtol=1e-14)
+    assert np.all(np.abs(got[:, 0] - sig[:, -1]) <= 4 * m * 2.2e-16 * sig[:, 0])
+    assert (sig[:, -1] / sig[:, 0]).min() < 1e-2 * (sig[:, -1] / sig[:, 0]).max() or \
+        name == "crank-rocker"                      # the runs pass their passages

@@ -15,6 +15,7 @@ typedef void (*mechsim_pocon_t)(char *, int *, double *, int *, double *, double
                                 int *, int *);
 typedef void (*mechsim_potrs_t)(char *, int *, int *, double *, int *, double *, int *, int *);
 typedef void (*mechsim_getrf_t)(int *, int *, double *, int *, int *, int *);
+typedef void (*mechsim_lasq1_t)(int *, double *, double *, double *, int *);
 typedef void (*mechsim_gesdd_t)(char *, int *, int *, double *, int *, double *, double *, int *,
                                 double *, int *, double *, int *, int *, int *);
 static mechsim_gesv_t mechsim_dgesv = 0;
@@ -24,9 +25,10 @@ static mechsim_pocon_t mechsim_dpocon = 0;
 static mechsim_potrs_t mechsim_dpotrs = 0;
 static mechsim_gesdd_t mechsim_dgesdd = 0;
 static mechsim_getrf_t mechsim_dgetrf = 0;
+static mechsim_lasq1_t mechsim_dlasq1 = 0;
 
 void mechsim_engine_init(void *gesv, void *posv, void *potrf, void *pocon, void *potrs,
-                         void *gesdd, void *getrf) {
+                         void *gesdd, void *getrf, void *lasq1) {
   mechsim_dgesv = (mechsim_gesv_t)gesv;
   mechsim_dposv = (mechsim_posv_t)posv;
   mechsim_dpotrf = (mechsim_potrf_t)potrf;
@@ -34,6 +36,7 @@ void mechsim_engine_init(void *gesv, void *posv, void *potrf, void *pocon, void 
   mechsim_dpotrs = (mechsim_potrs_t)potrs;
   mechsim_dgesdd = (mechsim_gesdd_t)gesdd;
   mechsim_dgetrf = (mechsim_getrf_t)getrf;
+  mechsim_dlasq1 = (mechsim_lasq1_t)lasq1;
 }
 
 /* A = P L U in place (r x r, column-major), partial pivoting on the first largest |entry|
@@ -806,12 +809,61 @@ void mechsim_chords(mechsim_projection *c, int64_t k, const double *T, const dou
   }
 }
 
-/* sigma_kk and sigma_max of J~ in c->A (destroyed) into out[0], out[1]. 1 where the SVD
-   fails. */
+/* sigma_kk and sigma_max of J~ in c->A (destroyed) into out[0], out[1]: J~^T (column-major
+   n x m) reduced to an upper bidiagonal by Householder reflections from the left and the
+   right (Golub-Kahan, as LAPACK's dgebd2, in plain loops: BLAS's calls cost more than
+   their work at this size), its singular values by LAPACK's dlasq1 (dqds, to high relative
+   accuracy, as dgesdd finds them). 1 where dlasq1 fails. */
 static int svd_extremes(mechsim_projection *c, int64_t kk, double *out) {
-  if (singular_values(c, c->A)) return 1;
-  out[0] = c->sig[kk];
-  out[1] = c->sig[0];
+  const int64_t M = c->n, N = c->m;            /* J~^T: column-major M x N, M >= N */
+  double *A = c->A, *d = c->ext_work, *e = d + N, *work = e + N;
+  if (M < N) {
+    if (singular_values(c, A)) return 1;
+    out[0] = c->sig[kk];
+    out[1] = c->sig[0];
+    return 0;
+  }
+  for (int64_t k = 0; k < N; k++) {
+    double *col = A + k * M;                   /* column k, rows k.. */
+    double norm = 0.0;
+    for (int64_t i = k; i < M; i++) norm += col[i] * col[i];
+    norm = sqrt(norm);
+    double alpha = col[k] > 0.0 ? -norm : norm;
+    d[k] = alpha;
+    if (norm > 0.0) {                          /* H = I - v v^T / (norm (norm + |x0|)) */
+      const double beta = 1.0 / (norm * (norm + fabs(col[k])));
+      col[k] -= alpha;
+      for (int64_t j = k + 1; j < N; j++) {
+        double *cj = A + j * M, w = 0.0;
+        for (int64_t i = k; i < M; i++) w += col[i] * cj[i];
+        w *= beta;
+        for (int64_t i = k; i < M; i++) cj[i] -= w * col[i];
+      }
+    }
+    if (k + 1 >= N) break;
+    double rnorm = 0.0;                        /* row k, columns k+1.. */
+    for (int64_t j = k + 1; j < N; j++) rnorm += A[k + j * M] * A[k + j * M];
+    rnorm = sqrt(rnorm);
+    const double y0 = A[k + (k + 1) * M];
+    e[k] = y0 > 0.0 ? -rnorm : rnorm;
+    if (rnorm > 0.0) {
+      const double beta = 1.0 / (rnorm * (rnorm + fabs(y0)));
+      double *u = work;
+      for (int64_t j = k + 1; j < N; j++) u[j] = A[k + j * M];
+      u[k + 1] -= e[k];
+      for (int64_t i = k + 1; i < M; i++) {
+        double w = 0.0;
+        for (int64_t j = k + 1; j < N; j++) w += A[i + j * M] * u[j];
+        w *= beta;
+        for (int64_t j = k + 1; j < N; j++) A[i + j * M] -= w * u[j];
+      }
+    }
+  }
+  int NN = (int)N, info = 0;
+  mechsim_dlasq1(&NN, d, e, work, &info);
+  if (info != 0) return 1;
+  out[0] = d[kk];
+  out[1] = d[0];
   return 0;
 }
 
