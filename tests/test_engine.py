@@ -246,8 +246,9 @@ def test_compiled_projection_accelerations_agree_with_the_python_path():
     """Across the double four-bar's first passage (t* ≈ 0.714 s, sampled every 1 µs
     around it): clear of the truncation band the compiled accelerations equal the Python
     path's to round-off amplified by the condition (≤ 1e6 for the Cholesky factor); where
-    LAPACK's condition estimate declines the Cholesky factor, the compiled SVD takes
-    them; in the band (a singular value under the cut) the compiled path declines and
+    LAPACK's condition estimate declines the Cholesky factor, the compiled path takes
+    them by the Householder QR of J̃ᵀ (its extreme singular values deciding the band),
+    equal to Python's SVD to round-off; in the band (a singular value under the cut) the compiled path declines and
     Python truncates and interpolates."""
     from mechsim.formulations.monitor import SingularityMonitor
     from mechsim.formulations.projection import Projection

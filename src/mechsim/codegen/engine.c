@@ -443,40 +443,70 @@ static int scaled_svd(mechsim_projection *c, double *A) { return dgesdd_of(c, A,
 /* The singular values alone (dgesdd without vectors) into c->sig, largest first. */
 static int singular_values(mechsim_projection *c, double *A) { return dgesdd_of(c, A, 'N'); }
 
-/* The accelerations by the SVD of J~ = J W^(1/2) (m <= n), as Projection.accelerations
-   computes them where truncation drops nothing: every singular value above
-   cut * sigma_max. x = W^(1/2) Q, x -= V V^T x - V S^-1 U^T g, qdd = W^(1/2) x into
-   c->out as [v; qdd]. 1 where some singular value is at or below the cut (the band:
-   Python truncates and interpolates) or the SVD fails. */
+static int svd_extremes(mechsim_projection *c, int64_t kk, double *out);
+
+/* The accelerations where the Cholesky factor of J W J^T is too ill-conditioned, as
+   Projection.accelerations computes them by the SVD of J~ = J W^(1/2) (m <= n) where
+   truncation drops nothing: every singular value above cut * sigma_max (the extremes by
+   `svd_extremes`). Then x = W^(1/2) Q, x -= V V^T x - V S^-1 U^T g, qdd = W^(1/2) x, which
+   is x -= Q1 (Q1^T x - R^-T g) for the Householder QR J~^T = Q1 R (V V^T = Q1 Q1^T, J~+ =
+   Q1 R^-T): the same numbers to round-off (both backward stable), without the singular
+   vectors. Into c->out as [v; qdd]. 1 where some singular value is at or below the cut
+   (the band: Python truncates and interpolates) or the extremes fail. */
 static int svd_accelerations(mechsim_projection *c, const double *J, const double *g,
                              double cut) {
   const int64_t n = c->n, m = c->m;
-  const double *sig = c->sig, *U = c->U, *VT = c->VT;
-  double *x = c->x, *y = c->y;
+  double *A = c->A, *x = c->x, *ex = c->cw;
   if (m > n) return 1;
-  scale_columns(c, J, c->A);
-  if (scaled_svd(c, c->A) || !(sig[0] > 0.0) || !(sig[m - 1] > cut * sig[0])) return 1;
+  scale_columns(c, J, A);
+  if (svd_extremes(c, m - 1, ex) || !(ex[1] > 0.0) || !(ex[0] > cut * ex[1])) return 1;
+  scale_columns(c, J, A);                      /* J~^T: column-major n x m */
+  double *beta = c->ext_work, *rdiag = beta + m, *a = rdiag + m, *b = a + m, *w = b + m;
+  for (int64_t k = 0; k < m; k++) {            /* Householder QR, reflectors below R */
+    double *col = A + k * n, norm = 0.0;
+    for (int64_t i = k; i < n; i++) norm += col[i] * col[i];
+    norm = sqrt(norm);
+    if (!(norm > 0.0)) return 1;
+    const double alpha = col[k] > 0.0 ? -norm : norm;
+    beta[k] = 1.0 / (norm * (norm + fabs(col[k])));
+    col[k] -= alpha;
+    rdiag[k] = alpha;
+    for (int64_t j = k + 1; j < m; j++) {
+      double *cj = A + j * n, e = 0.0;
+      for (int64_t i = k; i < n; i++) e += col[i] * cj[i];
+      e *= beta[k];
+      for (int64_t i = k; i < n; i++) cj[i] -= e * col[i];
+    }
+  }
   for (int64_t j = 0; j < n; j++) x[j] = c->wsqrt[j] * c->Q[j];
-  for (int64_t k = 0; k < m; k++) {            /* y_k = V_k^T x - (U^T g)_k / sigma_k */
-    double vx = 0.0, ug = 0.0;
-    for (int64_t j = 0; j < n; j++) vx += U[j + k * n] * x[j];
-    for (int64_t i = 0; i < m; i++) ug += VT[k + i * m] * g[i];
-    y[k] = vx - ug / sig[k];
+  memcpy(w, x, n * sizeof(double));            /* a = Q1^T x */
+  for (int64_t k = 0; k < m; k++) {
+    const double *v = A + k * n;
+    double e = 0.0;
+    for (int64_t i = k; i < n; i++) e += v[i] * w[i];
+    e *= beta[k];
+    for (int64_t i = k; i < n; i++) w[i] -= e * v[i];
+  }
+  for (int64_t i = 0; i < m; i++) {            /* b = R^-T g; y = a - b into w */
+    double e = g[i];
+    for (int64_t k = 0; k < i; k++) e -= A[k + i * n] * b[k];
+    b[i] = e / rdiag[i];
+    a[i] = w[i] - b[i];
+  }
+  memcpy(w, a, m * sizeof(double));            /* Q1 y */
+  memset(w + m, 0, (n - m) * sizeof(double));
+  for (int64_t k = m - 1; k >= 0; k--) {
+    const double *v = A + k * n;
+    double e = 0.0;
+    for (int64_t i = k; i < n; i++) e += v[i] * w[i];
+    e *= beta[k];
+    for (int64_t i = k; i < n; i++) w[i] -= e * v[i];
   }
   memcpy(c->out, c->v, n * sizeof(double));
-  for (int64_t j = 0; j < n; j++) {
-    double s = 0.0;
-    for (int64_t k = 0; k < m; k++) s += U[j + k * n] * y[k];
-    c->out[n + j] = c->wsqrt[j] * (x[j] - s);
-  }
+  for (int64_t j = 0; j < n; j++) c->out[n + j] = c->wsqrt[j] * (x[j] - w[j]);
   return 0;
 }
 
-/* The projection method's accelerations where J W J^T is well conditioned (there they
-   are the exact constrained accelerations): qdd = W Q - W J^T lam,
-   (J W J^T) lam = J W Q - gamma, into c->out as [v; qdd]. The Cholesky factor serves
-   unless it fails or, with min_rcond >= 0, its condition estimate is not above
-   min_rcond; then, with cut > 0, the SVD decides (svd_accelerations), else 1. */
 int mechsim_projection_accelerations(mechsim_projection *c, double t, double min_rcond,
                                      double cut) {
   const int64_t n = c->n, m = c->m;
