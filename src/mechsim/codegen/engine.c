@@ -443,6 +443,28 @@ static int scaled_svd(mechsim_projection *c, double *A) { return dgesdd_of(c, A,
 /* The singular values alone (dgesdd without vectors) into c->sig, largest first. */
 static int singular_values(mechsim_projection *c, double *A) { return dgesdd_of(c, A, 'N'); }
 
+/* The Householder reflection H = I - beta v v^T taking column k of the column-major M x N
+   matrix A (rows k..M-1) to alpha e_k, applied to its columns k+1..N-1; v is left in
+   column k (rows k..), beta in *beta (0 where the column is zero: H = I). Returns alpha
+   (-sign(a_kk) |a_k|). */
+static double reflect_column(double *A, int64_t M, int64_t N, int64_t k, double *beta) {
+  double *col = A + k * M, norm = 0.0;
+  for (int64_t i = k; i < M; i++) norm += col[i] * col[i];
+  norm = sqrt(norm);
+  const double alpha = col[k] > 0.0 ? -norm : norm;
+  *beta = 0.0;
+  if (!(norm > 0.0)) return alpha;
+  *beta = 1.0 / (norm * (norm + fabs(col[k])));
+  col[k] -= alpha;
+  for (int64_t j = k + 1; j < N; j++) {
+    double *cj = A + j * M, e = 0.0;
+    for (int64_t i = k; i < M; i++) e += col[i] * cj[i];
+    e *= *beta;
+    for (int64_t i = k; i < M; i++) cj[i] -= e * col[i];
+  }
+  return alpha;
+}
+
 static int svd_extremes(mechsim_projection *c, int64_t kk, double *out);
 
 /* The accelerations where the Cholesky factor of J W J^T is too ill-conditioned, as
@@ -463,20 +485,8 @@ static int svd_accelerations(mechsim_projection *c, const double *J, const doubl
   scale_columns(c, J, A);                      /* J~^T: column-major n x m */
   double *beta = c->ext_work, *rdiag = beta + m, *a = rdiag + m, *b = a + m, *w = b + m;
   for (int64_t k = 0; k < m; k++) {            /* Householder QR, reflectors below R */
-    double *col = A + k * n, norm = 0.0;
-    for (int64_t i = k; i < n; i++) norm += col[i] * col[i];
-    norm = sqrt(norm);
-    if (!(norm > 0.0)) return 1;
-    const double alpha = col[k] > 0.0 ? -norm : norm;
-    beta[k] = 1.0 / (norm * (norm + fabs(col[k])));
-    col[k] -= alpha;
-    rdiag[k] = alpha;
-    for (int64_t j = k + 1; j < m; j++) {
-      double *cj = A + j * n, e = 0.0;
-      for (int64_t i = k; i < n; i++) e += col[i] * cj[i];
-      e *= beta[k];
-      for (int64_t i = k; i < n; i++) cj[i] -= e * col[i];
-    }
+    rdiag[k] = reflect_column(A, n, m, k, beta + k);
+    if (!(beta[k] > 0.0)) return 1;
   }
   for (int64_t j = 0; j < n; j++) x[j] = c->wsqrt[j] * c->Q[j];
   memcpy(w, x, n * sizeof(double));            /* a = Q1^T x */
@@ -854,22 +864,8 @@ static int svd_extremes(mechsim_projection *c, int64_t kk, double *out) {
     return 0;
   }
   for (int64_t k = 0; k < N; k++) {
-    double *col = A + k * M;                   /* column k, rows k.. */
-    double norm = 0.0;
-    for (int64_t i = k; i < M; i++) norm += col[i] * col[i];
-    norm = sqrt(norm);
-    double alpha = col[k] > 0.0 ? -norm : norm;
-    d[k] = alpha;
-    if (norm > 0.0) {                          /* H = I - v v^T / (norm (norm + |x0|)) */
-      const double beta = 1.0 / (norm * (norm + fabs(col[k])));
-      col[k] -= alpha;
-      for (int64_t j = k + 1; j < N; j++) {
-        double *cj = A + j * M, w = 0.0;
-        for (int64_t i = k; i < M; i++) w += col[i] * cj[i];
-        w *= beta;
-        for (int64_t i = k; i < M; i++) cj[i] -= w * col[i];
-      }
-    }
+    double beta_k;
+    d[k] = reflect_column(A, M, N, k, &beta_k);      /* column k, rows k.. */
     if (k + 1 >= N) break;
     double rnorm = 0.0;                        /* row k, columns k+1.. */
     for (int64_t j = k + 1; j < N; j++) rnorm += A[k + j * M] * A[k + j * M];
