@@ -189,3 +189,17 @@ def test_the_engine_s_extreme_singular_values_are_lapack_s_to_round_off(name):
     assert np.all(np.abs(got[:, 0] - sig[:, -1]) <= 4 * m * 2.2e-16 * sig[:, 0])
     assert (sig[:, -1] / sig[:, 0]).min() < 1e-2 * (sig[:, -1] / sig[:, 0]).max() or \
         name == "crank-rocker"                      # the runs pass their passages
+
+
+@needs_compiler
+def test_the_monitor_s_ratio_is_its_measurement_without_the_vectors():
+    """`SingularityMonitor.ratio` (the search's singular values, no vectors: the dips'
+    checks and the bridge's landing) is `measure`'s σ_min/σ_max to round-off (m ε) at
+    every configuration of a run through the double four-bar's passages."""
+    from mechsim.formulations.monitor import SingularityMonitor
+    res, algebra = _states("double-four-bar")
+    monitor = SingularityMonitor(algebra.problem)
+    got = np.array([monitor.ratio(q, t) for t, q in zip(res.t, res.q)])
+    want = np.array([monitor.measure(q, t)[0] for t, q in zip(res.t, res.q)])
+    assert np.all(np.abs(got - want) <= 4 * algebra.problem.m * 2.2e-16)
+    assert want.min() < 1e-2 * want.max()

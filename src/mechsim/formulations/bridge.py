@@ -516,7 +516,7 @@ def bridge_passage(form, bridge, monitor, solver, bound, t, q, v, t_end, extra=N
         if t + SPAN * (plan[1] - t) >= t_end:
             bridge.stand_down()
             return None
-        crossed = bridge.cross(t, q, v, plan[1], lambda qk, tk: monitor.measure(qk, tk)[0],
+        crossed = bridge.cross(t, q, v, plan[1], monitor.ratio,
                                t_floor=monitor.clear_since, extra=extra)
         if crossed is not None and crossed.t_b >= t_end:
             bridge.stand_down()

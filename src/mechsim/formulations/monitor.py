@@ -154,6 +154,17 @@ class SingularityMonitor:
         """(s, ṡ, left singular vector of σ_min); ṡ = 0 when v is None."""
         return self._measure(q, t, v)[:3]
 
+    def ratio(self, q, t) -> float:
+        """σ_min/σ_max of J̃ at (q, t), not normalized: where the algebra measures many
+        states together (a small mechanism), its singular values alone, as the passage
+        search's values are (`singular_extremes`, no singular vectors); elsewhere
+        `measure`'s."""
+        algebra, m = self.problem.algebra, self.problem.m
+        if not (m and algebra.batched):
+            return self.measure(q, t)[0]
+        smin, smax = algebra.singular_extremes([t], [q], m - 1 - self.redundant)[0].tolist()
+        return smin / smax if smax > 0.0 else 0.0
+
     def _measure(self, q, t, v, J=None):
         """`measure`, also returning σ_min, σ_max (σ_max = 0: rank lost), J̃ = J̃(q)
         (`J` if the caller has it), ‖dJ̃/dt‖_F along v (0 without v) and the algebra's
@@ -356,7 +367,7 @@ class SingularityMonitor:
             return []
 
         def s_at(tk):
-            return self.measure(state_at(tk)[0], tk)[0]
+            return self.ratio(state_at(tk)[0], tk)
 
         kk = self.problem.m - 1 - self.redundant
         step = None if on_step is None else on_step()
