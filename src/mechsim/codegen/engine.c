@@ -853,7 +853,7 @@ void mechsim_chords(mechsim_projection *c, int64_t k, const double *T, const dou
    n x m) reduced to an upper bidiagonal by Householder reflections from the left and the
    right (Golub-Kahan, as LAPACK's dgebd2, in plain loops: BLAS's calls cost more than
    their work at this size), its singular values by LAPACK's dlasq1 (dqds, to high relative
-   accuracy, as dgesdd finds them). 1 where dlasq1 fails. */
+   accuracy, as dgesdd finds them). 1 where dlasq1 fails or J~ is not finite. */
 static int svd_extremes(mechsim_projection *c, int64_t kk, double *out) {
   const int64_t M = c->n, N = c->m;            /* J~^T: column-major M x N, M >= N */
   double *A = c->A, *d = c->ext_work, *e = d + N, *work = e + N;
@@ -887,7 +887,7 @@ static int svd_extremes(mechsim_projection *c, int64_t kk, double *out) {
   }
   int NN = (int)N, info = 0;
   mechsim_dlasq1(&NN, d, e, work, &info);
-  if (info != 0) return 1;
+  if (info != 0 || !isfinite(d[0]) || !isfinite(d[kk])) return 1;
   out[0] = d[kk];
   out[1] = d[0];
   return 0;
