@@ -371,18 +371,26 @@ static double complement(int64_t n, int64_t m, const double *J, const double *wi
   return diag;
 }
 
+/* W = R^-1 of the upper triangular m x m R (column-major; W upper, its lower part left as
+   it was). */
+static void upper_inverse(int64_t m, const double *R, double *W) {
+  for (int64_t j = 0; j < m; j++) {
+    W[j + j * m] = 1.0 / R[j + j * m];
+    for (int64_t i = j - 1; i >= 0; i--) {
+      double e = 0.0;
+      for (int64_t k = i + 1; k <= j; k++) e += R[i + k * m] * W[k + j * m];
+      W[i + j * m] = -e / R[i + i * m];
+    }
+  }
+}
+
 /* An upper bound of ||S^-1||_1 from the upper Cholesky factor R of S = R^T R (column-major,
    m x m, upper triangle): with W = R^-1 (into Winv), S^-1 = W W^T, so ||S^-1||_1 is at most
    ||W||_1 ||W||_inf and sqrt(m) ||W||_F^2. */
 double mechsim_inverse_norm_bound(int64_t m, const double *R, double *Winv) {
   double frob = 0.0, rows = 0.0, cols = 0.0;
+  upper_inverse(m, R, Winv);
   for (int64_t j = 0; j < m; j++) {
-    Winv[j + j * m] = 1.0 / R[j + j * m];
-    for (int64_t i = j - 1; i >= 0; i--) {
-      double e = 0.0;
-      for (int64_t k = i + 1; k <= j; k++) e += R[i + k * m] * Winv[k + j * m];
-      Winv[i + j * m] = -e / R[i + i * m];
-    }
     double col = 0.0;
     for (int64_t i = 0; i <= j; i++) {
       col += fabs(Winv[i + j * m]);
@@ -465,12 +473,13 @@ static double reflect_column(double *A, int64_t M, int64_t N, int64_t k, double 
   return alpha;
 }
 
-static int svd_extremes(mechsim_projection *c, int64_t kk, double *out);
+static int extremes_of(mechsim_projection *c, double *A, int64_t M, int64_t N, int64_t kk,
+                       double *out);
 
 /* The accelerations where the Cholesky factor of J W J^T is too ill-conditioned, as
    Projection.accelerations computes them by the SVD of J~ = J W^(1/2) (m <= n) where
-   truncation drops nothing: every singular value above cut * sigma_max (the extremes by
-   `svd_extremes`). Then x = W^(1/2) Q, x -= V V^T x - V S^-1 U^T g, qdd = W^(1/2) x, which
+   truncation drops nothing: every singular value above cut * sigma_max (the extremes of
+   the QR's R, `extremes_of`). Then x = W^(1/2) Q, x -= V V^T x - V S^-1 U^T g, qdd = W^(1/2) x, which
    is x -= Q1 (Q1^T x - R^-T g) for the Householder QR J~^T = Q1 R (V V^T = Q1 Q1^T, J~+ =
    Q1 R^-T): the same numbers to round-off (both backward stable), without the singular
    vectors. Into c->out as [v; qdd]. 1 where some singular value is at or below the cut
@@ -478,16 +487,19 @@ static int svd_extremes(mechsim_projection *c, int64_t kk, double *out);
 static int svd_accelerations(mechsim_projection *c, const double *J, const double *g,
                              double cut) {
   const int64_t n = c->n, m = c->m;
-  double *A = c->A, *x = c->x, *ex = c->cw;
+  double *A = c->A, *x = c->x, *ex = c->cw, *R = c->X;
   if (m > n) return 1;
-  scale_columns(c, J, A);
-  if (svd_extremes(c, m - 1, ex) || !(ex[1] > 0.0) || !(ex[0] > cut * ex[1])) return 1;
   scale_columns(c, J, A);                      /* J~^T: column-major n x m */
-  double *beta = c->ext_work, *rdiag = beta + m, *a = rdiag + m, *b = a + m, *w = b + m;
+  double *beta = c->ext_work + 6 * m, *rdiag = beta + m;   /* after extremes_of's 6 m */
   for (int64_t k = 0; k < m; k++) {            /* Householder QR, reflectors below R */
     rdiag[k] = reflect_column(A, n, m, k, beta + k);
     if (!(beta[k] > 0.0)) return 1;
   }
+  for (int64_t j = 0; j < m; j++)              /* R's singular values are J~'s */
+    for (int64_t i = 0; i < m; i++)
+      R[i + j * m] = i < j ? A[i + j * n] : (i == j ? rdiag[j] : 0.0);
+  if (extremes_of(c, R, m, m, m - 1, ex) || !(ex[1] > 0.0) || !(ex[0] > cut * ex[1])) return 1;
+  double *a = rdiag + m, *b = a + m, *w = b + m;
   for (int64_t j = 0; j < n; j++) x[j] = c->wsqrt[j] * c->Q[j];
   memcpy(w, x, n * sizeof(double));            /* a = Q1^T x */
   for (int64_t k = 0; k < m; k++) {
@@ -849,20 +861,15 @@ void mechsim_chords(mechsim_projection *c, int64_t k, const double *T, const dou
   }
 }
 
-/* sigma_kk and sigma_max of J~ in c->A (destroyed) into out[0], out[1]: J~^T (column-major
-   n x m) reduced to an upper bidiagonal by Householder reflections from the left and the
+/* sigma_kk and sigma_max of the column-major M x N matrix A (M >= N; destroyed) into out[0],
+   out[1]: A reduced to an upper bidiagonal by Householder reflections from the left and the
    right (Golub-Kahan, as LAPACK's dgebd2, in plain loops: BLAS's calls cost more than
    their work at this size), its singular values by LAPACK's dlasq1 (dqds, to high relative
-   accuracy, as dgesdd finds them). 1 where dlasq1 fails or J~ is not finite. */
-static int svd_extremes(mechsim_projection *c, int64_t kk, double *out) {
-  const int64_t M = c->n, N = c->m;            /* J~^T: column-major M x N, M >= N */
-  double *A = c->A, *d = c->ext_work, *e = d + N, *work = e + N;
-  if (M < N) {
-    if (singular_values(c, A)) return 1;
-    out[0] = c->sig[kk];
-    out[1] = c->sig[0];
-    return 0;
-  }
+   accuracy, as dgesdd finds them). 1 where M < N, dlasq1 fails or A is not finite. */
+static int extremes_of(mechsim_projection *c, double *A, int64_t M, int64_t N, int64_t kk,
+                       double *out) {
+  double *d = c->ext_work, *e = d + N, *work = e + N;
+  if (M < N) return 1;
   for (int64_t k = 0; k < N; k++) {
     double beta_k;
     d[k] = reflect_column(A, M, N, k, &beta_k);      /* column k, rows k.. */
@@ -891,6 +898,11 @@ static int svd_extremes(mechsim_projection *c, int64_t kk, double *out) {
   out[0] = d[kk];
   out[1] = d[0];
   return 0;
+}
+
+/* sigma_kk and sigma_max of J~ in c->A (destroyed; `extremes_of` on J~^T, n x m). */
+static int svd_extremes(mechsim_projection *c, int64_t kk, double *out) {
+  return extremes_of(c, c->A, c->n, c->m, kk, out);
 }
 
 /* sigma_kk and sigma_max of J~ at each of the k states (T[i], Q[i, :]) into out[2 i],
@@ -1449,14 +1461,9 @@ static int extreme_bounds(int64_t m, int64_t n, const double *J, double *G, doub
       H[i * m + j] = e / ljj;
     }
   }
-  for (int64_t j = 0; j < m; j++) {                /* M = L^-1 (lower) into G */
-    G[j * m + j] = 1.0 / H[j * m + j];
-    for (int64_t i = j + 1; i < m; i++) {
-      double e = 0.0;
-      for (int64_t k = j; k < i; k++) e += H[i * m + k] * G[k * m + j];
-      G[i * m + j] = -e / H[i * m + i];
-    }
-  }
+  /* M = L^-1 into G: row-major lower L is column-major upper R = L^T, whose inverse
+     (column-major upper) is row-major lower L^-1 */
+  upper_inverse(m, H, G);
   for (int64_t i = 0; i < m; i++)                  /* H = M^T M */
     for (int64_t j = 0; j <= i; j++) {
       double e = 0.0;

@@ -119,8 +119,9 @@ PROJECTION = Layout("mechsim_projection", [
     *(Field(name, "double*", lambda d: d.n) for name in ("wq", "x", "q1")),
     Field("cw", "double*", lambda d: 3 * d.m), Field("perm", "int64*", lambda d: d.n),
     Field("iwork", "int*", lambda d: 8 * d.m),
-    # the extreme singular values' workspace (`svd_extremes`: bidiagonal, dlasq1's)
-    Field("ext_work", "double*", lambda d: 8 * d.m + d.n + 16),
+    # the extreme singular values' workspace (`extremes_of`: bidiagonal, dlasq1's; then the
+    # accelerations' QR: its reflectors' factors, R's diagonal and three vectors)
+    Field("ext_work", "double*", lambda d: 10 * d.m + d.n + 16),
     # dgesdd's workspace for jobz = 'S' on an n × m matrix, k = min(m, n)
     Field("svd_work", "double*",
           lambda d: 3 * d.k + max(d.n, d.m, 5 * d.k * d.k + 4 * d.k) + 64),

@@ -83,11 +83,10 @@ class CompiledDOP853(DOP853):
         # The engine reads and writes these buffers only: views of one array, whose
         # address is taken once (an array's `.ctypes.data` costs more than copying a small
         # state in and out; an integrator is made at every restart and bridge).
-        buffer = np.empty(25 + 6 * n)
+        buffer = np.zeros(25 + 6 * n)
         self._in, self._extra_in, self._out = buffer[:13], buffer[13:20], buffer[20:25]
         self._work, self._y, self._f, self._y_new, self._f_new, self._atol = \
             (buffer[25 + i * n:25 + (i + 1) * n] for i in range(6))
-        self._in[:], self._extra_in[:], self._out[:] = 0.0, 0.0, 0.0
         self._atol[:] = np.broadcast_to(np.asarray(self.atol, float), self.y.shape)
         self._fallback = _RATE(self._python_rate)
         self._raised = None

@@ -24,4 +24,3 @@ def crossing(g, t_old, t_new, g_old) -> float:
             return t_old
         start = float(peak.x)
     return float(brentq(g, start, t_new, xtol=xtol))
-
