@@ -138,6 +138,7 @@ class SingularityMonitor:
         self.peak_rate = 0.0         # fastest |ṡ|/peak seen
         self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
         self._known = {}             # time -> (σ_min, σ_max) measured at the latest step's ends
+        self._vector = None          # (t, left singular vector of σ_min) of the latest measurement
         self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
         self._fall = None            # `Fall` at the latest measured observation, or None
         self.t_first = -np.inf       # the first observation's time
@@ -194,9 +195,12 @@ class SingularityMonitor:
         return self._hidden_by_masses
 
     def joints_of(self, u) -> tuple[str, ...]:
+        """The joints and drivers owning the rows where the singular vector u is above a
+        fifth of its largest entry, in row order."""
         owners = self.problem.constraint_owners
-        big = np.flatnonzero(np.abs(u) > 0.2 * np.max(np.abs(u), initial=0.0))
-        return tuple(dict.fromkeys(owners[i] for i in big))
+        size = [abs(x) for x in u.tolist()]      # a few rows: plain Python is faster
+        cut = 0.2 * max(size, default=0.0)
+        return tuple(dict.fromkeys(owners[i] for i, x in enumerate(size) if x > cut))
 
     def predicted_within(self, h: float) -> bool:
         """Will s fall below `enter` within the next `h` seconds at its present rate?"""
@@ -251,6 +255,10 @@ class SingularityMonitor:
             return self.last
         raw, rate, u, smin, smax, J, rate_norm, fall = self._measure(q, t, v, J)
         self._measured = (J, smin, smax) if smax > 0.0 else None
+        vectors = {t: u}             # the singular vectors measured at the step's ends
+        if self._vector is not None and self._vector[0] == t_old:
+            vectors[t_old] = self._vector[1]
+        self._vector = (t, u)
         self._known = {tk: x for tk, x in self._known.items() if tk == t_old}
         self._known[t] = (smin, smax)
         speed_before, self._ratio_speed = self._ratio_speed, self._speed(rate_norm, smax)
@@ -279,7 +287,7 @@ class SingularityMonitor:
             falls = (fall_before, self._fall) if fall_before is not None else None
             for dip in self._hidden_passages(prev, (t, s, rate), state_at,
                                              max(speed_before, self._ratio_speed),
-                                             positions_at, falls, on_step):
+                                             positions_at, falls, on_step, vectors):
                 here = self.open_passage
                 if here is not None and dip.at_start:          # the open passage goes on
                     if dip.s_min < here.s_min:
@@ -326,7 +334,7 @@ class SingularityMonitor:
         return 2.0 * rate_norm / smax
 
     def _hidden_passages(self, a, b, state_at, ratio_speed=0.0,
-                         positions_at=None, falls=None, on_step=None) -> list[Dip]:
+                         positions_at=None, falls=None, on_step=None, vectors=None) -> list[Dip]:
         """The dips of s inside the step from a = (t0, s0/peak, rate) to b, in time order
         (s0 may be a lower bound of s at t0, with rate 0); a dip that holds t0 continues
         the open passage.
@@ -348,7 +356,8 @@ class SingularityMonitor:
         `on_step() -> (positions context, dense output) or None`, where given, lets the
         compiled engine search the step and locate a dip's minimum
         (`ConstraintAlgebra.anchored`, `passage_minimum`); where it declines, the search
-        is Python's."""
+        is Python's. `vectors`: time -> the left singular vector of σ_min measured there
+        (the step's ends), for the joints of a dip whose least value is there."""
         t0, s0, d0 = a
         t1, s1, d1 = b
         h = t1 - t0
@@ -389,13 +398,14 @@ class SingularityMonitor:
             seen = self._bisect((t0, s0 * peak, t1, s1 * peak), s_at, rate_bound, budget,
                                 apart)
         return self._dips_seen(seen, (t0, t1), enter / (rate_bound / 2.0), refine, s_at,
-                               state_at)
+                               state_at, vectors or {})
 
-    def _dips_seen(self, seen, ends, width, refine, s_at, state_at) -> list[Dip]:
+    def _dips_seen(self, seen, ends, width, refine, s_at, state_at, vectors) -> list[Dip]:
         """The `Dip`s of the values `seen` ({t: s}, not normalized) over the step `ends`:
         runs under `enter` not parted by a value above `leave` (`intervals.dips`), each at
         its least value refined by `refine(ta, tb) -> (t, s)` between its neighbours, its
-        span `width` either side of it within the step."""
+        span `width` either side of it within the step; its joints from the singular
+        vector there, `vectors[t]` where that was measured already."""
         t0, t1 = ends
         enter, leave = self.enter * self.peak, self.leave * self.peak
         times = sorted(seen)
@@ -419,7 +429,9 @@ class SingularityMonitor:
                     tr, sr = refine(*sorted((times[k], times[j])))
                     if sr < sm:
                         tm, sm = tr, sr
-            _, _, um = self.measure(state_at(tm)[0], tm)
+            um = vectors.get(tm)
+            if um is None:
+                _, _, um = self.measure(state_at(tm)[0], tm)
             at_start, at_end = run[0] == 0, not closed
             found.append(Dip(tm, sm, self.joints_of(um),
                              t0 if at_start else max(t0, tm - width),
