@@ -31,7 +31,11 @@ def test_the_compiled_search_is_the_python_search_to_the_bit(name, method, rtol,
                                                              monkeypatch):
     """With the search in the engine and without it (Python's `_anchored` on the same
     positions and singular values) the runs are the same to the bit: samples, steps and
-    every passage's span, minimum and time; and the engine searched."""
+    every passage's span, minimum and time; and the engine searched. The loop's own steps
+    (the segments, which search in the engine themselves, compare with the loop in
+    `test_segment`)."""
+    from mechsim.run import segment
+    monkeypatch.setattr(segment, "enabled", False)
     mech, run = _run(name, method, rtol)
     searched = []
     anchored = DenseAlgebra.anchored
@@ -96,7 +100,10 @@ def test_a_passage_s_minimum_is_brent_s_as_scipy_finds_it(monkeypatch):
 @needs_compiler
 def test_the_minimum_on_a_state_in_all_coordinates_is_brent_s_too(monkeypatch):
     """The projection method's steps (positions the state's first entries): on every step
-    the search looks into, the engine's minimum over the step is scipy's to the bit."""
+    the search looks into, the engine's minimum over the step is scipy's to the bit (the
+    loop's steps: segments search in the engine themselves)."""
+    from mechsim.run import segment
+    monkeypatch.setattr(segment, "enabled", False)
     mech, run = _run("double-four-bar", "projection", 1e-6)
     compared = []
     anchored = DenseAlgebra.anchored

@@ -1718,21 +1718,19 @@ static int under(double smin, double smax, double enter) {
 
 /* The monitor's search inside the step [t0, t1] of a segment (anchored_search on the step's
    dense output of N entries, the positions solved on the partition c, or q = y[:n] where c
-   is NULL, with the loop's thresholds), where
-   it finds no passage: 1 when no measured sigma_min/sigma_max is under `enter`
-   (unnormalized); 0 where one is (a passage: the loop records it, taking this search as
-   it stands), or the search declined. */
-static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
-                         int64_t N, double t0, double t1, double t_old, double h_step,
-                         const double *y,
-                         int64_t budget, double enter, double leave, double apart,
-                         const double *end0, const double *end1) {
+   is NULL, with the loop's thresholds and `open` as the passage open at the step's start),
+   kept for the loop's search of the same step (keep_search): its measured nodes in
+   w->out. 0: done; 1: the search declined. */
+static int step_search(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s, int64_t N,
+                       double t0, double t1, double t_old, double h_step, const double *y,
+                       int64_t budget, double enter, double leave, double apart,
+                       const double *end0, const double *end1, int open) {
   mechsim_search *w = (mechsim_search *)s->search;
   w->grid = s->grid;
   w->kk = pc->m - 1;
   w->N = N;
   w->rows = s->dense_rows + 3;
-  w->open_at_start = 0;
+  w->open_at_start = open;
   w->chord = s->chord;
   w->enter = enter;
   w->leave = leave;
@@ -1742,8 +1740,23 @@ static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment 
   w->F = s->F;
   w->y_old = y;
   w->kept = 0;
-  if (anchored_search(c, pc, w, t0, t1, budget, end0, end1)) return 0;
+  if (anchored_search(c, pc, w, t0, t1, budget, end0, end1)) return 1;
   keep_search(c, w, t0, t1, budget, end0, end1);
+  return 0;
+}
+
+/* `step_search` with no passage open at the step's start, where it finds no passage: 1
+   when no measured sigma_min/sigma_max is under `enter` (unnormalized); 0 where one is (a
+   passage: the loop records it, taking this search as it stands), or the search
+   declined. */
+static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
+                         int64_t N, double t0, double t1, double t_old, double h_step,
+                         const double *y,
+                         int64_t budget, double enter, double leave, double apart,
+                         const double *end0, const double *end1) {
+  if (step_search(c, pc, s, N, t0, t1, t_old, h_step, y, budget, enter, leave, apart, end0,
+                  end1, 0)) return 0;
+  const mechsim_search *w = (const mechsim_search *)s->search;
   for (int64_t i = 0; i < w->found; i++)
     if (under(w->out[3 * i + 1], w->out[3 * i + 2], enter)) return 0;
   return 1;
@@ -1815,7 +1828,7 @@ static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t
   const int64_t n = pc->n, m = pc->m, mn = m * n, nr = n * m;
   o->skip = 0;
   o->floor_value = 0.0;
-  if (s->has_prev && s->skipped < s->max_skip && s->has_measured) {
+  if (!s->has_open && s->has_prev && s->skipped < s->max_skip && s->has_measured) {
     const double bound = py_max(2.0 * fabs(s->prev_rate), s->peak_rate);
     const double horizon = t_new + 2.0 * (t_new - t_old) - s->prev_t;
     if (!(s->prev_s - bound * horizon <= 2.0 * s->enter)) {
@@ -1857,7 +1870,7 @@ static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t
   const double srel = o->srel = raw / peak;
   rate = o->rate = rate / peak;
   o->peak_rate = py_max(s->peak_rate, fabs(rate));
-  return srel < s->enter ? SEG_BAND : 0;
+  return srel < s->enter && !s->handles_passages ? SEG_BAND : 0;
 }
 
 /* Whether a passage hidden in the measured step (observation o) from t_old of length h
@@ -1922,6 +1935,221 @@ static int64_t hidden_clear(mechsim_lu *c, mechsim_projection *pc, mechsim_segme
     if (!clear) return SEG_SEARCH;
   }
   return 0;
+}
+
+/* The passages a segment's observation of a step leaves (SingularityMonitor.observe where
+   the segment observes passages itself, s->handles_passages): the open passage (its start,
+   least sigma_min/sigma_max and where, whether the bridge crossed it, and the left singular
+   vector of that least value in s->cand_u where u_set; else its joints are the loop's) and
+   `added` passages recorded after the s->passages_n rows of s->passages (t_start, t_end,
+   s_min, t_min, bridged, u_set, u). */
+typedef struct {
+  int has_open, u_set;
+  double t_start, t_min, s_min, bridged;
+  int64_t added;
+} seg_passages;
+
+/* Record the open passage of p, ending at t (SingularityMonitor.close), after the rows
+   already added. 0: done; 1: no room (the loop observes the step). */
+static int close_passage(mechsim_segment *s, seg_passages *p, int64_t m, double t) {
+  if (s->passages_n + p->added >= s->passages_cap) return 1;
+  double *row = s->passages + (s->passages_n + p->added) * (6 + m);
+  row[0] = p->t_start; row[1] = t; row[2] = p->s_min; row[3] = p->t_min;
+  row[4] = p->bridged; row[5] = (double)p->u_set;
+  memcpy(row + 6, s->cand_u, m * sizeof(double));
+  p->added++;
+  p->has_open = 0;
+  return 0;
+}
+
+/* The left singular vector of sigma_min at tm on the step's dense output (the monitor's
+   `vectors`: the step's end, or its start where the latest measurement was there; else
+   measured, as SingularityMonitor.measure at the positions there) into *u. 0: done; 1: a
+   state or the SVD declined. */
+static int vector_at(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s, double tm,
+                     double t_old, double t_new, const double *u_end, const double **u) {
+  if (tm == t_new) { *u = u_end; return 0; }
+  if (tm == t_old && s->has_vector && s->vector_t == t_old) { *u = s->vector; return 0; }
+  mechsim_search *w = (mechsim_search *)s->search;
+  if (search_positions(c, w, 1, &tm, pc->q)) return 1;
+  if (mechsim_measure(pc, tm, 0.0, s->dip_measured, s->dip_J)) return 1;
+  *u = s->dip_measured + 4;
+  return 0;
+}
+
+/* SingularityMonitor._dips_seen and observe's use of each dip, on the measured nodes of
+   the search just made (w->out, in time order) over the step [t0, t1] (t0 = t_old),
+   `width` either side of a dip's least value its span, into p. 0: done; SEG_SEARCH where
+   a refinement, a value or a vector the engine declines, or no room for a passage. */
+static int64_t dips_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
+                         double t0, double t1, double width, double enter, double leave,
+                         const double *u_end, seg_passages *p) {
+  const mechsim_search *w = (const mechsim_search *)s->search;
+  const int64_t m = pc->m, last = w->found - 1;
+  const double *rows = w->out;
+  #define T_AT(i) (rows[3 * (i)])
+  #define S_AT(i) (rows[3 * (i) + 2] > 0.0 ? rows[3 * (i) + 1] / rows[3 * (i) + 2] : 0.0)
+  int64_t first = -1, least = -1;            /* the run being collected (intervals.dips) */
+  if (p->has_open && w->found) first = least = 0;
+  for (int64_t k = 0; k <= w->found; k++) {
+    int closed = 0, emit = 0;
+    if (k < w->found) {
+      const double value = S_AT(k);
+      if (value < enter && !(first == 0 && k == 0)) {
+        if (first < 0) first = least = k;
+        else if (value < S_AT(least)) least = k;
+      } else if (value > leave && first >= 0) {
+        emit = closed = 1;
+      }
+    } else {
+      emit = first >= 0;
+    }
+    if (!emit) continue;
+    /* the dip: its least value refined between its neighbours, or inside the step from
+       an end */
+    double tm = T_AT(least), sm = S_AT(least), found[2];
+    const double xatol_share = s->refine_tol;
+    if (0 < least && least < last) {
+      const double ta = T_AT(least - 1), tb = T_AT(least + 1);
+      if (mechsim_passage_minimum(c, pc, (mechsim_search *)w, ta, tb, xatol_share * (tb - ta),
+                                  found)) return SEG_SEARCH;
+      if (found[1] < sm) { tm = found[0]; sm = found[1]; }
+    } else if (last > 0) {
+      const int64_t j = least == 0 ? 1 : last - 1;
+      const double inside = T_AT(least) + 1e-3 * (T_AT(j) - T_AT(least));
+      double value;
+      if (s_on_step(c, pc, (mechsim_search *)w, inside, &value)) return SEG_SEARCH;
+      if (value < sm) {
+        const double ta = py_min(T_AT(least), T_AT(j)), tb = py_max(T_AT(least), T_AT(j));
+        if (mechsim_passage_minimum(c, pc, (mechsim_search *)w, ta, tb,
+                                    xatol_share * (tb - ta), found)) return SEG_SEARCH;
+        if (found[1] < sm) { tm = found[0]; sm = found[1]; }
+      }
+    }
+    const double *um;
+    if (vector_at(c, pc, s, tm, t0, t1, u_end, &um)) return SEG_SEARCH;
+    const int at_start = first == 0, at_end = !closed;
+    const double d_start = at_start ? t0 : py_max(t0, tm - width);
+    const double d_end = at_end ? t1 : py_min(t1, tm + width);
+    if (p->has_open && at_start) {              /* the open passage goes on */
+      if (sm < p->s_min) {
+        p->t_min = tm; p->s_min = sm; p->u_set = 1;
+        memcpy(s->cand_u, um, m * sizeof(double));
+      }
+      if (!at_end && close_passage(s, p, m, d_end)) return SEG_SEARCH;
+    } else if (at_end) {                        /* the step ends inside it */
+      p->has_open = 1; p->t_start = d_start; p->t_min = tm; p->s_min = sm;
+      p->bridged = 0.0; p->u_set = 1;
+      memcpy(s->cand_u, um, m * sizeof(double));
+    } else {                                    /* a passage inside the step */
+      if (s->passages_n + p->added >= s->passages_cap) return SEG_SEARCH;
+      double *row = s->passages + (s->passages_n + p->added) * (6 + m);
+      row[0] = d_start; row[1] = d_end; row[2] = sm; row[3] = tm; row[4] = 0.0; row[5] = 1.0;
+      memcpy(row + 6, um, m * sizeof(double));
+      p->added++;
+    }
+    first = least = -1;
+  }
+  #undef T_AT
+  #undef S_AT
+  return 0;
+}
+
+/* SingularityMonitor.observe's passages after the measured step from t_old (observation o;
+   hidden_clear's clears, the search with the open passage as it stands, each dip found,
+   then the step's end) as candidates in p, committed with the observation
+   (commit_passages). 0: done; SEG_SEARCH where the loop observes the step (a mechanism
+   that is not small, a search, refinement or vector the engine declines, no room). */
+static int64_t passages_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
+                             int64_t N, double t_old, double t_new, double h, const double *y,
+                             const double *y_new, const double *f_new,
+                             const seg_observation *o, seg_passages *p, int *ready,
+                             int64_t *evaluations) {
+  const int64_t n = pc->n, m = pc->m, mn = m * n, nr = n * m;
+  p->has_open = (int)s->has_open;
+  p->u_set = (int)s->open_u_set;
+  p->t_start = s->open_t_start; p->t_min = s->open_t_min; p->s_min = s->open_s_min;
+  p->bridged = s->open_bridged;
+  p->added = 0;
+  memcpy(s->cand_u, s->open_u, m * sizeof(double));
+  if (o->skip) return 0;
+  const double *u_end = s->measured + 4;
+  const int slot = o->slot;
+  const double *Jn = s->Js + slot * mn, *Dn = s->Ds + slot * mn, *Pn = s->Ps + slot * nr;
+  const double smin = o->smin, smax = o->smax, rate_norm = o->rate_norm;
+  const double peak = o->peak, srel = o->srel, rate = o->rate, peak_rate = o->peak_rate;
+  const double enter = s->enter * peak, leave = s->leave * peak;
+  int has_a = (int)s->has_prev;
+  double a_t = s->prev_t, a_s = s->prev_s, a_d = s->prev_rate;
+  if (has_a && a_t != t_old) {
+    has_a = s->skipped && s->has_floor && s->floor_t == t_old;
+    a_t = t_old;
+    a_s = s->floor_v / peak;
+    a_d = 0.0;
+  }
+  if (has_a) {                               /* _hidden_passages */
+    const double hh = t_new - a_t;
+    const double observed = peak * py_max(py_max(peak_rate, fabs(a_d)), fabs(rate));
+    const double speed_bound = py_max(s->ratio_speed, o->ratio_speed);
+    const double rate_bound = 2.0 * py_max(observed, observed > 0.0 ?
+        py_min(speed_bound, s->weyl_span * observed) : speed_bound);
+    int clear = !(hh > 0.0) || !(rate_bound > 0.0) ||
+        (a_s + srel) * peak - rate_bound * hh >= 2.0 * enter;
+    if (!clear && !p->has_open && s->has_fall && o->has_fall) {       /* _fall_clears */
+      const int64_t cur = s->cur;
+      const double *fs_a = s->fall_scalars + 4 * cur;
+      const double least = 2.0 * observed;
+      const double ea = fs_a[1] / fs_a[2], eb = smin / smax, span = t_new - fs_a[0];
+      if (!(least > 0.0 && lowest(ea, eb, span, least, least) < enter)) {
+        double fin[8], rates[2];
+        fin[0] = fs_a[0]; fin[1] = t_new; fin[2] = fs_a[1]; fin[3] = fs_a[2];
+        fin[4] = fs_a[3]; fin[5] = smin; fin[6] = smax; fin[7] = rate_norm;
+        mechsim_fall_rates(m, n, m, fin, s->Js + cur * mn, s->Ds + cur * mn,
+                           s->Ps + cur * nr, Jn, Dn, Pn, s->fall_work, rates);
+        const double r0 = py_max(s->hermite_margin * rates[0], least);
+        const double r1 = py_max(s->hermite_margin * rates[1], least);
+        clear = lowest(ea, eb, span, r0, r1) >= enter;
+      }
+    }
+    if (!clear) {                             /* _anchored, then _dips_seen */
+      if (!s->small) return SEG_SEARCH;
+      const double sum = (a_s + srel) * peak;
+      const double budget = py_min(4000.0, 16.0 + 4.0 * rate_bound * hh / py_max(sum, enter));
+      const double *end0 = NULL, end1[2] = {smin, smax};
+      for (int64_t j = 0; j < s->known_n; j++)
+        if (s->known[3 * j] == a_t) end0 = s->known + 3 * j + 1;
+      if (dense_ready(s, N, t_old, h, y, y_new, f_new, ready, evaluations) ||
+          step_search(c, pc, s, N, a_t, t_new, t_old, h, y, (int64_t)budget, enter, leave,
+                      2.0 * (leave - enter) / rate_bound, end0, end1, p->has_open))
+        return SEG_SEARCH;
+      const int64_t why = dips_step(c, pc, s, a_t, t_new, enter / (rate_bound / 2.0), enter,
+                                    leave, u_end, p);
+      if (why) return why;
+    }
+  }
+  const double raw = smin / smax;             /* the step's end */
+  if (p->has_open) {
+    if (raw < p->s_min) {
+      p->t_min = t_new; p->s_min = raw; p->u_set = 1;
+      memcpy(s->cand_u, u_end, m * sizeof(double));
+    }
+    if (srel > s->leave && close_passage(s, p, m, t_new)) return SEG_SEARCH;
+  } else if (srel < s->enter) {
+    p->has_open = 1; p->t_start = t_new; p->t_min = t_new; p->s_min = raw;
+    p->bridged = 0.0; p->u_set = 1;
+    memcpy(s->cand_u, u_end, m * sizeof(double));
+  }
+  return 0;
+}
+
+/* The passages of a step that stands (passages_step's candidates p). */
+static void commit_passages(mechsim_segment *s, const seg_passages *p, int64_t m) {
+  s->has_open = p->has_open;
+  s->open_u_set = p->u_set;
+  s->open_t_start = p->t_start; s->open_t_min = p->t_min; s->open_s_min = p->s_min;
+  s->open_bridged = p->bridged;
+  memcpy(s->open_u, s->cand_u, m * sizeof(double));
+  s->passages_n += p->added;
 }
 
 /* HybridPolicy.lu_limit and leave_lu after an LU step of length h, the monitor at `last`
@@ -2014,6 +2242,10 @@ static void commit_observation(mechsim_segment *s, const seg_observation *o, int
   s->peak = o->peak; s->peak_rate = o->peak_rate;
   s->prev_t = t_new; s->prev_s = o->srel; s->prev_rate = o->rate; s->has_prev = 1;
   s->skipped = 0;
+  const int64_t m = ((const mechsim_search *)s->search)->m;   /* the end's singular vector */
+  memcpy(s->vector, s->measured + 4, m * sizeof(double));
+  s->vector_t = t_new;
+  s->has_vector = 1;
   s->last = o->srel; s->rate = o->rate;
 }
 
@@ -2442,8 +2674,10 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     const double speed = end_speed(n, q_new, v_new);
     if (isnan(speed)) { s->reason = SEG_FINITE; break; }
     seg_observation o;
+    seg_passages p;
     int ready = 0;
-    why = s->open_at_start && !s->count ? SEG_OPEN :
+    const int own = (int)s->handles_passages;       /* the passages observed here */
+    why = s->open_at_start && !s->count && !own ? SEG_OPEN :
         observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
     if (why && !observed_by_loop(why)) { s->reason = why; break; }
     if (why) {                     /* the loop's observation: the step's samples, pending */
@@ -2505,8 +2739,9 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
                                          h_next >= s->run_max_step, &land) : 0;
       if (!plan) pending = SEG_BRIDGE;
     }
-    why = hidden_clear(NULL, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready,
-                       &evaluations);
+    why = own ? passages_step(NULL, pc, s, N, t_old, t_new, h, y, y_new, f_new, &o, &p,
+                              &ready, &evaluations) :
+        hidden_clear(NULL, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready, &evaluations);
     if (k > 0 && projection_samples(pc, s, t_old, h, y, y_new, f_new, k0, k, &ready,
                                     &evaluations, &projections)) {
       s->reason = SEG_SAMPLES;
@@ -2532,9 +2767,11 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     if (pending) {
       commit_pending(s, N, n, mn, t_old, &o, PENDING_DECIDE, pending, evaluations, next, k,
                      speed, ready);
+      if (own) commit_passages(s, &p, m);
       break;
     }
     commit_observation(s, &o, mn, t_old, t_new);
+    if (own) commit_passages(s, &p, m);
     s->projections += end_projections;
     s->corrections += moved;       /* each with its rate evaluated again */
     s->far_taken = s->far;

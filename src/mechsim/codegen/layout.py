@@ -169,6 +169,10 @@ SEARCH = Layout("mechsim_search", [
     Field("node_cache", "double*", lambda d: 3 * NODES),
 ])
 
+# The most passages a segment records before the loop reads them (`passages`; more: the
+# loop observes the step that would add one).
+PASSAGES = 8
+
 # Consecutive plain steps of a partition in one call (`mechsim.run.segment`): the integrator's,
 # the monitor's, the hybrid policy's and the run's state a step reads and changes, with the
 # buffers of one step. `stages` rows of K are DOP853's with its dense output's extra ones.
@@ -185,7 +189,13 @@ SEGMENT = Layout("mechsim_segment", [
         # step, the hybrid's stable steps, the bridge's previous plan, what was counted
         "kind", "far", "far_taken", "stable", "stable_steps", "bridging", "has_bprev",
         "has_landing", "has_free", "free_bound", "projections", "pending",
-        "dense_formed", "open_at_start")),
+        "dense_formed", "open_at_start",
+        # the passages a projection segment observes itself (`handles_passages`): the open
+        # one, whether its singular vector is the segment's (else its joints are the
+        # loop's), the passages recorded (`passages_n` of at most `passages_cap`), and
+        # whether the latest measurement's singular vector is kept (`vector`)
+        "handles_passages", "has_open", "open_u_set", "passages_n", "passages_cap",
+        "has_vector")),
     *(Field(name, "double") for name in (
         "t", "t_old", "h_abs", "h_previous", "t_bound", "direction", "max_step",
         "run_max_step", "rtol", "safety", "min_factor", "max_factor", "exponent",
@@ -196,7 +206,8 @@ SEGMENT = Layout("mechsim_segment", [
         "growth", "keep_t", "chord", "machine_eps", "rank_factor", "rate_step",
         "rate_rcond", "cut", "min_rcond", "previous", "lu_limit", "project_tol", "skip_tol",
         "bprev_t", "bprev_rate", "landing", "free_step", "landing_share", "edge",
-        "round_off")),
+        "round_off", "open_t_start", "open_t_min", "open_s_min", "open_bridged", "vector_t",
+        "refine_tol")),
     *(Field(name, "const double*") for name in ("coef", "extra_coef", "dense", "atol", "ts")),
     *(Field(name, "double*") for name in ("rows", "Y", "log")),
     *(Field(name, "double*", lambda d: 2 * d.f) for name in (
@@ -232,6 +243,13 @@ SEGMENT = Layout("mechsim_segment", [
     # a new partition's choice (`keeps_set`)
     Field("set_work", "double*", lambda d: d.m * d.n), Field("set_mark", "int64*", lambda d: d.n),
     Field("set_piv", "int*", lambda d: d.n),
+    # the passages (`handles_passages`): the open one's singular vector and a step's
+    # candidate, the latest measurement's, a dip's measurement and J̃ there, and the rows
+    # recorded (t_start, t_end, s_min, t_min, bridged, vector set, vector)
+    *(Field(name, "double*", lambda d: d.m) for name in ("open_u", "cand_u", "vector")),
+    Field("dip_measured", "double*", lambda d: 5 + d.m),
+    Field("dip_J", "double*", lambda d: d.m * d.n),
+    Field("passages", "double*", lambda d: PASSAGES * (6 + d.m)),
 ])
 
 

@@ -15,7 +15,7 @@ import ctypes
 import numpy as np
 
 from ..integrators.compiled import MAX_FACTOR, MIN_FACTOR, SAFETY
-from .layout import SEGMENT, Dims
+from .layout import PASSAGES, SEGMENT, Dims
 
 # Steps one call takes at most before Python looks in (progress, the stream).
 BUDGET = 256
@@ -40,7 +40,7 @@ class PlainSteps:
         self._arrays = {**self.buffers, "coef": coef, "extra_coef": extra, "dense": dense,
                         "atol": np.zeros(1), "ts": np.zeros(1), "rows": np.zeros(1),
                         "Y": self.Y, "log": self.log}
-        self.s = SEGMENT.make({"budget": BUDGET, "y_rows": len(self.Y),
+        self.s = SEGMENT.make({"budget": BUDGET, "y_rows": len(self.Y), "passages_cap": PASSAGES,
                                "search": ctypes.addressof(self.search)}, self._arrays)
         self._address = ctypes.addressof(self.s)
 

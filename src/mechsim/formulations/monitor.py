@@ -101,8 +101,9 @@ class Observation:
     observation`): the steps skipped since the last measurement and the bound of the
     latest skip (t, σ_min/σ_max floor), the last measured (t, s/peak, ṡ/peak), `last` and
     `rate`, the peak and the fastest rate seen, the last measurement (J̃, σ_min, σ_max),
-    its bound on |d(σ_min/σ_max)/dt|, its `Fall` (or None) and the measurements at the
-    latest step's ends (time -> (σ_min, σ_max))."""
+    its bound on |d(σ_min/σ_max)/dt|, its `Fall` (or None), the measurements at the
+    latest step's ends (time -> (σ_min, σ_max)) and the latest measurement's (t, left
+    singular vector of σ_min), or None."""
     skipped: int
     floor: tuple | None
     prev: tuple | None
@@ -114,6 +115,7 @@ class Observation:
     ratio_speed: float
     fall: object
     known: dict
+    vector: tuple | None = None
 
 
 class SingularityMonitor:
@@ -229,7 +231,7 @@ class SingularityMonitor:
         `mechsim.run.segment`)."""
         return Observation(self._skipped, self._floor, self._prev, self.last, self.rate,
                            self.peak, self.peak_rate, self._measured, self._ratio_speed,
-                           self._fall, dict(self._known))
+                           self._fall, dict(self._known), self._vector)
 
     def resume(self, o: Observation) -> None:
         """Go on from `o`, the state after observations made elsewhere (the engine's)."""
@@ -237,6 +239,14 @@ class SingularityMonitor:
         self.last, self.rate, self.peak, self.peak_rate = o.last, o.rate, o.peak, o.peak_rate
         self._measured, self._ratio_speed, self._fall = o.measured, o.ratio_speed, o.fall
         self._known = dict(o.known)
+        self._vector = o.vector
+
+    def took(self, closed, still_open) -> None:
+        """The passages observed elsewhere (the engine's segments) since `observation`:
+        `closed` recorded in order, then `still_open` (an `OpenPassage`, or None) the
+        passage the monitor is inside."""
+        self.passages.extend(closed)
+        self.open_passage = still_open
 
     def observe(self, t, q, v=None, state_at=None, t_old=None, positions_at=None,
                 on_step=None) -> float:

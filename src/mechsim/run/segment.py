@@ -13,11 +13,14 @@ formulation, no crossing, no sample due at its end), all of that is arithmetic t
 projection phase between passages and after them, the bridge's approach to a landing
 point included) does in C, step after step, until a step is not plain. A step whose end
 is the loop's to decide (a switch of the hybrid, a new partition, a crossing by the
-passage bridge) or to observe (a passage open at its start, the band, a dip the monitor's
-search finds) the segment still takes, with its samples, up to that point, and hands it
-over pending (`Pending`: the loop finishes it, `Run._finish_pending`); any other step it
-drops, and the Python loop (`mechsim.run.loop.Run`) takes it from the same state, with
-its own decisions.
+passage bridge) or to observe (in LU: a passage open at its start, the band, a dip the
+monitor's search finds) the segment still takes, with its samples, up to that point, and
+hands it over pending (`Pending`: the loop finishes it, `Run._finish_pending`); any other
+step it drops, and the Python loop (`mechsim.run.loop.Run`) takes it from the same state,
+with its own decisions. Where the bridge crosses the passages (the run's tolerances stay
+its own inside them), a projection segment observes the passages itself as the monitor
+does (the open one going on, closing, opening, the dips a search finds refined to their
+minima), and the loop names their joints from the singular vectors it kept.
 
 The contract is the Python loop's numbers to the bit: the segment makes the decisions the
 loop would make (the same comparisons in the same order on the same doubles) and calls the
@@ -49,8 +52,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ..formulations.hybrid import Hybrid
-from ..formulations.monitor import (BLIND, CHORD, GRID, HERMITE_MARGIN, RATE_STEP, WEYL_SPAN,
-                                    Fall, Observation)
+from ..formulations.monitor import (BLIND, CHORD, GRID, HERMITE_MARGIN, RATE_STEP, REFINE_TOL,
+                                    WEYL_SPAN, Fall, Observation, OpenPassage)
+from ..records import SingularPassage
 from ..problem.algebra import RANK_FACTOR
 from ..formulations.full import ROUND_OFF
 from ..formulations.partitioned import REFERENCE_SPAN, Partitioned
@@ -193,6 +197,9 @@ class Segment:
         s.edge, s.landing_share, prev, landing, free, free_bound = plan
         s.free_bound = bool(free_bound)
         s.bridging = bridge is not None and bool((self.hybrid or proj).bridging)
+        # Bridged, the run's tolerances stay its own inside a passage: the segment
+        # observes the passages itself (`mechsim_projection_segment`).
+        s.handles_passages = s.bridging
         s.has_bprev, s.has_landing, s.has_free = (x is not None for x in (prev, landing, free))
         s.bprev_t, s.bprev_rate = prev if prev is not None else (0.0, 0.0)
         s.landing = landing if landing is not None else 0.0
@@ -253,6 +260,18 @@ class Segment:
         s.known_n = len(known)
         for j, (tk, (smin, smax)) in enumerate(known):
             b["known"][3 * j:3 * j + 3] = tk, smin, smax
+        s.has_vector = o.vector is not None
+        if o.vector is not None:
+            s.vector_t = o.vector[0]
+            b["vector"][:m] = o.vector[1]
+        # the passages (a projection segment's, `_load_projection`): the open one as the
+        # monitor has it (its joints stay the loop's until the segment moves its minimum)
+        s.handles_passages, s.passages_n, s.refine_tol = False, 0, REFINE_TOL
+        here = self.open = monitor.open_passage
+        s.has_open, s.open_u_set = here is not None, False
+        if here is not None:
+            s.open_t_start, s.open_t_min, s.open_s_min = here.t_start, here.t_min, here.s_min
+            s.open_bridged = float(here.bridged)
 
     def _load_partition(self, start) -> None:
         """The partition's numbers (`Partitioned.plain_start`) and the hybrid's LU policy
@@ -312,6 +331,26 @@ class Segment:
             policy.steps, policy.stable, policy.previous = s.policy_steps, s.stable, s.previous
         return compiled
 
+    def _store_passages(self, monitor, m) -> None:
+        """The passages a projection segment recorded and the one it is inside, into the
+        monitor, their joints from the singular vectors it kept (the loop's open passage's
+        where the segment left its minimum as it was)."""
+        s, b = self.steps.s, self.steps.buffers
+        loaded = self.open.joints if self.open is not None else ()
+
+        def joints(vector_set, u):
+            return monitor.joints_of(u) if vector_set else loaded
+        rows = b["passages"][:s.passages_n * (6 + m)].reshape(-1, 6 + m)
+        closed = []
+        for row in rows:
+            t_start, t_end, s_min, t_min, bridged, vector_set = row[:6].tolist()
+            closed.append(SingularPassage(t_start, t_end, s_min, joints(vector_set, row[6:]),
+                                          t_min, bool(bridged)))
+        still = OpenPassage(s.open_t_start, s.open_t_min, s.open_s_min,
+                            joints(s.open_u_set, b["open_u"][:m]), bool(s.open_bridged)) \
+            if s.has_open else None
+        monitor.took(closed, still)
+
     def _interpolant(self, solver, compiled):
         """A pending step's dense output as `CompiledDOP853.dense_output` would form it,
         from the coefficients the engine formed (the same extra stages, counted there);
@@ -347,7 +386,10 @@ class Segment:
             (b["Jm"].reshape(m, n).copy(), s.m_smin, s.m_smax) if s.has_measured else None,
             s.ratio_speed, fall,
             {b["known"][3 * j]: (b["known"][3 * j + 1], b["known"][3 * j + 2])
-             for j in range(s.known_n)}))
+             for j in range(s.known_n)},
+            (s.vector_t, b["vector"][:m].copy()) if s.has_vector else None))
+        if s.handles_passages:
+            self._store_passages(monitor, m)
         # the run (Run._advance, _accept, _bridge)
         stats, log = run.stats, steps.log[:count]
         first = stats.steps + 1
