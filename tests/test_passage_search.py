@@ -74,6 +74,8 @@ def test_a_passage_s_minimum_is_brent_s_as_scipy_finds_it(monkeypatch):
     `minimize_scalar(method="bounded")` lands on the same function (the engine's
     positions and singular values, called from Python), to the bit; and its minimum is a
     passage's: under 1e-6 at the double four-bar's change points."""
+    from mechsim.run import segment
+    monkeypatch.setattr(segment, "enabled", False)    # the loop's steps
     mech, run = _run("double-four-bar", "lu", 3e-3)
     forms, compared = [], []
     context = Partitioned.positions_context

@@ -194,10 +194,14 @@ def test_segments_record_a_sample_at_every_step(method, monkeypatch):
 @needs_compiler
 def test_the_loop_takes_the_search_of_a_step_a_segment_declined(monkeypatch):
     """The double four-bar's LU steps across its passages: a segment searches the step
-    and finds a passage, which is the loop's to record; the loop observes that step and,
-    rather than search again, takes the segment's search (the same request, partition
-    and dense output, compared entry by entry). The run is the loop's to the bit."""
+    and finds a passage, which it records itself; where it cannot (here no room for a
+    passage: a step ending inside one, a refinement the engine declines, are others), the
+    loop observes that step and, rather than search again, takes the segment's search (the
+    same request, partition and dense output, compared entry by entry). The run is the
+    loop's to the bit."""
+    from mechsim.codegen import steps
     from mechsim.codegen.search import StepSearch
+    monkeypatch.setattr(steps, "PASSAGES", 0)
     taken = []
     anchored = StepSearch.anchored
 
@@ -211,4 +215,21 @@ def test_the_loop_takes_the_search_of_a_step_a_segment_declined(monkeypatch):
                                     rtol=1e-3, atol=1e-5, output_step=p.t_end / 1000)
     assert fast.success and len(fast.singular_passages) == 10 and in_segments > 0
     assert sum(taken) >= 10          # the fast run's passage steps (the slow run's: none)
+    _same(fast, slow)
+
+
+@needs_compiler
+def test_lu_segments_record_the_passages_inside_their_steps(monkeypatch):
+    """The double four-bar in LU at rtol 1e-3 strides across each of its ten passages in
+    one step: the segment finds the dip by its search, refines its minimum, names its
+    joints and records it, as the loop's monitor would, and goes on; no step is handed to
+    the loop for its observation (the segments take every step but the one that ends the
+    run), and the run is the loop's to the bit (passages, joints and all)."""
+    p = PROBLEMS["double-four-bar"]
+    kinds = {}
+    fast, slow, taken = _both(p.build(), monkeypatch, kinds, t_end=p.t_end, method="lu",
+                              rtol=1e-3, atol=1e-5, output_step=p.t_end / 1000)
+    assert fast.success and len(fast.singular_passages) == 10
+    assert all(p.joints for p in fast.singular_passages)
+    assert kinds.get("observe", 0) == 0 and taken == fast.stats["steps"] - 1
     _same(fast, slow)

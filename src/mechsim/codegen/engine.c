@@ -1870,7 +1870,7 @@ static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t
   const double srel = o->srel = raw / peak;
   rate = o->rate = rate / peak;
   o->peak_rate = py_max(s->peak_rate, fabs(rate));
-  return srel < s->enter && !s->handles_passages ? SEG_BAND : 0;
+  return srel < s->enter && !(s->handles_passages && s->kind == 0) ? SEG_BAND : 0;
 }
 
 /* Whether a passage hidden in the measured step (observation o) from t_old of length h
@@ -2401,13 +2401,15 @@ static void commit_pending(mechsim_segment *s, int64_t N, int64_t n, int64_t mn,
    what Run._advance does after a plain step of a small rigid mechanism in LU (the hybrid's LU
    phase, or "lu"): its output samples (dense output, positions and velocities) written to
    the rows of s->rows, the singularity monitor's observation (its skip by Weyl's bound, or
-   its measurement and the cheap clears of a hidden passage), the hybrid's policy and step
+   its measurement and the cheap clears of a hidden passage, or its search and the passages
+   found inside the step recorded, passages_step), the hybrid's policy and step
    limit, the partition's end (branch, condition, re-reference, predictor). Where the
    hybrid switches to the projection method or the partition changes, the step is taken up
    to the monitor's observation and its samples and the segment ends with it pending
    (s->pending, s->reason): the Python loop finishes it (Run._after_step). Where anything
-   else would happen (a stage or state the engine declines, a step that needs the monitor's
-   search, a passage's band, a sample due at the step's end, no room for the samples, a
+   else would happen (a stage or state the engine declines, a step whose search the engine
+   cannot finish or that ends inside a passage, a passage's band, a sample due at the
+   step's end, no room for the samples, a
    step shorter than the stall rule's span), the step is dropped and the segment ends
    before it with s->reason: the Python loop takes it, from the same state, with the same
    numbers. Everything a committed step changes is in s, c and the buffers s points to;
@@ -2448,7 +2450,9 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     /* the monitor (SingularityMonitor.observe), its state changed only once the step
        stands: the candidates in o */
     seg_observation o;
+    seg_passages p;
     int ready = 0;                       /* the step's dense output formed */
+    const int own = (int)s->handles_passages;     /* passages inside a step observed here */
     why = s->open_at_start && !s->count ? SEG_OPEN :
         observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
     if (why && !observed_by_loop(why)) { s->reason = why; break; }
@@ -2465,8 +2469,11 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
         pending = SEG_LEAVE;
       /* a passage hidden in the step, ruled out (the search last: a step the loop takes
          anyway spends none) */
-      why = hidden_clear(c, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready,
-                         &evaluations);
+      why = own ? passages_step(c, pc, s, N, t_old, t_new, h, y, y_new, f_new, &o, &p, &ready,
+                                &evaluations) :
+          hidden_clear(c, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready, &evaluations);
+      /* a step that ends inside a passage: the loop's (LU's tolerances change there) */
+      if (!why && own && p.has_open) why = SEG_SEARCH;
     }
     if (why) {     /* the loop's observation (of a dip found: the kept search), pending */
       if (k > 0 && samples_step(c, s, t_old, h, y, y_new, f_new, k0, k, &ready,
@@ -2494,6 +2501,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     if (pending) {
       commit_pending(s, N, n, mn, t_old, &o, PENDING_DECIDE, pending, evaluations, next, k,
                      speed, ready);
+      if (own) commit_passages(s, &p, m);
       break;
     }
     double zmax = 0.0;
@@ -2538,6 +2546,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
       if (has_limit) s->max_step = py_min(s->run_max_step, limit);
     }
     commit_observation(s, &o, mn, t_old, t_new);
+    if (own) commit_passages(s, &p, m);
     s->sign = s->block[0];
     commit_step(s, N, n, t_old, y_new, f_new, evaluations, next, k, q_end, v_end, speed, 0.0,
                 0.0);
@@ -2650,9 +2659,13 @@ static int projection_samples(mechsim_projection *pc, mechsim_segment *s, double
    or the bridge decides something else (a switch to LU, a crossing, a projection or a rate
    the engine declines) the step is taken up to the monitor's observation and the segment
    ends with it pending (s->pending, s->reason): the Python loop finishes that step
-   (Run.finish_step). Where anything else would happen (a passage's band, a search that
-   finds a dip, and the reasons of mechsim_lu_segment) the step is dropped and the segment
-   ends before it with s->reason: the Python loop takes it from the same state. */
+   (Run.finish_step). Where the bridge crosses the passages (s->handles_passages) the
+   monitor's passages are observed here too (passages_step: the open one going on,
+   closing and opening, the dips a search finds); else the band, a passage open at the
+   start and a search that finds a dip leave the step's observation to the loop. Where
+   anything else would happen (the reasons of mechsim_lu_segment) the step is dropped and
+   the segment ends before it with s->reason: the Python loop takes it from the same
+   state. */
 int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
   const int64_t n = pc->n, m = pc->m, N = 2 * n, mn = m * n;
   double *y = s->y, *y_new = s->y_new, *f_new = s->f_new, *y_here = s->y_here;

@@ -171,7 +171,7 @@ SEARCH = Layout("mechsim_search", [
 
 # The most passages a segment records before the loop reads them (`passages`; more: the
 # loop observes the step that would add one).
-PASSAGES = 8
+PASSAGES = 32
 
 # Consecutive plain steps of a partition in one call (`mechsim.run.segment`): the integrator's,
 # the monitor's, the hybrid policy's and the run's state a step reads and changes, with the

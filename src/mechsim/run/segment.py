@@ -20,7 +20,9 @@ step it drops, and the Python loop (`mechsim.run.loop.Run`) takes it from the sa
 with its own decisions. Where the bridge crosses the passages (the run's tolerances stay
 its own inside them), a projection segment observes the passages itself as the monitor
 does (the open one going on, closing, opening, the dips a search finds refined to their
-minima), and the loop names their joints from the singular vectors it kept.
+minima); an LU segment records the passages that begin and end inside a step (LU's
+tolerances change inside one: a step that ends there is the loop's). The loop names
+their joints from the singular vectors the segment kept.
 
 The contract is the Python loop's numbers to the bit: the segment makes the decisions the
 loop would make (the same comparisons in the same order on the same doubles) and calls the
@@ -279,6 +281,9 @@ class Segment:
         s = self.steps.s
         s.sign, s.repartition_at, s.cond_max, s.growth = start
         s.reference_span = REFERENCE_SPAN
+        # the passages inside a step observed there (one that ends inside a passage, or
+        # begins in one, is the loop's: LU's tolerances change there)
+        s.handles_passages = True
         if self.hybrid is not None:
             policy = self.hybrid.policy
             s.held_steps, s.policy_steps = policy.held, policy.steps
