@@ -2806,6 +2806,76 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
 }
 
 
+/* PassageBridge._norm: the RMS over N entries of (hi - lo) / (atol + rtol max(|a|, |b|))
+   (adams.error_norm). */
+static double bridge_norm(int64_t N, const double *hi, const double *lo, const double *a,
+                          const double *b, double rtol, const double *atol) {
+  if (N == 0) return 0.0;
+  double sum = 0.0;
+  for (int64_t i = 0; i < N; i++) {
+    const double scale = atol[i] + rtol * py_max(fabs(a[i]), fabs(b[i]));
+    const double r = (hi[i] - lo[i]) / scale;
+    sum += r * r;
+  }
+  return sqrt(sum / (double)N);
+}
+
+/* y_n + H (w0 f + w[1:] . F) into y (N entries; F: K rows of N, f NULL: the weights w are
+   F's alone). */
+static void adams_sum(int64_t N, int64_t K, const double *y_n, double H, const double *w,
+                      const double *f, const double *F, double *y) {
+  const int64_t first = f != NULL;
+  for (int64_t i = 0; i < N; i++) {
+    double sum = f != NULL ? w[0] * f[i] : 0.0;
+    for (int64_t j = 0; j < K; j++) sum += w[first + j] * F[j * N + i];
+    y[i] = y_n[i] + H * sum;
+  }
+}
+
+/* The passage bridge's corrector and its order estimates (PassageBridge._corrected_end
+   and cross) on the projection method's compiled accelerations (min_rcond, cut): from the
+   state y_n (N = 2n entries) and the K rates F of its history (rows, at t_n first), a step
+   of H to t_b. The prediction y = y_n + H (w_pred . F), then up to `iterations`
+   corrections y = y_n + H (w_corr . [f_b; F]), f_b the rate at y put onto the constraints
+   (mechsim_project_state to 1e-13 and one more chord iteration, as
+   PassageBridge._consistent), until the change's norm (rtol, atol) is under 1e-2: the
+   last f_b into f_b. Then the L orders' ends y_n + H (W[l] . [f_b; F]) (rows of K + 1
+   weights, zero past their nodes) into Y (L x N), and the norms of their successive
+   differences (against y_n and the higher order) into errs (L - 1). counts: the rates and
+   the chord iterations taken; work: 3 N. 0: done; 1: a projection or a rate the engine
+   declines (the Python corrector takes the step from its start). */
+int mechsim_bridge_corrector(mechsim_projection *pc, int64_t N, int64_t K, const double *y_n,
+                             const double *F, const double *w_pred, const double *w_corr,
+                             int64_t L, const double *W, double H, double t_b, double rtol,
+                             const double *atol, int64_t iterations, double min_rcond,
+                             double cut, double *work, double *counts, double *f_b,
+                             double *Y, double *errs) {
+  const int64_t n = pc->n;
+  double *y_c = work, *y_new = work + N, *settled = work + 2 * N;
+  int64_t rates = 0, projections = 0;
+  adams_sum(N, K, y_n, H, w_pred, NULL, F, y_c);
+  for (int64_t it = 0; it < iterations; it++) {
+    memcpy(pc->q, y_c, n * sizeof(double));
+    memcpy(pc->v, y_c + n, n * sizeof(double));
+    if (mechsim_project_state(pc, t_b, -1.0, 1e-13, -1.0, 1, 8) == 1) return 1;
+    projections += pc->count;
+    memcpy(settled, pc->q, n * sizeof(double));
+    memcpy(settled + n, pc->v, n * sizeof(double));
+    if (projection_rate(pc, t_b, settled, min_rcond, cut, f_b)) return 1;
+    rates++;
+    adams_sum(N, K, y_n, H, w_corr, f_b, F, y_new);
+    const double change = bridge_norm(N, y_new, y_c, y_c, y_new, rtol, atol);
+    memcpy(y_c, y_new, N * sizeof(double));
+    if (change < 1e-2) break;
+  }
+  for (int64_t l = 0; l < L; l++) adams_sum(N, K, y_n, H, W + l * (K + 1), f_b, F, Y + l * N);
+  for (int64_t l = 0; l + 1 < L; l++)
+    errs[l] = bridge_norm(N, Y + (l + 1) * N, Y + l * N, y_n, Y + (l + 1) * N, rtol, atol);
+  counts[0] = (double)rates;
+  counts[1] = (double)projections;
+  return 0;
+}
+
 /* The passage bridge's history (PassageBridge._history and the rates of _start): DOP853
    from (s->t, s->y, s->fy) towards s->t_bound on the projection method's compiled
    accelerations (s->rate_rcond, s->cut), as CompiledDOP853.step takes its steps, the state

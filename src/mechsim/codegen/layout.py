@@ -270,6 +270,7 @@ SIGNATURES = {
     "mechsim_dense_coefficients": "lllpppppdp>-",
     "mechsim_passage_minimum": "pppdddp>i", "mechsim_anchored": "pppddlpl>i",
     "mechsim_multipliers": "plppppddppp>l",
+    "mechsim_bridge_corrector": "pllppppl" + "pddd" + "pl" + "dd" + "p" * 5 + ">i",
 }
 _CODES = {"p": ctypes.c_void_p, "d": ctypes.c_double, "l": ctypes.c_int64, "i": ctypes.c_int,
           "-": None}

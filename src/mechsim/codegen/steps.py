@@ -97,6 +97,31 @@ class PlainSteps:
             return None if done == -1 else False
         return states, F, s.evaluations - solver.nfev, s.projections
 
+    def corrector(self, projection, rate, y_n, F, weights, H, t_b, tolerances, iterations):
+        """The passage bridge's corrector and order estimates in the engine
+        (`mechsim_bridge_corrector`) on the projection context `projection` (its address)
+        with `rate`'s min_rcond and cut: from y_n and the history's rates F (K x N), the
+        step of H to t_b; `weights` = (prediction (K,), correction (K + 1,), the orders'
+        (L, K + 1)), `tolerances` = (rtol, atol for each of the N entries). (f_b, the
+        orders' ends (L, N), the norms of their differences (L − 1,), the rates evaluated,
+        the chord iterations); None where the engine declined a projection or a rate."""
+        w_pred, w_corr, W = (np.ascontiguousarray(w, dtype=float) for w in weights)
+        F = np.ascontiguousarray(F, dtype=float)
+        y_n = np.ascontiguousarray(y_n, dtype=float)
+        rtol, atol = tolerances
+        atol = np.ascontiguousarray(atol, dtype=float)
+        K, N = F.shape
+        L = len(W)
+        work, counts, f_b = np.empty(3 * N), np.empty(2), np.empty(N)
+        Y, errs = np.empty((L, N)), np.empty(max(L - 1, 1))
+        if self.lib.mechsim_bridge_corrector(
+                projection, N, K, y_n.ctypes.data, F.ctypes.data, w_pred.ctypes.data,
+                w_corr.ctypes.data, L, W.ctypes.data, float(H), float(t_b), float(rtol),
+                atol.ctypes.data, int(iterations), rate.min_rcond, rate.cut, work.ctypes.data,
+                counts.ctypes.data, f_b.ctypes.data, Y.ctypes.data, errs.ctypes.data):
+            return None
+        return f_b, Y, errs[:L - 1].tolist(), int(counts[0]), int(counts[1])
+
     def run_projection(self, projection) -> int:
         """Steps of the projection method on its compiled context (its address): how many
         were committed (`mechsim_projection_segment`)."""

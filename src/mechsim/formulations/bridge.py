@@ -339,7 +339,11 @@ class PassageBridge:
             return self._decline(np.inf)
         t_b = t_n + H
         nodes = np.concatenate([[1.0], (ts - t_n) / H])
-        f_b = self._corrected_end(y_n, F, nodes, t_b, H, iterations)
+        done = self._corrector_in_engine(y_n, F, nodes, t_b, H, iterations)
+        if done is not None:
+            f_b, ys, errs = done
+        else:
+            f_b = self._corrected_end(y_n, F, nodes, t_b, H, iterations)
         # The order: correctors on the end point and the k − 1 newest history points for
         # k = 3 …; the difference between orders k + 1 and k estimates the error of order k,
         # and the order with the smallest estimate is kept with its extrapolation to k + 1
@@ -350,10 +354,10 @@ class PassageBridge:
         # Milne's ‖y_c − y_p‖ is not used: the predictor's extrapolation amplifies that
         # noise (on the double four-bar at rtol 1e-9 it read 20× the corrector difference,
         # which itself read 6–100× the true error of the crank's rate).
-        Fb = np.vstack([f_b, F])
-        ys = [y_n + H * (step_weights(nodes[:k]) @ Fb[:k])
-              for k in range(3, nodes.size + 1)]
-        errs = [self._norm(hi - lo, y_n, hi) for lo, hi in zip(ys, ys[1:])]
+            Fb = np.vstack([f_b, F])
+            ys = [y_n + H * (step_weights(nodes[:k]) @ Fb[:k])
+                  for k in range(3, nodes.size + 1)]
+            errs = [self._norm(hi - lo, y_n, hi) for lo, hi in zip(ys, ys[1:])]
         best = int(np.argmin(errs))
         err = self.last_estimate = errs[best]
         # At the floor the only alternative is stepping through the band (on the 40-window
@@ -430,6 +434,36 @@ class PassageBridge:
             if settled:
                 break
         return f_b
+
+    def _corrector_in_engine(self, y_n, F, nodes, t_b, H, iterations):
+        """`_corrected_end` and the orders' ends and estimates of `cross` in the engine
+        (`mechsim_bridge_corrector`: the same iterations and orders in its own arithmetic),
+        their rates and projections counted as `_f` and `_settled` count them: (f_b, the
+        orders' ends, their estimates); None where the engine does not take it (no engine,
+        sensitivities carried, a projection or a rate declined: the Python corrector)."""
+        rate = self.rate() if self.compiled and self.extension is None else None
+        steps = self.problem.algebra.plain_steps(
+            self.problem.n, 1, (tableau(), extra_tableau(), dense_matrix())) \
+            if rate is not None and SAFETY is not None else None
+        if steps is None:
+            return None
+        K = len(F)
+        orders = np.zeros((K - 1, K + 1))
+        for k in range(3, K + 2):
+            orders[k - 3, :k] = step_weights(nodes[:k])
+        atol = np.broadcast_to(np.asarray(self.atol, dtype=float), y_n.shape)
+        done = steps.corrector(rate.context, rate, y_n, F,
+                               (step_weights(nodes[1:]), step_weights(nodes), orders), H, t_b,
+                               (self.rtol, atol), iterations)
+        if done is None:
+            return None
+        f_b, Y, errs, rates, projections = done
+        counters = self.problem.counters
+        counters.rhs += rates
+        counters.factorizations += rates
+        counters.projections += projections
+        self.evaluations += rates
+        return f_b, list(Y), errs
 
     def _finish(self, n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history):
         """The `Crossing` with the corrector of order `best`."""
