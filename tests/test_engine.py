@@ -710,3 +710,41 @@ def test_the_cholesky_shortcut_accepts_only_what_lapack_s_estimate_accepts(rng):
             _, rcond = dense.cholesky_rcond(S)
             assert rcond > 1e-4
     assert accepted > 50
+
+
+def test_an_integrator_is_set_up_as_scipy_sets_it_up_or_by_scipy(monkeypatch):
+    """`CompiledDOP853`'s own set-up (an integrator is made at every restart and
+    crossing) leaves the installed scipy's attributes, values and evaluation count, with
+    scipy's first step and with a given one, and integrates to the same numbers; asked
+    for what it does not check (a complex or non-finite state, a negative atol), scipy's
+    set-up takes it and raises as scipy does; and where the installed scipy sets up
+    anything else (an attribute of its own), scipy's set-up serves every integrator."""
+    from mechsim.integrators import compiled
+    from scipy.integrate import DOP853
+    assert compiled._SET_UP.verified()
+    rates = np.array([-1.0, 0.5, -3.0])
+
+    def fun(t, y):
+        return rates * y + np.sin(t)
+    for options in ({"rtol": 1e-8, "atol": 1e-10}, {"rtol": 1e-5, "atol": 1e-8,
+                                                    "first_step": 0.02, "max_step": 0.1}):
+        ours = compiled.CompiledDOP853(fun, 0.0, np.array([1.0, -1.0, 2.0]), 3.0, **options)
+        theirs = DOP853(fun, 0.0, np.array([1.0, -1.0, 2.0]), 3.0, **options)
+        assert set(vars(theirs)) <= set(vars(ours))
+        assert (ours.h_abs, ours.nfev, ours.direction) == (theirs.h_abs, theirs.nfev,
+                                                            theirs.direction)
+        while theirs.status == "running":
+            ours.step()
+            theirs.step()
+            assert ours.t == theirs.t and np.array_equal(ours.y, theirs.y)
+    with pytest.raises(ValueError, match="finite"):
+        compiled.CompiledDOP853(fun, 0.0, np.array([1.0, np.nan, 2.0]), 3.0)
+    with pytest.raises(ValueError, match="atol"):
+        compiled.CompiledDOP853(fun, 0.0, np.ones(3), 3.0, atol=-1.0)
+
+    class Changed(DOP853):             # a scipy whose set-up keeps something more
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.extra = 1
+    monkeypatch.setattr(compiled, "DOP853", Changed)
+    assert not compiled._ScipySetUp().verified()

@@ -32,6 +32,10 @@ try:            # scipy's DOP853 interpolant (`Interpolant.of`)
     from scipy.integrate._ivp.rk import Dop853DenseOutput
 except ImportError:                       # moved: scipy's own interpolants serve
     Dop853DenseOutput = None
+try:            # scipy's first step (`CompiledDOP853._set_up`; its arguments by name)
+    from scipy.integrate._ivp.common import select_initial_step
+except ImportError:                       # moved: scipy's own set-up serves
+    select_initial_step = None
 
 
 # The Python rate the engine calls back for a stage it declines: (t, y, f) -> 0 when done.
@@ -78,7 +82,8 @@ class CompiledDOP853(DOP853):
     rate = None
 
     def __init__(self, fun, t0, y0, t_bound, **options):
-        super().__init__(fun, t0, y0, t_bound, **options)
+        if not (_SET_UP.verified() and self._set_up(fun, t0, y0, t_bound, **options)):
+            super().__init__(fun, t0, y0, t_bound, **options)
         n = self.n
         # The engine reads and writes these buffers only: views of one array, whose
         # address is taken once (an array's `.ctypes.data` costs more than copying a small
@@ -86,8 +91,8 @@ class CompiledDOP853(DOP853):
         buffer = np.zeros(25 + 6 * n)
         self._in, self._extra_in, self._out = buffer[:13], buffer[13:20], buffer[20:25]
         self._work, self._y, self._f, self._y_new, self._f_new, self._atol = \
-            (buffer[25 + i * n:25 + (i + 1) * n] for i in range(6))
-        self._atol[:] = np.broadcast_to(np.asarray(self.atol, float), self.y.shape)
+            buffer[25:].reshape(6, n)
+        self._atol[:] = self.atol
         self._fallback = _RATE(self._python_rate)
         self._raised = None
         self._taken = None          # the rate the last step was taken on (None: scipy's)
@@ -98,6 +103,53 @@ class CompiledDOP853(DOP853):
                            at[0], base + 8 * 20, fallback)
         self._extra_args = (_address(extra_tableau), base + 8 * 13, at[1], stages, at[0],
                             base + 8 * 20, fallback)
+
+    def _set_up(self, fun, t0, y0, t_bound, rtol=1e-3, atol=1e-6, max_step=np.inf,
+                first_step=None) -> bool:
+        """scipy's own set-up (`OdeSolver`, `RungeKutta`, `DOP853`: the same attributes,
+        the same numbers; `_SET_UP` checked it against the installed scipy) without its
+        argument checks, for what a run passes: a finite float64 state, a scalar rtol
+        above scipy's floor, a non-negative scalar atol, a positive max_step and a first
+        step within the interval. False where anything else is asked (scipy's own set-up
+        then checks it, warns and raises as it does): an integrator is made at every
+        restart and crossing, and the checks cost as much as the rest of it."""
+        if type(y0) is not np.ndarray or y0.dtype != np.float64 or y0.ndim != 1 or \
+                not isinstance(rtol, float) or not rtol >= 100 * np.finfo(float).eps or \
+                not isinstance(atol, float) or not atol >= 0.0 or not max_step > 0.0 or \
+                not (first_step is None or 0.0 < first_step <= abs(t_bound - t0)) or \
+                not np.isfinite(y0).all():
+            return False
+        self.t_old, self.t, self.y, self.t_bound = None, t0, y0, t_bound
+
+        def wrapped(t, y):                     # check_arguments' wrapper
+            return np.asarray(fun(t, y), dtype=float)
+
+        def vectorized(t, y):
+            f = np.empty_like(y)
+            for i, yi in enumerate(y.T):
+                f[:, i] = self._fun(t, yi)
+            return f
+
+        def counted(t, y):
+            self.nfev += 1
+            return self.fun_single(t, y)
+        self._fun, self.vectorized = wrapped, False
+        self.fun, self.fun_single, self.fun_vectorized = counted, wrapped, vectorized
+        self.direction = np.sign(t_bound - t0) if t_bound != t0 else 1
+        self.n, self.status = y0.size, "running"
+        self.nfev = self.njev = self.nlu = 0
+        self.y_old, self.max_step = None, max_step
+        self.rtol, self.atol = rtol, np.asarray(atol)
+        self.f = self.fun(t0, y0)
+        if first_step is None:
+            self.h_abs = _SET_UP.first_step(self, t_bound, max_step)
+        else:
+            self.h_abs = first_step
+        self.K_extended = np.empty((_SET_UP.stages, self.n))
+        self.K = self.K_extended[:self.n_stages + 1]
+        self.error_exponent = -1 / (self.error_estimator_order + 1)
+        self.h_previous = None
+        return True
 
     @property
     def atol_array(self) -> np.ndarray:
@@ -193,6 +245,73 @@ class CompiledDOP853(DOP853):
                               self.K_extended.ctypes.data, y_old.ctypes.data, y.ctypes.data,
                               f.ctypes.data, self.h_previous, F.ctypes.data)
         return Interpolant(self.t_old, self.t, y_old, F, compiled.interpolate)
+
+
+class _ScipySetUp:
+    """Whether `CompiledDOP853._set_up` sets an integrator up as the installed scipy's
+    DOP853 does: decided once, on a probe made both ways (the same attributes, the same
+    values, the same evaluations counted; with scipy's first step and with a given one),
+    else scipy's own set-up serves every integrator. `first_step`: scipy's
+    `select_initial_step`, its arguments passed by name (their order differs between
+    scipy versions)."""
+
+    def __init__(self):
+        self._verified = None
+        self.stages = 0
+
+    def first_step(self, solver, t_bound, max_step) -> float:
+        known = {"fun": solver.fun, "t0": solver.t, "y0": solver.y, "t_bound": t_bound,
+                 "max_step": max_step, "f0": solver.f, "direction": solver.direction,
+                 "order": solver.error_estimator_order, "rtol": solver.rtol,
+                 "atol": solver.atol}
+        return select_initial_step(**{name: known[name] for name in self._names})
+
+    def verified(self) -> bool:
+        if self._verified is None:
+            self._verified = False
+            try:
+                self._verified = self._check()
+            except Exception:                   # noqa: BLE001 (any difference: scipy's)
+                self._verified = False
+        return self._verified
+
+    def _check(self) -> bool:
+        import inspect
+        if select_initial_step is None:
+            return False
+        self._names = list(inspect.signature(select_initial_step).parameters)
+        known = {"fun", "t0", "y0", "t_bound", "max_step", "f0", "direction", "order",
+                 "rtol", "atol"}
+        if not set(self._names) <= known:
+            return False
+        self.stages = DOP853(lambda t, y: y, 0.0, np.ones(1), 1.0).K_extended.shape[0]
+        rates = np.array([-1.0, 2.0, -0.5, 3.0])
+        for options in ({"rtol": 1e-6, "atol": 1e-9, "max_step": 0.05},
+                        {"rtol": 1e-4, "atol": 1e-7, "first_step": 0.01}):
+            y0 = np.array([1.0, -2.0, 0.5, 4.0])
+            ours = object.__new__(CompiledDOP853)
+            if not ours._set_up(lambda t, y: rates * y + t, 0.0, y0, 2.0, **options):
+                return False
+            theirs = DOP853(lambda t, y: rates * y + t, 0.0, y0.copy(), 2.0, **options)
+            a, b = vars(ours), vars(theirs)
+            if set(a) != set(b):
+                return False
+            for key, value in b.items():
+                mine = a[key]
+                if callable(value):
+                    continue
+                if isinstance(value, np.ndarray):
+                    if not (isinstance(mine, np.ndarray) and mine.shape == value.shape and
+                            mine.dtype == value.dtype and
+                            (key in ("K", "K_extended") or np.array_equal(mine, value))):
+                        return False
+                elif type(mine) is not type(value) or not (mine == value or
+                                                           (mine is None and value is None)):
+                    return False
+        return True
+
+
+_SET_UP = _ScipySetUp()
 
 
 class Interpolant(DenseOutput):
