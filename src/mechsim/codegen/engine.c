@@ -353,16 +353,31 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
 
 /* ---- the projection method (Projection.accelerations, NumericProblem.project_state) ---- */
 
-/* S = J W J^T (both triangles, column-major); returns max S_ii. */
+/* S = J W J^T (both triangles, column-major); returns max S_ii. Each row's sums run over
+   the columns where that row of J is not zero (nz: scratch of m n + m entries), in their
+   order: a zero product leaves a sum as it was, so S is the dense sums' to the bit at a
+   fraction of them (a joint's rows touch two bodies' coordinates). */
 static double complement(int64_t n, int64_t m, const double *J, const double *winv,
-                         double *S) {
+                         double *S, int64_t *nz) {
+  int64_t *count = nz + m * n;
+  for (int64_t i = 0; i < m; i++) {
+    const double *Ji = J + i * n;
+    int64_t *cols = nz + i * n, c = 0;
+    for (int64_t j = 0; j < n; j++)
+      if (Ji[j] != 0.0) cols[c++] = j;
+    count[i] = c;
+  }
   double diag = 0.0;
   for (int64_t i = 0; i < m; i++) {
     const double *Ji = J + i * n;
+    const int64_t *cols = nz + i * n, ci = count[i];
     for (int64_t k = 0; k <= i; k++) {
       const double *Jk = J + k * n;
       double e = 0.0;
-      for (int64_t j = 0; j < n; j++) e += Ji[j] * winv[j] * Jk[j];
+      for (int64_t a = 0; a < ci; a++) {
+        const int64_t j = cols[a];
+        e += Ji[j] * winv[j] * Jk[j];
+      }
       S[i + k * m] = e;
       S[k + i * m] = e;
     }
@@ -545,7 +560,7 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
     for (int64_t j = 0; j < n; j++) s += Ji[j] * wq[j];
     lam[i] = s - g[i];
   }
-  const double diag = complement(n, m, J, winv, S);
+  const double diag = complement(n, m, J, winv, S, c->nz);
   char uplo = 'U';
   int M = (int)m, nrhs = 1, info = 0;
   if (cholesky(c, S, diag, min_rcond))
@@ -597,7 +612,7 @@ int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
       lam[i] = e - g[i];
     }
     done[s] = 0;
-    const double diag = complement(n, m, J, winv, S);
+    const double diag = complement(n, m, J, winv, S, c->nz);
     if (cholesky(c, S, diag, min_rcond)) continue;
     int small = 0;
     for (int64_t i = 0; i < m; i++) small |= !(S[i + i * m] * S[i + i * m] > min_pivot * diag);
@@ -644,7 +659,7 @@ int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, doub
   if (err <= skip_tol) return 2;
   memset(J, 0, m * n * sizeof(double));
   mechsim_phi_q(q, t, c->p, J);
-  const double diag = complement(n, m, J, c->winv, S);
+  const double diag = complement(n, m, J, c->winv, S, c->nz);
   if (cholesky(c, S, diag, min_rcond)) return 1;
   double prev = INFINITY;
   int64_t count = 0;
@@ -693,7 +708,7 @@ static int settle_state(mechsim_projection *c, double t, double *q, double *v, d
   if (status != 0) return status;
   if (c->count > 0) {
     /* c->J is Phi_q at the new q: its own factor makes J v + Phi_t vanish */
-    const double diag = complement(n, c->m, c->J, c->winv, c->S);
+    const double diag = complement(n, c->m, c->J, c->winv, c->S, c->nz);
     if (cholesky(c, c->S, diag, -1.0)) return 1;
     memset(c->r, 0, c->m * sizeof(double));
     mechsim_phi_t(c->q, t, c->p, c->r);

@@ -118,6 +118,7 @@ PROJECTION = Layout("mechsim_projection", [
     *(Field(name, "double*", lambda d: d.m) for name in ("g", "lam", "phi", "r", "y")),
     *(Field(name, "double*", lambda d: d.n) for name in ("wq", "x", "q1")),
     Field("cw", "double*", lambda d: 3 * d.m), Field("perm", "int64*", lambda d: d.n),
+    Field("nz", "int64*", lambda d: d.m * d.n + d.m),    # `complement`'s columns a row uses
     Field("iwork", "int*", lambda d: 8 * d.m),
     # the extreme singular values' workspace (`extremes_of`: bidiagonal, dlasq1's; then the
     # accelerations' QR: its reflectors' factors, R's diagonal and three vectors)
