@@ -421,18 +421,60 @@ double mechsim_inverse_norm_bound(int64_t m, const double *R, double *Winv) {
   return fmin(rows * cols, sqrt((double)m) * frob);
 }
 
-/* The Cholesky factor of S = J W J^T in place (upper triangle); 1 where it fails or, with
+/* The Cholesky factor R (upper, S = R^T R) of the symmetric positive definite m x m S
+   (column-major, its upper triangle read) into the upper triangle of R (R may be S; its
+   strictly lower part is left as it was), in plain loops, as LAPACK's dpotf2 does it: a
+   few rows, where BLAS's per-call cost exceeds the arithmetic (`small_lu`). 1 where a
+   pivot is not positive (S not positive definite, as dpotrf's info > 0). */
+static int small_cholesky(int64_t m, const double *S, double *R) {
+  for (int64_t j = 0; j < m; j++) {
+    double d = S[j * m + j];
+    for (int64_t k = 0; k < j; k++) d -= R[j * m + k] * R[j * m + k];
+    if (!(d > 0.0)) return 1;
+    const double rjj = sqrt(d);
+    R[j * m + j] = rjj;
+    for (int64_t i = j + 1; i < m; i++) {
+      double e = S[i * m + j];
+      for (int64_t k = 0; k < j; k++) e -= R[i * m + k] * R[j * m + k];
+      R[i * m + j] = e / rjj;
+    }
+  }
+  return 0;
+}
+
+/* b = S^-1 b from the factor R of `small_cholesky` (dpotrs's two triangular solves). */
+static void cholesky_solve(int64_t m, const double *R, double *b) {
+  for (int64_t j = 0; j < m; j++) {                /* R^T y = b */
+    double e = b[j];
+    for (int64_t k = 0; k < j; k++) e -= R[j * m + k] * b[k];
+    b[j] = e / R[j * m + j];
+  }
+  for (int64_t j = m - 1; j >= 0; j--) {           /* R x = y */
+    double e = b[j];
+    for (int64_t k = j + 1; k < m; k++) e -= R[k * m + j] * b[k];
+    b[j] = e / R[j * m + j];
+  }
+}
+
+/* The Cholesky factor of S = J W J^T in place (upper triangle: `small_cholesky`, or
+   LAPACK's dpotrf with `lapack`, as the multipliers take it to agree with the Python path's
+   state by state to round-off of the same algorithm); 1 where it fails or, with
    min_rcond >= 0, LAPACK's estimate of 1/cond_1 is not above min_rcond. The norm is
    bounded by m max S_ii, as dense.cholesky_conditioned bounds it. LAPACK's estimate
    (dpocon) bounds ||S^-1||_1 from below, so where the rigorous upper bound of
    `mechsim_inverse_norm_bound` already puts 1/cond_1 above twice min_rcond (the factor for
    the round-off of both), dpocon would accept too and is not called: the same decisions,
    a few triangular sums instead of LAPACK's estimator. */
-static int cholesky(mechsim_projection *c, double *S, double diag, double min_rcond) {
+static int cholesky(mechsim_projection *c, double *S, double diag, double min_rcond,
+                    int lapack) {
   char uplo = 'U';
   int M = (int)c->m, info = 0;
-  mechsim_dpotrf(&uplo, &M, S, &M, &info);
-  if (info != 0) return 1;
+  if (lapack) {
+    mechsim_dpotrf(&uplo, &M, S, &M, &info);
+    if (info != 0) return 1;
+  } else if (small_cholesky(c->m, S, S)) {
+    return 1;
+  }
   if (min_rcond >= 0.0) {
     double anorm = (double)c->m * diag, rcond = 0.0;
     const double bound = anorm * mechsim_inverse_norm_bound(c->m, S, c->Winv);
@@ -561,12 +603,9 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
     lam[i] = s - g[i];
   }
   const double diag = complement(n, m, J, winv, S, c->nz);
-  char uplo = 'U';
-  int M = (int)m, nrhs = 1, info = 0;
-  if (cholesky(c, S, diag, min_rcond))
+  if (cholesky(c, S, diag, min_rcond, 0))
     return cut > 0.0 ? svd_accelerations(c, J, g, cut) : 1;
-  mechsim_dpotrs(&uplo, &M, &nrhs, S, &M, lam, &M, &info);
-  if (info != 0) return 1;
+  cholesky_solve(m, S, lam);
   memcpy(c->out, c->v, n * sizeof(double));
   for (int64_t j = 0; j < n; j++) {
     double s = 0.0;
@@ -613,7 +652,7 @@ int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
     }
     done[s] = 0;
     const double diag = complement(n, m, J, winv, S, c->nz);
-    if (cholesky(c, S, diag, min_rcond)) continue;
+    if (cholesky(c, S, diag, min_rcond, 1)) continue;
     int small = 0;
     for (int64_t i = 0; i < m; i++) small |= !(S[i + i * m] * S[i + i * m] > min_pivot * diag);
     if (small) continue;
@@ -630,10 +669,7 @@ int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
 static int correct(mechsim_projection *c, const double *J, const double *S, double *r,
                    double *x) {
   const int64_t n = c->n, m = c->m;
-  char uplo = 'U';
-  int M = (int)m, nrhs = 1, info = 0;
-  mechsim_dpotrs(&uplo, &M, &nrhs, (double *)S, &M, r, &M, &info);
-  if (info != 0) return 1;
+  cholesky_solve(m, S, r);
   for (int64_t j = 0; j < n; j++) {
     double s = 0.0;
     for (int64_t i = 0; i < m; i++) s += J[i * n + j] * r[i];
@@ -660,7 +696,7 @@ int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, doub
   memset(J, 0, m * n * sizeof(double));
   mechsim_phi_q(q, t, c->p, J);
   const double diag = complement(n, m, J, c->winv, S, c->nz);
-  if (cholesky(c, S, diag, min_rcond)) return 1;
+  if (cholesky(c, S, diag, min_rcond, 0)) return 1;
   double prev = INFINITY;
   int64_t count = 0;
   for (int64_t k = 0;; k++) {
@@ -709,7 +745,7 @@ static int settle_state(mechsim_projection *c, double t, double *q, double *v, d
   if (c->count > 0) {
     /* c->J is Phi_q at the new q: its own factor makes J v + Phi_t vanish */
     const double diag = complement(n, c->m, c->J, c->winv, c->S, c->nz);
-    if (cholesky(c, c->S, diag, -1.0)) return 1;
+    if (cholesky(c, c->S, diag, -1.0, 0)) return 1;
     memset(c->r, 0, c->m * sizeof(double));
     mechsim_phi_t(c->q, t, c->p, c->r);
     for (int64_t a = 0; a < c->m; a++) {
@@ -1464,18 +1500,7 @@ static int extreme_bounds(int64_t m, int64_t n, const double *J, double *G, doub
   double frob = 0.0;
   for (int64_t i = 0; i < m * m; i++) frob += G[i] * G[i];
   const double top = fmin(sqrt(frob), pow(square_frobenius2(m, G), 0.25));
-  for (int64_t j = 0; j < m; j++) {                /* L (lower) into H */
-    double d = G[j * m + j];
-    for (int64_t k = 0; k < j; k++) d -= H[j * m + k] * H[j * m + k];
-    if (!(d > 0.0)) return 1;
-    const double ljj = sqrt(d);
-    H[j * m + j] = ljj;
-    for (int64_t i = j + 1; i < m; i++) {
-      double e = G[i * m + j];
-      for (int64_t k = 0; k < j; k++) e -= H[i * m + k] * H[j * m + k];
-      H[i * m + j] = e / ljj;
-    }
-  }
+  if (small_cholesky(m, G, H)) return 1;      /* L (lower, row-major) into H */
   /* M = L^-1 into G: row-major lower L is column-major upper R = L^T, whose inverse
      (column-major upper) is row-major lower L^-1 */
   upper_inverse(m, H, G);
