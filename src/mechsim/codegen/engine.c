@@ -1785,23 +1785,6 @@ static int step_search(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s
   return 0;
 }
 
-/* `step_search` with no passage open at the step's start, where it finds no passage: 1
-   when no measured sigma_min/sigma_max is under `enter` (unnormalized); 0 where one is (a
-   passage: the loop records it, taking this search as it stands), or the search
-   declined. */
-static int search_clears(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
-                         int64_t N, double t0, double t1, double t_old, double h_step,
-                         const double *y,
-                         int64_t budget, double enter, double leave, double apart,
-                         const double *end0, const double *end1) {
-  if (step_search(c, pc, s, N, t0, t1, t_old, h_step, y, budget, enter, leave, apart, end0,
-                  end1, 0)) return 0;
-  const mechsim_search *w = (const mechsim_search *)s->search;
-  for (int64_t i = 0; i < w->found; i++)
-    if (under(w->out[3 * i + 1], w->out[3 * i + 2], enter)) return 0;
-  return 1;
-}
-
 /* Whether Partitioned.choose at Phi_q = J (row-major m x n) keeps the partition's
    independent set (c->ind): its rank from the singular values of J (above
    max(m, n) eps 1e3 sigma_max, as ConstraintAlgebra.rank), its pivots from LU with
@@ -1913,6 +1896,76 @@ static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t
   return srel < s->enter && !(s->handles_passages && s->kind == 0) ? SEG_BAND : 0;
 }
 
+/* The start of the measured step (observation o) from t_old as the monitor's search takes
+   it (SingularityMonitor.observe): the latest measured observation, or the skip's floor at
+   t_old; and whether _hidden_passages' bounds clear the step to t_new (the rate bound, and
+   with `falls` _fall_clears), with the rate bound into *rate_bound. Returns -1 where there
+   is no start (no search), else whether cleared; a = (t, s/peak, rate/peak) of the start. */
+static int search_clear(mechsim_segment *s, const seg_observation *o, int64_t m, int64_t n,
+                        double t_old, double t_new, int falls, double *a,
+                        double *rate_bound) {
+  const int64_t mn = m * n, nr = n * m;
+  const int slot = o->slot;
+  const double *Jn = s->Js + slot * mn, *Dn = s->Ds + slot * mn, *Pn = s->Ps + slot * nr;
+  const double smin = o->smin, smax = o->smax, rate_norm = o->rate_norm;
+  const double peak = o->peak, srel = o->srel, rate = o->rate, peak_rate = o->peak_rate;
+  int has_a = (int)s->has_prev;
+  double a_t = s->prev_t, a_s = s->prev_s, a_d = s->prev_rate;
+  if (has_a && a_t != t_old) {
+    has_a = s->skipped && s->has_floor && s->floor_t == t_old;
+    a_t = t_old;
+    a_s = s->floor_v / peak;
+    a_d = 0.0;
+  }
+  a[0] = a_t; a[1] = a_s; a[2] = a_d;
+  if (!has_a) return -1;
+  const double hh = t_new - a_t, enter = s->enter * peak;
+  const double observed = peak * py_max(py_max(peak_rate, fabs(a_d)), fabs(rate));
+  const double speed_bound = py_max(s->ratio_speed, o->ratio_speed);
+  const double bound = *rate_bound = 2.0 * py_max(observed, observed > 0.0 ?
+      py_min(speed_bound, s->weyl_span * observed) : speed_bound);
+  if (!(hh > 0.0) || !(bound > 0.0) || (a_s + srel) * peak - bound * hh >= 2.0 * enter)
+    return 1;
+  if (falls && s->has_fall && o->has_fall) {           /* _fall_clears */
+    const int64_t cur = s->cur;
+    const double *fs_a = s->fall_scalars + 4 * cur;   /* t, smin, smax, rise */
+    const double least = 2.0 * observed;
+    const double ea = fs_a[1] / fs_a[2], eb = smin / smax, span = t_new - fs_a[0];
+    if (!(least > 0.0 && lowest(ea, eb, span, least, least) < enter)) {
+      double fin[8], rates[2];
+      fin[0] = fs_a[0]; fin[1] = t_new; fin[2] = fs_a[1]; fin[3] = fs_a[2];
+      fin[4] = fs_a[3]; fin[5] = smin; fin[6] = smax; fin[7] = rate_norm;
+      mechsim_fall_rates(m, n, m, fin, s->Js + cur * mn, s->Ds + cur * mn,
+                         s->Ps + cur * nr, Jn, Dn, Pn, s->fall_work, rates);
+      const double r0 = py_max(s->hermite_margin * rates[0], least);
+      const double r1 = py_max(s->hermite_margin * rates[1], least);
+      return lowest(ea, eb, span, r0, r1) >= enter;
+    }
+  }
+  return 0;
+}
+
+/* SingularityMonitor._anchored's search of the step from the start a (`search_clear`) to
+   t_new (observation o; the dense output formed first), its budget and end anchors as the
+   monitor sets them, `open` the passage open at the start (`step_search`). 0: done, the
+   measured nodes in the search's out; 1: declined. */
+static int monitor_search(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
+                          int64_t N, const seg_observation *o, const double *a,
+                          double rate_bound, double t_old, double t_new, double h,
+                          const double *y, const double *y_new, const double *f_new,
+                          int open, int *ready, int64_t *evaluations) {
+  const double peak = o->peak, enter = s->enter * peak, leave = s->leave * peak;
+  const double sum = (a[1] + o->srel) * peak;
+  const double budget = py_min(4000.0, 16.0 + 4.0 * rate_bound * (t_new - a[0]) /
+                               py_max(sum, enter));
+  const double *end0 = NULL, end1[2] = {o->smin, o->smax};
+  for (int64_t j = 0; j < s->known_n; j++)
+    if (s->known[3 * j] == a[0]) end0 = s->known + 3 * j + 1;
+  return dense_ready(s, N, t_old, h, y, y_new, f_new, ready, evaluations) ||
+      step_search(c, pc, s, N, a[0], t_new, t_old, h, y, (int64_t)budget, enter, leave,
+                  2.0 * (leave - enter) / rate_bound, end0, end1, open);
+}
+
 /* Whether a passage hidden in the measured step (observation o) from t_old of length h
    is ruled out as SingularityMonitor._hidden_passages rules it out (the rate bound,
    _fall_clears, the anchored search where it finds none), the positions solved on the
@@ -1922,58 +1975,16 @@ static int64_t hidden_clear(mechsim_lu *c, mechsim_projection *pc, mechsim_segme
                             const double *y_new, const double *f_new,
                             const seg_observation *o, int *ready, int64_t *evaluations) {
   if (o->skip) return 0;
-  const int64_t n = pc->n, m = pc->m, mn = m * n, nr = n * m, N = c ? 2 * c->f : 2 * n;
-  const int slot = o->slot;
-  const double *Jn = s->Js + slot * mn, *Dn = s->Ds + slot * mn, *Pn = s->Ps + slot * nr;
-  const double smin = o->smin, smax = o->smax, rate_norm = o->rate_norm;
-  const double peak = o->peak, srel = o->srel, rate = o->rate, peak_rate = o->peak_rate;
-  const double ratio_speed = o->ratio_speed;
-  /* the step's start as the search takes it */
-  int has_a = (int)s->has_prev;
-  double a_t = s->prev_t, a_s = s->prev_s, a_d = s->prev_rate;
-  if (has_a && a_t != t_old) {
-    has_a = s->skipped && s->has_floor && s->floor_t == t_old;
-    a_t = t_old;
-    a_s = s->floor_v / peak;
-    a_d = 0.0;
-  }
-  if (has_a) {                               /* _hidden_passages' clears */
-    const double hh = t_new - a_t, enter = s->enter * peak;
-    const double observed = peak * py_max(py_max(peak_rate, fabs(a_d)), fabs(rate));
-    const double speed_bound = py_max(s->ratio_speed, ratio_speed);
-    const double rate_bound = 2.0 * py_max(observed, observed > 0.0 ?
-        py_min(speed_bound, s->weyl_span * observed) : speed_bound);
-    int clear = !(hh > 0.0) || !(rate_bound > 0.0) ||
-        (a_s + srel) * peak - rate_bound * hh >= 2.0 * enter;
-    if (!clear && s->has_fall && o->has_fall) {       /* _fall_clears */
-      const int64_t cur = s->cur;
-      const double *fs_a = s->fall_scalars + 4 * cur;   /* t, smin, smax, rise */
-      const double least = 2.0 * observed;
-      const double ea = fs_a[1] / fs_a[2], eb = smin / smax, span = t_new - fs_a[0];
-      if (!(least > 0.0 && lowest(ea, eb, span, least, least) < enter)) {
-        double fin[8], rates[2];
-        fin[0] = fs_a[0]; fin[1] = t_new; fin[2] = fs_a[1]; fin[3] = fs_a[2];
-        fin[4] = fs_a[3]; fin[5] = smin; fin[6] = smax; fin[7] = rate_norm;
-        mechsim_fall_rates(m, n, m, fin, s->Js + cur * mn, s->Ds + cur * mn,
-                           s->Ps + cur * nr, Jn, Dn, Pn, s->fall_work, rates);
-        const double r0 = py_max(s->hermite_margin * rates[0], least);
-        const double r1 = py_max(s->hermite_margin * rates[1], least);
-        clear = lowest(ea, eb, span, r0, r1) >= enter;
-      }
-    }
-    if (!clear && s->small) {                 /* _anchored, where it finds no passage */
-      const double sum = (a_s + srel) * peak;
-      const double budget = py_min(4000.0, 16.0 + 4.0 * rate_bound * hh / py_max(sum, enter));
-      const double *end0 = NULL, end1[2] = {smin, smax};
-      for (int64_t j = 0; j < s->known_n; j++)
-        if (s->known[3 * j] == a_t) end0 = s->known + 3 * j + 1;
-      clear = !dense_ready(s, N, t_old, h, y, y_new, f_new, ready, evaluations) &&
-          search_clears(c, pc, s, N, a_t, t_new, t_old, h, y, (int64_t)budget, enter,
-                        s->leave * peak, 2.0 * (s->leave * peak - enter) / rate_bound, end0,
-                        end1);
-    }
-    if (!clear) return SEG_SEARCH;
-  }
+  const int64_t n = pc->n, m = pc->m, N = c ? 2 * c->f : 2 * n;
+  double a[3], rate_bound = 0.0;
+  if (search_clear(s, o, m, n, t_old, t_new, 1, a, &rate_bound)) return 0;
+  if (!s->small ||
+      monitor_search(c, pc, s, N, o, a, rate_bound, t_old, t_new, h, y, y_new, f_new, 0,
+                     ready, evaluations))
+    return SEG_SEARCH;
+  const mechsim_search *w = (const mechsim_search *)s->search;
+  for (int64_t i = 0; i < w->found; i++)
+    if (under(w->out[3 * i + 1], w->out[3 * i + 2], s->enter * o->peak)) return SEG_SEARCH;
   return 0;
 }
 
@@ -2105,7 +2116,7 @@ static int64_t passages_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segm
                              const double *y_new, const double *f_new,
                              const seg_observation *o, seg_passages *p, int *ready,
                              int64_t *evaluations) {
-  const int64_t n = pc->n, m = pc->m, mn = m * n, nr = n * m;
+  const int64_t n = pc->n, m = pc->m;
   p->has_open = (int)s->has_open;
   p->u_set = (int)s->open_u_set;
   p->t_start = s->open_t_start; p->t_min = s->open_t_min; p->s_min = s->open_s_min;
@@ -2114,67 +2125,25 @@ static int64_t passages_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segm
   memcpy(s->cand_u, s->open_u, m * sizeof(double));
   if (o->skip) return 0;
   const double *u_end = s->measured + 4;
-  const int slot = o->slot;
-  const double *Jn = s->Js + slot * mn, *Dn = s->Ds + slot * mn, *Pn = s->Ps + slot * nr;
-  const double smin = o->smin, smax = o->smax, rate_norm = o->rate_norm;
-  const double peak = o->peak, srel = o->srel, rate = o->rate, peak_rate = o->peak_rate;
-  const double enter = s->enter * peak, leave = s->leave * peak;
-  int has_a = (int)s->has_prev;
-  double a_t = s->prev_t, a_s = s->prev_s, a_d = s->prev_rate;
-  if (has_a && a_t != t_old) {
-    has_a = s->skipped && s->has_floor && s->floor_t == t_old;
-    a_t = t_old;
-    a_s = s->floor_v / peak;
-    a_d = 0.0;
+  const double peak = o->peak, enter = s->enter * peak, leave = s->leave * peak;
+  double a[3], rate_bound = 0.0;
+  if (!search_clear(s, o, m, n, t_old, t_new, !p->has_open, a, &rate_bound)) {
+    if (!s->small ||                          /* _anchored, then _dips_seen */
+        monitor_search(c, pc, s, N, o, a, rate_bound, t_old, t_new, h, y, y_new, f_new,
+                       p->has_open, ready, evaluations))
+      return SEG_SEARCH;
+    const int64_t why = dips_step(c, pc, s, a[0], t_new, enter / (rate_bound / 2.0), enter,
+                                  leave, u_end, p);
+    if (why) return why;
   }
-  if (has_a) {                               /* _hidden_passages */
-    const double hh = t_new - a_t;
-    const double observed = peak * py_max(py_max(peak_rate, fabs(a_d)), fabs(rate));
-    const double speed_bound = py_max(s->ratio_speed, o->ratio_speed);
-    const double rate_bound = 2.0 * py_max(observed, observed > 0.0 ?
-        py_min(speed_bound, s->weyl_span * observed) : speed_bound);
-    int clear = !(hh > 0.0) || !(rate_bound > 0.0) ||
-        (a_s + srel) * peak - rate_bound * hh >= 2.0 * enter;
-    if (!clear && !p->has_open && s->has_fall && o->has_fall) {       /* _fall_clears */
-      const int64_t cur = s->cur;
-      const double *fs_a = s->fall_scalars + 4 * cur;
-      const double least = 2.0 * observed;
-      const double ea = fs_a[1] / fs_a[2], eb = smin / smax, span = t_new - fs_a[0];
-      if (!(least > 0.0 && lowest(ea, eb, span, least, least) < enter)) {
-        double fin[8], rates[2];
-        fin[0] = fs_a[0]; fin[1] = t_new; fin[2] = fs_a[1]; fin[3] = fs_a[2];
-        fin[4] = fs_a[3]; fin[5] = smin; fin[6] = smax; fin[7] = rate_norm;
-        mechsim_fall_rates(m, n, m, fin, s->Js + cur * mn, s->Ds + cur * mn,
-                           s->Ps + cur * nr, Jn, Dn, Pn, s->fall_work, rates);
-        const double r0 = py_max(s->hermite_margin * rates[0], least);
-        const double r1 = py_max(s->hermite_margin * rates[1], least);
-        clear = lowest(ea, eb, span, r0, r1) >= enter;
-      }
-    }
-    if (!clear) {                             /* _anchored, then _dips_seen */
-      if (!s->small) return SEG_SEARCH;
-      const double sum = (a_s + srel) * peak;
-      const double budget = py_min(4000.0, 16.0 + 4.0 * rate_bound * hh / py_max(sum, enter));
-      const double *end0 = NULL, end1[2] = {smin, smax};
-      for (int64_t j = 0; j < s->known_n; j++)
-        if (s->known[3 * j] == a_t) end0 = s->known + 3 * j + 1;
-      if (dense_ready(s, N, t_old, h, y, y_new, f_new, ready, evaluations) ||
-          step_search(c, pc, s, N, a_t, t_new, t_old, h, y, (int64_t)budget, enter, leave,
-                      2.0 * (leave - enter) / rate_bound, end0, end1, p->has_open))
-        return SEG_SEARCH;
-      const int64_t why = dips_step(c, pc, s, a_t, t_new, enter / (rate_bound / 2.0), enter,
-                                    leave, u_end, p);
-      if (why) return why;
-    }
-  }
-  const double raw = smin / smax;             /* the step's end */
+  const double raw = o->smin / o->smax;       /* the step's end */
   if (p->has_open) {
     if (raw < p->s_min) {
       p->t_min = t_new; p->s_min = raw; p->u_set = 1;
       memcpy(s->cand_u, u_end, m * sizeof(double));
     }
-    if (srel > s->leave && close_passage(s, p, m, t_new)) return SEG_SEARCH;
-  } else if (srel < s->enter) {
+    if (o->srel > s->leave && close_passage(s, p, m, t_new)) return SEG_SEARCH;
+  } else if (o->srel < s->enter) {
     p->has_open = 1; p->t_start = t_new; p->t_min = t_new; p->s_min = raw;
     p->bridged = 0.0; p->u_set = 1;
     memcpy(s->cand_u, u_end, m * sizeof(double));
