@@ -74,9 +74,7 @@ ENERGY_KEPT = 100.0
 # A landing at half the distance or less gains at least 2^(k+1) (k ≥ 3: 16) on a
 # truncation error of order k; where the estimate fell by less than this factor the
 # estimate is the round-off of q̈ near the configuration, which a still closer landing only
-# amplifies: the best bridge so far is taken (the double four-bar at rtol 1e-10 read
-# 13.4, 1.25, then 14.8 tolerances landing at 9.3, 4.7 and 2.3 ms; seven of its ten
-# passages so).
+# amplifies: the best bridge so far is taken (docs/design-notes.md, passage bridge).
 ROUND_OFF_GAIN = 0.1
 # The fewest history points a crossing is built on (its corrector orders start at 3).
 MIN_HISTORY = 5

@@ -32,7 +32,7 @@ try:            # scipy's DOP853 interpolant (`Interpolant.of`)
     from scipy.integrate._ivp.rk import Dop853DenseOutput
 except ImportError:                       # moved: scipy's own interpolants serve
     Dop853DenseOutput = None
-try:            # scipy's first step (`CompiledDOP853._set_up`; its arguments by name)
+try:            # scipy's first step (`CompiledDOP853.set_up`; its arguments by name)
     from scipy.integrate._ivp.common import select_initial_step
 except ImportError:                       # moved: scipy's own set-up serves
     select_initial_step = None
@@ -82,7 +82,7 @@ class CompiledDOP853(DOP853):
     rate = None
 
     def __init__(self, fun, t0, y0, t_bound, **options):
-        if not (_SET_UP.verified() and self._set_up(fun, t0, y0, t_bound, **options)):
+        if not (_SET_UP.verified() and self.set_up(fun, t0, y0, t_bound, **options)):
             super().__init__(fun, t0, y0, t_bound, **options)
         n = self.n
         # The engine reads and writes these buffers only: views of one array, whose
@@ -104,7 +104,7 @@ class CompiledDOP853(DOP853):
         self._extra_args = (_address(extra_tableau), base + 8 * 13, at[1], stages, at[0],
                             base + 8 * 20, fallback)
 
-    def _set_up(self, fun, t0, y0, t_bound, rtol=1e-3, atol=1e-6, max_step=np.inf,
+    def set_up(self, fun, t0, y0, t_bound, rtol=1e-3, atol=1e-6, max_step=np.inf,
                 first_step=None) -> bool:
         """scipy's own set-up (`OdeSolver`, `RungeKutta`, `DOP853`: the same attributes,
         the same numbers; `_SET_UP` checked it against the installed scipy) without its
@@ -248,7 +248,7 @@ class CompiledDOP853(DOP853):
 
 
 class _ScipySetUp:
-    """Whether `CompiledDOP853._set_up` sets an integrator up as the installed scipy's
+    """Whether `CompiledDOP853.set_up` sets an integrator up as the installed scipy's
     DOP853 does: decided once, on a probe made both ways (the same attributes, the same
     values, the same evaluations counted; with scipy's first step and with a given one),
     else scipy's own set-up serves every integrator. `first_step`: scipy's
@@ -290,7 +290,7 @@ class _ScipySetUp:
                         {"rtol": 1e-4, "atol": 1e-7, "first_step": 0.01}):
             y0 = np.array([1.0, -2.0, 0.5, 4.0])
             ours = object.__new__(CompiledDOP853)
-            if not ours._set_up(lambda t, y: rates * y + t, 0.0, y0, 2.0, **options):
+            if not ours.set_up(lambda t, y: rates * y + t, 0.0, y0, 2.0, **options):
                 return False
             theirs = DOP853(lambda t, y: rates * y + t, 0.0, y0.copy(), 2.0, **options)
             a, b = vars(ours), vars(theirs)
