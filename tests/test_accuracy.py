@@ -233,7 +233,10 @@ def test_a_passage_stepped_through_is_integrated_no_tighter_than_its_round_off(m
     # Into each passage at 1e-9, out of it at the local tolerances.
     assert [r for _, r, _ in tuned] == [1e-9, local.rtol] * 2
     for p, (into, out) in zip(passages, zip(tuned[::2], tuned[1::2])):
-        # (out once the monitor has seen the passage close, one or two free steps after
-        # the passage's recorded end: 0.02–0.06 s on four BLAS kernels)
-        assert p.t_start <= into[0] <= p.t_min < out[0] < p.t_end + 0.15
+        # Into it at the end of the step that entered the band: before the passage's
+        # minimum, or after it where that step strode over it (the search found the dip
+        # inside the step; the stretch before was integrated at the tighter local
+        # tolerance): 0.0021 s past it under one BLAS kernel. Out once the monitor has seen
+        # the passage close, one or two free steps after its recorded end (0.02–0.06 s).
+        assert p.t_start <= into[0] <= p.t_end and p.t_min < out[0] < p.t_end + 0.15
         assert out[2] == local.atol
