@@ -2000,17 +2000,45 @@ typedef struct {
   int64_t added;
 } seg_passages;
 
-/* Record the open passage of p, ending at t (SingularityMonitor.close), after the rows
-   already added. 0: done; 1: no room (the loop observes the step). */
-static int close_passage(mechsim_segment *s, seg_passages *p, int64_t m, double t) {
+/* Record a passage (t_start, t_end, least value s_min at t_min, whether bridged, its
+   singular vector u where u_set) after the rows p added already. 0: done; 1: no room
+   (the loop observes the step). */
+static int record_passage(mechsim_segment *s, seg_passages *p, int64_t m, double t_start,
+                          double t_end, double s_min, double t_min, double bridged,
+                          int u_set, const double *u) {
   if (s->passages_n + p->added >= s->passages_cap) return 1;
   double *row = s->passages + (s->passages_n + p->added) * (6 + m);
-  row[0] = p->t_start; row[1] = t; row[2] = p->s_min; row[3] = p->t_min;
-  row[4] = p->bridged; row[5] = (double)p->u_set;
-  memcpy(row + 6, s->cand_u, m * sizeof(double));
+  row[0] = t_start; row[1] = t_end; row[2] = s_min; row[3] = t_min;
+  row[4] = bridged; row[5] = (double)u_set;
+  memcpy(row + 6, u, m * sizeof(double));
   p->added++;
+  return 0;
+}
+
+/* Close the open passage of p at t (SingularityMonitor.close): recorded. 0: done; 1: no
+   room. */
+static int close_passage(mechsim_segment *s, seg_passages *p, int64_t m, double t) {
+  if (record_passage(s, p, m, p->t_start, t, p->s_min, p->t_min, p->bridged, p->u_set,
+                     s->cand_u)) return 1;
   p->has_open = 0;
   return 0;
+}
+
+/* The passage open from t_start, its least value s_min at t_min with singular vector u
+   (OpenPassage; not bridged). */
+static void open_at(mechsim_segment *s, seg_passages *p, int64_t m, double t_start,
+                    double t_min, double s_min, const double *u) {
+  p->has_open = 1; p->t_start = t_start; p->bridged = 0.0;
+  p->t_min = t_min; p->s_min = s_min; p->u_set = 1;
+  memcpy(s->cand_u, u, m * sizeof(double));
+}
+
+/* The open passage's least value lowered to s_min at t_min (vector u) where below it. */
+static void lower(mechsim_segment *s, seg_passages *p, int64_t m, double t_min,
+                  double s_min, const double *u) {
+  if (!(s_min < p->s_min)) return;
+  p->t_min = t_min; p->s_min = s_min; p->u_set = 1;
+  memcpy(s->cand_u, u, m * sizeof(double));
 }
 
 /* The left singular vector of sigma_min at tm on the step's dense output (the monitor's
@@ -2083,21 +2111,12 @@ static int64_t dips_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segment 
     const double d_start = at_start ? t0 : py_max(t0, tm - width);
     const double d_end = at_end ? t1 : py_min(t1, tm + width);
     if (p->has_open && at_start) {              /* the open passage goes on */
-      if (sm < p->s_min) {
-        p->t_min = tm; p->s_min = sm; p->u_set = 1;
-        memcpy(s->cand_u, um, m * sizeof(double));
-      }
+      lower(s, p, m, tm, sm, um);
       if (!at_end && close_passage(s, p, m, d_end)) return SEG_SEARCH;
     } else if (at_end) {                        /* the step ends inside it */
-      p->has_open = 1; p->t_start = d_start; p->t_min = tm; p->s_min = sm;
-      p->bridged = 0.0; p->u_set = 1;
-      memcpy(s->cand_u, um, m * sizeof(double));
-    } else {                                    /* a passage inside the step */
-      if (s->passages_n + p->added >= s->passages_cap) return SEG_SEARCH;
-      double *row = s->passages + (s->passages_n + p->added) * (6 + m);
-      row[0] = d_start; row[1] = d_end; row[2] = sm; row[3] = tm; row[4] = 0.0; row[5] = 1.0;
-      memcpy(row + 6, um, m * sizeof(double));
-      p->added++;
+      open_at(s, p, m, d_start, tm, sm, um);
+    } else if (record_passage(s, p, m, d_start, d_end, sm, tm, 0.0, 1, um)) {
+      return SEG_SEARCH;                        /* a passage inside the step: no room */
     }
     first = least = -1;
   }
@@ -2138,15 +2157,10 @@ static int64_t passages_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segm
   }
   const double raw = o->smin / o->smax;       /* the step's end */
   if (p->has_open) {
-    if (raw < p->s_min) {
-      p->t_min = t_new; p->s_min = raw; p->u_set = 1;
-      memcpy(s->cand_u, u_end, m * sizeof(double));
-    }
+    lower(s, p, m, t_new, raw, u_end);
     if (o->srel > s->leave && close_passage(s, p, m, t_new)) return SEG_SEARCH;
   } else if (o->srel < s->enter) {
-    p->has_open = 1; p->t_start = t_new; p->t_min = t_new; p->s_min = raw;
-    p->bridged = 0.0; p->u_set = 1;
-    memcpy(s->cand_u, u_end, m * sizeof(double));
+    open_at(s, p, m, t_new, t_new, raw, u_end);
   }
   return 0;
 }

@@ -273,23 +273,35 @@ class PassageBridge:
         same steps, states and rates, the same counts): (states, the rates at t_n and at
         them), False where the integration fails or grinds, None where the engine does not
         take it (the Python loop does)."""
-        rate = self.rate() if self.compiled else None
-        steps = self.problem.algebra.plain_steps(
-            self.problem.n, 1, (tableau(), extra_tableau(), dense_matrix())) \
-            if rate is not None and SAFETY is not None else None
+        rate, steps = self._engine_steps()
         done = None if steps is None else steps.history(rate.context, solver, rate, ts,
                                                         HISTORY_BUDGET * len(ts))
         if not done:
             return done
         states, F, evaluations, projections = done
         rate.counted(evaluations)
-        rates = len(F)                          # as `_f` counts them
+        self.evaluations += evaluations
+        self._counted(len(F), projections)      # the rates at them, as `_f` counts them
+        return list(states), F
+
+    def _engine_steps(self):
+        """(the engine's rate, its `PlainSteps`) where the engine takes the bridge's
+        history and corrector (its projections and rates compiled, no sensitivities
+        carried), else (rate or None, None)."""
+        rate = self.rate() if self.compiled and self.extension is None else None
+        steps = self.problem.algebra.plain_steps(
+            self.problem.n, 1, (tableau(), extra_tableau(), dense_matrix())) \
+            if rate is not None and SAFETY is not None else None
+        return rate, steps
+
+    def _counted(self, rates, projections) -> None:
+        """Rates and chord iterations the engine took for the bridge, counted as `_f` and
+        `_settled` count theirs."""
         counters = self.problem.counters
         counters.projections += projections
         counters.rhs += rates
         counters.factorizations += rates
-        self.evaluations += evaluations + rates
-        return list(states), F
+        self.evaluations += rates
 
     def _history_rate(self):
         """The engine's rate for the history's steps (`rate`), its evaluations counted as
@@ -439,10 +451,7 @@ class PassageBridge:
         their rates and projections counted as `_f` and `_settled` count them: (f_b, the
         orders' ends, their estimates); None where the engine does not take it (no engine,
         sensitivities carried, a projection or a rate declined: the Python corrector)."""
-        rate = self.rate() if self.compiled and self.extension is None else None
-        steps = self.problem.algebra.plain_steps(
-            self.problem.n, 1, (tableau(), extra_tableau(), dense_matrix())) \
-            if rate is not None and SAFETY is not None else None
+        rate, steps = self._engine_steps()
         if steps is None:
             return None
         K = len(F)
@@ -456,11 +465,7 @@ class PassageBridge:
         if done is None:
             return None
         f_b, Y, errs, rates, projections = done
-        counters = self.problem.counters
-        counters.rhs += rates
-        counters.factorizations += rates
-        counters.projections += projections
-        self.evaluations += rates
+        self._counted(rates, projections)
         return f_b, list(Y), errs
 
     def _finish(self, n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history):

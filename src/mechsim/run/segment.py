@@ -266,7 +266,7 @@ class Segment:
         if o.vector is not None:
             s.vector_t = o.vector[0]
             b["vector"][:m] = o.vector[1]
-        # the passages (a projection segment's, `_load_projection`): the open one as the
+        # the passages (`_load_projection`, `_load_partition`): the open one as the
         # monitor has it (its joints stay the loop's until the segment moves its minimum)
         s.handles_passages, s.passages_n, s.refine_tol = False, 0, REFINE_TOL
         here = self.open = monitor.open_passage
@@ -337,9 +337,9 @@ class Segment:
         return compiled
 
     def _store_passages(self, monitor, m) -> None:
-        """The passages a projection segment recorded and the one it is inside, into the
-        monitor, their joints from the singular vectors it kept (the loop's open passage's
-        where the segment left its minimum as it was)."""
+        """The passages a segment recorded and the one it is inside, into the monitor,
+        their joints from the singular vectors it kept (the loop's open passage's where the
+        segment left its minimum as it was)."""
         s, b = self.steps.s, self.steps.buffers
         loaded = self.open.joints if self.open is not None else ()
 
