@@ -233,3 +233,29 @@ def test_lu_segments_record_the_passages_inside_their_steps(monkeypatch):
     assert all(p.joints for p in fast.singular_passages)
     assert kinds.get("observe", 0) == 0 and taken == fast.stats["steps"] - 1
     _same(fast, slow)
+
+
+@needs_compiler
+@pytest.mark.parametrize("rtol, through", [(1e-6, True), (1e-8, False)])
+def test_lu_segments_step_through_a_passage_where_the_tolerances_stay(rtol, through,
+                                                                     monkeypatch):
+    """The double four-bar in LU at rtol 1e-6 ends steps inside its passages' band: the
+    run's local tolerances (1e-8) are above `PASSAGE_FLOOR`, so LU keeps them inside a
+    passage and the segment observes the band, the open passage going on and closing, as
+    the loop's monitor would: no step is handed to the loop. At rtol 1e-8 (local 6.3e-10)
+    the tolerances change inside a passage: a step that ends there is the loop's. Either
+    way the run is the loop's to the bit."""
+    from mechsim.tolerances import PASSAGE_FLOOR, Tolerances
+    p = PROBLEMS["double-four-bar"]
+    kinds = {}
+    fast, slow, taken = _both(p.build(), monkeypatch, kinds, t_end=p.t_end, method="lu",
+                              rtol=rtol, atol=1e-2 * rtol, output_step=p.t_end / 1000)
+    assert fast.success and len(fast.singular_passages) == 10
+    assert all(p.joints for p in fast.singular_passages)
+    local = Tolerances(rtol, 1e-2 * rtol).local()
+    assert (local.rtol >= PASSAGE_FLOOR) == through
+    if through:
+        assert kinds.get("observe", 0) == 0 and taken == fast.stats["steps"] - 1
+    else:
+        assert kinds.get("observe", 0) >= 1
+    _same(fast, slow)

@@ -1893,7 +1893,7 @@ static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t
   const double srel = o->srel = raw / peak;
   rate = o->rate = rate / peak;
   o->peak_rate = py_max(s->peak_rate, fabs(rate));
-  return srel < s->enter && !(s->handles_passages && s->kind == 0) ? SEG_BAND : 0;
+  return srel < s->enter && !s->through ? SEG_BAND : 0;
 }
 
 /* The start of the measured step (observation o) from t_old as the monitor's search takes
@@ -2425,13 +2425,16 @@ static void commit_pending(mechsim_segment *s, int64_t N, int64_t n, int64_t mn,
    phase, or "lu"): its output samples (dense output, positions and velocities) written to
    the rows of s->rows, the singularity monitor's observation (its skip by Weyl's bound, or
    its measurement and the cheap clears of a hidden passage, or its search and the passages
-   found inside the step recorded, passages_step), the hybrid's policy and step
+   found inside the step recorded, passages_step; with s->through, where the run's
+   tolerances stay its own inside a passage, also the band, the open passage going on and
+   a step that ends inside one), the hybrid's policy and step
    limit, the partition's end (branch, condition, re-reference, predictor). Where the
    hybrid switches to the projection method or the partition changes, the step is taken up
    to the monitor's observation and its samples and the segment ends with it pending
    (s->pending, s->reason): the Python loop finishes it (Run._after_step). Where anything
    else would happen (a stage or state the engine declines, a step whose search the engine
-   cannot finish or that ends inside a passage, a passage's band, a sample due at the
+   cannot finish, without s->through one that ends inside a passage or in a passage's
+   band, a sample due at the
    step's end, no room for the samples, a
    step shorter than the stall rule's span), the step is dropped and the segment ends
    before it with s->reason: the Python loop takes it, from the same state, with the same
@@ -2476,7 +2479,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     seg_passages p;
     int ready = 0;                       /* the step's dense output formed */
     const int own = (int)s->handles_passages;     /* passages inside a step observed here */
-    why = s->open_at_start && !s->count ? SEG_OPEN :
+    why = s->open_at_start && !s->count && !s->through ? SEG_OPEN :
         observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
     if (why && !observed_by_loop(why)) { s->reason = why; break; }
     /* The hybrid's policy (HybridPolicy.lu_limit, leave_lu) and the partition's choice
@@ -2495,8 +2498,8 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
       why = own ? passages_step(c, pc, s, N, t_old, t_new, h, y, y_new, f_new, &o, &p, &ready,
                                 &evaluations) :
           hidden_clear(c, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready, &evaluations);
-      /* a step that ends inside a passage: the loop's (LU's tolerances change there) */
-      if (!why && own && p.has_open) why = SEG_SEARCH;
+      /* a step that ends inside a passage: the loop's where LU's tolerances change there */
+      if (!why && own && p.has_open && !s->through) why = SEG_SEARCH;
     }
     if (why) {     /* the loop's observation (of a dip found: the kept search), pending */
       if (k > 0 && samples_step(c, s, t_old, h, y, y_new, f_new, k0, k, &ready,
@@ -2682,7 +2685,8 @@ static int projection_samples(mechsim_projection *pc, mechsim_segment *s, double
    or the bridge decides something else (a switch to LU, a crossing, a projection or a rate
    the engine declines) the step is taken up to the monitor's observation and the segment
    ends with it pending (s->pending, s->reason): the Python loop finishes that step
-   (Run.finish_step). Where the bridge crosses the passages (s->handles_passages) the
+   (Run.finish_step). Where the bridge crosses the passages (s->handles_passages and
+   s->through) the
    monitor's passages are observed here too (passages_step: the open one going on,
    closing and opening, the dips a search finds); else the band, a passage open at the
    start and a search that finds a dip leave the step's observation to the loop. Where
@@ -2713,7 +2717,7 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     seg_passages p;
     int ready = 0;
     const int own = (int)s->handles_passages;       /* the passages observed here */
-    why = s->open_at_start && !s->count && !own ? SEG_OPEN :
+    why = s->open_at_start && !s->count && !s->through ? SEG_OPEN :
         observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
     if (why && !observed_by_loop(why)) { s->reason = why; break; }
     if (why) {                     /* the loop's observation: the step's samples, pending */

@@ -191,12 +191,13 @@ SEGMENT = Layout("mechsim_segment", [
         "kind", "far", "far_taken", "stable", "stable_steps", "bridging", "has_bprev",
         "has_landing", "has_free", "free_bound", "projections", "pending",
         "dense_formed", "open_at_start",
-        # the passages a projection segment observes itself (`handles_passages`): the open
-        # one, whether its singular vector is the segment's (else its joints are the
-        # loop's), the passages recorded (`passages_n` of at most `passages_cap`), and
-        # whether the latest measurement's singular vector is kept (`vector`)
-        "handles_passages", "has_open", "open_u_set", "passages_n", "passages_cap",
-        "has_vector")),
+        # the passages a segment observes itself (`handles_passages`; `through`: also
+        # through their band, a step ending inside one): the open one, whether its
+        # singular vector is the segment's (else its joints are the loop's), the passages
+        # recorded (`passages_n` of at most `passages_cap`), and whether the latest
+        # measurement's singular vector is kept (`vector`)
+        "handles_passages", "through", "has_open", "open_u_set", "passages_n",
+        "passages_cap", "has_vector")),
     *(Field(name, "double") for name in (
         "t", "t_old", "h_abs", "h_previous", "t_bound", "direction", "max_step",
         "run_max_step", "rtol", "safety", "min_factor", "max_factor", "exponent",

@@ -13,16 +13,18 @@ formulation, no crossing, no sample due at its end), all of that is arithmetic t
 projection phase between passages and after them, the bridge's approach to a landing
 point included) does in C, step after step, until a step is not plain. A step whose end
 is the loop's to decide (a switch of the hybrid, a new partition, a crossing by the
-passage bridge) or to observe (in LU: a passage open at its start, the band, a dip the
-monitor's search finds) the segment still takes, with its samples, up to that point, and
+passage bridge) or to observe (in LU where its tolerances change inside a passage: a
+passage open at its start, the band, a dip the monitor's search finds) the segment still takes, with its samples, up to that point, and
 hands it over pending (`Pending`: the loop finishes it, `Run._finish_pending`); any other
 step it drops, and the Python loop (`mechsim.run.loop.Run`) takes it from the same state,
 with its own decisions. Where the bridge crosses the passages (the run's tolerances stay
 its own inside them), a projection segment observes the passages itself as the monitor
 does (the open one going on, closing, opening, the dips a search finds refined to their
-minima); an LU segment records the passages that begin and end inside a step (LU's
-tolerances change inside one: a step that ends there is the loop's). The loop names
-their joints from the singular vectors the segment kept.
+minima); so does an LU segment where LU's tolerances stay the local ones inside a passage
+(`Tolerances.through_passage`: a run's local rtol from `PASSAGE_FLOOR` up); below that
+it records the passages that begin and end inside a step (the tolerances change inside
+one: a step that ends there is the loop's). The loop names their joints from the
+singular vectors the segment kept.
 
 The contract is the Python loop's numbers to the bit: the segment makes the decisions the
 loop would make (the same comparisons in the same order on the same doubles) and calls the
@@ -201,7 +203,7 @@ class Segment:
         s.bridging = bridge is not None and bool((self.hybrid or proj).bridging)
         # Bridged, the run's tolerances stay its own inside a passage: the segment
         # observes the passages itself (`mechsim_projection_segment`).
-        s.handles_passages = s.bridging
+        s.handles_passages = s.through = s.bridging
         s.has_bprev, s.has_landing, s.has_free = (x is not None for x in (prev, landing, free))
         s.bprev_t, s.bprev_rate = prev if prev is not None else (0.0, 0.0)
         s.landing = landing if landing is not None else 0.0
@@ -281,9 +283,11 @@ class Segment:
         s = self.steps.s
         s.sign, s.repartition_at, s.cond_max, s.growth = start
         s.reference_span = REFERENCE_SPAN
-        # the passages inside a step observed there (one that ends inside a passage, or
-        # begins in one, is the loop's: LU's tolerances change there)
+        # the passages inside a step observed there; through the band too where LU's
+        # tolerances stay the local ones inside a passage (else a step that ends inside
+        # one, or begins in one, is the loop's: `Run._tolerances_for_passages`)
         s.handles_passages = True
+        s.through = self.run.through_passage == self.run.local
         if self.hybrid is not None:
             policy = self.hybrid.policy
             s.held_steps, s.policy_steps = policy.held, policy.steps
