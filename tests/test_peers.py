@@ -50,3 +50,27 @@ def test_the_exact_equation_s_runs_converge_to_the_bench_s_exact_motion():
         assert t.size == 1001 and np.allclose(np.hypot(*xy.T), 1.0)
         errors.append(problem.point_error(t, xy))
     assert errors[2] < 1e-9 and 1e-5 < errors[1] < 1e-3 and errors[0] > 0.1
+
+
+def test_the_reference_time_at_an_error_follows_its_work_precision_curve():
+    """The reference's time at an error between two of its runs is their log-log
+    interpolation (at 3.16e-4 between runs at 1e-3 in 1 ms and 1e-4 in 4 ms: 2 ms), a
+    run slower than a more accurate one counts at that one's time (the reference's best),
+    and outside the runs' errors there is none; each successful mechsim run is set beside
+    it."""
+    from mechsim.app.bench import Row
+    name, tool = "double-four-bar", "exact 1-DOF DOP853"
+    rows = [peers.PeerRow(name, tool, 1e-4, 1e-3, 1e-3),
+            peers.PeerRow(name, tool, 1e-5, 1e-4, 5e-3),      # slower than a better run
+            peers.PeerRow(name, tool, 1e-6, 1e-5, 4e-3),
+            peers.PeerRow(name, "mujoco RK4", 1e-3, 1e-4, 1e-6)]
+    assert math.isclose(peers.reference_time(rows, name, 10 ** -3.5), 2e-3, rel_tol=1e-12)
+    assert math.isclose(peers.reference_time(rows, name, 1e-4), 4e-3, rel_tol=1e-12)
+    assert math.isclose(peers.reference_time(rows, name, 3e-5), 4e-3, rel_tol=1e-12)
+    assert peers.reference_time(rows, name, 1e-6) is None
+    assert peers.reference_time(rows, name, 1e-2) is None
+    assert peers.reference_time(rows, "crank-rocker", 1e-4) is None
+    mine = [Row(name, "lu", "DOP853", 1e-4, "success", 10 ** -3.5, 0.0, 4e-3, 10, 100, 1),
+            Row(name, "lu", "DOP853", 1e-6, "failed", 1e-7, 0.0, 4e-3, 10, 100, 1)]
+    lines = peers.against_reference(mine, rows)
+    assert len(lines) == 1 and lines[0].endswith("→ 2.00×")

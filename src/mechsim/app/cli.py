@@ -320,6 +320,12 @@ def _peers(rows, problems, repeat, out) -> list:
     print("peers (fixed steps) and mechsim's cheapest run at least as accurate:")
     for line in peers.compare(rows, peer_rows):
         print(line)
+    against = peers.against_reference(rows, peer_rows)
+    if against:
+        print("mechsim's runs against scipy's DOP853 on the exact 1-DOF equation at the "
+              "same error:")
+        for line in against:
+            print(line)
     return peers.write(rows, peer_rows, out)
 
 

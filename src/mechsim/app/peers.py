@@ -280,6 +280,46 @@ def compare(mechsim_rows, rows: list[PeerRow]) -> list[str]:
     return out
 
 
+def reference_time(rows: list[PeerRow], problem: str, error: float) -> float | None:
+    """The time scipy's DOP853 on `problem`'s exact 1-DOF equation takes to reach `error`:
+    its work–precision curve (the runs at `EXACT_RTOLS`, each at the time of the fastest
+    run at least as accurate: the reference's best) interpolated log-log between the two
+    runs bracketing `error`; None outside the curve's range of errors."""
+    curve = sorted(((r.error, r.wall_time) for r in rows
+                    if r.problem == problem and r.tool == "exact 1-DOF DOP853"
+                    and math.isfinite(r.error) and r.error > 0.0))
+    points, fastest = [], math.inf
+    for err, wall in curve:                   # from the most accurate run on
+        fastest = min(fastest, wall)
+        points.append((err, fastest))
+    points.reverse()
+    for (e0, t0), (e1, t1) in zip(points, points[1:]):
+        if e1 <= error <= e0:
+            if e0 == e1:
+                return t0
+            w = math.log(e0 / error) / math.log(e0 / e1)
+            return math.exp((1.0 - w) * math.log(t0) + w * math.log(t1))
+    return None
+
+
+def against_reference(mechsim_rows, rows: list[PeerRow]) -> list[str]:
+    """For each of mechsim's successful runs on a problem with an exact 1-DOF equation,
+    what scipy's DOP853 on that equation takes for the same error (`reference_time`) and
+    the ratio of mechsim's time to it: mechsim at each of its tolerances against the
+    floor at the error it reached there."""
+    out = []
+    for r in mechsim_rows:
+        if r.status != "success":
+            continue
+        floor = reference_time(rows, r.problem, r.error)
+        if floor is None:
+            continue
+        out.append(f"{r.problem:16s} mechsim {r.method:10s} rtol {r.rtol:7.0e}  error "
+                   f"{r.error:9.2e}  wall {r.wall_time:7.3f} s   exact 1-DOF DOP853 at that "
+                   f"error: {floor:.4f} s → {r.wall_time / floor:.2f}×")
+    return out
+
+
 def write(mechsim_rows, rows: list[PeerRow], out_dir) -> list:
     """The peers' rows as peers.csv and, per problem, a work–precision plot of every tool
     (peers_<problem>.png) in `out_dir`."""
