@@ -242,12 +242,15 @@ def _kernel(cfun, has_v: bool, shapes):
     """A Python function with the generated function's signature calling `cfun`. Its
     inputs are copied into buffers kept with their addresses (an array's `.ctypes.data`
     costs more than copying a state of a few hundred numbers), the parameters' array and
-    address kept while the same parameter tuple comes; a lock keeps the buffers to one
-    call at a time (ctypes lets other threads run during the call)."""
+    address kept while the same parameter tuple comes; its outputs are written into kept
+    zeroed buffers and returned as copies (the caller owns them); a lock keeps the buffers
+    to one call at a time (ctypes lets other threads run during the call)."""
     shapes = [(rows,) if cols == 1 else (rows, cols) for rows, cols in shapes]
     single = len(shapes) == 1
     lock = threading.Lock()
     kept = {}               # "q", "v": (buffer, its address); "p": (tuple, array, address)
+    outs = [np.zeros(shape) for shape in shapes]
+    at_outs = [o.ctypes.data for o in outs]
 
     def address(name, x):
         buffer, at = kept.get(name, (None, 0))
@@ -268,9 +271,12 @@ def _kernel(cfun, has_v: bool, shapes):
                 kept["p"] = (p, values, at_p)
             pointers = (address("q", q),) if v is None else (address("q", q),
                                                               address("v", v))
-            outs = [np.zeros(shape) for shape in shapes]
-            cfun(*pointers, t, at_p, *[o.ctypes.data for o in outs])
-        return outs[0] if single else tuple(outs)
+            for o in outs:
+                o.fill(0.0)
+            cfun(*pointers, t, at_p, *at_outs)
+            if single:
+                return outs[0].copy()
+            return tuple(o.copy() for o in outs)
 
     if has_v:
         def kernel(q, v, t, p):
