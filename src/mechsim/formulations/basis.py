@@ -121,6 +121,92 @@ class SparseBlock:
         return float(abs(self.A).sum(axis=0).max() * onenormest(op, t=1))
 
 
+class BandBlock:
+    """Φ_q D of a long chain as a band: its constraints and dependent coordinates taken in
+    an order that makes it one (`CoordinateBasis`: a window's few constraints and
+    coordinates next to its neighbours'), factored by LAPACK's banded LU with partial
+    pivoting (dgbtrf), O(r kl (kl + ku)): a few times cheaper than SuperLU's ordering and
+    factorisation at a chain's kl, ku of a few. Its solves (dgbtrs), the sign of det A
+    (U's diagonal, the pivots' and both orders' parities) and cond₁ A (LAPACK's estimate,
+    dgbcon, with ‖A‖₁ from the entries) as `SparseBlock`'s."""
+
+    def __init__(self, band, kl, ku, rows, cols, parity, values, columns):
+        """`band`: the permuted A in LAPACK's banded storage (2 kl + ku + 1 rows, kl of
+        them for the pivots' fill); `rows`, `cols`: the orders (A's rows `rows` and
+        columns `cols` are the band's); `parity` theirs together; `values`, `columns`: A's
+        entries and their columns (for ‖A‖₁)."""
+        from scipy.linalg import lapack
+        self._lapack = lapack
+        self.kl, self.ku, self._rows, self._cols = kl, ku, rows, cols
+        self._parity, self._values, self._columns = parity, values, columns
+        self._lu, self._piv, info = lapack.dgbtrf(band, kl, ku, overwrite_ab=1)
+        self.singular = info != 0
+        self._condition = None
+
+    def solve(self, b):
+        if self.singular:
+            raise np.linalg.LinAlgError("Singular matrix")
+        b = np.asarray(b, float)
+        x, info = self._lapack.dgbtrs(self._lu, self.kl, self.ku, b[self._rows], self._piv)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"dgbtrs: info {info}")
+        out = np.empty_like(x)
+        out[self._cols] = x
+        return out
+
+    chord = solve
+
+    def sign(self) -> int:
+        """The sign of det A: P A' = L U (L unit lower) for the permuted A'."""
+        if self.singular:
+            return 0
+        swaps = int(np.count_nonzero(self._piv != np.arange(self._piv.size)))
+        u = np.sign(self._lu[self.kl + self.ku])
+        return int(np.prod(u)) * (-1 if swaps % 2 else 1) * self._parity
+
+    def condition(self) -> float:
+        if self._condition is None:
+            if self.singular:
+                self._condition = np.inf
+            else:
+                anorm = float(np.bincount(self._columns, np.abs(self._values)).max())
+                rcond, info = self._lapack.dgbcon(self.kl, self.ku, self._lu, self._piv,
+                                                  anorm)
+                self._condition = 1.0 / rcond if info == 0 and rcond > 0.0 else np.inf
+        return self._condition
+
+
+def band_layout(rows, cols, r):
+    """An order of the rows and columns of an r × r sparse matrix with entries at (rows,
+    cols) that makes it a narrow band, for `BandBlock`: the rows by reverse Cuthill–McKee
+    on the graph of rows sharing a column (scipy's), each column after the first of its
+    rows. (row order, column order, kl, ku, each entry's place in the column-major banded
+    storage of 2 kl + ku + 1 rows, the orders' parity together), or None where the band
+    is not narrow (the banded LU's work r kl (kl + ku) above a sixteenth of the dense
+    LU's r³/3)."""
+    from scipy.sparse import csr_array
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+    if not len(rows):
+        return None
+    pattern = csr_array((np.ones(len(rows)), (rows, cols)), shape=(r, r))
+    graph = csr_array(pattern @ pattern.T)
+    row_order = np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), np.intp)
+    at = np.empty(r, np.intp)
+    at[row_order] = np.arange(r)
+    first = np.full(r, r, np.intp)
+    np.minimum.at(first, cols, at[rows])
+    col_order = np.lexsort((np.arange(r), first)).astype(np.intp)
+    col_at = np.empty(r, np.intp)
+    col_at[col_order] = np.arange(r)
+    i, j = at[rows], col_at[cols]
+    kl, ku = int(max((i - j).max(), 0)), int(max((j - i).max(), 0))
+    if 48 * kl * (kl + ku) > r * r:
+        return None
+    height = 2 * kl + ku + 1
+    flat = (kl + ku + i - j) + j * height
+    return row_order, col_order, kl, ku, flat, _parity(row_order) * _parity(col_order)
+
+
 def _parity(perm) -> int:
     """+1 for an even permutation, −1 for an odd one (from its cycles)."""
     perm = np.asarray(perm)
@@ -149,6 +235,7 @@ class CoordinateBasis:
         # [z; w] in the order of q: one gather instead of two scattered updates.
         self._order = np.argsort(np.concatenate([self.ind, self.dep]))
         self._csc = None
+        self._band = None
         if pattern is not None and self.r >= SPARSE_MIN:
             rows, cols = (np.asarray(x, np.intp) for x in pattern)
             where = np.full(max(cols.max(initial=-1), self.dep.max(initial=-1)) + 1, -1)
@@ -160,7 +247,11 @@ class CoordinateBasis:
             rows, cols, new = rows[order], cols[order], new[order]
             indptr = np.searchsorted(new, np.arange(self.r + 1))
             self._csc = (rows, cols, rows.copy(), indptr)
+            self._value_columns = np.repeat(np.arange(self.r), np.diff(indptr))
+            if rows.max(initial=-1) < self.r:       # a square block
+                self._band = band_layout(rows, new, self.r)
         self._slots = None                 # where Φ_q D's entries sit in a CSR Φ_q
+        self._jb = None                    # where Φ_q B's entries sit in a CSR Φ_q
 
     @property
     def sparse(self) -> bool:
@@ -172,12 +263,19 @@ class CoordinateBasis:
         (`DenseBlock` or `SparseBlock`)."""
         if self._csc is None or J.shape[0] != self.r:
             return DenseBlock(self.JD(J))
-        from scipy.sparse import csc_matrix
         rows, cols, indices, indptr = self._csc
         if not sparse.is_dense(J) and self._slots is None:
             self._slots = sparse.positions(J, rows, cols)
-        return SparseBlock(csc_matrix((sparse.values(J, rows, cols, self._slots), indices,
-                                       indptr), shape=(self.r, self.r)))
+        values = sparse.values(J, rows, cols, self._slots)
+        if self._band is not None:
+            row_order, col_order, kl, ku, flat, parity = self._band
+            height = 2 * kl + ku + 1
+            band = np.zeros(height * self.r)
+            band[flat] = values
+            return BandBlock(band.reshape(self.r, height).T, kl, ku, row_order, col_order,
+                             parity, values, self._value_columns)
+        from scipy.sparse import csc_matrix
+        return SparseBlock(csc_matrix((values, indices, indptr), shape=(self.r, self.r)))
 
     def combine(self, base, z, w):
         return base + self.assemble(z, w)
@@ -187,7 +285,18 @@ class CoordinateBasis:
         return np.concatenate((z, w))[self._order]
 
     def JB(self, J):
-        return J[..., self.ind] if sparse.is_dense(J) else sparse.columns(J, self.ind)
+        """Φ_q B (dense); from a CSR Φ_q by its entries' places, found once (the pattern of a
+        model's Φ_q is fixed), without scipy's column indexing."""
+        if sparse.is_dense(J):
+            return J[..., self.ind]
+        if self._jb is None:
+            rows = np.repeat(np.arange(J.shape[0]), np.diff(J.indptr))
+            slots = np.flatnonzero(np.isin(J.indices, self.ind))
+            self._jb = (rows[slots], np.searchsorted(self.ind, J.indices[slots]), slots)
+        rows, k, slots = self._jb
+        out = np.zeros((J.shape[0], self.f))
+        out[rows, k] = J.data[slots]
+        return out
 
     def JD(self, J):
         return J[..., self.dep] if sparse.is_dense(J) else sparse.columns(J, self.dep)
