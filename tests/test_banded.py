@@ -69,6 +69,27 @@ def test_banded_schur_solves_and_extremes_match_dense(ten_window, rng):
     assert np.allclose(band.assemble(Jt, scaled=True), band.assemble(J), rtol=1e-12, atol=0)
 
 
+def test_the_banded_projection_factor_is_declined_where_sigma_min_nears_the_cut(ten_window,
+                                                                                rng):
+    """The banded path factors S = Φ_q M⁻¹ Φ_qᵀ for the projection method only where
+    σ_min² of J̃ is above (2 cut)² times a Gershgorin bound of σ_max² (certified by the
+    Cholesky factor of S less that much of the identity): a cut 0.1 % below that of S's
+    exact least eigenvalue is served, one 0.1 % above is declined (the dense path takes
+    it), at a generic state and near a singular configuration of the chain."""
+    prob = ten_window
+    alg = prob.algebra
+    for theta, off in ((0.4, 0.05), (1e-4, 0.0)):
+        q, _ = chain_state(10, theta)
+        J = prob.phi_q(q + off * rng.standard_normal(q.size), 0.0)
+        S = (J * prob.inverse_mass_diagonal) @ J.T
+        low = np.linalg.eigvalsh(S)[0]
+        assert alg.band.factor(J) is not None
+        gershgorin = alg.band.largest_bound()
+        cut = 0.5 * math.sqrt(low / gershgorin)
+        assert alg.clear_solver(J, None, cut * (1 - 1e-3), None) is not None
+        assert alg.clear_solver(J, None, cut * (1 + 1e-3), None) is None
+
+
 def test_the_largest_eigenvalue_from_a_warm_start_is_certified(ten_window, rng):
     """`largest` from the previous call's vector (Lanczos, `top_pair`) along a path of
     perturbed chain states, and from the eigenvector of the second eigenvalue (where two

@@ -125,7 +125,15 @@ class BandedSchur:
     def largest_bound(self) -> float:
         """An upper bound of λ_max of the latest S (Gershgorin: the largest absolute column
         sum), for tests that must not under-rate it."""
-        return float(np.abs(self._full_band()).sum(axis=0).max())
+        kd, m, ab = self.kd, self.m, np.abs(self._band)
+        # the column sums of |S| as `_full_band`'s rows add them, in its order: the upper
+        # triangle's diagonals, then the lower's (each the upper one shifted)
+        total = ab[0].copy()
+        for d in range(1, kd + 1):
+            total += ab[d]
+        for d in range(1, kd + 1):
+            total[:m - d] += ab[kd - d, d:]
+        return float(total.max())
 
     def smallest(self, c, rtol=1e-3, max_iter=12):
         """(λ_min, u) of S by inverse iteration with its factor `c`, from the previous call's

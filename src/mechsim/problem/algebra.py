@@ -497,14 +497,13 @@ class BandedAlgebra(DenseAlgebra):
         return super().extremes(Jt, k)
 
     def _clear_factor(self, J, cut):
-        """The banded Cholesky factor of Φ_q M⁻¹ Φ_qᵀ where every singular value of J̃ is
-        clear of the cut (σ_min² > (2 cut)² times a Gershgorin bound of σ_max²), else None."""
+        """The banded Cholesky factor of S = Φ_q M⁻¹ Φ_qᵀ where every singular value of J̃
+        is clear of the cut (σ_min² > (2 cut)² times a Gershgorin bound of σ_max²: S less
+        that much of the identity has a Cholesky factor too, a certificate at the cost of
+        one more banded factorisation), else None."""
         band = self.band
         c = band.factor(J)
-        if c is None:
-            return None
-        low = band.smallest(c)
-        if low is None or not low[0] > (2.0 * cut) ** 2 * band.largest_bound():
+        if c is None or band.shifted_factor(-(2.0 * cut) ** 2 * band.largest_bound()) is None:
             return None
         return c
 
