@@ -75,7 +75,8 @@ def test_the_banded_projection_factor_is_declined_where_sigma_min_nears_the_cut(
     σ_min² of J̃ is above (2 cut)² times a Gershgorin bound of σ_max² (certified by the
     Cholesky factor of S less that much of the identity): a cut 0.1 % below that of S's
     exact least eigenvalue is served, one 0.1 % above is declined (the dense path takes
-    it), at a generic state and near a singular configuration of the chain."""
+    it), at a generic state and near a singular configuration of the chain; where the
+    monitor found the motion far from the band (`far`), S's own factor serves."""
     prob = ten_window
     alg = prob.algebra
     for theta, off in ((0.4, 0.05), (1e-4, 0.0)):
@@ -88,6 +89,16 @@ def test_the_banded_projection_factor_is_declined_where_sigma_min_nears_the_cut(
         cut = 0.5 * math.sqrt(low / gershgorin)
         assert alg.clear_solver(J, None, cut * (1 - 1e-3), None) is not None
         assert alg.clear_solver(J, None, cut * (1 + 1e-3), None) is None
+        # Where the monitor found the motion far from the band, S's own factor serves
+        # (as on the dense path): the exact accelerations, whatever the cut.
+        w, Q = prob.inverse_mass_diagonal, rng.standard_normal(prob.n)
+        gamma = rng.standard_normal(prob.m)
+        exact = w * Q - w * (J.T @ np.linalg.solve(S, J @ (w * Q) - gamma))
+        args = (J, Q, gamma, q, cut * (1 + 1e-3), None)
+        assert alg.clear_accelerations(*args, False) is None
+        np.testing.assert_allclose(alg.clear_accelerations(*args, True), exact,
+                                   rtol=1e-12 * gershgorin / low,
+                                   atol=1e-12 * np.abs(exact).max() * gershgorin / low)
 
 
 def test_the_largest_eigenvalue_from_a_warm_start_is_certified(ten_window, rng):

@@ -496,14 +496,16 @@ class BandedAlgebra(DenseAlgebra):
                     return smin, u_min, w / smin, smax, u_max, v_max
         return super().extremes(Jt, k)
 
-    def _clear_factor(self, J, cut):
+    def _clear_factor(self, J, cut, far=False):
         """The banded Cholesky factor of S = Φ_q M⁻¹ Φ_qᵀ where every singular value of J̃
         is clear of the cut (σ_min² > (2 cut)² times a Gershgorin bound of σ_max²: S less
         that much of the identity has a Cholesky factor too, a certificate at the cost of
-        one more banded factorisation), else None."""
+        one more banded factorisation; `far`: the monitor found the motion far from the
+        band, so S's own factor serves, as the dense path's), else None."""
         band = self.band
         c = band.factor(J)
-        if c is None or band.shifted_factor(-(2.0 * cut) ** 2 * band.largest_bound()) is None:
+        if c is None or not far and band.shifted_factor(
+                -(2.0 * cut) ** 2 * band.largest_bound()) is None:
             return None
         return c
 
@@ -512,7 +514,7 @@ class BandedAlgebra(DenseAlgebra):
         return None if c is None else (lambda r: self.band.solve(c, r))
 
     def clear_accelerations(self, J, Q, gamma, q, cut, bound, far):
-        c = self._clear_factor(J, cut) if J.shape[0] else None
+        c = self._clear_factor(J, cut, far) if J.shape[0] else None
         if c is None:
             return None
         return self.problem.accelerations(J, Q, gamma, factor=c)[0]
