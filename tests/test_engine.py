@@ -468,6 +468,34 @@ def test_compiled_lu_condition_agrees_with_the_python_path():
     assert max(conds) >= 1e3 and min(conds) < 100
 
 
+def test_a_partition_s_choice_compiled_is_the_python_path_s():
+    """`Partitioned.choose`'s rank and pivots in one engine call (`ConstraintAlgebra.choice`:
+    dgesdd's singular values of Φ_qᵀ against the rank threshold, dgetrf's row swaps of Φ_qᵀ)
+    equal to the integer to scipy's `rank` and `pivots` over the double four-bar's first
+    passage, and on a Φ_q with a row repeated (rank m − 1), where the rank decides which
+    coordinate turns independent."""
+    from mechsim.problem.algebra import RANK_FACTOR, ConstraintAlgebra
+
+    mech = ms.examples.double_four_bar(2)
+    res = mech.simulate(t_end=0.8, method="projection", rtol=1e-9, atol=1e-11,
+                        output_step=1e-3)
+    prob = res.problem
+    if engine.library(prob.model) is None:
+        pytest.skip("no C compiler: the engine is not built")
+    alg = prob.algebra
+    Js = [prob.phi_q(q, t) for q, t in zip(res.q[::20], res.t[::20])]
+    deficient = Js[0].copy()
+    deficient[-1] = deficient[0]
+    for J in [*Js, deficient]:
+        compiled = alg.engine.choice(J, np.finfo(float).eps, RANK_FACTOR)
+        assert compiled is not None
+        rank, perm = compiled
+        assert rank == alg.rank(J) and np.array_equal(perm, alg.pivots(J))
+        assert alg.choice(J)[0] == rank
+        assert ConstraintAlgebra.choice(alg, J)[0] == rank
+    assert rank == prob.m - 1 and alg.rank(Js[0]) == prob.m
+
+
 def test_compiled_multipliers_agree_with_the_python_path():
     """Reactions of the double four-bar through its passages: λ from the compiled batch
     (Cholesky, its pivots checked outside the passages, LAPACK's condition estimate inside)

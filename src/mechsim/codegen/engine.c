@@ -1785,33 +1785,50 @@ static int step_search(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s
   return 0;
 }
 
+/* Partitioned.choose at Phi_q = J (row-major m x n): *rank from the singular values of J
+   (above max(m, n) eps rank_factor sigma_max, as ConstraintAlgebra.rank) and perm, the
+   coordinates in the order LU with partial pivoting of J^T picks them (DenseAlgebra.pivots:
+   dgetrf on the same column-major J^T scipy's lu_factor takes), with A (m n doubles) and
+   piv (m ints) as scratch. 1 where a factorisation fails. */
+static int choose_set(mechsim_projection *pc, const double *J, double eps,
+                      double rank_factor, double *A, int *piv, int64_t *perm,
+                      int64_t *rank) {
+  const int64_t n = pc->n, m = pc->m;
+  memcpy(A, J, m * n * sizeof(double));            /* J^T, column-major n x m */
+  if (singular_values(pc, A)) return 1;
+  int N = (int)n, M = (int)m, info = 0;
+  const double threshold = (double)(m > n ? m : n) * eps * rank_factor * pc->sig[0];
+  *rank = 0;
+  for (int64_t i = 0; i < (m < n ? m : n); i++) *rank += pc->sig[i] > threshold;
+  memcpy(A, J, m * n * sizeof(double));
+  mechsim_dgetrf(&N, &M, A, &N, piv, &info);
+  if (info < 0) return 1;
+  for (int64_t i = 0; i < n; i++) perm[i] = i;      /* perm from the row swaps */
+  for (int64_t i = 0; i < (m < n ? m : n); i++) {
+    const int64_t p = piv[i] - 1, keep = perm[i];
+    perm[i] = perm[p];
+    perm[p] = keep;
+  }
+  return 0;
+}
+
+/* `choose_set` for Python (Partitioned.choose): perm (n) and rank[0]; pc's J1 and iwork
+   as scratch. 1 where a factorisation fails. */
+int mechsim_choose(mechsim_projection *pc, const double *J, double eps, double rank_factor,
+                   int64_t *perm, int64_t *rank) {
+  return choose_set(pc, J, eps, rank_factor, pc->J1, pc->iwork, perm, rank);
+}
+
 /* Whether Partitioned.choose at Phi_q = J (row-major m x n) keeps the partition's
-   independent set (c->ind): its rank from the singular values of J (above
-   max(m, n) eps 1e3 sigma_max, as ConstraintAlgebra.rank), its pivots from LU with
-   partial pivoting of J^T (DenseAlgebra.pivots: dgetrf on the same column-major J^T
-   scipy's lu_factor takes). 1: kept; 0: another set, or a factorization failed. */
+   independent set (c->ind): `choose_set`'s rank and pivots. 1: kept; 0: another set, or a
+   factorization failed. */
 static int keeps_set(mechsim_lu *c, mechsim_projection *pc, mechsim_segment *s,
                      const double *J) {
-  const int64_t n = c->n, m = c->m, f = c->f;
-  double *A = s->set_work;
-  int64_t *mark = (int64_t *)s->set_mark;
-  memcpy(A, J, m * n * sizeof(double));            /* J^T, column-major n x m */
-  if (singular_values(pc, A)) return 0;
-  int N = (int)n, M = (int)m, info = 0;
-  const double threshold = (double)(m > n ? m : n) * s->machine_eps * s->rank_factor *
-      pc->sig[0];
-  int64_t rank = 0;
-  for (int64_t i = 0; i < (m < n ? m : n); i++) rank += pc->sig[i] > threshold;
-  memcpy(A, J, m * n * sizeof(double));
-  int *piv = (int *)s->set_piv;
-  mechsim_dgetrf(&N, &M, A, &N, piv, &info);
-  if (info < 0) return 0;
-  for (int64_t i = 0; i < n; i++) mark[i] = i;      /* perm from the row swaps */
-  for (int64_t i = 0; i < (m < n ? m : n); i++) {
-    const int64_t p = piv[i] - 1, keep = mark[i];
-    mark[i] = mark[p];
-    mark[p] = keep;
-  }
+  const int64_t n = c->n, f = c->f;
+  int64_t *mark = (int64_t *)s->set_mark, rank = 0;
+  if (choose_set(pc, J, s->machine_eps, s->rank_factor, s->set_work, (int *)s->set_piv,
+                 mark, &rank))
+    return 0;
   if (n - rank != f) return 0;
   for (int64_t k = 0; k < f; k++) {                 /* perm[rank:] is the set c->ind */
     int found = 0;

@@ -263,7 +263,7 @@ SIGNATURES = {
     "mechsim_lu_predictor": "pdldppppppppp>-", "mechsim_lu_segment": "ppp>l",
     "mechsim_projection_segment": "pp>l", "mechsim_history": "pplpdpp>l",
     "mechsim_projection_accelerations": "pddd>i", "mechsim_project_state": "pddddll>i",
-    "mechsim_lu_condition": "pd>d", "mechsim_measure": "pddpp>i",
+    "mechsim_lu_condition": "pd>d", "mechsim_choose": "ppddpp>i", "mechsim_measure": "pddpp>i",
     "mechsim_inverse_norm_bound": "lpp>d", "mechsim_extreme_bounds": "plppp>-",
     "mechsim_project_states": "plpppplp>-", "mechsim_chords": "plppp>-",
     "mechsim_extremes": "pllppp>i", "mechsim_dop853": "pll" + "p" * 11 + ">i",

@@ -100,8 +100,11 @@ class Partitioned(Formulation):
     def choose(self, J, rank=None) -> CoordinateBasis:
         """The independent and dependent directions at Φ_q = J (f = n − r and r of them).
         `rank`: Φ_q's rank if the caller knows it (its SVD is dear on long chains)."""
-        r = self.problem.rank(J) if rank is None else rank
-        perm = self.problem.algebra.pivots(J)       # dense LU, or a long chain's banded LU
+        algebra = self.problem.algebra
+        if rank is None:
+            r, perm = algebra.choice(J)
+        else:
+            r, perm = rank, algebra.pivots(J)       # dense LU, or a long chain's banded LU
         return self._coordinate_bases(perm[r:], perm[:r])
 
     def _coordinate_bases(self, independent, dependent):

@@ -56,6 +56,7 @@ class ConstraintAlgebra:
     - ``pivots(J)``: a permutation of the coordinates whose first rank(J) are dependent
       (LU pivoting of Φ_qᵀ), the rest independent
     - ``rank(J)``: the numerical rank of Φ_q = J (singular values > 1e3 ε max(m, n) σ_max)
+    - ``choice(J)``: (rank(J), pivots(J)), for a partition's choice
     - ``extremes(J̃, k)``: (σ_k, u_k, v_k, σ_max, u_max, v_max), the k-th largest singular
       value of J̃ (k = m − 1 − redundant rows) with its singular vectors, and the largest;
       σ_max = 0 where J̃ lost that rank (u_k then a left singular vector of the smallest)
@@ -123,6 +124,9 @@ class ConstraintAlgebra:
 
     def pivots(self, J) -> np.ndarray:
         raise NotImplementedError
+
+    def choice(self, J):
+        return self.rank(J), self.pivots(J)
 
     def rank(self, J) -> int:
         if J.shape[0] == 0:
@@ -262,6 +266,17 @@ class DenseAlgebra(ConstraintAlgebra):
     @property
     def dense_complement(self) -> bool:
         return self.problem.constant_mass
+
+    def choice(self, J):
+        """(rank, pivots) of Φ_q = J in one compiled call where the engine serves the
+        problem (the same singular values and LU as `rank`'s and `pivots`')."""
+        p = self.problem
+        if self.engine is not None and J.shape == (p.m, p.n) and sparse.is_dense(J) and \
+                p.m and p.m <= p.n:
+            got = self.engine.choice(J, np.finfo(float).eps, RANK_FACTOR)
+            if got is not None:
+                return got
+        return super().choice(J)
 
     def pivots(self, J):
         import warnings
