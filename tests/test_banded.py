@@ -322,6 +322,14 @@ def test_lu_partitioning_factors_a_long_chains_dependent_block_as_a_band(ten_win
         assert after == np.random.rand()
     swapped = JD[:, [1, 0, *range(2, basis.r)]]
     assert SparseBlock(csc_matrix(swapped)).sign() == -sign
+    # An exactly singular block (a column of zeros: a dependent coordinate no constraint
+    # moves) is said so by both: sign 0, condition inf, a solve raises.
+    J0 = J.copy()
+    J0[:, basis.dep[5]] = 0.0
+    for block in (basis.block(J0), SparseBlock(csc_matrix(basis.JD(J0)))):
+        assert block.sign() == 0 and block.condition() == np.inf
+        with pytest.raises(np.linalg.LinAlgError):
+            block.solve(b)
 
 
 @pytest.mark.parametrize("method", ["hybrid", "lu", "projection"])
