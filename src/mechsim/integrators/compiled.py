@@ -84,23 +84,28 @@ class CompiledDOP853(DOP853):
     def __init__(self, fun, t0, y0, t_bound, **options):
         if not (_SET_UP.verified() and self.set_up(fun, t0, y0, t_bound, **options)):
             super().__init__(fun, t0, y0, t_bound, **options)
-        n = self.n
-        # The engine reads and writes these buffers only: views of one array, whose
-        # address is taken once (an array's `.ctypes.data` costs more than copying a small
-        # state in and out; an integrator is made at every restart and bridge).
-        buffer = np.zeros(25 + 6 * n)
-        self._in, self._extra_in, self._out = buffer[:13], buffer[13:20], buffer[20:25]
-        self._work, self._y, self._f, self._y_new, self._f_new, self._atol = \
-            buffer[25:].reshape(6, n)
+        self._atol = np.empty(self.n)           # the engine's copy of atol (`atol_array`)
         self._atol[:] = self.atol
-        self._fallback = _RATE(self._python_rate)
+        self._step_args = None                  # the engine's buffers, made on first use
         self._raised = None
         self._taken = None          # the rate the last step was taken on (None: scipy's)
+
+    def _buffers(self) -> None:
+        """The buffers the engine reads and writes when it takes this integrator's own
+        steps or dense output: views of one array, whose address is taken once (an
+        array's `.ctypes.data` costs more than copying a small state in and out). Made on
+        first use: an integrator is made at every restart and crossing, and most of them
+        step only in segments or in the bridge's history, which hold their own."""
+        n = self.n
+        buffer = np.zeros(25 + 5 * n)
+        self._in, self._extra_in, self._out = buffer[:13], buffer[13:20], buffer[20:25]
+        self._work, self._y, self._f, self._y_new, self._f_new = buffer[25:].reshape(5, n)
+        self._fallback = _RATE(self._python_rate)
         base, stages = buffer.ctypes.data, self.K_extended.ctypes.data   # K: its first rows
         fallback = ctypes.cast(self._fallback, ctypes.c_void_p)
-        at = [base + 8 * (25 + i * n) for i in range(6)]       # work, y, f, y_new, f_new, atol
-        self._step_args = (_address(tableau), base, at[1], at[2], at[5], stages, at[3], at[4],
-                           at[0], base + 8 * 20, fallback)
+        at = [base + 8 * (25 + i * n) for i in range(5)]       # work, y, f, y_new, f_new
+        self._step_args = (_address(tableau), base, at[1], at[2], self._atol.ctypes.data,
+                           stages, at[3], at[4], at[0], base + 8 * 20, fallback)
         self._extra_args = (_address(extra_tableau), base + 8 * 13, at[1], stages, at[0],
                             base + 8 * 20, fallback)
 
@@ -200,6 +205,8 @@ class CompiledDOP853(DOP853):
                 self.t == self.t_bound or self.y.dtype != np.float64:
             return super().step()
         t, y = self.t, self.y
+        if self._step_args is None:
+            self._buffers()
         self._y[:] = y
         self._f[:] = self.f
         self._in[:] = (DOP853.n_stages, t, self.h_abs, self.t_bound, self.direction,
@@ -229,6 +236,8 @@ class CompiledDOP853(DOP853):
         compiled = self._taken
         if compiled is None or self.t == self.t_old:
             return Interpolant.of(super().dense_output())
+        if self._step_args is None:
+            self._buffers()
         rows, width = DOP853.A_EXTRA.shape
         self._extra_in[:] = (self.n_stages + 1, rows, width, self.t_old, self.h_previous,
                              compiled.min_rcond, compiled.cut)
