@@ -443,20 +443,28 @@ def test_output_samples_settle_alike_in_c_and_in_python(rng):
     assert np.abs(Qc - Q0).max() > 1e-5                  # they were moved
 
 
+@pytest.fixture(scope="module")
+def first_passage():
+    """The double four-bar over its first passage (projection, rtol 1e-9, a sample every
+    ms), where its engine is built."""
+    mech = ms.examples.double_four_bar(2)
+    res = mech.simulate(t_end=0.8, method="projection", rtol=1e-9, atol=1e-11,
+                        output_step=1e-3)
+    if engine.library(res.problem.model) is None:
+        pytest.skip("no C compiler: the engine is not built")
+    return res
+
+
 @needs_compiler
-def test_compiled_lu_condition_agrees_with_the_python_path():
+def test_compiled_lu_condition_agrees_with_the_python_path(first_passage):
     """The hybrid's test for a return to LU (`Hybrid._lu_ready`): cond₁ of the block LU
     pivoting picks, compiled (the algebra's `lu_condition`) and from `Partitioned.choose`,
     over the double four-bar's first passage, to round-off; with the block it picks near
     the passage ill-conditioned enough to matter (cond ≥ 1e3 there)."""
     from mechsim.formulations.hybrid import Hybrid
 
-    mech = ms.examples.double_four_bar(2)
-    res = mech.simulate(t_end=0.8, method="projection", rtol=1e-9, atol=1e-11,
-                        output_step=1e-3)
+    res = first_passage
     prob = res.problem
-    if engine.library(prob.model) is None:
-        pytest.skip("no C compiler: the engine is not built")
     hybrid = Hybrid(prob, 1e-8, 1e-10)
     conds = []
     for k in range(0, len(res.t), 4):
@@ -468,7 +476,8 @@ def test_compiled_lu_condition_agrees_with_the_python_path():
     assert max(conds) >= 1e3 and min(conds) < 100
 
 
-def test_a_partition_s_choice_compiled_is_the_python_path_s():
+@needs_compiler
+def test_a_partition_s_choice_compiled_is_the_python_path_s(first_passage):
     """`Partitioned.choose`'s rank and pivots in one engine call (`ConstraintAlgebra.choice`:
     dgesdd's singular values of Φ_qᵀ against the rank threshold, dgetrf's row swaps of Φ_qᵀ)
     equal to the integer to scipy's `rank` and `pivots` over the double four-bar's first
@@ -476,12 +485,8 @@ def test_a_partition_s_choice_compiled_is_the_python_path_s():
     coordinate turns independent."""
     from mechsim.problem.algebra import RANK_FACTOR, ConstraintAlgebra
 
-    mech = ms.examples.double_four_bar(2)
-    res = mech.simulate(t_end=0.8, method="projection", rtol=1e-9, atol=1e-11,
-                        output_step=1e-3)
+    res = first_passage
     prob = res.problem
-    if engine.library(prob.model) is None:
-        pytest.skip("no C compiler: the engine is not built")
     alg = prob.algebra
     Js = [prob.phi_q(q, t) for q, t in zip(res.q[::20], res.t[::20])]
     deficient = Js[0].copy()

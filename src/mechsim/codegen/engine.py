@@ -437,12 +437,9 @@ class ProjectionEngine:
         self._extreme_bounds = lib.mechsim_extreme_bounds
         self.steps = StepSearch(lib, self.context, n, m)   # the monitor's search in a step
         self._project_many = lib.mechsim_project_states
-        self._lu_condition = lib.mechsim_lu_condition
-        self._choose = lib.mechsim_choose
-        self._choice = np.zeros(n + 1, dtype=np.int64)       # perm, then rank
-        self._choice_at = self._choice.ctypes.data
-        self._choice_J = np.zeros((m, n))
-        self._choice_J_at = self._choice_J.ctypes.data
+        self._lu_condition, self._choose = lib.mechsim_lu_condition, lib.mechsim_choose
+        self._choice, self._choice_J = np.zeros(n + 1, dtype=np.int64), np.zeros((m, n))
+        self._choice_at, self._choice_J_at = self._choice.ctypes.data, self._choice_J.ctypes.data
         self._multipliers = lib.mechsim_multipliers
         self._change, self._fall_rates = lib.mechsim_change, lib.mechsim_fall_rates
         self._fall_in, self._fall_out, self._fall_work = np.zeros(8), np.zeros(2), np.zeros(m * n)
@@ -589,14 +586,12 @@ class ProjectionEngine:
         return ok
 
     def choice(self, J, eps, rank_factor):
-        """(rank, pivots) of Φ_q = J for `Partitioned.choose` in one call
-        (`mechsim_choose`: ConstraintAlgebra.rank's singular values and DenseAlgebra.pivots'
-        LU of Jᵀ); None where a factorisation fails (the caller takes scipy's)."""
+        """(rank, pivots) of Φ_q = J for `Partitioned.choose` in one call (`mechsim_choose`:
+        `rank`'s singular values, `pivots`' LU of Jᵀ); None where a factorisation fails."""
         self._choice_J[:] = J
-        if self._choose(self.context, self._choice_J_at, eps, rank_factor,
-                        self._choice_at, self._choice_at + 8 * self.n):
-            return None
-        return int(self._choice[self.n]), self._choice[:self.n].copy()
+        at, n = self._choice_at, self.n
+        failed = self._choose(self.context, self._choice_J_at, eps, rank_factor, at, at + 8 * n)
+        return None if failed else (int(self._choice[n]), self._choice[:n].copy())
 
     def lu_condition(self, t, q):
         """cond₁ of the dependent block Φ_q D that LU partitioning (`Partitioned.choose`)

@@ -53,10 +53,9 @@ class ConstraintAlgebra:
     - ``compiles``: bool, the compiled engine (`mechsim.codegen.engine`) computes as this
       algebra does and may serve its runs
     - ``jacobian(q, t)``: Φ_q in the form the solvers take (dense, or CSR)
-    - ``pivots(J)``: a permutation of the coordinates whose first rank(J) are dependent
-      (LU pivoting of Φ_qᵀ), the rest independent
-    - ``rank(J)``: the numerical rank of Φ_q = J (singular values > 1e3 ε max(m, n) σ_max)
-    - ``choice(J)``: (rank(J), pivots(J)), for a partition's choice
+    - ``pivots(J)``: the coordinates, the first rank(J) dependent (LU pivoting of Φ_qᵀ)
+    - ``rank(J)``: the numerical rank of Φ_q = J (singular values > 1e3 ε max(m, n) σ_max);
+      ``choice(J)``: (rank(J), pivots(J)), for a partition's choice
     - ``extremes(J̃, k)``: (σ_k, u_k, v_k, σ_max, u_max, v_max), the k-th largest singular
       value of J̃ (k = m − 1 − redundant rows) with its singular vectors, and the largest;
       σ_max = 0 where J̃ lost that rank (u_k then a left singular vector of the smallest)
