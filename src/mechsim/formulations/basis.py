@@ -7,8 +7,12 @@ import numpy as np
 
 from ..linalg import dense, sparse
 
-# Dependent blocks Φ_q D at least this large are factored sparse (`SparseBlock`).
+# Dependent blocks Φ_q D at least this large are factored sparse (`BandBlock`, else
+# `SparseBlock`).
 SPARSE_MIN = 40
+# Band layouts kept by their pattern (`band_layout`), at most.
+LAYOUTS_KEPT = 64
+_LAYOUTS: dict = {}
 
 
 class ConstraintSolveError(RuntimeError):
@@ -183,11 +187,23 @@ def band_layout(rows, cols, r):
     rows. (row order, column order, kl, ku, each entry's place in the column-major banded
     storage of 2 kl + ku + 1 rows, the orders' parity together), or None where the band
     is not narrow (the banded LU's work r kl (kl + ku) above a sixteenth of the dense
-    LU's r³/3)."""
-    from scipy.sparse import csr_array
-    from scipy.sparse.csgraph import reverse_cuthill_mckee
+    LU's r³/3). Kept by its pattern (`_LAYOUTS`): a chain's partitions recur (the hybrid
+    tests one at every step of its way back to LU), and the ordering costs many banded
+    factorisations; the arrays returned are shared, never changed."""
     if not len(rows):
         return None
+    key = (r, rows.tobytes(), cols.tobytes())
+    if key in _LAYOUTS:
+        return _LAYOUTS[key]
+    if len(_LAYOUTS) >= LAYOUTS_KEPT:
+        _LAYOUTS.clear()
+    _LAYOUTS[key] = layout = _band_layout(rows, cols, r)
+    return layout
+
+
+def _band_layout(rows, cols, r):
+    from scipy.sparse import csr_array
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
     pattern = csr_array((np.ones(len(rows)), (rows, cols)), shape=(r, r))
     graph = csr_array(pattern @ pattern.T)
     row_order = np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), np.intp)
