@@ -2495,7 +2495,6 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     seg_observation o;
     seg_passages p;
     int ready = 0;                       /* the step's dense output formed */
-    const int own = (int)s->handles_passages;     /* passages inside a step observed here */
     why = s->open_at_start && !s->count && !s->through ? SEG_OPEN :
         observe_step(pc, s, t_old, t_new, q_new, v_new, speed, &o);
     if (why && !observed_by_loop(why)) { s->reason = why; break; }
@@ -2512,11 +2511,10 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
         pending = SEG_LEAVE;
       /* a passage hidden in the step, ruled out (the search last: a step the loop takes
          anyway spends none) */
-      why = own ? passages_step(c, pc, s, N, t_old, t_new, h, y, y_new, f_new, &o, &p, &ready,
-                                &evaluations) :
-          hidden_clear(c, pc, s, t_old, t_new, h, y, y_new, f_new, &o, &ready, &evaluations);
+      why = passages_step(c, pc, s, N, t_old, t_new, h, y, y_new, f_new, &o, &p, &ready,
+                          &evaluations);
       /* a step that ends inside a passage: the loop's where LU's tolerances change there */
-      if (!why && own && p.has_open && !s->through) why = SEG_SEARCH;
+      if (!why && p.has_open && !s->through) why = SEG_SEARCH;
     }
     if (why) {     /* the loop's observation (of a dip found: the kept search), pending */
       if (k > 0 && samples_step(c, s, t_old, h, y, y_new, f_new, k0, k, &ready,
@@ -2544,7 +2542,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     if (pending) {
       commit_pending(s, N, n, mn, t_old, &o, PENDING_DECIDE, pending, evaluations, next, k,
                      speed, ready);
-      if (own) commit_passages(s, &p, m);
+      commit_passages(s, &p, m);
       break;
     }
     double zmax = 0.0;
@@ -2589,7 +2587,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
       if (has_limit) s->max_step = py_min(s->run_max_step, limit);
     }
     commit_observation(s, &o, mn, t_old, t_new);
-    if (own) commit_passages(s, &p, m);
+    commit_passages(s, &p, m);
     s->sign = s->block[0];
     commit_step(s, N, n, t_old, y_new, f_new, evaluations, next, k, q_end, v_end, speed, 0.0,
                 0.0);

@@ -180,33 +180,28 @@ class BandBlock:
         return self._condition
 
 
-def band_layout(rows, cols, r):
-    """An order of the rows and columns of an r × r sparse matrix with entries at (rows,
-    cols) that makes it a narrow band, for `BandBlock`: the rows by reverse Cuthill–McKee
-    on the graph of rows sharing a column (scipy's), each column after the first of its
-    rows. (row order, column order, kl, ku, each entry's place in the column-major banded
-    storage of 2 kl + ku + 1 rows, the orders' parity together), or None where the band
-    is not narrow (the banded LU's work r kl (kl + ku) above a sixteenth of the dense
-    LU's r³/3). Kept by its pattern (`_LAYOUTS`): a chain's partitions recur (the hybrid
-    tests one at every step of its way back to LU), and the ordering costs many banded
-    factorisations; the arrays returned are shared, never changed."""
+def band_layout(rows, cols, r, row_order):
+    """An order of the columns of an r × r sparse matrix with entries at (rows, cols) that
+    makes it a narrow band with its rows in `row_order` (a long chain's constraints in the
+    order that makes its Schur complement a band, `BandedSchur.perm`): each column after
+    the first of its rows. (row order, column order, kl, ku, each entry's place in the
+    column-major banded storage of 2 kl + ku + 1 rows, the orders' parity together), or
+    None where the band is not narrow (the banded LU's work r kl (kl + ku) above a
+    sixteenth of the dense LU's r³/3). Kept by its pattern (`_LAYOUTS`): a chain's
+    partitions recur (the hybrid tests one at every step of its way back to LU); the
+    arrays returned are shared, never changed."""
     if not len(rows):
         return None
-    key = (r, rows.tobytes(), cols.tobytes())
+    key = (r, rows.tobytes(), cols.tobytes(), row_order.tobytes())
     if key in _LAYOUTS:
         return _LAYOUTS[key]
     if len(_LAYOUTS) >= LAYOUTS_KEPT:
         _LAYOUTS.clear()
-    _LAYOUTS[key] = layout = _band_layout(rows, cols, r)
+    _LAYOUTS[key] = layout = _band_layout(rows, cols, r, np.asarray(row_order, np.intp))
     return layout
 
 
-def _band_layout(rows, cols, r):
-    from scipy.sparse import csr_array
-    from scipy.sparse.csgraph import reverse_cuthill_mckee
-    pattern = csr_array((np.ones(len(rows)), (rows, cols)), shape=(r, r))
-    graph = csr_array(pattern @ pattern.T)
-    row_order = np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), np.intp)
+def _band_layout(rows, cols, r, row_order):
     at = np.empty(r, np.intp)
     at[row_order] = np.arange(r)
     first = np.full(r, r, np.intp)
@@ -242,9 +237,10 @@ class CoordinateBasis:
     """Independent / dependent subsets of q (columns of the identity), applied by indexing:
     no n × n products, which dominate for large mechanisms. With `pattern` (the rows and
     columns where Φ_q can be non-zero) and at least `SPARSE_MIN` dependent coordinates,
-    Φ_q D is factored sparse."""
+    Φ_q D is factored sparse: as a band where `row_order` (the constraints' band order of a
+    long chain, `BandedSchur.perm`) makes it a narrow one, else by SuperLU."""
 
-    def __init__(self, independent, dependent, pattern=None):
+    def __init__(self, independent, dependent, pattern=None, row_order=None):
         self.ind = np.sort(np.asarray(independent, dtype=np.intp))
         self.dep = np.sort(np.asarray(dependent, dtype=np.intp))
         self.f, self.r = self.ind.size, self.dep.size
@@ -252,6 +248,7 @@ class CoordinateBasis:
         self._order = np.argsort(np.concatenate([self.ind, self.dep]))
         self._csc = None
         self._band = None
+        self._pattern = pattern
         if pattern is not None and self.r >= SPARSE_MIN:
             rows, cols = (np.asarray(x, np.intp) for x in pattern)
             where = np.full(max(cols.max(initial=-1), self.dep.max(initial=-1)) + 1, -1)
@@ -264,10 +261,11 @@ class CoordinateBasis:
             indptr = np.searchsorted(new, np.arange(self.r + 1))
             self._csc = (rows, cols, rows.copy(), indptr)
             self._value_columns = np.repeat(np.arange(self.r), np.diff(indptr))
-            if rows.max(initial=-1) < self.r:       # a square block
-                self._band = band_layout(rows, new, self.r)
+            if row_order is not None and len(row_order) == self.r and \
+                    rows.max(initial=-1) < self.r:            # a square block
+                self._band = band_layout(rows, new, self.r, row_order)
         self._slots = None                 # where Φ_q D's entries sit in a CSR Φ_q
-        self._jb = None                    # where Φ_q B's entries sit in a CSR Φ_q
+        self._jb = None                    # Φ_q B's entries and their places in a CSR Φ_q
 
     @property
     def sparse(self) -> bool:
@@ -301,17 +299,22 @@ class CoordinateBasis:
         return np.concatenate((z, w))[self._order]
 
     def JB(self, J):
-        """Φ_q B (dense); from a CSR Φ_q by its entries' places, found once (the pattern of a
-        model's Φ_q is fixed), without scipy's column indexing."""
+        """Φ_q B (dense); from a CSR Φ_q by its pattern's entries in B's columns, their
+        places found once (`sparse.positions`, as `block`'s), without scipy's column
+        indexing."""
         if sparse.is_dense(J):
             return J[..., self.ind]
+        if self._pattern is None:
+            return sparse.columns(J, self.ind)
         if self._jb is None:
-            rows = np.repeat(np.arange(J.shape[0]), np.diff(J.indptr))
-            slots = np.flatnonzero(np.isin(J.indices, self.ind))
-            self._jb = (rows[slots], np.searchsorted(self.ind, J.indices[slots]), slots)
-        rows, k, slots = self._jb
+            rows, cols = (np.asarray(x, np.intp) for x in self._pattern)
+            on_b = np.isin(cols, self.ind)
+            rows, cols = rows[on_b], cols[on_b]
+            self._jb = (rows, cols, np.searchsorted(self.ind, cols),
+                        sparse.positions(J, rows, cols))
+        rows, cols, k, slots = self._jb
         out = np.zeros((J.shape[0], self.f))
-        out[rows, k] = J.data[slots]
+        out[rows, k] = sparse.values(J, rows, cols, slots)
         return out
 
     def JD(self, J):

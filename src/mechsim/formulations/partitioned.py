@@ -112,7 +112,9 @@ class Partitioned(Formulation):
         model = self.problem.model
         pattern = (model.JACOBIAN_ROWS, model.JACOBIAN_COLS) \
             if hasattr(model, "JACOBIAN_ROWS") else None
-        return CoordinateBasis(independent, dependent, pattern)
+        schur = self.problem.schur                  # a long chain's constraints as a band
+        return CoordinateBasis(independent, dependent, pattern,
+                               None if schur is None else schur.perm)
 
     # --- partitioning --------------------------------------------------------------------------
     def partition(self, t, q, v, basis=None):

@@ -358,16 +358,20 @@ class Run:
             if self.keep_past:
                 self.stats.nfev += warm_start(self.solver, old, form, list(self.past)[:-1])
 
-    def _tolerances_for_passages(self) -> None:
-        """Step through a singular passage's band no tighter than
-        `Tolerances.through_passage` of the local tolerances, where the formulation steps
-        through it (no bridge, or the bridge stood down), and with the local ones again
-        once out of it: the integrator takes them in place, or is restarted with them."""
-        if self.s.h is not None:
-            return
+    def passage_tolerances(self):
+        """The tolerances a step inside a singular passage's band takes: no tighter than
+        `Tolerances.through_passage` of the local ones where the formulation steps through
+        it (no bridge, or the bridge stood down), else the local ones."""
         bridged = self.form.bridges_passages and not (self.bridge is not None and
                                                       self.bridge.standing_down)
-        wanted = self.through_passage if self.monitor.inside and not bridged else self.local
+        return self.local if bridged else self.through_passage
+
+    def _tolerances_for_passages(self) -> None:
+        """Step through a singular passage's band with `passage_tolerances`, out of it with
+        the local ones: the integrator takes them in place, or is restarted with them."""
+        if self.s.h is not None:
+            return
+        wanted = self.passage_tolerances() if self.monitor.inside else self.local
         if wanted == self.tolerances:
             return
         self.tolerances = wanted

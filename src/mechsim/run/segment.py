@@ -20,10 +20,10 @@ step it drops, and the Python loop (`mechsim.run.loop.Run`) takes it from the sa
 with its own decisions. Where the bridge crosses the passages (the run's tolerances stay
 its own inside them), a projection segment observes the passages itself as the monitor
 does (the open one going on, closing, opening, the dips a search finds refined to their
-minima); so does an LU segment where LU's tolerances stay the local ones inside a passage
-(`Tolerances.through_passage`: a run's local rtol from `PASSAGE_FLOOR` up); below that
-it records the passages that begin and end inside a step (the tolerances change inside
-one: a step that ends there is the loop's). The loop names their joints from the
+minima); so does an LU segment where the run's tolerances stay the local ones inside a
+passage (`Run.passage_tolerances`: bridged, or a local rtol from `PASSAGE_FLOOR` up);
+elsewhere it records the passages that begin and end inside a step (the tolerances
+change inside one: a step that ends there is the loop's). The loop names their joints from the
 singular vectors the segment kept.
 
 The contract is the Python loop's numbers to the bit: the segment makes the decisions the
@@ -283,11 +283,11 @@ class Segment:
         s = self.steps.s
         s.sign, s.repartition_at, s.cond_max, s.growth = start
         s.reference_span = REFERENCE_SPAN
-        # the passages inside a step observed there; through the band too where LU's
+        # the passages inside a step observed there; through the band too where the run's
         # tolerances stay the local ones inside a passage (else a step that ends inside
-        # one, or begins in one, is the loop's: `Run._tolerances_for_passages`)
+        # one, or begins in one, is the loop's: `Run.passage_tolerances`)
         s.handles_passages = True
-        s.through = self.run.through_passage == self.run.local
+        s.through = self.run.passage_tolerances() == self.run.local
         if self.hybrid is not None:
             policy = self.hybrid.policy
             s.held_steps, s.policy_steps = policy.held, policy.steps
