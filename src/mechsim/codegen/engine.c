@@ -58,7 +58,12 @@ static int small_lu(int64_t r, double *A, int *ipiv) {
         A[p + k * r] = keep;
       }
     const double pivot = A[j + j * r];
-    for (int64_t i = j + 1; i < r; i++) A[i + j * r] /= pivot;
+    if (fabs(pivot) >= 2.2250738585072014e-308) {     /* dgetf2: 1/pivot where it is finite */
+      const double inv = 1.0 / pivot;
+      for (int64_t i = j + 1; i < r; i++) A[i + j * r] *= inv;
+    } else {
+      for (int64_t i = j + 1; i < r; i++) A[i + j * r] /= pivot;
+    }
     for (int64_t k = j + 1; k < r; k++) {
       const double a = A[j + k * r];
       if (a != 0.0)
@@ -82,9 +87,10 @@ static void small_solve(int64_t r, const double *LU, const int *ipiv, int64_t nr
       b[i] = s;
     }
     for (int64_t i = r - 1; i >= 0; i--) {
+      const double inv = 1.0 / LU[i + i * r];  /* off the sums' chain of dependences */
       double s = b[i];
       for (int64_t k = i + 1; k < r; k++) s -= LU[i + k * r] * b[k];
-      b[i] = s / LU[i + i * r];
+      b[i] = s * inv;
     }
   }
 }
@@ -391,10 +397,10 @@ static double complement(int64_t n, int64_t m, const double *J, const double *wi
 static void upper_inverse(int64_t m, const double *R, double *W) {
   for (int64_t j = 0; j < m; j++) {
     W[j + j * m] = 1.0 / R[j + j * m];
-    for (int64_t i = j - 1; i >= 0; i--) {
+    for (int64_t i = j - 1; i >= 0; i--) {        /* W[i + i m] = 1 / R_ii, made already */
       double e = 0.0;
       for (int64_t k = i + 1; k <= j; k++) e += R[i + k * m] * W[k + j * m];
-      W[i + j * m] = -e / R[i + i * m];
+      W[i + j * m] = -e * W[i + i * m];
     }
   }
 }
@@ -431,28 +437,30 @@ static int small_cholesky(int64_t m, const double *S, double *R) {
     double d = S[j * m + j];
     for (int64_t k = 0; k < j; k++) d -= R[j * m + k] * R[j * m + k];
     if (!(d > 0.0)) return 1;
-    const double rjj = sqrt(d);
+    const double rjj = sqrt(d), inv = 1.0 / rjj;   /* dpotf2 scales the row by 1/rjj */
     R[j * m + j] = rjj;
     for (int64_t i = j + 1; i < m; i++) {
       double e = S[i * m + j];
       for (int64_t k = 0; k < j; k++) e -= R[i * m + k] * R[j * m + k];
-      R[i * m + j] = e / rjj;
+      R[i * m + j] = e * inv;
     }
   }
   return 0;
 }
 
-/* b = S^-1 b from the factor R of `small_cholesky` (dpotrs's two triangular solves). */
-static void cholesky_solve(int64_t m, const double *R, double *b) {
+/* b = S^-1 b from the factor R of `small_cholesky` (dpotrs's two triangular solves), with
+   rdiag the reciprocals of R's diagonal (`cholesky` keeps them): a division's latency is
+   several multiplications', and the solves' sums are short chains. */
+static void cholesky_solve(int64_t m, const double *R, const double *rdiag, double *b) {
   for (int64_t j = 0; j < m; j++) {                /* R^T y = b */
     double e = b[j];
     for (int64_t k = 0; k < j; k++) e -= R[j * m + k] * b[k];
-    b[j] = e / R[j * m + j];
+    b[j] = e * rdiag[j];
   }
   for (int64_t j = m - 1; j >= 0; j--) {           /* R x = y */
     double e = b[j];
     for (int64_t k = j + 1; k < m; k++) e -= R[k * m + j] * b[k];
-    b[j] = e / R[j * m + j];
+    b[j] = e * rdiag[j];
   }
 }
 
@@ -475,6 +483,7 @@ static int cholesky(mechsim_projection *c, double *S, double diag, double min_rc
   } else if (small_cholesky(c->m, S, S)) {
     return 1;
   }
+  for (int64_t j = 0; j < c->m; j++) c->rdiag[j] = 1.0 / S[j + j * c->m];
   if (min_rcond >= 0.0) {
     double anorm = (double)c->m * diag, rcond = 0.0;
     const double bound = anorm * mechsim_inverse_norm_bound(c->m, S, c->Winv);
@@ -605,7 +614,7 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
   const double diag = complement(n, m, J, winv, S, c->nz);
   if (cholesky(c, S, diag, min_rcond, 0))
     return cut > 0.0 ? svd_accelerations(c, J, g, cut) : 1;
-  cholesky_solve(m, S, lam);
+  cholesky_solve(m, S, c->rdiag, lam);
   memcpy(c->out, c->v, n * sizeof(double));
   for (int64_t j = 0; j < n; j++) {
     double s = 0.0;
@@ -669,7 +678,7 @@ int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
 static int correct(mechsim_projection *c, const double *J, const double *S, double *r,
                    double *x) {
   const int64_t n = c->n, m = c->m;
-  cholesky_solve(m, S, r);
+  cholesky_solve(m, S, c->rdiag, r);
   for (int64_t j = 0; j < n; j++) {
     double s = 0.0;
     for (int64_t i = 0; i < m; i++) s += J[i * n + j] * r[i];
@@ -686,8 +695,18 @@ static int correct(mechsim_projection *c, const double *J, const double *S, doub
    q and the same factor. 0: projected, c->count the Newton iterations; 2: max|Phi| <=
    skip_tol, left as it is; 1: declined (the factor fails, or with min_rcond >= 0 its
    condition estimate is not above it; the chord does not converge within max_iter). */
+static int project_state(mechsim_projection *c, double t, double skip_tol, double tol,
+                         double min_rcond, int64_t extra, int64_t max_iter, int velocities);
+
 int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, double tol,
                           double min_rcond, int64_t extra, int64_t max_iter) {
+  return project_state(c, t, skip_tol, tol, min_rcond, extra, max_iter, 1);
+}
+
+/* mechsim_project_state; without `velocities` the velocity is left as it was (J is Phi_q
+   at the new q all the same). */
+static int project_state(mechsim_projection *c, double t, double skip_tol, double tol,
+                         double min_rcond, int64_t extra, int64_t max_iter, int velocities) {
   const int64_t n = c->n, m = c->m;
   double *q = c->q, *v = c->v, *J = c->J, *phi = c->phi, *r = c->r, *S = c->S;
   mechsim_phi(q, t, c->p, phi);
@@ -718,6 +737,8 @@ int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, doub
   }
   memset(J, 0, m * n * sizeof(double));
   mechsim_phi_q(q, t, c->p, J);        /* S keeps the factor at the given q */
+  c->count = count;
+  if (!velocities) return 0;
   memset(r, 0, m * sizeof(double));
   mechsim_phi_t(q, t, c->p, r);
   for (int64_t i = 0; i < m; i++) {
@@ -726,35 +747,34 @@ int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, doub
     for (int64_t j = 0; j < n; j++) s += Ji[j] * v[j];
     r[i] += s;
   }
-  if (correct(c, J, S, r, v)) return 1;
-  c->count = count;
-  return 0;
+  return correct(c, J, S, r, v);
 }
 
 /* The state (t, q, v) projected in place as mechsim_project_state with skip_tol = tol (no
-   condition test, no extra iterations), the velocity of a moved state projected once more
-   on the factor at its new q (the chord's factor at the old q leaves J v off by |dJ| |dv|):
-   0 (projected), 2 (within tol already, left) or 1 (declined: left, for the Python path). */
+   condition test, no extra iterations), but the velocity of the moved state projected on
+   the factor at its new q (the chord's factor at the old q would leave J v off by
+   |dJ| |dv|; a projection there first changes nothing but round-off: the projection onto
+   J v + Phi_t = 0 in the mass metric takes v + W J^T y where it takes v): 0 (projected),
+   2 (within tol already, left) or 1 (declined: left, for the Python path). */
 static int settle_state(mechsim_projection *c, double t, double *q, double *v, double tol,
                         int64_t max_iter) {
   const int64_t n = c->n;
   memcpy(c->q, q, n * sizeof(double));
   memcpy(c->v, v, n * sizeof(double));
-  const int status = mechsim_project_state(c, t, tol, tol, -1.0, 0, max_iter);
+  const int status = project_state(c, t, tol, tol, -1.0, 0, max_iter, 0);
   if (status != 0) return status;
-  if (c->count > 0) {
-    /* c->J is Phi_q at the new q: its own factor makes J v + Phi_t vanish */
-    const double diag = complement(n, c->m, c->J, c->winv, c->S, c->nz);
-    if (cholesky(c, c->S, diag, -1.0, 0)) return 1;
-    memset(c->r, 0, c->m * sizeof(double));
-    mechsim_phi_t(c->q, t, c->p, c->r);
-    for (int64_t a = 0; a < c->m; a++) {
-      double s = 0.0;
-      for (int64_t j = 0; j < n; j++) s += c->J[a * n + j] * c->v[j];
-      c->r[a] += s;
-    }
-    if (correct(c, c->J, c->S, c->r, c->v)) return 1;
+  /* c->J is Phi_q at the new q (status 0 took a Newton step at least: Phi was above
+     tol = skip_tol): its own factor makes J v + Phi_t vanish */
+  const double diag = complement(n, c->m, c->J, c->winv, c->S, c->nz);
+  if (cholesky(c, c->S, diag, -1.0, 0)) return 1;
+  memset(c->r, 0, c->m * sizeof(double));
+  mechsim_phi_t(c->q, t, c->p, c->r);
+  for (int64_t a = 0; a < c->m; a++) {
+    double s = 0.0;
+    for (int64_t j = 0; j < n; j++) s += c->J[a * n + j] * c->v[j];
+    c->r[a] += s;
   }
+  if (correct(c, c->J, c->S, c->r, c->v)) return 1;
   memcpy(q, c->q, n * sizeof(double));
   memcpy(v, c->v, n * sizeof(double));
   return 0;

@@ -112,6 +112,7 @@ PROJECTION = Layout("mechsim_projection", [
     *(Field(name, "double*") for name in ("q", "v", "Q", "out")),
     Field("J", "double*", lambda d: d.m * d.n), Field("J1", "double*", lambda d: d.m * d.n),
     Field("A", "double*", lambda d: d.m * d.n), Field("S", "double*", lambda d: d.m * d.m),
+    Field("rdiag", "double*", lambda d: d.m),        # 1 / diagonal of `cholesky`'s factor
     Field("X", "double*", lambda d: d.m * d.m), Field("sig", "double*", lambda d: d.m),
     Field("Winv", "double*", lambda d: d.m * d.m),     # `cholesky`'s inverse factor
     Field("U", "double*", lambda d: d.n * d.m), Field("VT", "double*", lambda d: d.m * d.m),
