@@ -74,3 +74,41 @@ def test_the_reference_time_at_an_error_follows_its_work_precision_curve():
             Row(name, "lu", "DOP853", 1e-6, "failed", 1e-7, 0.0, 4e-3, 10, 100, 1)]
     lines = peers.against_reference(mine, rows)
     assert len(lines) == 1 and lines[0].endswith("→ 2.00×")
+
+
+def test_the_floor_is_timed_in_the_rounds_of_mechsim_s_runs(monkeypatch):
+    """`mechsim bench peers` times the exact 1-DOF floor after each round of mechsim's
+    runs of a problem (`bench.run`'s `beside`), at least `MIN_FLOOR_RUNS` times at each
+    rtol, keeping each rtol's shortest time with that run's error; a problem without an
+    exact 1-DOF equation (the driven slider-crank, 0 DOF) has no floor."""
+    from mechsim.app import bench
+    walls = iter(np.linspace(0.9, 0.1, 1000))
+    calls = []
+
+    def timed(problem, rtol, output_step):
+        calls.append((problem.name, rtol))
+        t = np.linspace(0.0, problem.t_end, 3)
+        return next(walls), t, np.column_stack([np.cos(t), np.sin(t)])
+    monkeypatch.setattr(peers, "exact_run", timed)
+    monkeypatch.setattr(peers, "EXACT_RTOLS", (1e-3, 1e-6))
+    rounds = []
+    floor = peers.Floor()
+
+    def beside(name, round_, count):
+        rounds.append((name, round_, count, len(calls)))
+        floor(name, round_, count)
+    names = ["parallelogram", "driven-slider-crank"]
+    rows = bench.run(names, ["lu"], [1e-3], progress=None, repeat=2, beside=beside)
+    assert [r.problem for r in rows] == names
+    assert [r[:3] for r in rounds] == [(name, k, 2) for name in names for k in (0, 1)]
+    assert rounds[1][3] == 2 and len(calls) == 2 * peers.MIN_FLOOR_RUNS
+    assert {name for name, _ in calls} == {"parallelogram"}
+    got = floor.rows("parallelogram")
+    assert [r.step for r in got] == [1e-3, 1e-6] and floor.rows("driven-slider-crank") == []
+    # times fall run after run: each rtol keeps its last run's, the fourth and sixth
+    w = np.linspace(0.9, 0.1, 1000)
+    assert [r.wall_time for r in got] == [w[3], w[5]]
+    problem = bench.PROBLEMS["parallelogram"]
+    t = np.linspace(0.0, problem.t_end, 3)
+    error = problem.point_error(t, np.column_stack([np.cos(t), np.sin(t)]))
+    assert all(r.error == error and r.tool == "exact 1-DOF DOP853" for r in got)

@@ -177,12 +177,14 @@ def check(problems, methods, repeat=1):
 
 
 def run(problems=DEFAULT_PROBLEMS, methods=DEFAULT_METHODS, rtols=DEFAULT_RTOLS,
-        integrator=None, max_steps=20000, progress=print, repeat=1) -> list[Row]:
+        integrator=None, max_steps=20000, progress=print, repeat=1, beside=None) -> list[Row]:
     """Run every (problem, method, rtol); one warm-up run per problem first so that model
     building and imports are not timed. With `repeat` > 1 every run is repeated in rounds
     (each round runs all methods and tolerances once) and the shortest wall time is kept:
     on a machine whose speed drifts over minutes, rounds keep the methods' times measured
-    side by side, and the minimum is the run least disturbed."""
+    side by side, and the minimum is the run least disturbed. `beside(problem, round,
+    rounds)`, where given, is called after each round of a problem: what is timed there
+    (the floor `mechsim bench peers` measures mechsim against) shares the rounds."""
     check(problems, methods, repeat)
     rows = []
     for name in problems:
@@ -215,6 +217,8 @@ def run(problems=DEFAULT_PROBLEMS, methods=DEFAULT_METHODS, rtols=DEFAULT_RTOLS,
                     rows.append(best[case])
                     if progress:
                         progress(format_row(best[case]))
+            if beside is not None:
+                beside(name, round_, int(repeat))
     return rows
 
 

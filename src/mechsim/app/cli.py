@@ -307,8 +307,9 @@ def _numbers(text, option, default) -> list[float]:
     return values
 
 
-def _peers(rows, problems, repeat, out) -> list:
-    """`mechsim bench peers`: MuJoCo and Exudyn on `problems` beside mechsim's `rows`."""
+def _peers(rows, problems, repeat, out, floor=None) -> list:
+    """`mechsim bench peers`: MuJoCo and Exudyn on `problems` beside mechsim's `rows`, and
+    the exact 1-DOF floor (`floor`, timed in the rounds of mechsim's runs)."""
     from . import peers
     try:
         import exudyn  # noqa: F401
@@ -316,7 +317,7 @@ def _peers(rows, problems, repeat, out) -> list:
     except ImportError:
         raise ValueError("bench peers needs mujoco and exudyn: pip install mujoco exudyn "
                          "(from a checkout, pip install '.[peers]')") from None
-    peer_rows = peers.run(problems, repeat=repeat)
+    peer_rows = peers.run(problems, repeat=repeat, floor=floor)
     print("peers (fixed steps) and mechsim's cheapest run at least as accurate:")
     for line in peers.compare(rows, peer_rows):
         print(line)
@@ -351,8 +352,12 @@ def _bench(args) -> int:
             repeat = 1 if args.repeat is None else args.repeat
             bench.check(problems, methods, repeat)
             print(bench.HEADER)
+            floor = None
+            if peers:                      # the floor in the rounds of mechsim's runs
+                from .peers import Floor
+                floor = Floor()
             rows = bench.run(problems, methods, rtols, integrator=args.integrator,
-                             max_steps=args.max_steps, repeat=repeat)
+                             max_steps=args.max_steps, repeat=repeat, beside=floor)
             for rtol in rtols:
                 for name, r in bench.ratios(rows, rtol).items():
                     print(f"ratios at rtol {rtol:.0e}, {name}: " +
@@ -363,7 +368,7 @@ def _bench(args) -> int:
                 print(line)
             written += bench.write(rows, args.out)
             if peers:
-                written += _peers(rows, problems, repeat, args.out)
+                written += _peers(rows, problems, repeat, args.out, floor)
         if sweep:
             print(f"random mechanisms: the default method against projection at rtol "
                   f"{rtols[-1]:.0e}")
