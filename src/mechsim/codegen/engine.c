@@ -359,33 +359,34 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
 
 /* ---- the projection method (Projection.accelerations, NumericProblem.project_state) ---- */
 
-/* S = J W J^T (both triangles, column-major); returns max S_ii. Summed by the columns of J:
-   each adds J_ij w_j J_kj to S_ik (i >= k) for the rows i, k where that column is not zero
-   (nz: scratch of m n + m entries), so each S_ik takes its terms in the order of j as a
-   row-by-row sum does, and leaves out only zero products, which leave a sum as it was: S
-   is the dense sums' to the bit at a fraction of them (a joint's rows touch two bodies'
-   coordinates, a coordinate a few joints' rows). */
+/* S = J W J^T (both triangles, column-major); returns max S_ii. Each row's sums run over
+   the columns where that row of J is not zero (nz: scratch of m n + m entries), in their
+   order: a zero product leaves a sum as it was, so S is the dense sums' to the bit at a
+   fraction of them (a joint's rows touch two bodies' coordinates). */
 static double complement(int64_t n, int64_t m, const double *J, const double *winv,
                          double *S, int64_t *nz) {
-  int64_t *rows = nz;
-  memset(S, 0, m * m * sizeof(double));
-  for (int64_t j = 0; j < n; j++) {
-    int64_t c = 0;
-    for (int64_t i = 0; i < m; i++)
-      if (J[i * n + j] != 0.0) rows[c++] = i;
-    const double w = winv[j];
-    for (int64_t a = 0; a < c; a++) {
-      const int64_t i = rows[a];
-      const double x = J[i * n + j] * w;
-      for (int64_t b = 0; b <= a; b++) {
-        const int64_t k = rows[b];
-        S[i + k * m] += x * J[k * n + j];
-      }
-    }
+  int64_t *count = nz + m * n;
+  for (int64_t i = 0; i < m; i++) {
+    const double *Ji = J + i * n;
+    int64_t *cols = nz + i * n, c = 0;
+    for (int64_t j = 0; j < n; j++)
+      if (Ji[j] != 0.0) cols[c++] = j;
+    count[i] = c;
   }
   double diag = 0.0;
   for (int64_t i = 0; i < m; i++) {
-    for (int64_t k = 0; k < i; k++) S[k + i * m] = S[i + k * m];
+    const double *Ji = J + i * n;
+    const int64_t *cols = nz + i * n, ci = count[i];
+    for (int64_t k = 0; k <= i; k++) {
+      const double *Jk = J + k * n;
+      double e = 0.0;
+      for (int64_t a = 0; a < ci; a++) {
+        const int64_t j = cols[a];
+        e += Ji[j] * winv[j] * Jk[j];
+      }
+      S[i + k * m] = e;
+      S[k + i * m] = e;
+    }
     if (S[i + i * m] > diag) diag = S[i + i * m];
   }
   return diag;
