@@ -227,9 +227,8 @@ class Floor:
     in the rounds of mechsim's own runs (`mechsim.app.bench.run`'s `beside`): the floor
     mechsim's runs are measured against is then timed minutes apart from them no more
     than they are from each other (a machine's speed drifts over minutes, and a scipy
-    integration in Python and a run in the compiled engine need not drift alike:
-    docs/benchmarks.md, 2026-11-29, session 50). Each (problem, rtol) keeps its shortest
-    of at least `MIN_FLOOR_RUNS` runs."""
+    integration in Python and a run in the compiled engine need not drift alike). Each
+    (problem, rtol) keeps its shortest of at least `MIN_FLOOR_RUNS` runs."""
 
     def __init__(self):
         self.best = {}                    # (problem, rtol) -> (wall, error)
