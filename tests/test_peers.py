@@ -101,13 +101,15 @@ def test_the_floor_is_timed_in_the_rounds_of_mechsim_s_runs(monkeypatch):
     rows = bench.run(names, ["lu"], [1e-3], progress=None, repeat=2, beside=beside)
     assert [r.problem for r in rows] == names
     assert [r[:3] for r in rounds] == [(name, k, 2) for name in names for k in (0, 1)]
-    assert rounds[1][3] == 2 and len(calls) == 2 * peers.MIN_FLOOR_RUNS
+    assert rounds[1][3] == 2           # the floor ran in the first round, each rtol once
     assert {name for name, _ in calls} == {"parallelogram"}
+    assert all(calls.count(("parallelogram", r)) >= peers.MIN_FLOOR_RUNS for r in (1e-3, 1e-6))
     got = floor.rows("parallelogram")
     assert [r.step for r in got] == [1e-3, 1e-6] and floor.rows("driven-slider-crank") == []
-    # times fall run after run: each rtol keeps its last run's, the fourth and sixth
+    # times fall run after run: each rtol keeps its last run's
     w = np.linspace(0.9, 0.1, 1000)
-    assert [r.wall_time for r in got] == [w[3], w[5]]
+    last = [max(i for i, call in enumerate(calls) if call[1] == r) for r in (1e-3, 1e-6)]
+    assert [r.wall_time for r in got] == [w[i] for i in last]
     problem = bench.PROBLEMS["parallelogram"]
     t = np.linspace(0.0, problem.t_end, 3)
     error = problem.point_error(t, np.column_stack([np.cos(t), np.sin(t)]))
