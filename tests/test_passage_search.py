@@ -58,22 +58,24 @@ def test_the_compiled_search_is_the_python_search_to_the_bit(name, method, rtol,
 
 
 def _brent_by_scipy(algebra, dense, ta, tb, k, xatol, positions):
-    """(t, s) of scipy's bounded minimum of σ_k/σ_max over [ta, tb] of the step `dense`,
-    the configurations by `positions(t, y)`, the singular values the engine's."""
+    """(t, s) of scipy's bounded minimum of (σ_k/σ_max)² over [ta, tb] of the step `dense`,
+    the configurations by `positions(t, y)`, the singular values the engine's; s there."""
     def s_at(t):
         smin, smax = algebra.singular_extremes([t], positions(t, dense(t))[None, :], k)[0]
         return smin / smax
-    found = minimize_scalar(s_at, bounds=(ta, tb), method="bounded", options={"xatol": xatol})
-    return float(found.x), float(found.fun)
+    found = minimize_scalar(lambda t: s_at(t) ** 2, bounds=(ta, tb), method="bounded",
+                            options={"xatol": xatol})
+    return float(found.x), float(s_at(found.x))
 
 
 @needs_compiler
 def test_a_passage_s_minimum_is_brent_s_as_scipy_finds_it(monkeypatch):
     """The engine's minimum of σ_min/σ_max over an interval of a step (Brent's bounded
-    search), the positions solved on the partition, lands where scipy's
-    `minimize_scalar(method="bounded")` lands on the same function (the engine's
-    positions and singular values, called from Python), to the bit; and its minimum is a
-    passage's: under 1e-6 at the double four-bar's change points."""
+    search on its square, smooth where it is V-shaped), the positions solved on the
+    partition, lands where scipy's `minimize_scalar(method="bounded")` lands on the same
+    function (the engine's positions and singular values, called from Python), to the
+    bit; and its minimum is a passage's: under 1e-6 at the double four-bar's change
+    points."""
     from mechsim.run import segment
     monkeypatch.setattr(segment, "enabled", False)    # the loop's steps
     mech, run = _run("double-four-bar", "lu", 3e-3)
