@@ -106,11 +106,14 @@ class Projection(FullCoordinates):
         J = sparse.dense(problem.phi_q(q, t))
         scaled = problem.mass_factor(q).cols(J)
         k = problem.m - redundant - 1
-        s_scaled, s_plain = (np.linalg.svd(sparse.dense(A), compute_uv=False) for A in (scaled, J))
+        s_scaled = np.linalg.svd(sparse.dense(scaled), compute_uv=False)
         ratio = s_scaled[k] / s_scaled[0] if s_scaled[0] > 0.0 else 0.0
-        plain = s_plain[k] / s_plain[0] if s_plain[0] > 0.0 else 0.0
         limit = max(RESOLUTION, np.finfo(float).eps / rtol)
-        if not (ratio < limit and plain > 100.0 * ratio):
+        if not ratio < limit:                 # (Φ_q's own ratio only decides below it)
+            return ""
+        s_plain = np.linalg.svd(J, compute_uv=False)
+        plain = s_plain[k] / s_plain[0] if s_plain[0] > 0.0 else 0.0
+        if not plain > 100.0 * ratio:
             return ""
         m = problem.mass_diagonal if problem.constant_mass else np.diag(problem.mass(q))
         names = problem.coordinate_names
