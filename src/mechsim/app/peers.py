@@ -260,9 +260,10 @@ def run(problems, repeat: int = 1, steps=None, floor=None) -> list[PeerRow]:
     chain of 40 windows or more) on each problem of `mechsim.app.bench.PROBLEMS` named,
     each run's shortest wall time of `repeat`; on a problem with an exact 1-DOF equation,
     scipy's DOP853 on it at each of `EXACT_RTOLS`: `floor`'s (a `Floor` timed in the rounds
-    of mechsim's runs), or timed here (best of at least `MIN_FLOOR_RUNS`)."""
+    of mechsim's runs), or a `Floor` timed here in `repeat` rounds."""
     from .bench import PROBLEMS
-    rows = []
+    rows, own = [], floor is None
+    floor = Floor() if own else floor
     for name in problems:
         problem = PROBLEMS[name]
         trace = problem.traced
@@ -281,16 +282,9 @@ def run(problems, repeat: int = 1, steps=None, floor=None) -> list[PeerRow]:
                     best = min(best, wall)
                     err = problem.point_error(t, xy)
                 rows.append(PeerRow(name, tool, h, err, best))
-        if floor is not None:
-            rows += floor.rows(name)
-        elif problem.reference is None and problem.exact is None:
-            for rtol in EXACT_RTOLS:
-                best, err = math.inf, math.nan
-                for _ in range(max(repeat, MIN_FLOOR_RUNS)):
-                    wall, t, xy = exact_run(problem, rtol, output_step)
-                    best = min(best, wall)
-                    err = problem.point_error(t, xy)
-                rows.append(PeerRow(name, "exact 1-DOF DOP853", rtol, err, best))
+        for round_ in range(repeat if own else 0):
+            floor(name, round_, repeat)
+        rows += floor.rows(name)
     return rows
 
 

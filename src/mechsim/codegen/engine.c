@@ -58,7 +58,7 @@ static int small_lu(int64_t r, double *A, int *ipiv) {
         A[p + k * r] = keep;
       }
     const double pivot = A[j + j * r];
-    if (fabs(pivot) >= 2.2250738585072014e-308) {     /* dgetf2: 1/pivot where it is finite */
+    if (fabs(pivot) >= DBL_MIN) {                   /* dgetf2: 1/pivot where it is finite */
       const double inv = 1.0 / pivot;
       for (int64_t i = j + 1; i < r; i++) A[i + j * r] *= inv;
     } else {
@@ -687,28 +687,35 @@ static int correct(mechsim_projection *c, const double *J, const double *S, doub
   return 0;
 }
 
-/* (c->q, c->v) projected in place onto the constraints in the mass metric, as
-   NumericProblem.project_state: a chord Newton on Phi with the one Cholesky factor of
-   J W J^T at the given q (stopping at max|Phi| <= tol or at round-off: the residual
-   shrinks by less than stall_ratio and lies within stall_span tol; then `extra` further
-   iterations), and the velocity projection v -= W J^T S^-1 (J v + Phi_t) with J at the new
-   q and the same factor. 0: projected, c->count the Newton iterations; 2: max|Phi| <=
-   skip_tol, left as it is; 1: declined (the factor fails, or with min_rcond >= 0 its
-   condition estimate is not above it; the chord does not converge within max_iter). */
-static int project_state(mechsim_projection *c, double t, double skip_tol, double tol,
-                         double min_rcond, int64_t extra, int64_t max_iter, int velocities);
-
-int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, double tol,
-                          double min_rcond, int64_t extra, int64_t max_iter) {
-  return project_state(c, t, skip_tol, tol, min_rcond, extra, max_iter, 1);
+/* The velocity c->v projected in place onto J v + Phi_t = 0 in the mass metric,
+   v -= W J^T S^-1 (J v + Phi_t), with J = c->J Phi_q at c->q and S = c->S the Cholesky
+   factor of `cholesky`. 0: done; 1: declined. */
+static int project_velocity(mechsim_projection *c, double t) {
+  const int64_t n = c->n, m = c->m;
+  double *r = c->r;
+  memset(r, 0, m * sizeof(double));
+  mechsim_phi_t(c->q, t, c->p, r);
+  for (int64_t i = 0; i < m; i++) {
+    const double *Ji = c->J + i * n;
+    double s = 0.0;
+    for (int64_t j = 0; j < n; j++) s += Ji[j] * c->v[j];
+    r[i] += s;
+  }
+  return correct(c, c->J, c->S, r, c->v);
 }
 
-/* mechsim_project_state; without `velocities` the velocity is left as it was (J is Phi_q
-   at the new q all the same). */
-static int project_state(mechsim_projection *c, double t, double skip_tol, double tol,
-                         double min_rcond, int64_t extra, int64_t max_iter, int velocities) {
+/* c->q projected in place onto the constraints in the mass metric, as
+   NumericProblem.project_state's positions: a chord Newton on Phi with the one Cholesky
+   factor of J W J^T at the given q (stopping at max|Phi| <= tol or at round-off: the
+   residual shrinks by less than stall_ratio and lies within stall_span tol; then `extra`
+   further iterations); c->J is Phi_q at the new q after it, c->S the factor at the given
+   q. 0: projected, c->count the Newton iterations; 2: max|Phi| <= skip_tol, left as it
+   is; 1: declined (the factor fails, or with min_rcond >= 0 its condition estimate is not
+   above it; the chord does not converge within max_iter). */
+static int project_positions(mechsim_projection *c, double t, double skip_tol, double tol,
+                             double min_rcond, int64_t extra, int64_t max_iter) {
   const int64_t n = c->n, m = c->m;
-  double *q = c->q, *v = c->v, *J = c->J, *phi = c->phi, *r = c->r, *S = c->S;
+  double *q = c->q, *J = c->J, *phi = c->phi, *r = c->r, *S = c->S;
   mechsim_phi(q, t, c->p, phi);
   double err = max_abs(m, phi);
   if (err <= skip_tol) return 2;
@@ -736,18 +743,19 @@ static int project_state(mechsim_projection *c, double t, double skip_tol, doubl
     mechsim_phi(q, t, c->p, phi);
   }
   memset(J, 0, m * n * sizeof(double));
-  mechsim_phi_q(q, t, c->p, J);        /* S keeps the factor at the given q */
+  mechsim_phi_q(q, t, c->p, J);
   c->count = count;
-  if (!velocities) return 0;
-  memset(r, 0, m * sizeof(double));
-  mechsim_phi_t(q, t, c->p, r);
-  for (int64_t i = 0; i < m; i++) {
-    const double *Ji = J + i * n;
-    double s = 0.0;
-    for (int64_t j = 0; j < n; j++) s += Ji[j] * v[j];
-    r[i] += s;
-  }
-  return correct(c, J, S, r, v);
+  return 0;
+}
+
+/* (c->q, c->v) projected in place onto the constraints in the mass metric, as
+   NumericProblem.project_state: the positions (`project_positions`), then the velocity
+   (`project_velocity`) with J at the new q and the factor at the given q. Returns as
+   `project_positions`, or 1 where the velocity's projection declines. */
+int mechsim_project_state(mechsim_projection *c, double t, double skip_tol, double tol,
+                          double min_rcond, int64_t extra, int64_t max_iter) {
+  const int status = project_positions(c, t, skip_tol, tol, min_rcond, extra, max_iter);
+  return status ? status : project_velocity(c, t);
 }
 
 /* The state (t, q, v) projected in place as mechsim_project_state with skip_tol = tol (no
@@ -761,20 +769,12 @@ static int settle_state(mechsim_projection *c, double t, double *q, double *v, d
   const int64_t n = c->n;
   memcpy(c->q, q, n * sizeof(double));
   memcpy(c->v, v, n * sizeof(double));
-  const int status = project_state(c, t, tol, tol, -1.0, 0, max_iter, 0);
+  const int status = project_positions(c, t, tol, tol, -1.0, 0, max_iter);
   if (status != 0) return status;
   /* c->J is Phi_q at the new q (status 0 took a Newton step at least: Phi was above
      tol = skip_tol): its own factor makes J v + Phi_t vanish */
   const double diag = complement(n, c->m, c->J, c->winv, c->S, c->nz);
-  if (cholesky(c, c->S, diag, -1.0, 0)) return 1;
-  memset(c->r, 0, c->m * sizeof(double));
-  mechsim_phi_t(c->q, t, c->p, c->r);
-  for (int64_t a = 0; a < c->m; a++) {
-    double s = 0.0;
-    for (int64_t j = 0; j < n; j++) s += c->J[a * n + j] * c->v[j];
-    c->r[a] += s;
-  }
-  if (correct(c, c->J, c->S, c->r, c->v)) return 1;
+  if (cholesky(c, c->S, diag, -1.0, 0) || project_velocity(c, t)) return 1;
   memcpy(q, c->q, n * sizeof(double));
   memcpy(v, c->v, n * sizeof(double));
   return 0;

@@ -65,7 +65,7 @@ from .search import StepSearch
 # The engine's own C (shipped beside this module), after the declarations of the model's C
 # twins it calls and the structures' typedefs (`layout`).
 _ENGINE_C = "engine.c"
-_HEADERS = "#include <math.h>\n#include <stdint.h>\n#include <string.h>\n\n"
+_HEADERS = "#include <float.h>\n#include <math.h>\n#include <stdint.h>\n#include <string.h>\n\n"
 # The model's C twins the engine calls (`mechsim.codegen.printer`), declared for the
 # engine compiled on its own (`engine_object`).
 _MODEL = """void mechsim_phi(const double *q, double t, const double *p, double *o0);
