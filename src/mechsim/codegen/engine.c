@@ -2941,6 +2941,47 @@ int mechsim_bridge_corrector(mechsim_projection *pc, int64_t N, int64_t K, const
   return 0;
 }
 
+/* RMS of (a - b) / scale (b NULL: of a / scale), scale = atol + rtol |y| (scipy's norm). */
+static double scaled_rms(int64_t N, const double *a, const double *b, const double *y,
+                         double rtol, const double *atol) {
+  double sum = 0.0;
+  for (int64_t i = 0; i < N; i++) {
+    const double r = (b != NULL ? a[i] - b[i] : a[i]) / (atol[i] + fabs(y[i]) * rtol);
+    sum += r * r;
+  }
+  return sqrt(sum / (double)N);
+}
+
+/* The first step of an integrator at (s->t, s->y) with rate s->fy (N entries) towards
+   s->t_bound on the projection context pc, into s->h_abs: the starting step of Hairer, Nørsett and Wanner (Solving
+   Ordinary Differential Equations I, II.4) as scipy's `select_initial_step` takes it for
+   DOP853 (error order 7): h0 from the sizes of y and its rate, one more rate at an Euler
+   step of h0 (on the step's rate, s->rate_rcond; into s->f_new, counted in
+   s->evaluations) for the rate's change, and the step that keeps the next term of
+   order 8 at 1 % of the tolerance, at most 100 h0, the interval and s->max_step. 0, or 1
+   where that rate is declined. */
+static int starting_step(mechsim_projection *pc, mechsim_segment *s, int64_t N) {
+  const double *y = s->y, *f0 = s->fy, *atol = s->atol;
+  double *y1 = s->y_new, *f1 = s->f_new;
+  const double rtol = s->rtol, interval = fabs(s->t_bound - s->t);
+  if (interval == 0.0) {
+    s->h_abs = 0.0;
+    return 0;
+  }
+  const double d0 = scaled_rms(N, y, NULL, y, rtol, atol);
+  const double d1 = scaled_rms(N, f0, NULL, y, rtol, atol);
+  const double h0 = py_min(d0 < 1e-5 || d1 < 1e-5 ? 1e-6 : 0.01 * d0 / d1, interval);
+  for (int64_t i = 0; i < N; i++) y1[i] = y[i] + h0 * s->direction * f0[i];
+  if (projection_rate(pc, s->t + h0 * s->direction, y1, s->rate_rcond, s->cut, f1))
+    return 1;
+  s->evaluations += 1;
+  const double d2 = scaled_rms(N, f1, f0, y, rtol, atol) / h0;
+  const double h1 = d1 <= 1e-15 && d2 <= 1e-15 ? py_max(1e-6, h0 * 1e-3)
+                                               : pow(0.01 / py_max(d1, d2), 1.0 / 8.0);
+  s->h_abs = py_min(py_min(100.0 * h0, h1), py_min(interval, s->max_step));
+  return 0;
+}
+
 /* The passage bridge's history (PassageBridge._history and the rates of _start): DOP853
    from (s->t, s->y, s->fy) towards s->t_bound on the projection method's compiled
    accelerations (s->rate_rcond, s->cut), as CompiledDOP853.step takes its steps, the state
@@ -2950,10 +2991,11 @@ int mechsim_bridge_corrector(mechsim_projection *pc, int64_t N, int64_t K, const
    start and at each of those states into the rows of F ((k + 1) x 2n; min_rcond
    s->min_rcond). s->evaluations: the integrator's count so far, which may not exceed
    `budget` after a step (the history grinds); the rates of the steps and their dense
-   output add to it, the chord iterations to s->projections. Returns k; -1 where a stage, a
-   projection or a rate is declined (the Python path takes the history from its start);
-   -2 where the step falls below scipy's smallest or the count exceeds the budget (the
-   bridge declines). */
+   output add to it, the chord iterations to s->projections. Where s->h_abs is 0 the
+   integrator starts here: its rate at the start is F's first row and its first step
+   `starting_step`'s. Returns k; -1 where a stage, a projection or a rate is declined (the
+   Python path takes the history from its start); -2 where the step falls below scipy's
+   smallest or the count exceeds the budget (the bridge declines). */
 int64_t mechsim_history(mechsim_projection *pc, mechsim_segment *s, int64_t k,
                         const double *ts, double budget, double *states, double *F) {
   const int64_t n = pc->n, N = 2 * n;
@@ -2964,6 +3006,10 @@ int64_t mechsim_history(mechsim_projection *pc, mechsim_segment *s, int64_t k,
   s->kind = 0;
   s->projections = 0;
   if (projection_rate(pc, t0, y, s->min_rcond, s->cut, F)) return -1;
+  if (s->h_abs == 0.0) {
+    memcpy(fy, F, N * sizeof(double));
+    if (starting_step(pc, s, N)) return -1;
+  }
   int64_t j = 0;
   while (j < k) {
     const int status = dop853_step(s, N);

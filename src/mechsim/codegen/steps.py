@@ -14,11 +14,17 @@ import ctypes
 
 import numpy as np
 
+from scipy.integrate import DOP853
+
 from ..integrators.compiled import MAX_FACTOR, MIN_FACTOR, SAFETY
 from .layout import PASSAGES, SEGMENT, Dims
 
 # Steps one call takes at most before Python looks in (progress, the stream).
 BUDGET = 256
+# DOP853's stages, its dense output's extra stages (rows, width) and matrix (rows,
+# columns) and its error estimator's order, as scipy's class holds them.
+_DOP853_SHAPE = (DOP853.n_stages, DOP853.A_EXTRA.shape, DOP853.D.shape,
+                 DOP853.error_estimator_order)
 
 
 class PlainSteps:
@@ -76,26 +82,40 @@ class PlainSteps:
         b["y"][:N] = solver.y
         b["fy"][:N] = solver.f
 
-    def history(self, projection, solver, rate, ts, budget):
+    def start_integrator(self, t, y, t_bound, rtol, atol) -> None:
+        """A DOP853 integrator at (t, y) towards t_bound with tolerances rtol and `atol`
+        (an array of y's size, kept alive here), no step limit, into the structure as
+        `load_integrator` loads one that `CompiledDOP853` made, without its rate at y
+        and first step: h_abs 0 asks the engine for them (`mechsim_history`)."""
+        s, b = self.s, self.buffers
+        self.point("atol", atol)
+        s.stages, (s.extra_rows, s.extra_width), (s.dense_rows, s.dense_cols), order = \
+            _DOP853_SHAPE
+        s.t, s.h_abs, s.t_bound = t, 0.0, t_bound
+        s.direction = 1.0 if t_bound >= t else -1.0
+        s.max_step, s.rtol, s.exponent = np.inf, rtol, -1.0 / (order + 1)
+        s.safety, s.min_factor, s.max_factor = SAFETY, MIN_FACTOR, MAX_FACTOR
+        b["y"][:len(y)] = y
+
+    def history(self, projection, rate, ts, budget):
         """The passage bridge's history in the engine (`mechsim_history`) on the
-        projection context `projection` (its address), from the state of `solver` (a
-        `CompiledDOP853` just made, whose `rate` is `rate`): (states (k, 2n) at the k
-        times `ts`, the rates F (k + 1, 2n) at solver's start and at them, the rates the
-        steps evaluated, the chord iterations of the projections); None where the engine
-        declined a stage, a projection or a rate (the caller's Python path takes the
-        history), False where the integration failed or spent more than `budget`
-        evaluations."""
+        projection context `projection` (its address) with `rate`'s min_rcond and cut,
+        from the integrator `start_integrator` loaded: (states (k, 2n) at the k times `ts`, the rates F (k + 1, 2n)
+        at the integrator's start and at them, the rates the engine evaluated for the
+        steps (and the first step), the chord iterations of the projections); None where
+        the engine declined a stage, a projection or a rate (the caller's Python path
+        takes the history), False where the integration failed or spent more than
+        `budget` evaluations."""
         s, N = self.s, 2 * self.shape[0]
-        self.load_integrator(solver)
         s.rate_rcond = s.min_rcond = rate.min_rcond
-        s.cut, s.evaluations = rate.cut, solver.nfev
+        s.cut, s.evaluations = rate.cut, 0
         ts = np.ascontiguousarray(ts, dtype=float)
         states, F = np.empty((len(ts), N)), np.empty((len(ts) + 1, N))
         done = self.lib.mechsim_history(projection, self._address, len(ts), ts.ctypes.data,
                                         float(budget), states.ctypes.data, F.ctypes.data)
         if done < 0:
             return None if done == -1 else False
-        return states, F, s.evaluations - solver.nfev, s.projections
+        return states, F, s.evaluations, s.projections
 
     def corrector(self, projection, rate, y_n, F, weights, H, t_b, tolerances, iterations):
         """The passage bridge's corrector and order estimates in the engine

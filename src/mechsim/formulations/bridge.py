@@ -122,6 +122,7 @@ class PassageBridge:
         self._cut = cut
         self.rtol, self.atol = rtol, atol
         self.tol = Tolerances(rtol, atol)
+        self._inner = self.tol.inner()          # the history's tolerances
         self.order = order
         self.free_step = None                   # step size before the approach
         self.landing = None                     # distance d before t* while approaching
@@ -247,13 +248,14 @@ class PassageBridge:
         rate); None if that integration fails or grinds (`HISTORY_BUDGET` evaluations a
         point: a configuration it cannot resolve). With them the rates at t_n and at
         them where the engine computed those too (`_history_in_engine`), else None."""
-        inner = self.tol.inner()
+        inner = self._inner
+        if self.rate is not None and self.extension is None:
+            done = self._history_in_engine(t_n, y_n, ts, inner)
+            if done is not None:
+                return done or None
         solver = CompiledDOP853(self._f, t_n, y_n, ts[-1], rtol=inner.rtol, atol=inner.atol)
         if self.rate is not None and self.extension is None:
             solver.rate = self._history_rate
-            done = self._history_in_engine(solver, ts)
-            if done is not None:
-                return done or None
         states, k = [], 0
         while k < len(ts):
             solver.step()
@@ -268,14 +270,18 @@ class PassageBridge:
                 states += [self._settled(interpolant(tk), tk) for tk in passed]
         return states, None
 
-    def _history_in_engine(self, solver, ts):
+    def _history_in_engine(self, t_n, y_n, ts, inner):
         """`_history` taken in the engine where it has the steps (`mechsim_history`: the
-        same steps, states and rates, the same counts): (states, the rates at t_n and at
-        them), False where the integration fails or grinds, None where the engine does not
-        take it (the Python loop does)."""
+        same steps, states and rates, its integrator's start too): (states, the rates at
+        t_n and at them), False where the integration fails or grinds, None where the
+        engine does not take it (the Python loop does)."""
         rate, steps = self._engine_steps()
-        done = None if steps is None else steps.history(rate.context, solver, rate, ts,
-                                                        HISTORY_BUDGET * len(ts))
+        if steps is None:
+            return None
+        atol = np.empty(y_n.size)
+        atol[:] = inner.atol
+        steps.start_integrator(t_n, y_n, ts[-1], inner.rtol, atol)
+        done = steps.history(rate.context, rate, ts, HISTORY_BUDGET * len(ts))
         if not done:
             return done
         states, F, evaluations, projections = done
