@@ -43,7 +43,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from ..integrators.adams import error_norm, integration_weights, step_weights
+from ..integrators.adams import error_norm, integration_weights, order_weights, step_weights
 from ..integrators.compiled import (SAFETY, CompiledDOP853, dense_matrix, extra_tableau,
                                     tableau)
 from ..integrators.adapters import proposed_step
@@ -123,6 +123,7 @@ class PassageBridge:
         self.rtol, self.atol = rtol, atol
         self.tol = Tolerances(rtol, atol)
         self._inner = self.tol.inner()          # the history's tolerances
+        self._atols = {}                        # (inner, size) -> atol of every entry
         self.order = order
         self.free_step = None                   # step size before the approach
         self.landing = None                     # distance d before t* while approaching
@@ -241,16 +242,17 @@ class PassageBridge:
             return np.concatenate([q, v])
         return np.concatenate([q, v, self.extension.consistent(t, q, v, y[2 * n:])])
 
-    def _history(self, t_n, y_n, ts):
+    def _history(self, t_n, y_n, ts, engine):
         """Consistent states at the times `ts` (decreasing) before t_n on the trajectory
         through y_n: integrated backwards, away from the configuration, at a hundredth of
         the run's tolerances (DOP853, its steps compiled where `rate` gives the engine's
         rate); None if that integration fails or grinds (`HISTORY_BUDGET` evaluations a
         point: a configuration it cannot resolve). With them the rates at t_n and at
-        them where the engine computed those too (`_history_in_engine`), else None."""
+        them where the engine computed those too (`_history_in_engine` on `engine`,
+        `_engine_steps()`), else None."""
         inner = self._inner
         if self.rate is not None and self.extension is None:
-            done = self._history_in_engine(t_n, y_n, ts, inner)
+            done = self._history_in_engine(t_n, y_n, ts, inner, engine)
             if done is not None:
                 return done or None
         solver = CompiledDOP853(self._f, t_n, y_n, ts[-1], rtol=inner.rtol, atol=inner.atol)
@@ -270,17 +272,15 @@ class PassageBridge:
                 states += [self._settled(interpolant(tk), tk) for tk in passed]
         return states, None
 
-    def _history_in_engine(self, t_n, y_n, ts, inner):
+    def _history_in_engine(self, t_n, y_n, ts, inner, engine):
         """`_history` taken in the engine where it has the steps (`mechsim_history`: the
         same steps, states and rates, its integrator's start too): (states, the rates at
         t_n and at them), False where the integration fails or grinds, None where the
-        engine does not take it (the Python loop does)."""
-        rate, steps = self._engine_steps()
+        engine does not take it (the Python loop does); `engine`: `_engine_steps()`."""
+        rate, steps = engine
         if steps is None:
             return None
-        atol = np.empty(y_n.size)
-        atol[:] = inner.atol
-        steps.start_integrator(t_n, y_n, ts[-1], inner.rtol, atol)
+        steps.start_integrator(t_n, y_n, ts[-1], inner.rtol, self._atol(y_n.size, True))
         done = steps.history(rate.context, rate, ts, HISTORY_BUDGET * len(ts))
         if not done:
             return done
@@ -299,6 +299,15 @@ class PassageBridge:
             self.problem.n, 1, (tableau(), extra_tableau(), dense_matrix())) \
             if rate is not None and SAFETY is not None else None
         return rate, steps
+
+    def _atol(self, size, inner=False) -> np.ndarray:
+        """atol (the history's, with `inner`) for each of `size` entries, as the engine
+        reads it (made once)."""
+        atol = self._atols.get((inner, size))
+        if atol is None:
+            atol = self._atols[inner, size] = np.empty(size)
+            atol[:] = self._inner.atol if inner else self.atol
+        return atol
 
     def _counted(self, rates, projections) -> None:
         """Rates and chord iterations the engine took for the bridge, counted as `_f` and
@@ -346,7 +355,8 @@ class PassageBridge:
         n = self.problem.n
         H = SPAN * (t_star - t_n)
         y_n = np.concatenate([q_n, v_n] + ([] if extra is None else [extra]))
-        start = self._start(t_n, y_n, 0.5 * H, t_floor)
+        engine = self._engine_steps()
+        start = self._start(t_n, y_n, 0.5 * H, t_floor, engine)
         if start is None:
             return None
         ts, F, y_n, history = start
@@ -355,7 +365,7 @@ class PassageBridge:
             return self._decline(np.inf)
         t_b = t_n + H
         nodes = np.concatenate([[1.0], (ts - t_n) / H])
-        done = self._corrector_in_engine(y_n, F, nodes, t_b, H, iterations)
+        done = self._corrector_in_engine(y_n, F, nodes, t_b, H, iterations, engine)
         if done is not None:
             f_b, ys, errs = done
         else:
@@ -402,11 +412,11 @@ class PassageBridge:
         self.landing = self._declined = None
         return self._finish(n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history)
 
-    def _start(self, t_n, y_n, D, t_floor):
+    def _start(self, t_n, y_n, D, t_floor, engine):
         """The history of the step from y_n at t_n: times ts (newest first, D apart,
         back no further than t_floor), the rates F there, y_n, and the states (t, q, v)
         in time order; None where it is too short or cannot be integrated (the bridge
-        declines or stands down)."""
+        declines or stands down). `engine`: `_engine_steps()`."""
         n = self.problem.n
         span = t_n - t_floor
         points = self.order if not span < np.inf else min(self.order, int(span / D) + 1)
@@ -415,7 +425,7 @@ class PassageBridge:
             return None
         ts = t_n - D * np.arange(points)
         y_n = self._settled(y_n, t_n)
-        done = self._history(t_n, y_n, ts[1:])
+        done = self._history(t_n, y_n, ts[1:], engine)
         if done is None:
             self.landing, self.standing_down = None, True
             return None
@@ -451,23 +461,20 @@ class PassageBridge:
                 break
         return f_b
 
-    def _corrector_in_engine(self, y_n, F, nodes, t_b, H, iterations):
+    def _corrector_in_engine(self, y_n, F, nodes, t_b, H, iterations, engine):
         """`_corrected_end` and the orders' ends and estimates of `cross` in the engine
         (`mechsim_bridge_corrector`: the same iterations and orders in its own arithmetic),
         their rates and projections counted as `_f` and `_settled` count them: (f_b, the
         orders' ends, their estimates); None where the engine does not take it (no engine,
-        sensitivities carried, a projection or a rate declined: the Python corrector)."""
-        rate, steps = self._engine_steps()
+        sensitivities carried, a projection or a rate declined: the Python corrector);
+        `engine`: `_engine_steps()`."""
+        rate, steps = engine
         if steps is None:
             return None
-        K = len(F)
-        orders = np.zeros((K - 1, K + 1))
-        for k in range(3, K + 2):
-            orders[k - 3, :k] = step_weights(nodes[:k])
-        atol = np.broadcast_to(np.asarray(self.atol, dtype=float), y_n.shape)
+        orders = order_weights(nodes, 3)            # its last row: the full order's
         done = steps.corrector(rate.context, rate, y_n, F,
-                               (step_weights(nodes[1:]), step_weights(nodes), orders), H, t_b,
-                               (self.rtol, atol), iterations)
+                               (step_weights(nodes[1:]), orders[-1], orders), H, t_b,
+                               (self.rtol, self._atol(y_n.size)), iterations)
         if done is None:
             return None
         f_b, Y, errs, rates, projections = done

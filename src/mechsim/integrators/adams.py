@@ -74,6 +74,30 @@ def step_weights(nodes, s=1.0) -> np.ndarray:
     return w
 
 
+# The corrector weights of every order on a node pattern (`order_weights`).
+_ORDERS: dict = {}
+
+
+def order_weights(nodes, first) -> np.ndarray:
+    """The rows `step_weights(nodes[:k])` for k = first … len(nodes), each padded with zeros
+    to len(nodes) (a matrix of one row an order), cached by the pattern of the nodes as
+    `step_weights` caches its rows (the same numbers): a passage bridge estimates its error
+    from the correctors of all its orders on nodes whose pattern recurs bridge after
+    bridge."""
+    key = (first, tuple(np.rint(np.asarray(nodes) * 2.0**40).astype(np.int64).tolist()))
+    W = _ORDERS.get(key)
+    if W is None:
+        if len(_ORDERS) > 20000:
+            _ORDERS.clear()
+        K = len(nodes)
+        W = np.zeros((K - first + 1, K))
+        for k in range(first, K + 1):
+            W[k - first, :k] = step_weights(nodes[:k])
+        W.flags.writeable = False
+        _ORDERS[key] = W
+    return W
+
+
 def error_norm(e, y_a, y_b, rtol, atol) -> float:
     """RMS of the error e scaled by atol + rtol·max(|y_a|, |y_b|): ≤ 1 meets the tolerance."""
     if not e.size:
