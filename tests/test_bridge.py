@@ -440,9 +440,9 @@ def test_the_engine_s_corrector_is_the_python_corrector_to_round_off(monkeypatch
     compared = []
     in_engine = bridge.PassageBridge._corrector_in_engine
 
-    def checked(self, y_n, F, nodes, t_b, H, iterations):
+    def checked(self, y_n, F, nodes, t_b, H, iterations, engine):
         before = self.evaluations
-        got = in_engine(self, y_n, F, nodes, t_b, H, iterations)
+        got = in_engine(self, y_n, F, nodes, t_b, H, iterations, engine)
         assert got is not None
         rates = self.evaluations - before
         before = self.evaluations
