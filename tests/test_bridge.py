@@ -136,34 +136,41 @@ def test_double_four_bar_bridges_every_passage():
 @needs_compiler
 @pytest.mark.parametrize("method, rtol", [("hybrid", 1e-4), ("projection", 1e-8)])
 def test_the_engine_s_history_is_the_python_loop_s_to_the_bit(method, rtol, monkeypatch):
-    """The bridge's history integrated in the engine (`mechsim_history`: the integrator's
-    start, the backward DOP853 steps, the states settled onto the constraints, the rates
-    there) gives the double four-bar's run of the Python history to the bit, and takes
+    """A bridge's attempt in one call of the engine (`mechsim_bridge_attempt`: the landing
+    state's projection, the history, the prediction's test against the band, the
+    corrector) gives the double four-bar's run of the separate calls (`_start` with the
+    history in the engine, `_out_of_band`, `_corrector_in_engine`) to the bit with the same
+    counts, and the run of the Python history (`mechsim_history` off) to the bit, taking
     every one of its ten bridges. The counts are the same but for one rate (and its
     factorization) a history: the engine's integrator starts on the history's own rate at
     the landing point, where scipy's set-up evaluates it once more."""
     from mechsim.formulations.bridge import PassageBridge
     taken = []
-    in_engine = PassageBridge._history_in_engine
+    attempt = PassageBridge._attempt_in_engine
 
     def counted(self, *args):
-        done = in_engine(self, *args)
+        done = attempt(self, *args)
         taken.append(done is not None)
         return done
     mech = ms.examples.double_four_bar()
     run = dict(t_end=10.0, method=method, rtol=rtol, atol=1e-2 * rtol, output_step=0.01)
-    monkeypatch.setattr(PassageBridge, "_history_in_engine", counted)
+    monkeypatch.setattr(PassageBridge, "_attempt_in_engine", counted)
     fast = mech.simulate(**run)
+    monkeypatch.setattr(PassageBridge, "_attempt_in_engine", lambda self, *args: None)
+    calls = mech.simulate(**run)
     monkeypatch.setattr(PassageBridge, "_history_in_engine", lambda self, *args: None)
     slow = mech.simulate(**run)
     assert fast.success and fast.stats["bridges"] == 10 and sum(taken) >= 10
-    for a, b in ((fast.t, slow.t), (fast.q, slow.q), (fast.v, slow.v)):
-        assert a.tobytes() == b.tobytes()
+    for other in (calls, slow):
+        for a, b in ((fast.t, other.t), (fast.q, other.q), (fast.v, other.v)):
+            assert a.tobytes() == b.tobytes()
+    stats = [{k: v for k, v in r.stats.items() if k != "wall_time"} for r in (fast, calls, slow)]
+    assert stats[0] == stats[1]
     rates = ("rhs_evaluations", "bridge_evaluations", "factorizations")
-    assert {k: v for k, v in fast.stats.items() if k not in ("wall_time", *rates)} == \
-        {k: v for k, v in slow.stats.items() if k not in ("wall_time", *rates)}
+    assert {k: v for k, v in stats[0].items() if k not in rates} == \
+        {k: v for k, v in stats[2].items() if k not in rates}
     for key in rates:
-        assert fast.stats[key] == slow.stats[key] - sum(taken)
+        assert stats[0][key] == stats[2][key] - sum(taken)
 
 
 @pytest.fixture(scope="module")
@@ -455,6 +462,8 @@ def test_the_engine_s_corrector_is_the_python_corrector_to_round_off(monkeypatch
                          float(np.max(np.abs(y_n)))))
         return got
     monkeypatch.setattr(bridge.PassageBridge, "_corrector_in_engine", checked)
+    # (the attempt in one call takes the same corrector: the separate calls, checked here)
+    monkeypatch.setattr(bridge.PassageBridge, "_attempt_in_engine", lambda self, *args: None)
     from mechsim.app.bench import PROBLEMS
     problem = PROBLEMS["double-four-bar"]
     res = problem.build().simulate(t_end=problem.t_end, method="hybrid", rtol=1e-8,

@@ -3045,3 +3045,55 @@ int64_t mechsim_history(mechsim_projection *pc, mechsim_segment *s, int64_t k,
       return -1;
   return k;
 }
+
+/* A passage bridge's attempt in one call (PassageBridge.cross up to its decision: `_start`,
+   `_out_of_band` at the first length, `_corrector_in_engine`) on the projection context pc
+   and the integrator of s (`PlainSteps.start_integrator` set it up, its rates' min_rcond and
+   cut in s): the landing state y (N = 2n entries; out: put onto the constraints as
+   PassageBridge._consistent puts it, mechsim_project_state to 1e-13 and one more chord
+   iteration) at ts[0], its history at the K - 1 times ts[1..] (`mechsim_history` with at
+   most `budget` evaluations: states, F), then the prediction of the step of H to
+   t_b = ts[0] + H with the weights w_pred; where sigma_kk / sigma_max of J~ there (kk) is
+   above `edge2`, the corrector and the orders' estimates (`mechsim_bridge_corrector` with
+   w_pred, w_corr, the L orders' rows W, rtol, atol, `iterations`: f_b, Y, errs). counts:
+   the chord iterations of the landing state's projection, the history's rates and
+   projections, the corrector's rates and chord iterations; work: 3 N. Returns 0 (the
+   corrector's estimates made); 1 (the prediction at H lies in the band: the history is
+   made, the caller lengthens the step); -1 (a projection, a rate or an SVD the engine
+   declines: the Python path takes the attempt from its start); -2 (the history fails or
+   grinds: the bridge stands down). */
+int64_t mechsim_bridge_attempt(mechsim_projection *pc, mechsim_segment *s, int64_t K,
+                               const double *ts, double *y, double H, double budget,
+                               int64_t kk, double edge2, const double *w_pred,
+                               const double *w_corr, int64_t L, const double *W,
+                               double rtol, const double *atol, int64_t iterations,
+                               double *work, double *counts, double *states, double *F,
+                               double *f_b, double *Y, double *errs) {
+  const int64_t n = pc->n, N = 2 * n;
+  const double t_n = ts[0], t_b = t_n + H;
+  memcpy(pc->q, y, n * sizeof(double));
+  memcpy(pc->v, y + n, n * sizeof(double));
+  if (mechsim_project_state(pc, t_n, -1.0, 1e-13, -1.0, 1, 8)) return -1;
+  counts[0] = (double)pc->count;
+  memcpy(y, pc->q, n * sizeof(double));
+  memcpy(y + n, pc->v, n * sizeof(double));
+  memcpy(s->y, y, N * sizeof(double));
+  s->t = t_n;
+  s->h_abs = 0.0;
+  s->evaluations = 0;
+  const int64_t got = mechsim_history(pc, s, K - 1, ts + 1, budget, states, F);
+  if (got < 0) return got;
+  counts[1] = (double)s->evaluations;
+  counts[2] = (double)s->projections;
+  counts[3] = counts[4] = 0.0;
+  adams_sum(N, K, y, H, w_pred, NULL, F, work);
+  double ex[2];
+  scaled_jacobian(pc, work, t_b, pc->A);
+  if (svd_extremes(pc, kk, ex)) return -1;
+  if (!((ex[1] > 0.0 ? ex[0] / ex[1] : 0.0) > edge2)) return 1;
+  if (mechsim_bridge_corrector(pc, N, K, y, F, w_pred, w_corr, L, W, H, t_b, rtol, atol,
+                               iterations, s->min_rcond, s->cut, work, counts + 3, f_b, Y,
+                               errs))
+    return -1;
+  return 0;
+}

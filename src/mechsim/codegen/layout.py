@@ -274,6 +274,7 @@ SIGNATURES = {
     "mechsim_passage_minimum": "pppdddp>i", "mechsim_anchored": "pppddlpl>i",
     "mechsim_multipliers": "plppppddppp>l",
     "mechsim_bridge_corrector": "pllppppl" + "pddd" + "pl" + "dd" + "p" * 5 + ">i",
+    "mechsim_bridge_attempt": "pplppddldpplpdpl" + "p" * 7 + ">l",
 }
 _CODES = {"p": ctypes.c_void_p, "d": ctypes.c_double, "l": ctypes.c_int64, "i": ctypes.c_int,
           "-": None}

@@ -95,7 +95,8 @@ class PlainSteps:
         s.direction = 1.0 if t_bound >= t else -1.0
         s.max_step, s.rtol, s.exponent = np.inf, rtol, -1.0 / (order + 1)
         s.safety, s.min_factor, s.max_factor = SAFETY, MIN_FACTOR, MAX_FACTOR
-        b["y"][:len(y)] = y
+        if y is not None:                       # (else the engine puts it there)
+            b["y"][:len(y)] = y
 
     def history(self, projection, rate, ts, budget):
         """The passage bridge's history in the engine (`mechsim_history`) on the
@@ -141,6 +142,43 @@ class PlainSteps:
                 counts.ctypes.data, f_b.ctypes.data, Y.ctypes.data, errs.ctypes.data):
             return None
         return f_b, Y, errs[:L - 1].tolist(), int(counts[0]), int(counts[1])
+
+    def attempt(self, projection, rate, ts, y, H, budget, row, edge2, weights, tolerances,
+                iterations):
+        """A passage bridge's attempt in the engine (`mechsim_bridge_attempt`) on the
+        projection context `projection` (its address) with `rate`'s min_rcond and cut, the
+        integrator `start_integrator` set up (its state left to the engine): the landing
+        state y at ts[0] put onto the constraints, its history at ts[1:] (at most `budget`
+        rates), and where σ_row/σ_max at the prediction of the step of H exceeds `edge2`
+        the corrector and its orders' estimates, `weights` and `tolerances` as `corrector`
+        takes them. (y settled, the states (k, 2n) at ts[1:], the rates F (k + 1, 2n) at
+        ts, (f_b, the orders' ends, their estimates) or None where the prediction lies in
+        the band, the counts: the landing state's chord iterations, the history's rates
+        and chord iterations, the corrector's rates and chord iterations); -1 where the
+        engine declines (the Python path takes the attempt), -2 where the history fails
+        or grinds."""
+        s, N = self.s, 2 * self.shape[0]
+        s.rate_rcond = s.min_rcond = rate.min_rcond
+        s.cut = rate.cut
+        w_pred, w_corr, W = (np.ascontiguousarray(w, dtype=float) for w in weights)
+        ts = np.ascontiguousarray(ts, dtype=float)
+        y = np.array(y, dtype=float)
+        rtol, atol = tolerances
+        atol = np.ascontiguousarray(atol, dtype=float)
+        K, L = len(ts), len(W)
+        work, counts, f_b = np.empty(3 * N), np.empty(5), np.empty(N)
+        states, F = np.empty((K - 1, N)), np.empty((K, N))
+        Y, errs = np.empty((L, N)), np.empty(max(L - 1, 1))
+        done = self.lib.mechsim_bridge_attempt(
+            projection, self._address, K, ts.ctypes.data, y.ctypes.data, float(H),
+            float(budget), int(row), float(edge2), w_pred.ctypes.data, w_corr.ctypes.data, L,
+            W.ctypes.data, float(rtol), atol.ctypes.data,
+            int(iterations), work.ctypes.data, counts.ctypes.data, states.ctypes.data,
+            F.ctypes.data, f_b.ctypes.data, Y.ctypes.data, errs.ctypes.data)
+        if done < 0:
+            return int(done)
+        corrected = (f_b, Y, errs[:L - 1].tolist()) if done == 0 else None
+        return y, states, F, corrected, counts.astype(int).tolist()
 
     def run_projection(self, projection) -> int:
         """Steps of the projection method on its compiled context (its address): how many

@@ -345,27 +345,44 @@ class PassageBridge:
         return error_norm(e, a, b, self.rtol, self.atol)
 
     def cross(self, t_n, q_n, v_n, t_star, measure, iterations=4, t_floor=-np.inf,
-              extra=None):
-        """One Adams step from (q_n, v_n) at t_n over t*; `measure(q, t)` gives σ_min/σ_max.
-        Its history reaches back no further than `t_floor` (the end of the previous
-        passage, or the start of the run): integrated backwards through an earlier passage
-        it would grind through that configuration. `extra`: the extension's numbers at t_n.
-        Returns the `Crossing`, or None: then the approach goes on with a shorter landing
-        distance, or the bridge stands down for this passage."""
+              extra=None, ratio_row=None):
+        """One Adams step from (q_n, v_n) at t_n over t*; `measure(q, t)` gives σ_min/σ_max
+        (`ratio_row`: σ_k/σ_max of J̃'s singular values alone, the monitor's `ratio_row`,
+        else None). Its history reaches back no further than `t_floor` (the end of the
+        previous passage, or the start of the run): integrated backwards through an
+        earlier passage it would grind through that configuration. `extra`: the
+        extension's numbers at t_n. Returns the `Crossing`, or None: then the approach
+        goes on with a shorter landing distance, or the bridge stands down for this
+        passage."""
         n = self.problem.n
         H = SPAN * (t_star - t_n)
         y_n = np.concatenate([q_n, v_n] + ([] if extra is None else [extra]))
         engine = self._engine_steps()
-        start = self._start(t_n, y_n, 0.5 * H, t_floor, engine)
-        if start is None:
+        ts = self._times(t_n, 0.5 * H, t_floor)
+        if ts is None:
             return None
-        ts, F, y_n, history = start
-        H = self._out_of_band(y_n, F, ts, t_n, H, measure)
-        if H is None:
-            return self._decline(np.inf)
+        attempt = self._attempt_in_engine(ts, y_n, H, ratio_row, iterations, engine)
+        if attempt is False:
+            self.landing, self.standing_down = None, True
+            return None
+        if attempt is None:
+            start = self._start(ts, y_n, engine)
+            if start is None:
+                return None
+            y_n, F, history = start
+            done, tried = None, 0
+        else:
+            y_n, F, history, done = attempt
+            tried = 1
+        if done is None:
+            H = self._out_of_band(y_n, F, ts, t_n, H * 1.3 if tried else H, measure,
+                                  6 - tried)
+            if H is None:
+                return self._decline(np.inf)
         t_b = t_n + H
         nodes = np.concatenate([[1.0], (ts - t_n) / H])
-        done = self._corrector_in_engine(y_n, F, nodes, t_b, H, iterations, engine)
+        if done is None:
+            done = self._corrector_in_engine(y_n, F, nodes, t_b, H, iterations, engine)
         if done is not None:
             f_b, ys, errs = done
         else:
@@ -412,18 +429,22 @@ class PassageBridge:
         self.landing = self._declined = None
         return self._finish(n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history)
 
-    def _start(self, t_n, y_n, D, t_floor, engine):
-        """The history of the step from y_n at t_n: times ts (newest first, D apart,
-        back no further than t_floor), the rates F there, y_n, and the states (t, q, v)
-        in time order; None where it is too short or cannot be integrated (the bridge
-        declines or stands down). `engine`: `_engine_steps()`."""
-        n = self.problem.n
+    def _times(self, t_n, D, t_floor):
+        """The times of a step's history from t_n: newest first, D apart, back no further
+        than t_floor; None where that is too short (the bridge declines)."""
         span = t_n - t_floor
         points = self.order if not span < np.inf else min(self.order, int(span / D) + 1)
         if points < MIN_HISTORY:
             self._decline(np.inf)
             return None
-        ts = t_n - D * np.arange(points)
+        return t_n - D * np.arange(points)
+
+    def _start(self, ts, y_n, engine):
+        """The history of the step from y_n at ts[0] at the times ts: y_n put onto the
+        constraints, the rates F at ts, and the states (t, q, v) in time order; None
+        where it cannot be integrated (the bridge stands down). `engine`:
+        `_engine_steps()`."""
+        t_n = ts[0]
         y_n = self._settled(y_n, t_n)
         done = self._history(t_n, y_n, ts[1:], engine)
         if done is None:
@@ -432,15 +453,56 @@ class PassageBridge:
         states, F = done
         if F is None:
             F = np.array([self._f(tk, y) for tk, y in zip(ts, [y_n] + states)])
-        history = [(tk, y[:n], y[n:2 * n]) for tk, y in zip(ts[::-1], states[::-1] + [y_n])]
-        return ts, F, y_n, history
+        return y_n, F, self._states(ts, y_n, states)
 
-    def _out_of_band(self, y_n, F, ts, t_n, H, measure):
-        """The step's length, from H lengthened up to six times by 1.3 until the predicted
-        end lies out of the band (σ_min/σ_max above twice its edge); None where it does
-        not."""
+    def _states(self, ts, y_n, states):
+        """The history's states (t, q, v) in time order, y_n at ts[0] the last."""
         n = self.problem.n
-        for _ in range(6):
+        return [(tk, y[:n], y[n:2 * n]) for tk, y in zip(ts[::-1], list(states[::-1]) + [y_n])]
+
+    def _attempt_in_engine(self, ts, y_n, H, ratio_row, iterations, engine):
+        """`_start`, `_out_of_band`'s first length and `_corrector_in_engine` in one call of
+        the engine (`mechsim_bridge_attempt`: the same projections, steps, rates and
+        corrections, counted as they count theirs) where it takes the history and the
+        corrector and the monitor's ratio is σ_{m−1}/σ_max (`ratio_row`): (y_n put onto
+        the constraints, the rates F at ts, the states (t, q, v) in time order, the
+        corrector's (f_b, the orders' ends, their estimates) or None where the prediction
+        at H lies in the band); False where the history fails or grinds; None where the
+        engine does not take the attempt (`_start` and the rest take it)."""
+        rate, steps = engine
+        p = self.problem
+        if steps is None or ratio_row != p.m - 1 or p.m > p.n:
+            return None
+        t_n = ts[0]
+        nodes = np.concatenate([[1.0], (ts - t_n) / H])
+        orders = order_weights(nodes, 3)
+        inner = self._inner
+        steps.start_integrator(t_n, None, ts[-1], inner.rtol, self._atol(y_n.size, True))
+        done = steps.attempt(rate.context, rate, ts, y_n, H, HISTORY_BUDGET * (len(ts) - 1),
+                             ratio_row, 2.0 * self.edge,
+                             (step_weights(nodes[1:]), orders[-1], orders),
+                             (self.rtol, self._atol(y_n.size)), iterations)
+        if done == -1:
+            return None
+        if done == -2:
+            return False
+        y_n, states, F, corrected, counts = done
+        settle, evaluations, projections, rates, corrections = counts
+        rate.counted(evaluations)
+        self.evaluations += evaluations
+        self._counted(len(F), projections + settle)
+        if corrected is not None:
+            self._counted(rates, corrections)
+            f_b, Y, errs = corrected
+            corrected = f_b, list(Y), errs
+        return y_n, F, self._states(ts, y_n, states), corrected
+
+    def _out_of_band(self, y_n, F, ts, t_n, H, measure, tries=6):
+        """The step's length, from H lengthened by 1.3 (`tries` lengths in all) until the
+        predicted end lies out of the band (σ_min/σ_max above twice its edge); None where
+        it does not."""
+        n = self.problem.n
+        for _ in range(tries):
             y_p = y_n + H * (step_weights((ts - t_n) / H) @ F)
             if measure(y_p[:n], t_n + H) > 2.0 * self.edge:
                 return H
@@ -575,7 +637,8 @@ def bridge_passage(form, bridge, monitor, solver, bound, t, q, v, t_end, extra=N
             bridge.stand_down()
             return None
         crossed = bridge.cross(t, q, v, plan[1], monitor.ratio,
-                               t_floor=monitor.clear_since, extra=extra)
+                               t_floor=monitor.clear_since, extra=extra,
+                               ratio_row=monitor.ratio_row)
         if crossed is not None and crossed.t_b >= t_end:
             bridge.stand_down()
             return None

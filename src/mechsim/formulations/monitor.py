@@ -158,6 +158,13 @@ class SingularityMonitor:
         """(s, ṡ, left singular vector of σ_min); ṡ = 0 when v is None."""
         return self._measure(q, t, v)[:3]
 
+    @property
+    def ratio_row(self):
+        """k where `ratio` is σ_k/σ_max by the algebra's `singular_extremes` (a small
+        mechanism), else None (`measure`'s)."""
+        algebra, m = self.problem.algebra, self.problem.m
+        return m - 1 - self.redundant if m and algebra.batched else None
+
     def ratio(self, q, t) -> float:
         """σ_min/σ_max of J̃ at (q, t), not normalized: where the algebra measures many
         states together (a small mechanism), its singular values alone, as the passage
