@@ -476,3 +476,23 @@ def test_the_engine_s_corrector_is_the_python_corrector_to_round_off(monkeypatch
         assert max(error_norm(a - b, a, b, 1e-8, 1e-10) for a, b in zip(ys_c, ys_p)) <= 2e-2
         np.testing.assert_allclose(errs_c, errs_p, rtol=0.0, atol=1e-2)
         assert errs_p[int(np.argmin(errs_c))] <= min(errs_p) + 1e-2
+
+
+@pytest.mark.parametrize("method", ["projection", "hybrid"])
+def test_a_bridge_s_end_rate_starts_the_next_integrator_as_its_own_would(method, monkeypatch):
+    """After each of the double four-bar's ten bridges the next integrator starts on the
+    bridge's rate at its end, which is the formulation's own rate there to the bit (the
+    run is the one that evaluates it again)."""
+    from mechsim.run.loop import Run
+    given = []
+    make = Run.make
+
+    def checked(self, t, y, step, bound=None, rate=None):
+        if rate is not None:
+            given.append(np.array_equal(rate, self.form.integrand(t, y)))
+        return make(self, t, y, step, bound, rate)
+    monkeypatch.setattr(Run, "make", checked)
+    res = ms.examples.double_four_bar().simulate(10.0, method=method, rtol=1e-6, atol=1e-8,
+                                                 output_step=0.01)
+    assert res.success and res.stats["bridges"] == 10
+    assert len(given) == 10 and all(given)

@@ -87,8 +87,9 @@ class Crossing(NamedTuple):
     the extension's numbers), the predicted singular instant and the states the step was
     built on, (t, q, v) oldest first, up to the landing point (consistent, outside the
     band: an Adams solver started at t_b can take them as its history), with the step's
-    length and the order its error estimate found reliable there, and the extension's
-    numbers at the end (None without an extension)."""
+    length and the order its error estimate found reliable there, the extension's numbers
+    at the end (None without an extension) and the rate there (of [q; v] and the
+    extension's numbers, as the bridge's accelerations give it)."""
     t_b: float
     q_b: np.ndarray
     v_b: np.ndarray
@@ -98,6 +99,7 @@ class Crossing(NamedTuple):
     step: float
     order: int
     extra: np.ndarray | None = None
+    rate: np.ndarray | None = None
 
 
 class PassageBridge:
@@ -556,7 +558,7 @@ class PassageBridge:
             return y[0] if np.ndim(tk) == 0 else y.T
 
         return Crossing(t_b, y_b[:n], y_b[n:2 * n], interpolant, t_star, history, H, k - 1,
-                        None if self.extension is None else y_b[2 * n:])
+                        None if self.extension is None else y_b[2 * n:], Fc[0])
 
     def _energy_kept(self, y_n, y_b):
         """The bridge's end y_b with its velocities scaled so that a conservative

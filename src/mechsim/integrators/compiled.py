@@ -81,8 +81,11 @@ class CompiledDOP853(DOP853):
 
     rate = None
 
-    def __init__(self, fun, t0, y0, t_bound, **options):
-        if not (_SET_UP.verified() and self.set_up(fun, t0, y0, t_bound, **options)):
+    def __init__(self, fun, t0, y0, t_bound, f0=None, **options):
+        """scipy's DOP853; `f0`: fun(t0, y0) where the caller has it (bit for bit what fun
+        gives there), taken instead of evaluating it again."""
+        if not (_SET_UP.verified() and self.set_up(fun, t0, y0, t_bound, f0=f0,
+                                                   **options)):
             super().__init__(fun, t0, y0, t_bound, **options)
         self._atol = np.empty(self.n)           # the engine's copy of atol (`atol_array`)
         self._atol[:] = self.atol
@@ -110,14 +113,15 @@ class CompiledDOP853(DOP853):
                             base + 8 * 20, fallback)
 
     def set_up(self, fun, t0, y0, t_bound, rtol=1e-3, atol=1e-6, max_step=np.inf,
-                first_step=None) -> bool:
+                first_step=None, f0=None) -> bool:
         """scipy's own set-up (`OdeSolver`, `RungeKutta`, `DOP853`: the same attributes,
         the same numbers; `_SET_UP` checked it against the installed scipy) without its
         argument checks, for what a run passes: a finite float64 state, a scalar rtol
         above scipy's floor, a non-negative scalar atol, a positive max_step and a first
         step within the interval. False where anything else is asked (scipy's own set-up
         then checks it, warns and raises as it does): an integrator is made at every
-        restart and crossing, and the checks cost as much as the rest of it."""
+        restart and crossing, and the checks cost as much as the rest of it. `f0`: the rate
+        at (t0, y0), where the caller has it."""
         if type(y0) is not np.ndarray or y0.dtype != np.float64 or y0.ndim != 1 or \
                 not isinstance(rtol, float) or not rtol >= 100 * np.finfo(float).eps or \
                 not isinstance(atol, float) or not atol >= 0.0 or not max_step > 0.0 or \
@@ -145,7 +149,7 @@ class CompiledDOP853(DOP853):
         self.nfev = self.njev = self.nlu = 0
         self.y_old, self.max_step = None, max_step
         self.rtol, self.atol = rtol, np.asarray(atol)
-        self.f = self.fun(t0, y0)
+        self.f = self.fun(t0, y0) if f0 is None else np.array(f0, dtype=float)
         if first_step is None:
             self.h_abs = _SET_UP.first_step(self, t_bound, max_step)
         else:
