@@ -319,8 +319,11 @@ def test_a_bridge_never_carries_a_run_past_its_end(t_end):
     # intervals cannot rise to `leave` (0.071 and 0.102 at most) and touch the value 0.05
     # under `enter`; the last is kept above `enter` (0.27 at least).
     ((0.05, 0.08, 0.09, 0.3), (0.02, 0.02, 0.02), False, []),
-    # No value under `enter`: both are searched, as without the rule.
-    ((0.075, 0.08, 0.09, 0.3), (0.02, 0.02, 0.02), False, [0, 1]),
+    # No value under `enter`: the first is searched, as without the rule (either end alone
+    # keeps it above 0.0588 at most, both together above 0.0668); the second is kept above
+    # `enter` by its two ends together, (0.08 + 0.09 − 0.02)/(1 + 1 + 0.02) = 0.0743
+    # (either alone: 0.0588 and 0.0686).
+    ((0.075, 0.08, 0.09, 0.3), (0.02, 0.02, 0.02), False, [0]),
     # ... unless the passage open at the step's start reaches them.
     ((0.075, 0.08, 0.09, 0.3), (0.02, 0.02, 0.02), True, []),
     # The middle interval may rise to 0.149 > `leave`: a dip beyond it may be a passage of
@@ -329,9 +332,10 @@ def test_a_bridge_never_carries_a_run_past_its_end(t_end):
 ])
 def test_the_search_skips_intervals_joined_to_a_passage_it_has_found(at, chords, open_at_start,
                                                                      expected):
-    """Weyl's bounds from the nodes (σ_k ∓ path, σ_max ± path) decide: an interval whose s
-    may dip under `enter` is searched unless s stays under `leave` all the way from it to
-    a value under `enter`, where any dip it hides belongs to that value's passage."""
+    """Weyl's bounds from the nodes (σ_k ∓ path, σ_max ± path, and an interval's two ends
+    together: their average ∓ half its path) decide: an interval whose s may dip under
+    `enter` is searched unless s stays under `leave` all the way from it to a value under
+    `enter`, where any dip it hides belongs to that value's passage."""
     from mechsim.formulations.intervals import uncleared
     times = [0.0, 1.0, 2.0, 3.0]
     anchors = {tk: (s, 1.0) for tk, s in zip(times, at)}

@@ -1428,8 +1428,9 @@ static int covered(double ta, double tb, const double *lows, int64_t nl, double 
 
 /* The intervals of the search's `count` nodes its anchors do not clear (intervals.uncleared:
    the nearest anchor on either side, its sigma_k less and its sigma_max plus the chords to
-   the interval's far end, above `enter`; not within `apart` of a value under it; not joined
-   to one, or to the step's start with open_at_start) into todo, in order: how many. A node's
+   the interval's far end, or the anchors at both its ends, their average less and plus half
+   its chord, above `enter`; not within `apart` of a value under it; not joined to one, or
+   to the step's start with open_at_start) into todo, in order: how many. A node's
    anchor (node_has) is measured (1: sigma_k and sigma_max by an SVD) or a floor (2:
    `extreme_bounds`, a lower bound of sigma_k and an upper bound of sigma_max): a floor
    serves the lower bounds only; values under `enter`, the upper bounds that join intervals
@@ -1469,6 +1470,12 @@ static int64_t uncleared(mechsim_search *w, int64_t count, double h, int64_t *to
       }
     }
   }
+  for (int64_t j = 0; j < intervals; j++)         /* anchors at both ends: their average */
+    if (has[j] && has[j + 1] && low[j] < enter) {
+      const double both = (an[2 * j] + an[2 * (j + 1)] - ch[j]) /
+                          (an[2 * j + 1] + an[2 * (j + 1) + 1] + ch[j]);
+      if (both > low[j]) low[j] = both;
+    }
   for (int64_t i = 0; i < count; i++)
     if (has[i] == 1 && an[2 * i] < enter * an[2 * i + 1]) lows[nl++] = T[i];
   for (int64_t j = 0; j < intervals;) {
@@ -1594,7 +1601,9 @@ static int floor_node(mechsim_search *w, int64_t i) {
    without an anchor take a floor first, an SVD where the interval stays uncleared (or the
    floor declines), and the search stops at the first measured value under `enter`.
    *proved: 1 where the search ended with every interval cleared and no measured value
-   under `enter` (s >= enter over the step: no passage in it). */
+   under `enter` (s >= enter over the step: no passage in it); -1 where the search with
+   floors stopped at a measured value under `enter` (the search without them is to be
+   made: it finds the passage's dips and the values that part them). */
 static int grid_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
                        double t0, double t1, int64_t budget, const double *end0,
                        const double *end1, int floors, int *proved) {
@@ -1631,12 +1640,19 @@ static int grid_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
       *proved = 1;
       break;
     }
-    int64_t nf = 0;                   /* their nodes not measured, in order */
-    for (int64_t a = 0; a < nt; a++)
-      for (int64_t e = 0; e < 2; e++) {
-        const int64_t i = todo[a] + e;
-        if (has[i] != 1 && (nf == 0 || fresh[nf - 1] != i)) fresh[nf++] = i;
-      }
+    int64_t nf = 0;      /* of each run of consecutive intervals, the middle one of its
+                            nodes not measured (intervals.fresh_nodes), in order */
+    for (int64_t a = 0; a < nt;) {
+      int64_t b = a, free = 0, seen = 0;
+      while (b + 1 < nt && todo[b + 1] == todo[b] + 1) b++;
+      for (int64_t i = todo[a]; i <= todo[b] + 1; i++) free += has[i] != 1;
+      for (int64_t i = todo[a]; free && i <= todo[b] + 1; i++)
+        if (has[i] != 1 && seen++ == free / 2) {
+          fresh[nf++] = i;
+          break;
+        }
+      a = b + 1;
+    }
     if (nf) {
       int64_t floored = 0;
       for (int64_t a = 0; floors && a < nf; a++)
@@ -1650,7 +1666,10 @@ static int grid_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
         low |= an[2 * fresh[a]] < w->enter * an[2 * fresh[a] + 1];
       }
       spent += nf;
-      if (floors && low) break;        /* a passage: the search without floors finds it */
+      if (floors && low) {             /* a passage: the search without floors finds it */
+        *proved = -1;
+        break;
+      }
       continue;
     }
     if (count + nt > cap) return 1;
@@ -1693,7 +1712,7 @@ static int grid_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
       w->out[3 * found] = T[i];
       w->out[3 * found + 1] = an[2 * i];
       w->out[3 * found + 2] = an[2 * i + 1];
-      if (an[2 * i] < w->enter * an[2 * i + 1]) *proved = 0;
+      if (an[2 * i] < w->enter * an[2 * i + 1] && *proved == 1) *proved = 0;
       found++;
     }
   w->found = found;
@@ -1702,8 +1721,9 @@ static int grid_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
 
 /* The singularity monitor's search for passages hidden inside the step [t0, t1] on its
    dense output (SingularityMonitor._anchored): a grid of `grid` intervals, J~'s chords
-   between nodes enlarged by `chord`, every interval its anchors do not clear (`uncleared`)
-   measured at its nodes, then halved, at most `budget` SVDs; the anchors at the ends are
+   between nodes enlarged by `chord`, every run of intervals its anchors do not clear
+   (`uncleared`) measured at its middle node not measured yet, one a run at a time, and
+   halved once all its nodes are, at most `budget` SVDs; the anchors at the ends are
    end0 / end1 ((sigma_kk, sigma_max) measured there) where not NULL. The measured nodes into
    w->out (rows t, sigma_kk, sigma_max, in time order; w->found of them). 0: done; 1: a state
    or an SVD declined, or the grid outgrew its `nodes_cap` nodes (Python searches).
@@ -1722,7 +1742,8 @@ static int anchored_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search
   w->cached = 0;
   if (w->floors && !w->open_at_start && w->kk == w->m - 1) {
     if (grid_search(c, pc, w, t0, t1, budget, end0, end1, 1, &proved)) return 1;
-    if (proved || !w->floored) return 0;      /* proved, or searched as without floors */
+    /* proved, or searched as without floors (no floor taken, not stopped at a passage) */
+    if (proved == 1 || (proved == 0 && !w->floored)) return 0;
     memcpy(w->node_cache, w->out, 3 * w->found * sizeof(double));
     w->cached = w->found;
   }

@@ -24,8 +24,9 @@ def lowest(sa, sb, h, ra, rb) -> float:
 def uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=False) -> list:
     """The grid intervals (indices j of [times[j], times[j+1]]) that neither the nearest
     anchor before nor the one after keeps above `enter` (its σ_k less, its σ_max plus, the
-    path length `chords` from it to the interval's far end), that lie farther than `apart`
-    from a value under `enter`, and that are not joined to one.
+    path length `chords` from it to the interval's far end), nor the anchors at both its
+    ends together (their average less, or plus, half its path length), that lie farther
+    than `apart` from a value under `enter`, and that are not joined to one.
 
     Joined: the same anchors keep s under `leave` in the interval (σ_k plus, σ_max less)
     and in every interval between it and a value under `enter` (or the step's start, with
@@ -54,6 +55,15 @@ def uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=Fals
                     top = (anchor[0] + reach) / (anchor[1] - reach)
                     if top < high[j]:
                         high[j] = top
+    # An interval with values at both ends: at a point of it the paths from either end add
+    # up to at most its own, so σ_k there is at least the ends' average less half of it
+    # (and σ_max at most their average plus half).
+    for j in range(count):
+        a, b = marks[j], marks[j + 1]
+        if a is not None and b is not None and low[j] < enter:
+            both = (a[0] + b[0] - chords[j]) / (a[1] + b[1] + chords[j])
+            if both > low[j]:
+                low[j] = both
     joined = [False] * count
     j = 0
     while j < count:
@@ -67,6 +77,22 @@ def uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=Fals
     return [j for j in range(count) if low[j] < enter and not joined[j]
             and times[j + 1] - times[j] >= shortest
             and not (lows and covered(times[j], times[j + 1], lows, apart))]
+
+
+def fresh_nodes(todo, free) -> list:
+    """The nodes to measure next for the uncleared intervals `todo` (ascending): of each
+    run of consecutive intervals, the middle one of its nodes not measured yet (`free(i)`),
+    in order; none for a run whose nodes are all measured (it is halved)."""
+    fresh, run = [], []
+    for j in list(todo) + [None]:
+        if run and (j is None or j != run[-1] + 1):
+            nodes = [i for i in range(run[0], run[-1] + 2) if free(i)]
+            if nodes:
+                fresh.append(nodes[len(nodes) // 2])
+            run = []
+        if j is not None:
+            run.append(j)
+    return fresh
 
 
 def covered(ta, tb, lows, reach) -> bool:
