@@ -43,11 +43,11 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from ..integrators.adams import error_norm, integration_weights, order_weights, step_weights
-from ..integrators.compiled import (SAFETY, CompiledDOP853, dense_matrix, extra_tableau,
-                                    tableau)
+from ..integrators.adams import error_norm, integration_weights, step_weights
 from ..integrators.adapters import proposed_step
+from ..integrators.compiled import CompiledDOP853
 from ..tolerances import Tolerances
+from .bridge_engine import HISTORY_BUDGET, EngineCrossing
 
 # The band's edge, in multiples of the truncation cut (σ_min/σ_max = rcond).
 EDGE = 3.0
@@ -78,8 +78,6 @@ ENERGY_KEPT = 100.0
 ROUND_OFF_GAIN = 0.1
 # The fewest history points a crossing is built on (its corrector orders start at 3).
 MIN_HISTORY = 5
-# The most right-hand sides a history's backward integration may spend, per point.
-HISTORY_BUDGET = 400
 
 
 class Crossing(NamedTuple):
@@ -101,8 +99,16 @@ class Crossing(NamedTuple):
     extra: np.ndarray | None = None
     rate: np.ndarray | None = None
 
+    def rate_at(self, y):
+        """The rate at the end where y is the end's state [q; v] as it stands (the
+        projection method's state: its rate is the formulation's own), else None."""
+        n = self.q_b.size
+        same = self.extra is None and y.size == 2 * n and \
+            np.array_equal(y[:n], self.q_b) and np.array_equal(y[n:], self.v_b)
+        return self.rate if same else None
 
-class PassageBridge:
+
+class PassageBridge(EngineCrossing):
     """Plans the approach to a passage and crosses it.
 
     `accelerations(t, q, v)` must be exact outside the band (the projection method's);
@@ -274,65 +280,6 @@ class PassageBridge:
                 states += [self._settled(interpolant(tk), tk) for tk in passed]
         return states, None
 
-    def _history_in_engine(self, t_n, y_n, ts, inner, engine):
-        """`_history` taken in the engine where it has the steps (`mechsim_history`: the
-        same steps, states and rates, its integrator's start too): (states, the rates at
-        t_n and at them), False where the integration fails or grinds, None where the
-        engine does not take it (the Python loop does); `engine`: `_engine_steps()`."""
-        rate, steps = engine
-        if steps is None:
-            return None
-        steps.start_integrator(t_n, y_n, ts[-1], inner.rtol, self._atol(y_n.size, True))
-        done = steps.history(rate.context, rate, ts, HISTORY_BUDGET * len(ts))
-        if not done:
-            return done
-        states, F, evaluations, projections = done
-        rate.counted(evaluations)
-        self.evaluations += evaluations
-        self._counted(len(F), projections)      # the rates at them, as `_f` counts them
-        return list(states), F
-
-    def _engine_steps(self):
-        """(the engine's rate, its `PlainSteps`) where the engine takes the bridge's
-        history and corrector (its projections and rates compiled, no sensitivities
-        carried), else (rate or None, None)."""
-        rate = self.rate() if self.compiled and self.extension is None else None
-        steps = self.problem.algebra.plain_steps(
-            self.problem.n, 1, (tableau(), extra_tableau(), dense_matrix())) \
-            if rate is not None and SAFETY is not None else None
-        return rate, steps
-
-    def _atol(self, size, inner=False) -> np.ndarray:
-        """atol (the history's, with `inner`) for each of `size` entries, as the engine
-        reads it (made once)."""
-        atol = self._atols.get((inner, size))
-        if atol is None:
-            atol = self._atols[inner, size] = np.empty(size)
-            atol[:] = self._inner.atol if inner else self.atol
-        return atol
-
-    def _counted(self, rates, projections) -> None:
-        """Rates and chord iterations the engine took for the bridge, counted as `_f` and
-        `_settled` count theirs."""
-        counters = self.problem.counters
-        counters.projections += projections
-        counters.rhs += rates
-        counters.factorizations += rates
-        self.evaluations += rates
-
-    def _history_rate(self):
-        """The engine's rate for the history's steps (`rate`), its evaluations counted as
-        the bridge's."""
-        rate = self.rate()
-        if rate is None:
-            return None
-        counted = rate.counted
-
-        def both(evaluations):
-            counted(evaluations)
-            self.evaluations += evaluations
-        return rate.counting(both)
-
     @property
     def edge(self) -> float:
         """The band's edge: `EDGE` truncation cuts."""
@@ -357,38 +304,13 @@ class PassageBridge:
         goes on with a shorter landing distance, or the bridge stands down for this
         passage."""
         n = self.problem.n
-        H = SPAN * (t_star - t_n)
         y_n = np.concatenate([q_n, v_n] + ([] if extra is None else [extra]))
-        engine = self._engine_steps()
-        ts = self._times(t_n, 0.5 * H, t_floor)
-        if ts is None:
+        step = self._step(t_n, y_n, SPAN * (t_star - t_n), t_floor, measure, ratio_row,
+                          iterations)
+        if step is None:
             return None
-        attempt = self._attempt_in_engine(ts, y_n, H, ratio_row, iterations, engine)
-        if attempt is False:
-            self.landing, self.standing_down = None, True
-            return None
-        if attempt is None:
-            start = self._start(ts, y_n, engine)
-            if start is None:
-                return None
-            y_n, F, history = start
-            done, tried = None, 0
-        else:
-            y_n, F, history, done = attempt
-            tried = 1
-        if done is None:
-            H = self._out_of_band(y_n, F, ts, t_n, H * 1.3 if tried else H, measure,
-                                  6 - tried)
-            if H is None:
-                return self._decline(np.inf)
+        y_n, F, history, H, nodes, ys, errs = step
         t_b = t_n + H
-        nodes = np.concatenate([[1.0], (ts - t_n) / H])
-        if done is None:
-            done = self._corrector_in_engine(y_n, F, nodes, t_b, H, iterations, engine)
-        if done is not None:
-            f_b, ys, errs = done
-        else:
-            f_b = self._corrected_end(y_n, F, nodes, t_b, H, iterations)
         # The order: correctors on the end point and the k − 1 newest history points for
         # k = 3 …; the difference between orders k + 1 and k estimates the error of order k,
         # and the order with the smallest estimate is kept with its extrapolation to k + 1
@@ -399,10 +321,6 @@ class PassageBridge:
         # Milne's ‖y_c − y_p‖ is not used: the predictor's extrapolation amplifies that
         # noise (on the double four-bar at rtol 1e-9 it read 20× the corrector difference,
         # which itself read 6–100× the true error of the crank's rate).
-            Fb = np.vstack([f_b, F])
-            ys = [y_n + H * (step_weights(nodes[:k]) @ Fb[:k])
-                  for k in range(3, nodes.size + 1)]
-            errs = [self._norm(hi - lo, y_n, hi) for lo, hi in zip(ys, ys[1:])]
         best = int(np.argmin(errs))
         err = self.last_estimate = errs[best]
         # At the floor the only alternative is stepping through the band (on the 40-window
@@ -430,6 +348,47 @@ class PassageBridge:
             self.over_tolerance += 1
         self.landing = self._declined = None
         return self._finish(n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history)
+
+    def _step(self, t_n, y_n, H, t_floor, measure, ratio_row, iterations):
+        """The Adams step over the passage from y_n at t_n, first H long (`cross`'s
+        arguments): y_n put onto the constraints, the rates F of its history, the history's
+        states in time order, the step's length (lengthened until its end lies out of the
+        band), its nodes, and the orders' ends and estimates; None where the bridge
+        declines or stands down."""
+        engine = self._engine_steps()
+        ts = self._times(t_n, 0.5 * H, t_floor)
+        if ts is None:
+            return None
+        attempt = self._attempt_in_engine(ts, y_n, H, ratio_row, iterations, engine)
+        if attempt is False:
+            self.landing, self.standing_down = None, True
+            return None
+        if attempt is None:
+            start = self._start(ts, y_n, engine)
+            if start is None:
+                return None
+            y_n, F, history = start
+            done, tried = None, 0
+        else:
+            y_n, F, history, done = attempt
+            tried = 1
+        if done is None:
+            H = self._out_of_band(y_n, F, ts, t_n, H * 1.3 if tried else H, measure,
+                                  6 - tried)
+            if H is None:
+                return self._decline(np.inf)
+        t_b = t_n + H
+        nodes = np.concatenate([[1.0], (ts - t_n) / H])
+        if done is None:
+            done = self._corrector_in_engine(y_n, F, nodes, t_b, H, iterations, engine)
+        if done is not None:
+            _, ys, errs = done
+        else:
+            Fb = np.vstack([self._corrected_end(y_n, F, nodes, t_b, H, iterations), F])
+            ys = [y_n + H * (step_weights(nodes[:k]) @ Fb[:k])
+                  for k in range(3, nodes.size + 1)]
+            errs = [self._norm(hi - lo, y_n, hi) for lo, hi in zip(ys, ys[1:])]
+        return y_n, F, history, H, nodes, ys, errs
 
     def _times(self, t_n, D, t_floor):
         """The times of a step's history from t_n: newest first, D apart, back no further
@@ -462,43 +421,6 @@ class PassageBridge:
         n = self.problem.n
         return [(tk, y[:n], y[n:2 * n]) for tk, y in zip(ts[::-1], list(states[::-1]) + [y_n])]
 
-    def _attempt_in_engine(self, ts, y_n, H, ratio_row, iterations, engine):
-        """`_start`, `_out_of_band`'s first length and `_corrector_in_engine` in one call of
-        the engine (`mechsim_bridge_attempt`: the same projections, steps, rates and
-        corrections, counted as they count theirs) where it takes the history and the
-        corrector and the monitor's ratio is σ_{m−1}/σ_max (`ratio_row`): (y_n put onto
-        the constraints, the rates F at ts, the states (t, q, v) in time order, the
-        corrector's (f_b, the orders' ends, their estimates) or None where the prediction
-        at H lies in the band); False where the history fails or grinds; None where the
-        engine does not take the attempt (`_start` and the rest take it)."""
-        rate, steps = engine
-        p = self.problem
-        if steps is None or ratio_row != p.m - 1 or p.m > p.n:
-            return None
-        t_n = ts[0]
-        nodes = np.concatenate([[1.0], (ts - t_n) / H])
-        orders = order_weights(nodes, 3)
-        inner = self._inner
-        steps.start_integrator(t_n, None, ts[-1], inner.rtol, self._atol(y_n.size, True))
-        done = steps.attempt(rate.context, rate, ts, y_n, H, HISTORY_BUDGET * (len(ts) - 1),
-                             ratio_row, 2.0 * self.edge,
-                             (step_weights(nodes[1:]), orders[-1], orders),
-                             (self.rtol, self._atol(y_n.size)), iterations)
-        if done == -1:
-            return None
-        if done == -2:
-            return False
-        y_n, states, F, corrected, counts = done
-        settle, evaluations, projections, rates, corrections = counts
-        rate.counted(evaluations)
-        self.evaluations += evaluations
-        self._counted(len(F), projections + settle)
-        if corrected is not None:
-            self._counted(rates, corrections)
-            f_b, Y, errs = corrected
-            corrected = f_b, list(Y), errs
-        return y_n, F, self._states(ts, y_n, states), corrected
-
     def _out_of_band(self, y_n, F, ts, t_n, H, measure, tries=6):
         """The step's length, from H lengthened by 1.3 (`tries` lengths in all) until the
         predicted end lies out of the band (σ_min/σ_max above twice its edge); None where
@@ -524,26 +446,6 @@ class PassageBridge:
             if settled:
                 break
         return f_b
-
-    def _corrector_in_engine(self, y_n, F, nodes, t_b, H, iterations, engine):
-        """`_corrected_end` and the orders' ends and estimates of `cross` in the engine
-        (`mechsim_bridge_corrector`: the same iterations and orders in its own arithmetic),
-        their rates and projections counted as `_f` and `_settled` count them: (f_b, the
-        orders' ends, their estimates); None where the engine does not take it (no engine,
-        sensitivities carried, a projection or a rate declined: the Python corrector);
-        `engine`: `_engine_steps()`."""
-        rate, steps = engine
-        if steps is None:
-            return None
-        orders = order_weights(nodes, 3)            # its last row: the full order's
-        done = steps.corrector(rate.context, rate, y_n, F,
-                               (step_weights(nodes[1:]), orders[-1], orders), H, t_b,
-                               (self.rtol, self._atol(y_n.size)), iterations)
-        if done is None:
-            return None
-        f_b, Y, errs, rates, projections = done
-        self._counted(rates, projections)
-        return f_b, list(Y), errs
 
     def _finish(self, n, t_n, t_b, H, y_n, ys, best, nodes, F, t_star, history):
         """The `Crossing` with the corrector of order `best`."""

@@ -385,8 +385,7 @@ class Run:
         if not form.bridging:
             h_free = proposed_step(solver)
             if h_free:
-                bridge.note_step(min(h_free, self.bound.max_step),
-                                 h_free >= self.bound.max_step)
+                bridge.note_step(min(h_free, self.bound.max_step), h_free >= self.bound.max_step)
             return
         crossed = bridge_passage(form, bridge, self.monitor, solver, self.bound, t,
                                  *form.state(t, y), self.s.t_end, form.extension_of(y))
@@ -406,12 +405,7 @@ class Run:
         self.passage_times.note(t, t_b, lambda tk: np.split(interp(tk), [n, 2 * n]))
         y_b = form.resume(t_b, q_b, v_b, crossed.extra)
         after = form.after_step(t_b, y_b, t_b - t).y
-        # The bridge's rate at its end is the formulation's where the state is the
-        # bridge's [q; v] as it stands (the projection method's).
-        rate = crossed.rate if after is None and crossed.extra is None and \
-            y_b.size == 2 * n and np.array_equal(y_b[:n], q_b) and \
-            np.array_equal(y_b[n:], v_b) else None
-        y_b = y_b if after is None else after
+        rate, y_b = (crossed.rate_at(y_b), y_b) if after is None else (None, after)
         self.t_reached = t_b
         old = self._replace(t_b, y_b, proposed_step(solver), rate=rate)
         if self.keep_past:
@@ -428,15 +422,13 @@ class Run:
     # --- parts -------------------------------------------------------------------------------
     def make(self, t, y, step, bound=None, rate=None):
         """A new integrator at (t, y) from `step` (a fixed step stays), within `bound`
-        (default: the run's max_step); `rate`: the formulation's rate at (t, y) where the
-        caller has it (a `CompiledDOP853` takes it)."""
+        (default: the run's max_step), `rate` the formulation's rate there if known."""
         s = self.s
         bound = s.max_step if bound is None else bound
         step = s.first_step if s.h is not None else step
         kw = {"first_step": min(step, s.t_end - t, bound)} if step else {}
         tol = self.tolerances
-        if rate is not None and self.solver_cls is CompiledDOP853:
-            kw["f0"] = rate
+        kw |= {"f0": rate} if self.solver_cls is CompiledDOP853 else {}
         solver = self.solver_cls(self.form.integrand, t, y, s.t_end, rtol=tol.rtol,
                                  atol=tol.atol, max_step=bound, **kw)
         if isinstance(solver, CompiledDOP853):       # its steps in C where the rate is
@@ -447,8 +439,7 @@ class Run:
         return solver
 
     def _replace(self, t, y, step, bound=None, rate=None):
-        """Retire the running integrator for a new one at (t, y) (`rate` as `make` takes
-        it); returns the old one."""
+        """Retire the running integrator for `make`'s new one at (t, y); returns the old one."""
         old = self.solver
         self.stats.retire(old)
         self.stats.restarts += 1
