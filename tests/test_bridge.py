@@ -326,9 +326,12 @@ def test_a_bridge_never_carries_a_run_past_its_end(t_end):
     ((0.075, 0.08, 0.09, 0.3), (0.02, 0.02, 0.02), False, [0]),
     # ... unless the passage open at the step's start reaches them.
     ((0.075, 0.08, 0.09, 0.3), (0.02, 0.02, 0.02), True, []),
-    # The middle interval may rise to 0.149 > `leave`: a dip beyond it may be a passage of
-    # its own, and that interval is searched.
-    ((0.05, 0.08, 0.09, 0.3), (0.02, 0.06, 0.02), False, [1]),
+    # The middle interval may rise to 0.154 > `leave` ((0.08 + 0.09 + 0.12)/(2 − 0.12) by
+    # its ends together, 0.227 by the nearest anchor alone): a dip beyond it may be a
+    # passage of its own, and that interval is searched. With a path of 0.06 it would stay
+    # under 0.119 by its ends together, joined to the value under `enter`.
+    ((0.05, 0.08, 0.09, 0.3), (0.02, 0.12, 0.02), False, [1]),
+    ((0.05, 0.08, 0.09, 0.3), (0.02, 0.06, 0.02), False, []),
 ])
 def test_the_search_skips_intervals_joined_to_a_passage_it_has_found(at, chords, open_at_start,
                                                                      expected):

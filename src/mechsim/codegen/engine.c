@@ -1430,7 +1430,8 @@ static int covered(double ta, double tb, const double *lows, int64_t nl, double 
    the nearest anchor on either side, its sigma_k less and its sigma_max plus the chords to
    the interval's far end, or the anchors at both its ends, their average less and plus half
    its chord, above `enter`; not within `apart` of a value under it; not joined to one, or
-   to the step's start with open_at_start) into todo, in order: how many. A node's
+   to the step's start with open_at_start; the joins' upper bounds from the nearest measured
+   anchors and from the two measured ends alike) into todo, in order: how many. A node's
    anchor (node_has) is measured (1: sigma_k and sigma_max by an SVD) or a floor (2:
    `extreme_bounds`, a lower bound of sigma_k and an upper bound of sigma_max): a floor
    serves the lower bounds only; values under `enter`, the upper bounds that join intervals
@@ -1472,9 +1473,13 @@ static int64_t uncleared(mechsim_search *w, int64_t count, double h, int64_t *to
   }
   for (int64_t j = 0; j < intervals; j++)         /* anchors at both ends: their average */
     if (has[j] && has[j + 1] && low[j] < enter) {
-      const double both = (an[2 * j] + an[2 * (j + 1)] - ch[j]) /
-                          (an[2 * j + 1] + an[2 * (j + 1) + 1] + ch[j]);
+      const double smax2 = an[2 * j + 1] + an[2 * (j + 1) + 1];
+      const double both = (an[2 * j] + an[2 * (j + 1)] - ch[j]) / (smax2 + ch[j]);
       if (both > low[j]) low[j] = both;
+      if (has[j] == 1 && has[j + 1] == 1 && smax2 > ch[j]) {     /* measured: above too */
+        const double top = (an[2 * j] + an[2 * (j + 1)] + ch[j]) / (smax2 - ch[j]);
+        if (top < high[j]) high[j] = top;
+      }
     }
   for (int64_t i = 0; i < count; i++)
     if (has[i] == 1 && an[2 * i] < enter * an[2 * i + 1]) lows[nl++] = T[i];

@@ -57,13 +57,17 @@ def uncleared(times, chords, anchors, enter, leave, apart, h, open_at_start=Fals
                         high[j] = top
     # An interval with values at both ends: at a point of it the paths from either end add
     # up to at most its own, so σ_k there is at least the ends' average less half of it
-    # (and σ_max at most their average plus half).
+    # and at most their average plus half (σ_max likewise), for the joins below.
     for j in range(count):
         a, b = marks[j], marks[j + 1]
         if a is not None and b is not None and low[j] < enter:
             both = (a[0] + b[0] - chords[j]) / (a[1] + b[1] + chords[j])
             if both > low[j]:
                 low[j] = both
+            if a[1] + b[1] > chords[j]:
+                top = (a[0] + b[0] + chords[j]) / (a[1] + b[1] - chords[j])
+                if top < high[j]:
+                    high[j] = top
     joined = [False] * count
     j = 0
     while j < count:
