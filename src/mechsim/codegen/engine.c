@@ -2923,6 +2923,34 @@ static void adams_sum(int64_t N, int64_t K, const double *y_n, double H, const d
   }
 }
 
+/* The passage bridge's Adams interpolant (PassageBridge._finish) at the P fractions s of
+   its step: row p of Y (P x N) is y_n + H (w(s_p) . F), F the K rates (rows of N) at the
+   nodes (in units of the step), w_j(s) the integral over [0, s] of node j's Lagrange
+   polynomial by the G-point Gauss-Legendre rule gx, gw on [0, 1] scaled to [0, s], as
+   adams.integration_weights (its sums in another order: round-off apart); W: K scratch. */
+void mechsim_adams_values(int64_t N, int64_t K, const double *y_n, double H,
+                          const double *nodes, const double *F, int64_t P, const double *s,
+                          int64_t G, const double *gx, const double *gw, double *W,
+                          double *Y) {
+  for (int64_t p = 0; p < P; p++) {
+    for (int64_t j = 0; j < K; j++) W[j] = 0.0;
+    for (int64_t g = 0; g < G; g++) {
+      const double x = s[p] * gx[g];
+      for (int64_t j = 0; j < K; j++) {
+        double L = 1.0, d = 1.0;
+        for (int64_t i = 0; i < K; i++)
+          if (i != j) {
+            L *= x - nodes[i];
+            d *= nodes[j] - nodes[i];
+          }
+        W[j] += gw[g] * (L / d);
+      }
+    }
+    for (int64_t j = 0; j < K; j++) W[j] *= s[p];
+    adams_sum(N, K, y_n, H, W, NULL, F, Y + p * N);
+  }
+}
+
 /* The passage bridge's corrector and its order estimates (PassageBridge._corrected_end
    and cross) on the projection method's compiled accelerations (min_rcond, cut): from the
    state y_n (N = 2n entries) and the K rates F of its history (rows, at t_n first), a step

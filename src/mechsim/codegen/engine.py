@@ -60,6 +60,7 @@ from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
 from .cache import adopt, env_flag, verified_file
 from .compiled import build_library, compiler, compiler_identity, flags_digest, shared_library
 from .layout import PARTITION, PROJECTION, SEARCH, SEARCH_KEY, SEGMENT, Dims, declare
+from .scratch import Scratch
 from .search import StepSearch
 
 # The engine's own C (shipped beside this module), after the declarations of the model's C
@@ -245,31 +246,6 @@ def python_path(model):
             _LIBRARIES[model] = before
 
 
-class _Scratch:
-    """Float buffers the C side reads and writes, kept between calls with their addresses
-    (an array's `.ctypes.data` costs more than copying a step's few states in and out):
-    `take(name, k, width)` is a C-contiguous (k,) or (k, width) view and its address."""
-
-    def __init__(self):
-        self._kept = {}
-
-    def take(self, name, k, width=0):
-        kept, address = self._kept.get(name, (None, 0))
-        row = (width,) if width else ()
-        if kept is None or len(kept) < k or kept.shape[1:] != row:
-            rows = max(k, 16, 2 * len(kept) if kept is not None else 0)
-            kept = np.empty((rows, *row))
-            address = kept.ctypes.data
-            self._kept[name] = (kept, address)
-        return kept[:k], address
-
-    def put(self, name, values, width=0):
-        """`take` of len(values) rows, filled with `values`: its address."""
-        view, address = self.take(name, len(values), width)
-        view[...] = values
-        return address
-
-
 class PartitionedEngine:
     """One partition's compiled evaluation (`library`): the buffers the C side reads and
     writes, and the calls. `accept` loads an accepted step's predictor and chord factor;
@@ -312,7 +288,7 @@ class PartitionedEngine:
         self._block = np.zeros(2)
         self._end_args = (self._inverse.ctypes.data, self._reduced.ctypes.data,
                           self._block.ctypes.data)
-        self._scratch = _Scratch()
+        self._scratch = Scratch()
         self._J_samples = self.J_samples.ctypes.data
         self.rates = {}          # the compiled rates made on it (`CompiledRate.of`)
         self.ready = False
@@ -447,9 +423,24 @@ class ProjectionEngine:
         self._fall_work_at = self._fall_work.ctypes.data
         self.m = m
         self.counters = problem.counters
-        self._scratch = _Scratch()
+        self._scratch = Scratch()
         self._measured_at, self._Jt_at = self.measured.ctypes.data, self.Jt.ctypes.data
         self.rates = {}          # the compiled rates made on it (`CompiledRate.of`)
+
+    def adams_values(self, y_n, H, nodes, F, s, rule):
+        """y_n + H (w(s) · F) at each fraction s of an Adams step of H over the rates F
+        (rows) at `nodes` (`mechsim.integrators.adams.integration_weights`' w by the Gauss
+        `rule` (points, weights) on [0, 1]): rows, one a fraction
+        (`mechsim_adams_values`)."""
+        scratch, (gx, gw) = self._scratch, rule
+        K, N = F.shape
+        out, at_out = scratch.take("adams_out", len(s), N)
+        _, at_w = scratch.take("adams_w", K)
+        self.lib.mechsim_adams_values(
+            N, K, scratch.put("adams_y", y_n), float(H), scratch.put("adams_nodes", nodes),
+            scratch.put("adams_F", F, N), len(s), scratch.put("adams_s", s), len(gx),
+            scratch.put("adams_gx", gx), scratch.put("adams_gw", gw), at_w, at_out)
+        return out.copy()
 
     def accelerations(self, t, q, v, Q, min_rcond, cut=0.0):
         """q̈ at (t, q, v) under the forces Q by the Cholesky factor of J W Jᵀ where it is

@@ -275,6 +275,7 @@ SIGNATURES = {
     "mechsim_multipliers": "plppppddppp>l",
     "mechsim_bridge_corrector": "pllppppl" + "pddd" + "pl" + "dd" + "p" * 5 + ">i",
     "mechsim_bridge_attempt": "pplppddldpplpdpl" + "p" * 7 + ">l",
+    "mechsim_adams_values": "llpdpplplpppp>-",
 }
 _CODES = {"p": ctypes.c_void_p, "d": ctypes.c_double, "l": ctypes.c_int64, "i": ctypes.c_int,
           "-": None}

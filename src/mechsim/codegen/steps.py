@@ -13,7 +13,6 @@ from __future__ import annotations
 import ctypes
 
 import numpy as np
-
 from scipy.integrate import DOP853
 
 from ..integrators.compiled import MAX_FACTOR, MIN_FACTOR, SAFETY

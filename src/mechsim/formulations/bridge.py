@@ -43,7 +43,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from ..integrators.adams import error_norm, integration_weights, step_weights
+from ..integrators.adams import QUADRATURE, error_norm, integration_weights, step_weights
 from ..integrators.adapters import proposed_step
 from ..integrators.compiled import CompiledDOP853
 from ..tolerances import Tolerances
@@ -453,10 +453,12 @@ class PassageBridge(EngineCrossing):
         y_b = self._energy_kept(y_n, self._settled(ys[best + 1], t_b))
         Fc = np.vstack([self._f(t_b, y_b), F[:k - 1]])
         nodes = nodes[:k]
+        engine = getattr(self.problem.algebra, "engine", None) if self.compiled else None
 
         def interpolant(tk):
             s = (np.atleast_1d(tk) - t_n) / H
-            y = y_n[None, :] + H * (integration_weights(nodes, s) @ Fc)
+            y = engine.adams_values(y_n, H, nodes, Fc, s, QUADRATURE) if engine is not None \
+                else y_n[None, :] + H * (integration_weights(nodes, s) @ Fc)
             return y[0] if np.ndim(tk) == 0 else y.T
 
         return Crossing(t_b, y_b[:n], y_b[n:2 * n], interpolant, t_star, history, H, k - 1,

@@ -31,6 +31,9 @@ from scipy.integrate import DenseOutput, OdeSolver
 _GX, _GW = np.polynomial.legendre.leggauss(8)     # exact to degree 15 ≥ the highest order
 _GX = 0.5 * (_GX + 1.0)                            # on [0, 1]
 _GW = 0.5 * _GW
+# The rule `integration_weights` integrates with, (points, weights) on [0, 1] (the
+# compiled engine's interpolant takes the same).
+QUADRATURE = (_GX, _GW)
 # Weights by node pattern, shared by all solvers: the patterns of a run recur after each
 # restart (a bridge, a switch) and in the next run.
 _WEIGHTS: dict = {}
