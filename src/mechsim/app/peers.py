@@ -222,6 +222,10 @@ def exact_run(problem, rtol, output_step):
     return wall, t, np.column_stack([np.cos(theta), np.sin(theta)])
 
 
+# The fewest runs of the floor at each rtol (the rounds' and then more in the last).
+MIN_FLOOR_RUNS = 3
+
+
 class Floor:
     """scipy's DOP853 on a problem's exact 1-DOF equation at each of `EXACT_RTOLS`, timed
     in the rounds of mechsim's own runs (`mechsim.app.bench.run`'s `beside`): the floor
@@ -249,10 +253,6 @@ class Floor:
     def rows(self, name) -> list[PeerRow]:
         return [PeerRow(name, "exact 1-DOF DOP853", rtol, *reversed(self.best[(name, rtol)]))
                 for rtol in EXACT_RTOLS if (name, rtol) in self.best]
-
-
-# The fewest runs of the floor at each rtol (the rounds' and then more in the last).
-MIN_FLOOR_RUNS = 3
 
 
 def run(problems, repeat: int = 1, steps=None, floor=None) -> list[PeerRow]:

@@ -2927,23 +2927,26 @@ static void adams_sum(int64_t N, int64_t K, const double *y_n, double H, const d
    its step: row p of Y (P x N) is y_n + H (w(s_p) . F), F the K rates (rows of N) at the
    nodes (in units of the step), w_j(s) the integral over [0, s] of node j's Lagrange
    polynomial by the G-point Gauss-Legendre rule gx, gw on [0, 1] scaled to [0, s], as
-   adams.integration_weights (its sums in another order: round-off apart); W: K scratch. */
+   adams.integration_weights (its sums in another order: round-off apart); W: 2 K scratch. */
 void mechsim_adams_values(int64_t N, int64_t K, const double *y_n, double H,
                           const double *nodes, const double *F, int64_t P, const double *s,
                           int64_t G, const double *gx, const double *gw, double *W,
                           double *Y) {
+  double *den = W + K;                      /* the Lagrange polynomials' denominators */
+  for (int64_t j = 0; j < K; j++) {
+    den[j] = 1.0;
+    for (int64_t i = 0; i < K; i++)
+      if (i != j) den[j] *= nodes[j] - nodes[i];
+  }
   for (int64_t p = 0; p < P; p++) {
     for (int64_t j = 0; j < K; j++) W[j] = 0.0;
     for (int64_t g = 0; g < G; g++) {
       const double x = s[p] * gx[g];
       for (int64_t j = 0; j < K; j++) {
-        double L = 1.0, d = 1.0;
+        double L = 1.0;
         for (int64_t i = 0; i < K; i++)
-          if (i != j) {
-            L *= x - nodes[i];
-            d *= nodes[j] - nodes[i];
-          }
-        W[j] += gw[g] * (L / d);
+          if (i != j) L *= x - nodes[i];
+        W[j] += gw[g] * (L / den[j]);
       }
     }
     for (int64_t j = 0; j < K; j++) W[j] *= s[p];
@@ -2995,21 +2998,11 @@ int mechsim_bridge_corrector(mechsim_projection *pc, int64_t N, int64_t K, const
   return 0;
 }
 
-/* RMS of (a - b) / scale (b NULL: of a / scale), scale = atol + rtol |y| (scipy's norm). */
-static double scaled_rms(int64_t N, const double *a, const double *b, const double *y,
-                         double rtol, const double *atol) {
-  double sum = 0.0;
-  for (int64_t i = 0; i < N; i++) {
-    const double r = (b != NULL ? a[i] - b[i] : a[i]) / (atol[i] + fabs(y[i]) * rtol);
-    sum += r * r;
-  }
-  return sqrt(sum / (double)N);
-}
-
 /* The first step of an integrator at (s->t, s->y) with rate s->fy (N entries) towards
-   s->t_bound on the projection context pc, into s->h_abs: the starting step of Hairer, Nørsett and Wanner (Solving
-   Ordinary Differential Equations I, II.4) as scipy's `select_initial_step` takes it for
-   DOP853 (error order 7): h0 from the sizes of y and its rate, one more rate at an Euler
+   s->t_bound on the projection context pc, into s->h_abs: the starting step of Hairer,
+   Nørsett and Wanner (Solving Ordinary Differential Equations I, II.4) as scipy's
+   `select_initial_step` takes it for DOP853 (error order 7; its RMS norms as
+   `bridge_norm`'s): h0 from the sizes of y and its rate, one more rate at an Euler
    step of h0 (on the step's rate, s->rate_rcond; into s->f_new, counted in
    s->evaluations) for the rate's change, and the step that keeps the next term of
    order 8 at 1 % of the tolerance, at most 100 h0, the interval and s->max_step. 0, or 1
@@ -3022,14 +3015,15 @@ static int starting_step(mechsim_projection *pc, mechsim_segment *s, int64_t N) 
     s->h_abs = 0.0;
     return 0;
   }
-  const double d0 = scaled_rms(N, y, NULL, y, rtol, atol);
-  const double d1 = scaled_rms(N, f0, NULL, y, rtol, atol);
+  memset(y1, 0, N * sizeof(double));            /* zeros, for the sizes of y and f0 */
+  const double d0 = bridge_norm(N, y, y1, y, y, rtol, atol);
+  const double d1 = bridge_norm(N, f0, y1, y, y, rtol, atol);
   const double h0 = py_min(d0 < 1e-5 || d1 < 1e-5 ? 1e-6 : 0.01 * d0 / d1, interval);
   for (int64_t i = 0; i < N; i++) y1[i] = y[i] + h0 * s->direction * f0[i];
   if (projection_rate(pc, s->t + h0 * s->direction, y1, s->rate_rcond, s->cut, f1))
     return 1;
   s->evaluations += 1;
-  const double d2 = scaled_rms(N, f1, f0, y, rtol, atol) / h0;
+  const double d2 = bridge_norm(N, f1, f0, y, y, rtol, atol) / h0;
   const double h1 = d1 <= 1e-15 && d2 <= 1e-15 ? py_max(1e-6, h0 * 1e-3)
                                                : pow(0.01 / py_max(d1, d2), 1.0 / 8.0);
   s->h_abs = py_min(py_min(100.0 * h0, h1), py_min(interval, s->max_step));
@@ -3132,8 +3126,6 @@ int64_t mechsim_bridge_attempt(mechsim_projection *pc, mechsim_segment *s, int64
   memcpy(y, pc->q, n * sizeof(double));
   memcpy(y + n, pc->v, n * sizeof(double));
   memcpy(s->y, y, N * sizeof(double));
-  s->t = t_n;
-  s->h_abs = 0.0;
   s->evaluations = 0;
   const int64_t got = mechsim_history(pc, s, K - 1, ts + 1, budget, states, F);
   if (got < 0) return got;

@@ -435,7 +435,7 @@ class ProjectionEngine:
         scratch, (gx, gw) = self._scratch, rule
         K, N = F.shape
         out, at_out = scratch.take("adams_out", len(s), N)
-        _, at_w = scratch.take("adams_w", K)
+        _, at_w = scratch.take("adams_w", 2 * K)
         self.lib.mechsim_adams_values(
             N, K, scratch.put("adams_y", y_n), float(H), scratch.put("adams_nodes", nodes),
             scratch.put("adams_F", F, N), len(s), scratch.put("adams_s", s), len(gx),

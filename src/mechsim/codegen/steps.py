@@ -69,46 +69,50 @@ class PlainSteps:
         """The state and settings of `solver` (a `CompiledDOP853`) into the structure: its
         tableau's sizes, t, h, bound, direction, max_step, tolerances, controller, y and
         f (its state's entries first in `y`, `fy`)."""
-        s, b, N = self.s, self.buffers, solver.n
-        self.point("atol", solver.atol_array)
-        s.stages = solver.n_stages
-        s.extra_rows, s.extra_width = solver.A_EXTRA.shape
-        s.dense_rows, s.dense_cols = solver.D.shape
-        s.t, s.h_abs, s.t_bound, s.direction = solver.t, solver.h_abs, solver.t_bound, \
-            solver.direction
-        s.max_step, s.rtol, s.exponent = solver.max_step, solver.rtol, solver.error_exponent
-        s.safety, s.min_factor, s.max_factor = SAFETY, MIN_FACTOR, MAX_FACTOR
+        b, N = self.buffers, solver.n
+        self._integrator(solver.t, solver.h_abs, solver.t_bound, solver.direction,
+                         solver.max_step, solver.rtol, solver.atol_array)
         b["y"][:N] = solver.y
         b["fy"][:N] = solver.f
 
-    def start_integrator(self, t, y, t_bound, rtol, atol) -> None:
-        """A DOP853 integrator at (t, y) towards t_bound with tolerances rtol and `atol`
-        (an array of y's size, kept alive here), no step limit, into the structure as
-        `load_integrator` loads one that `CompiledDOP853` made, without its rate at y
-        and first step: h_abs 0 asks the engine for them (`mechsim_history`)."""
-        s, b = self.s, self.buffers
+    def start_integrator(self, t, t_bound, rtol, atol) -> None:
+        """A DOP853 integrator at t towards t_bound with tolerances rtol and `atol` (an
+        array of its state's size, kept alive here), no step limit, into the structure as
+        `load_integrator` loads one that `CompiledDOP853` made, without its state, its
+        rate there and its first step: the engine puts the state there and, for h_abs 0,
+        finds the rate and the step (`mechsim_history`)."""
+        self._integrator(t, 0.0, t_bound, 1.0 if t_bound >= t else -1.0, np.inf, rtol, atol)
+
+    def _integrator(self, t, h_abs, t_bound, direction, max_step, rtol, atol) -> None:
+        """A DOP853 integrator's settings (scipy's tableau's sizes and controller) into the
+        structure, `atol` kept alive here."""
+        s = self.s
         self.point("atol", atol)
         s.stages, (s.extra_rows, s.extra_width), (s.dense_rows, s.dense_cols), order = \
             _DOP853_SHAPE
-        s.t, s.h_abs, s.t_bound = t, 0.0, t_bound
-        s.direction = 1.0 if t_bound >= t else -1.0
-        s.max_step, s.rtol, s.exponent = np.inf, rtol, -1.0 / (order + 1)
+        s.t, s.h_abs, s.t_bound, s.direction = t, h_abs, t_bound, direction
+        s.max_step, s.rtol, s.exponent = max_step, rtol, -1.0 / (order + 1)
         s.safety, s.min_factor, s.max_factor = SAFETY, MIN_FACTOR, MAX_FACTOR
-        if y is not None:                       # (else the engine puts it there)
-            b["y"][:len(y)] = y
 
-    def history(self, projection, rate, ts, budget):
+    def _rate(self, rate) -> None:
+        """The bridge's compiled rate's min_rcond and cut into the structure."""
+        s = self.s
+        s.rate_rcond = s.min_rcond = rate.min_rcond
+        s.cut = rate.cut
+
+    def history(self, projection, rate, y, ts, budget):
         """The passage bridge's history in the engine (`mechsim_history`) on the
         projection context `projection` (its address) with `rate`'s min_rcond and cut,
-        from the integrator `start_integrator` loaded: (states (k, 2n) at the k times `ts`, the rates F (k + 1, 2n)
-        at the integrator's start and at them, the rates the engine evaluated for the
-        steps (and the first step), the chord iterations of the projections); None where
-        the engine declined a stage, a projection or a rate (the caller's Python path
-        takes the history), False where the integration failed or spent more than
-        `budget` evaluations."""
+        from the integrator `start_integrator` loaded, at the state y: (states (k, 2n) at
+        the k times `ts`, the rates F (k + 1, 2n) at the integrator's start and at them,
+        the rates the engine evaluated for the steps (and the first step), the chord
+        iterations of the projections); None where the engine declined a stage, a
+        projection or a rate (the caller's Python path takes the history), False where
+        the integration failed or spent more than `budget` evaluations."""
         s, N = self.s, 2 * self.shape[0]
-        s.rate_rcond = s.min_rcond = rate.min_rcond
-        s.cut, s.evaluations = rate.cut, 0
+        self._rate(rate)
+        s.evaluations = 0
+        self.buffers["y"][:N] = y
         ts = np.ascontiguousarray(ts, dtype=float)
         states, F = np.empty((len(ts), N)), np.empty((len(ts) + 1, N))
         done = self.lib.mechsim_history(projection, self._address, len(ts), ts.ctypes.data,
@@ -156,9 +160,8 @@ class PlainSteps:
         and chord iterations, the corrector's rates and chord iterations); -1 where the
         engine declines (the Python path takes the attempt), -2 where the history fails
         or grinds."""
-        s, N = self.s, 2 * self.shape[0]
-        s.rate_rcond = s.min_rcond = rate.min_rcond
-        s.cut = rate.cut
+        N = 2 * self.shape[0]
+        self._rate(rate)
         w_pred, w_corr, W = (np.ascontiguousarray(w, dtype=float) for w in weights)
         ts = np.ascontiguousarray(ts, dtype=float)
         y = np.array(y, dtype=float)

@@ -47,7 +47,7 @@ from ..integrators.adams import QUADRATURE, error_norm, integration_weights, ste
 from ..integrators.adapters import proposed_step
 from ..integrators.compiled import CompiledDOP853
 from ..tolerances import Tolerances
-from .bridge_engine import HISTORY_BUDGET, EngineCrossing
+from .bridge_engine import HISTORY_BUDGET, EngineCrossing, step_nodes
 
 # The band's edge, in multiples of the truncation cut (σ_min/σ_max = rcond).
 EDGE = 3.0
@@ -359,7 +359,8 @@ class PassageBridge(EngineCrossing):
         ts = self._times(t_n, 0.5 * H, t_floor)
         if ts is None:
             return None
-        attempt = self._attempt_in_engine(ts, y_n, H, ratio_row, iterations, engine)
+        nodes = step_nodes(ts, H)
+        attempt = self._attempt_in_engine(ts, nodes, y_n, H, ratio_row, iterations, engine)
         if attempt is False:
             self.landing, self.standing_down = None, True
             return None
@@ -377,8 +378,8 @@ class PassageBridge(EngineCrossing):
                                   6 - tried)
             if H is None:
                 return self._decline(np.inf)
+            nodes = step_nodes(ts, H)
         t_b = t_n + H
-        nodes = np.concatenate([[1.0], (ts - t_n) / H])
         if done is None:
             done = self._corrector_in_engine(y_n, F, nodes, t_b, H, iterations, engine)
         if done is not None:

@@ -15,6 +15,20 @@ from ..integrators.compiled import SAFETY, dense_matrix, extra_tableau, tableau
 HISTORY_BUDGET = 400
 
 
+def step_nodes(ts, H):
+    """The nodes of a bridge's Adams step of H from ts[0] over its history at the times ts,
+    in units of the step: its end 1, then (ts − ts[0]) / H."""
+    return np.concatenate([[1.0], (ts - ts[0]) / H])
+
+
+def corrector_weights(nodes):
+    """The weights the engine's corrector takes on a step's `nodes` (`step_nodes`): the
+    prediction's, the full order's correction and every order's from 3 (its last row the
+    full order's)."""
+    orders = order_weights(nodes, 3)
+    return step_weights(nodes[1:]), orders[-1], orders
+
+
 class EngineCrossing:
     """The engine's crossing for `PassageBridge`, whose attributes it reads: `problem`,
     `rate` (() -> the engine's rate, or None), `compiled`, `extension`, `rtol`, `atol`,
@@ -39,21 +53,20 @@ class EngineCrossing:
         rate, steps = engine
         if steps is None:
             return None
-        steps.start_integrator(t_n, y_n, ts[-1], inner.rtol, self._atol(y_n.size, True))
-        done = steps.history(rate.context, rate, ts, HISTORY_BUDGET * len(ts))
+        steps.start_integrator(t_n, ts[-1], inner.rtol, self._atol(y_n.size, True))
+        done = steps.history(rate.context, rate, y_n, ts, HISTORY_BUDGET * len(ts))
         if not done:
             return done
         states, F, evaluations, projections = done
-        rate.counted(evaluations)
-        self.evaluations += evaluations
-        self._counted(len(F), projections)      # the rates at them, as `_f` counts them
+        self._counted_history(rate, evaluations, len(F), projections)
         return list(states), F
 
-    def _attempt_in_engine(self, ts, y_n, H, ratio_row, iterations, engine):
+    def _attempt_in_engine(self, ts, nodes, y_n, H, ratio_row, iterations, engine):
         """`_start`, `_out_of_band`'s first length and `_corrector_in_engine` in one call of
         the engine (`mechsim_bridge_attempt`: the same projections, steps, rates and
         corrections, counted as they count theirs) where it takes the history and the
-        corrector and the monitor's ratio is σ_{m−1}/σ_max (`ratio_row`): (y_n put onto
+        corrector and the monitor's ratio is σ_{m−1}/σ_max (`ratio_row`); `nodes`: the
+        step's (`step_nodes`). (y_n put onto
         the constraints, the rates F at ts, the states (t, q, v) in time order, the
         corrector's (f_b, the orders' ends, their estimates) or None where the prediction
         at H lies in the band); False where the history fails or grinds; None where the
@@ -62,14 +75,9 @@ class EngineCrossing:
         p = self.problem
         if steps is None or ratio_row != p.m - 1 or p.m > p.n:
             return None
-        t_n = ts[0]
-        nodes = np.concatenate([[1.0], (ts - t_n) / H])
-        orders = order_weights(nodes, 3)
-        inner = self._inner
-        steps.start_integrator(t_n, None, ts[-1], inner.rtol, self._atol(y_n.size, True))
+        steps.start_integrator(ts[0], ts[-1], self._inner.rtol, self._atol(y_n.size, True))
         done = steps.attempt(rate.context, rate, ts, y_n, H, HISTORY_BUDGET * (len(ts) - 1),
-                             ratio_row, 2.0 * self.edge,
-                             (step_weights(nodes[1:]), orders[-1], orders),
+                             ratio_row, 2.0 * self.edge, corrector_weights(nodes),
                              (self.rtol, self._atol(y_n.size)), iterations)
         if done == -1:
             return None
@@ -77,9 +85,7 @@ class EngineCrossing:
             return False
         y_n, states, F, corrected, counts = done
         settle, evaluations, projections, rates, corrections = counts
-        rate.counted(evaluations)
-        self.evaluations += evaluations
-        self._counted(len(F), projections + settle)
+        self._counted_history(rate, evaluations, len(F), projections + settle)
         if corrected is not None:
             self._counted(rates, corrections)
             f_b, Y, errs = corrected
@@ -96,9 +102,7 @@ class EngineCrossing:
         rate, steps = engine
         if steps is None:
             return None
-        orders = order_weights(nodes, 3)            # its last row: the full order's
-        done = steps.corrector(rate.context, rate, y_n, F,
-                               (step_weights(nodes[1:]), orders[-1], orders), H, t_b,
+        done = steps.corrector(rate.context, rate, y_n, F, corrector_weights(nodes), H, t_b,
                                (self.rtol, self._atol(y_n.size)), iterations)
         if done is None:
             return None
@@ -127,6 +131,14 @@ class EngineCrossing:
             atol = self._atols[inner, size] = np.empty(size)
             atol[:] = self._inner.atol if inner else self.atol
         return atol
+
+    def _counted_history(self, rate, evaluations, rates, projections) -> None:
+        """A history the engine integrated: its steps' `evaluations` counted on the engine's
+        `rate` and as the bridge's, its `rates` at the history's states and their chord
+        iterations as `_f` and `_settled` count theirs."""
+        rate.counted(evaluations)
+        self.evaluations += evaluations
+        self._counted(rates, projections)
 
     def _counted(self, rates, projections) -> None:
         """Rates and chord iterations the engine took for the bridge, counted as `_f` and

@@ -170,10 +170,10 @@ class SingularityMonitor:
         states together (a small mechanism), its singular values alone, as the passage
         search's values are (`singular_extremes`, no singular vectors); elsewhere
         `measure`'s."""
-        algebra, m = self.problem.algebra, self.problem.m
-        if not (m and algebra.batched):
+        row = self.ratio_row
+        if row is None:
             return self.measure(q, t)[0]
-        smin, smax = algebra.singular_extremes([t], [q], m - 1 - self.redundant)[0].tolist()
+        smin, smax = self.problem.algebra.singular_extremes([t], [q], row)[0].tolist()
         return smin / smax if smax > 0.0 else 0.0
 
     def _measure(self, q, t, v, J=None):

@@ -66,15 +66,8 @@ def step_weights(nodes, s=1.0) -> np.ndarray:
     # snapping them to multiples of 2⁻⁴⁰ makes equal patterns hit the cache. The
     # weights are those of the snapped nodes, so a run does not depend on what earlier
     # runs left in the cache.
-    snapped = np.rint(np.append(nodes, s) * 2.0**40)
-    key = tuple(snapped.astype(np.int64).tolist())
-    w = _WEIGHTS.get(key)
-    if w is None:
-        if len(_WEIGHTS) > 20000:
-            _WEIGHTS.clear()
-        snapped *= 2.0**-40
-        w = _WEIGHTS[key] = integration_weights(snapped[:-1], snapped[-1])[0]
-    return w
+    snapped, key = _pattern(np.append(nodes, s))
+    return _cached(_WEIGHTS, key, lambda: integration_weights(snapped[:-1], snapped[-1])[0])
 
 
 # The corrector weights of every order on a node pattern (`order_weights`).
@@ -87,18 +80,30 @@ def order_weights(nodes, first) -> np.ndarray:
     `step_weights` caches its rows (the same numbers): a passage bridge estimates its error
     from the correctors of all its orders on nodes whose pattern recurs bridge after
     bridge."""
-    key = (first, tuple(np.rint(np.asarray(nodes) * 2.0**40).astype(np.int64).tolist()))
-    W = _ORDERS.get(key)
-    if W is None:
-        if len(_ORDERS) > 20000:
-            _ORDERS.clear()
+    def make():
         K = len(nodes)
         W = np.zeros((K - first + 1, K))
         for k in range(first, K + 1):
             W[k - first, :k] = step_weights(nodes[:k])
         W.flags.writeable = False
-        _ORDERS[key] = W
-    return W
+        return W
+    return _cached(_ORDERS, (first, _pattern(nodes)[1]), make)
+
+
+def _pattern(values):
+    """(values snapped to multiples of 2⁻⁴⁰, the integers that key them)."""
+    snapped = np.rint(np.asarray(values, dtype=float) * 2.0**40)
+    return snapped * 2.0**-40, tuple(snapped.astype(np.int64).tolist())
+
+
+def _cached(cache, key, make):
+    """cache[key], made by make() where it is missing (the cache emptied past 20000)."""
+    found = cache.get(key)
+    if found is None:
+        if len(cache) > 20000:
+            cache.clear()
+        found = cache[key] = make()
+    return found
 
 
 def error_norm(e, y_a, y_b, rtol, atol) -> float:
