@@ -52,6 +52,27 @@ def mechanism_models(directory):
             if b"A mechsim type kernel" not in p.read_bytes()]
 
 
+def seeded_cache(directory):
+    """`directory` (made where missing) as a model cache holding the compiled engine's
+    object file (`mechsim.codegen.engine.engine_object`, with its digest) of the session's
+    cache, compiled there once: for the tests of builds in an empty cache whose subject is
+    not the engine's own compile (test_engine.py's are), which would each compile it again
+    (~3 s of the compiler a cache). Nothing is copied where compiling is off or fails."""
+    from pathlib import Path
+
+    from mechsim.codegen import cache, compiled, engine
+    directory = Path(directory)
+    directory.mkdir(mode=0o700, parents=True, exist_ok=True)
+    if os.environ.get("MECHSIM_NO_COMPILE"):
+        return directory
+    for found in engine.engine_object(Path(os.environ["MECHSIM_TEST_SESSION_CACHE"]),
+                                      compiled.compiler()):
+        for path in (found, cache._digest_path(found)):
+            if not (directory / path.name).exists():
+                shutil.copyfile(path, directory / path.name)
+    return directory
+
+
 # Tests of compiled code: skipped without a C compiler (or with compiling switched off).
 needs_compiler = pytest.mark.skipif(
     shutil.which((os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0])

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import mechanism_models, needs_compiler
+from conftest import mechanism_models, needs_compiler, seeded_cache
 from test_gears import train
 
 import mechsim as ms
@@ -268,7 +268,7 @@ def test_runs_are_alike_to_the_last_bit_on_either_build(factory, method, t_end):
 
 
 def _python(code: str, cache: Path, **env) -> str:
-    full = {**os.environ, "MECHSIM_CACHE_DIR": str(cache), **env}
+    full = {**os.environ, "MECHSIM_CACHE_DIR": str(seeded_cache(cache)), **env}
     full.pop("MECHSIM_BUILD", None)
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           env=full, timeout=300)
@@ -355,7 +355,7 @@ def test_a_background_build_compiles_the_engine_s_evaluations_only_where_they_se
     once more."""
     from mechsim.build import background
     from mechsim.codegen import cache
-    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(seeded_cache(tmp_path)))
     cache.clear_memory_cache()
     try:
         for n, libraries in ((2, 1), (10, 1)):          # (the count so far)

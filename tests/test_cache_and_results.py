@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import mechsim as ms
-from conftest import mechanism_models
+from conftest import mechanism_models, seeded_cache
 from mechsim.app.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,7 +28,7 @@ _PROBE = textwrap.dedent("""
 
 
 def _probe(scene, cache_dir):
-    env = {**os.environ, "MECHSIM_CACHE_DIR": str(cache_dir)}
+    env = {**os.environ, "MECHSIM_CACHE_DIR": str(seeded_cache(cache_dir))}
     out = subprocess.run([sys.executable, "-c", _PROBE, str(scene)], env=env, check=True,
                          capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
@@ -54,7 +54,7 @@ def test_import_is_light():
 
 def test_corrupt_cache_entry_is_rebuilt(tmp_path, monkeypatch):
     from mechsim.codegen import cache
-    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(seeded_cache(tmp_path)))
     cache.clear_memory_cache()
     mech = ms.examples.pendulum()
     mech.problem()

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import mechsim as ms
+from conftest import seeded_cache
 from test_cli import SCENE as CLI_SCENE
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -30,7 +31,7 @@ def test_a_background_build_never_imports_from_the_working_directory(tmp_path):
         (work / name).write_text(f"open({str(marker)!r}, 'w').write('ran')\n")
     scene = work / "scene.toml"
     scene.write_text((ROOT / "mechanisms" / "four_bar.toml").read_text())
-    env = {**os.environ, "MECHSIM_CACHE_DIR": str(cache), "MECHSIM_BUILD": "auto",
+    env = {**os.environ, "MECHSIM_CACHE_DIR": str(seeded_cache(cache)), "MECHSIM_BUILD": "auto",
            "MECHSIM_BACKGROUND": "1"}
     done = subprocess.run([sys.executable, "-P", "-m", "mechsim.app.cli", "run", scene.name,
                            "--t-end", "0.05", "--quiet", "--out", str(tmp_path / "out")],

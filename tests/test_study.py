@@ -13,7 +13,7 @@ import pytest
 from scipy import stats
 
 import mechsim as ms
-from conftest import mechanism_models
+from conftest import mechanism_models, seeded_cache
 from mechsim import examples
 from mechsim.codegen import cache
 from mechsim.study import parameter_sets
@@ -79,7 +79,7 @@ def test_one_compiled_model_serves_the_whole_study(tmp_path, monkeypatch):
     every sample (on two worker processes) loads it: each reports its model came from
     the cache. Linearized about the hanging equilibrium, a rod pinned at its end swings
     at √(3g/(2L)) for every length."""
-    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(seeded_cache(tmp_path)))
     cache.clear_memory_cache()
 
     def modes(mech):

@@ -509,7 +509,7 @@ _REUSE = textwrap.dedent("""
 
 def test_a_later_run_reusing_the_cache_runs_no_code_either(tmp_path):
     marker = tmp_path / "marker"
-    env = {**os.environ, "MECHSIM_CACHE_DIR": str(tmp_path / "cache")}
+    env = {**os.environ, "MECHSIM_CACHE_DIR": str(seeded_cache(tmp_path / "cache"))}
     code = _REUSE.format(tests=str(ROOT / "tests"), marker=str(marker))
     outs = [subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                            text=True, check=True).stdout.split() for _ in range(2)]
@@ -553,6 +553,14 @@ _PROBE = textwrap.dedent("""
     c = m.compilation()
     print(r.status, float(np.abs(r.coordinate("crank1.angle") - th).max()), c.kernels, c.engine)
 """)
+
+
+def seeded_cache(directory):
+    """conftest's `seeded_cache`, imported at the call: the processes of
+    `test_a_later_run_reusing_the_cache_runs_no_code_either` import this module, and
+    conftest on import points MECHSIM_CACHE_DIR at the session's cache."""
+    from conftest import seeded_cache
+    return seeded_cache(directory)
 
 
 def _probe(cache, n=1, **env):
@@ -600,7 +608,7 @@ class _Pristine(dict):
 
     def built(self, *sizes):
         new = [n for n in sizes if n not in self]
-        directories = {n: self.factory.mktemp(f"cache{n}") for n in new}
+        directories = {n: seeded_cache(self.factory.mktemp(f"cache{n}")) for n in new}
         started = {n: _start_probe(d, n) for n, d in directories.items()}
         self.update({n: (directories[n], _probed(p)) for n, p in started.items()})
         return self
@@ -663,7 +671,7 @@ def test_a_damaged_cache_entry_is_rebuilt_with_the_right_answer(tmp_path, pristi
 
 @needs_compiler
 def test_concurrent_builds_of_one_model_are_safe(tmp_path):
-    cache = tmp_path / "cache"
+    cache = seeded_cache(tmp_path / "cache")
     env = {**os.environ, "MECHSIM_CACHE_DIR": str(cache)}
     procs = [subprocess.Popen([sys.executable, "-c", _PROBE.format(n=3)], env=env,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -693,7 +701,7 @@ def test_a_failed_compiler_is_remembered_and_said_once(tmp_path):
     cc = tmp_path / "cc"
     cc.write_text(f"#!/bin/sh\necho called >> {log}\necho 'fatal: no licence' >&2\nexit 1\n")
     cc.chmod(0o755)
-    cache = tmp_path / "cache"
+    cache = seeded_cache(tmp_path / "cache")
     first = _probe(cache, CC=str(cc))
     assert first[0] == "success" and first[1] < 1e-6 and not first[3]
     assert first[4].count("fatal: no licence") == 1          # one warning, naming the error
@@ -717,7 +725,7 @@ def test_a_compile_that_ran_out_of_disk_is_tried_again_and_leftovers_go(tmp_path
     cc.write_text(f"#!/bin/sh\necho called >> {log}\n"
                   "echo 'model.so: No space left on device' >&2\nexit 1\n")
     cc.chmod(0o755)
-    cache = tmp_path / "cache"
+    cache = seeded_cache(tmp_path / "cache")
     first = _probe(cache, CC=str(cc))
     assert first[0] == "success" and not first[3] and "tried again" in first[4]
     assert not list(cache.glob("*.failed"))
@@ -745,7 +753,7 @@ def test_a_new_process_compiles_as_mechsim_no_compile_says(tmp_path, value, comp
     """The switch end to end, one value each way (how each value reads: above)."""
     if compiled and not _compiler_serves():
         pytest.skip("no working C compiler")
-    status, _, _, engine, _ = _probe(tmp_path / "cache", MECHSIM_NO_COMPILE=value)
+    status, _, _, engine, _ = _probe(seeded_cache(tmp_path / "cache"), MECHSIM_NO_COMPILE=value)
     assert status == "success" and engine is compiled
 
 
