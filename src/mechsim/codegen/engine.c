@@ -2387,23 +2387,32 @@ static int dop853_step(mechsim_segment *s, int64_t N) {
 /* A segment's next step (CompiledDOP853.step) from (s->t, s->y, s->fy) on the step's rate
    (s->rate_ctx of s->kind; min_rcond s->rate_rcond, s->cut), the state of N entries: its
    end into s->y_new, s->f_new, out = (t_new, h, next h_abs, evaluations). 0: a step the
-   segment may take; else why not (the step limit, a stage declined, a step shorter than the
-   stall rule's span, the run's end). */
+   segment may take (one to the run's end included: `ends_run`); else why not (the step
+   limit, a stage declined, a step shorter than the stall rule's span). */
 static int64_t segment_step(mechsim_segment *s, int64_t N) {
   if (s->max_steps >= 0 && s->steps + 1 > s->max_steps) return SEG_LIMIT;
   const double *out = s->out;
   if (dop853_step(s, N)) return SEG_STEP;
   if (out[1] < s->min_advance) return SEG_SHORT;
-  if (s->direction * (out[0] - s->t_bound) >= 0.0) return SEG_FINISHED;
   return 0;
 }
 
+/* Whether the step to t_new ends the run (CompiledDOP853's status "finished" after it):
+   the segment takes it up to the monitor's observation and leaves it pending, as a step
+   with a sample due at its end (`sample_window`), for the loop to finish (Run._after_step,
+   _after_accept: the formulation's correction, the sample at the end, no rate evaluated
+   again after the last step). */
+static int ends_run(const mechsim_segment *s, double t_new) {
+  return s->direction * (t_new - s->t_bound) >= 0.0;
+}
+
 /* The output samples inside the step from t_old to t_new (Recorder.within): s->ts[*k0 ...
-   *k0 + *k - 1], the grid's next index after them *next. 0, or why the segment cannot
-   record them (no room; a sample due at the step's end, or a sample at every step's end
-   without room). */
+   *k0 + *k - 1], the grid's next index after them *next, and *due whether the grid's next
+   sample falls at t_new itself (Recorder.due: the loop's to record, the step pending).
+   0, or why the segment cannot record them (no room; a sample at every step's end without
+   room). */
 static int64_t sample_window(mechsim_segment *s, double t_old, double t_new, int64_t *k0,
-                             int64_t *k, int64_t *next) {
+                             int64_t *k, int64_t *next, int *due) {
   int64_t j = s->next;
   while (j < s->n_ts && s->ts[j] < t_new) j++;
   int64_t first = s->next;
@@ -2412,7 +2421,7 @@ static int64_t sample_window(mechsim_segment *s, double t_old, double t_new, int
   *k = j - first;
   *next = j;
   if (*k > 0 && (s->held + *k > s->capacity || *k > s->y_rows)) return SEG_ROOM;
-  if (j < s->n_ts && s->ts[j] == t_new) return SEG_DUE;
+  *due = j < s->n_ts && s->ts[j] == t_new;
   if (s->every_step && s->held + 1 > s->capacity) return SEG_ROOM;
   return 0;
 }
@@ -2535,7 +2544,8 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
     /* the output samples inside the step (Recorder.within): computed once the step is
        known to stand, below */
     int64_t k0, k, next;
-    why = sample_window(s, t_old, t_new, &k0, &k, &next);
+    int due = 0;
+    why = sample_window(s, t_old, t_new, &k0, &k, &next, &due);
     if (why) { s->reason = why; break; }
     const double speed = end_speed(n, q_new, v_new);
     if (isnan(speed)) { s->reason = SEG_FINITE; break; }
@@ -2575,6 +2585,7 @@ int64_t mechsim_lu_segment(mechsim_lu *c, mechsim_projection *pc, mechsim_segmen
                      speed, ready);
       break;
     }
+    if (!pending && (due || ends_run(s, t_new))) pending = due ? SEG_DUE : SEG_FINISHED;
     double repartition_at = s->repartition_at;
     if (!pending && (fresh >= 2 || condition > repartition_at)) {
       /* Partitioned.after_step's choose: the same set stands until its condition grows as
@@ -2773,7 +2784,8 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     const double t_old = s->t, t_new = s->out[0], h = s->out[1], h_next = s->out[2];
     const double *q_new = y_new, *v_new = y_new + n;
     int64_t k0, k, next;
-    why = sample_window(s, t_old, t_new, &k0, &k, &next);
+    int due = 0;
+    why = sample_window(s, t_old, t_new, &k0, &k, &next, &due);
     if (why) { s->reason = why; break; }
     const double speed = end_speed(n, q_new, v_new);
     if (isnan(speed)) { s->reason = SEG_FINITE; break; }
@@ -2857,6 +2869,7 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
                      speed, ready);
       break;
     }
+    if (!pending && (due || ends_run(s, t_new))) pending = due ? SEG_DUE : SEG_FINISHED;
     /* the projected state's rate (adapters.correct_in_place), on the next step's far */
     const double *f_end = f_new;
     if (!pending && moved) {

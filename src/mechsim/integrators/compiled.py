@@ -168,13 +168,15 @@ class CompiledDOP853(DOP853):
     def stepped_in_engine(self, compiled, t, t_old, h_abs, h_previous, y, f, y_old, K,
                           evaluations) -> None:
         """Steps taken in the engine elsewhere on `compiled` (`mechsim.run.segment`): the
-        state after the last of them, as `step` would leave it, its stages K (the dense
-        output's included), and the rates they evaluated counted."""
+        state after the last of them, as `step` would leave it (finished at `t_bound`), its
+        stages K (the dense output's included), and the rates they evaluated counted."""
         self.t, self.t_old, self.h_abs, self.h_previous = t, t_old, h_abs, h_previous
         self.y, self.f, self.y_old = y, f, y_old
         self.K_extended[:] = K
         self._taken = compiled
         self._after(evaluations, compiled)
+        if self.direction * (self.t - self.t_bound) >= 0:
+            self.status = "finished"
 
     def tolerances_changed(self):
         """Renew the engine's copy of atol after `atol` was set (`adapters.retune`)."""
