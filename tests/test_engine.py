@@ -6,6 +6,7 @@ import os
 import shutil
 import sysconfig
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,6 +25,9 @@ from mechsim.run import segment
 needs_compiler = pytest.mark.skipif(
     shutil.which((os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0])
     is None or bool(os.environ.get("MECHSIM_NO_COMPILE")), reason="no C compiler")
+
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _pair(result, rtol=1e-9):
@@ -50,6 +54,47 @@ def _driven_slider_crank_with_pendulum():
     bob = mech.add(ms.RigidBody.rod("bob", c, c + np.array([0.05, -0.2]), 0.1))
     mech.add(ms.Revolute(slider, bob, at=c, name="hang"))
     return mech
+
+
+@needs_compiler
+@pytest.mark.parametrize("build", [
+    PROBLEMS["crank-rocker"].build,
+    lambda: ms.examples.double_four_bar(2),
+    lambda: _driven_slider_crank_with_pendulum(),
+    lambda: ms.load_scene(ROOT / "mechanisms" / "cam_follower.toml").mechanism,
+], ids=["crank-rocker", "double-four-bar", "driven-slider-crank-pendulum", "cam-follower"])
+def test_the_jacobian_s_pattern_leaves_every_number_as_it_was(build):
+    """J W Jᵀ summed over the columns each pair of rows shares in Φ_q's pattern (the
+    engine's `complement` with `layout.pair_pattern`) gives the accelerations, the
+    projected states and the multipliers of the sums over a row's nonzero columns found
+    at each call, to the bit, off the constraints too (the chord Newton at work); the
+    pattern leaves most pairs of rows out."""
+    mech = build()
+    prob = mech.problem()
+    e = prob.algebra.engine
+    assert e is not None and 0 < e.ctx.pairs < prob.m * (prob.m + 1) // 2
+    q0, v0 = mech.initial_coordinates(), np.zeros(prob.n)
+    runs, pairs = [], e.ctx.pairs
+    try:
+        for used in (pairs, 0):
+            e.ctx.pairs = used
+            got, states = [], np.random.default_rng(7)
+            for _ in range(10):
+                t = 1e-4 * states.random()
+                q = q0 + 1e-3 * states.standard_normal(prob.n)
+                v, Q = states.standard_normal(prob.n), states.standard_normal(prob.n)
+                acc = e.accelerations(t, q, v, Q, 1e-12)
+                done = e.project_state(t, q, v, 1e-13)
+                lam = np.zeros((1, prob.m))
+                e.multipliers(np.array([t]), q[None], v[None], Q[None], -1.0, 0.0, lam)
+                got.append([acc, *(done or ()), lam])
+            runs.append(got)
+    finally:
+        e.ctx.pairs = pairs
+    for a, b in zip(*runs):
+        assert len(a) == len(b) == 4
+        for x, y in zip(a, b):
+            assert x is not None and x.tobytes() == np.asarray(y).tobytes()
 
 
 @needs_compiler

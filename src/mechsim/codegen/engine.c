@@ -359,21 +359,43 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
 
 /* ---- the projection method (Projection.accelerations, NumericProblem.project_state) ---- */
 
-/* S = J W J^T (both triangles, column-major); returns max S_ii. Each row's sums run over
-   the columns where that row of J is not zero (nz: scratch of m n + m entries), in their
-   order: a zero product leaves a sum as it was, so S is the dense sums' to the bit at a
-   fraction of them (a joint's rows touch two bodies' coordinates). */
-static double complement(int64_t n, int64_t m, const double *J, const double *winv,
+/* S = J W J^T (both triangles, column-major) of J = Phi_q (row-major m x n) or J~ with
+   W = winv; returns max S_ii. Each entry sums over the columns its two rows share in c's
+   pattern of Phi_q (c->pairs; the entries of rows that share none are zero), or where
+   there is none, over the columns where row i of J is not zero (nz: scratch of m n + m
+   entries), in their order: a product with a zero factor leaves a sum as it was, so S is
+   the dense sums' to the bit either way, at a fraction of them (a joint's rows touch two
+   bodies' coordinates; rows of joints on other bodies share none). */
+static double complement(const mechsim_projection *c, const double *J, const double *winv,
                          double *S, int64_t *nz) {
+  const int64_t n = c->n, m = c->m;
+  double diag = 0.0;
+  if (c->pairs) {
+    const int64_t *rows = c->pair_rows, *start = c->pair_start, *shared = c->pair_cols;
+    memset(S, 0, m * m * sizeof(double));
+    for (int64_t p = 0; p < c->pairs; p++) {
+      const int64_t i = rows[2 * p], k = rows[2 * p + 1];
+      const double *Ji = J + i * n, *Jk = J + k * n;
+      double e = 0.0;
+      for (int64_t a = start[p]; a < start[p + 1]; a++) {
+        const int64_t j = shared[a];
+        e += Ji[j] * winv[j] * Jk[j];
+      }
+      S[i + k * m] = e;
+      S[k + i * m] = e;
+    }
+    for (int64_t i = 0; i < m; i++)
+      if (S[i + i * m] > diag) diag = S[i + i * m];
+    return diag;
+  }
   int64_t *count = nz + m * n;
   for (int64_t i = 0; i < m; i++) {
     const double *Ji = J + i * n;
-    int64_t *cols = nz + i * n, c = 0;
+    int64_t *cols = nz + i * n, used = 0;
     for (int64_t j = 0; j < n; j++)
-      if (Ji[j] != 0.0) cols[c++] = j;
-    count[i] = c;
+      if (Ji[j] != 0.0) cols[used++] = j;
+    count[i] = used;
   }
-  double diag = 0.0;
   for (int64_t i = 0; i < m; i++) {
     const double *Ji = J + i * n;
     const int64_t *cols = nz + i * n, ci = count[i];
@@ -611,7 +633,7 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
     for (int64_t j = 0; j < n; j++) s += Ji[j] * wq[j];
     lam[i] = s - g[i];
   }
-  const double diag = complement(n, m, J, winv, S, c->nz);
+  const double diag = complement(c, J, winv, S, c->nz);
   if (cholesky(c, S, diag, min_rcond, 0))
     return cut > 0.0 ? svd_accelerations(c, J, g, cut) : 1;
   cholesky_solve(m, S, c->rdiag, lam);
@@ -660,7 +682,7 @@ int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
       lam[i] = e - g[i];
     }
     done[s] = 0;
-    const double diag = complement(n, m, J, winv, S, c->nz);
+    const double diag = complement(c, J, winv, S, c->nz);
     if (cholesky(c, S, diag, min_rcond, 1)) continue;
     int small = 0;
     for (int64_t i = 0; i < m; i++) small |= !(S[i + i * m] * S[i + i * m] > min_pivot * diag);
@@ -721,7 +743,7 @@ static int project_positions(mechsim_projection *c, double t, double skip_tol, d
   if (err <= skip_tol) return 2;
   memset(J, 0, m * n * sizeof(double));
   mechsim_phi_q(q, t, c->p, J);
-  const double diag = complement(n, m, J, c->winv, S, c->nz);
+  const double diag = complement(c, J, c->winv, S, c->nz);
   if (cholesky(c, S, diag, min_rcond, 0)) return 1;
   double prev = INFINITY;
   int64_t count = 0;
@@ -773,7 +795,7 @@ static int settle_state(mechsim_projection *c, double t, double *q, double *v, d
   if (status != 0) return status;
   /* c->J is Phi_q at the new q (status 0 took a Newton step at least: Phi was above
      tol = skip_tol): its own factor makes J v + Phi_t vanish */
-  const double diag = complement(n, c->m, c->J, c->winv, c->S, c->nz);
+  const double diag = complement(c, c->J, c->winv, c->S, c->nz);
   if (cholesky(c, c->S, diag, -1.0, 0) || project_velocity(c, t)) return 1;
   memcpy(q, c->q, n * sizeof(double));
   memcpy(v, c->v, n * sizeof(double));

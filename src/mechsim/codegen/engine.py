@@ -59,7 +59,8 @@ from ..linalg.dense import fall_basis
 from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
 from .cache import adopt, env_flag, verified_file
 from .compiled import build_library, compiler, compiler_identity, flags_digest, shared_library
-from .layout import PARTITION, PROJECTION, SEARCH, SEARCH_KEY, SEGMENT, Dims, declare
+from .layout import (PARTITION, PROJECTION, SEARCH, SEARCH_KEY, SEGMENT, Dims, declare,
+                     pair_pattern)
 from .scratch import Scratch
 from .search import StepSearch
 
@@ -397,11 +398,13 @@ class ProjectionEngine:
         self._right = self.buffers["U"].reshape(m, n)
         self._sig = self.buffers["sig"]
         self.wsqrt = np.sqrt(self.winv)
-        arrays = {**self.buffers, "p": self.p, "winv": self.winv, "wsqrt": self.wsqrt,
-                  "q": self.q, "v": self.v, "Q": self.Q, "out": self.out}
+        self.pattern = pair_pattern(problem.model, m)
+        arrays = {**self.buffers, **self.pattern, "p": self.p, "winv": self.winv,
+                  "wsqrt": self.wsqrt, "q": self.q, "v": self.v, "Q": self.Q, "out": self.out}
         self.ctx = PROJECTION.make(dict(
             n=n, m=m, count=0, lwork=self.buffers["svd_work"].size,
-            stall_ratio=STALL_RATIO, stall_span=STALL_SPAN), arrays)
+            stall_ratio=STALL_RATIO, stall_span=STALL_SPAN,
+            pairs=len(self.pattern["pair_start"]) - 1), arrays)
         self.n = n
         self.lib = lib
         self.context = ctypes.addressof(self.ctx)

@@ -120,6 +120,12 @@ PROJECTION = Layout("mechsim_projection", [
     *(Field(name, "double*", lambda d: d.n) for name in ("wq", "x", "q1")),
     Field("cw", "double*", lambda d: 3 * d.m), Field("perm", "int64*", lambda d: d.n),
     Field("nz", "int64*", lambda d: d.m * d.n + d.m),    # `complement`'s columns a row uses
+    # Φ_q's pattern as `complement` takes it (`pair_pattern`; pairs = 0: none, each call
+    # finds the columns its rows use): the pairs of rows i, k ≤ i that share columns
+    # (pair_rows[2 p], pair_rows[2 p + 1]), the columns of pair p pair_cols[pair_start[p]:
+    # pair_start[p + 1]]
+    Field("pairs", "int64"), Field("pair_rows", "const int64*"),
+    Field("pair_start", "const int64*"), Field("pair_cols", "const int64*"),
     Field("iwork", "int*", lambda d: 8 * d.m),
     # the extreme singular values' workspace (`extremes_of`: bidiagonal, dlasq1's; then the
     # accelerations' QR: its reflectors' factors, R's diagonal and three vectors)
@@ -128,6 +134,29 @@ PROJECTION = Layout("mechsim_projection", [
     Field("svd_work", "double*",
           lambda d: 3 * d.k + max(d.n, d.m, 5 * d.k * d.k + 4 * d.k) + 64),
 ])
+
+def pair_pattern(model, m: int) -> dict[str, np.ndarray]:
+    """`PROJECTION`'s pair_rows, pair_start and pair_cols for a model of m constraint rows:
+    the pairs of rows i and k ≤ i (i outer) whose entries in Φ_q's pattern
+    (`JACOBIAN_ROWS`, `JACOBIAN_COLS`: the entries its code sets, all others zero) share
+    columns, and those columns in increasing order; none (one zero each) where the model
+    gives no pattern (`complement` then finds the columns a row uses at each call)."""
+    rows, start, shared = [], [0], []
+    if hasattr(model, "JACOBIAN_ROWS"):
+        used = [set() for _ in range(m)]
+        for i, j in zip(model.JACOBIAN_ROWS, model.JACOBIAN_COLS):
+            used[i].add(j)
+        for i in range(m):
+            for k in range(i + 1):
+                both = sorted(used[i] & used[k])
+                if both:
+                    rows += [i, k]
+                    shared += both
+                    start.append(len(shared))
+    return {"pair_rows": np.array(rows or [0], np.int64),
+            "pair_start": np.array(start, np.int64),
+            "pair_cols": np.array(shared or [0], np.int64)}
+
 
 # The most nodes a segment's passage search holds (`mechsim_lu_segment`; more: the loop
 # searches).
