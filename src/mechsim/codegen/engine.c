@@ -2696,8 +2696,8 @@ static int predicted_within(double last, double rate, double h, double enter) {
 /* The passage bridge's plan as a segment carries it (PassageBridge's _prev, landing,
    free_step, _free_bound; not standing down, nothing declined). */
 typedef struct {
-  int has_prev, has_landing, has_free, free_bound;
-  double prev_t, prev_rate, landing, free_step;
+  int has_prev, has_landing, has_free, free_bound, has_planned, reset;
+  double prev_t, prev_rate, landing, free_step, planned_t, planned_star, rate;
 } seg_bridge;
 
 /* PassageBridge.plan after a step ending at t with sigma_min/sigma_max = sv falling at
@@ -2711,12 +2711,19 @@ static int bridge_plan(const mechsim_segment *s, seg_bridge *b, double t, double
   b->has_prev = 1;
   b->prev_t = t;
   b->prev_rate = rate;
-  if (rate >= 0.0) b->has_landing = b->has_prev = b->has_free = 0;
+  if (rate >= 0.0) {
+    b->has_landing = b->has_prev = b->has_free = 0;
+    b->reset = 1;
+  }
   if (!(rate < 0.0)) return 1;
   if (sv < s->edge) return 0;
   const double curv = has_prev && t > prev_t ? (rate - prev_rate) / (t - prev_t) : 0.0;
   const double disc = rate * rate - 2.0 * curv * sv;
   const double to_star = disc > 0.0 ? 2.0 * sv / (-rate + sqrt(disc)) : sv / -rate;
+  b->has_planned = 1;                               /* plan's _planned and _rate */
+  b->planned_t = t;
+  b->planned_star = to_star;
+  b->rate = -rate;
   if (!b->has_landing) {
     if (to_star > 3.0 * h_next) {                  /* note_step */
       if (!b->has_free || h_next >= b->free_step) {
@@ -2868,7 +2875,9 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     /* the passage bridge's plan (Run._bridge, bridge_passage): nothing, or a landing */
     const double s_un = last * peak, rate_un = mon_rate * peak;
     seg_bridge b = {(int)s->has_bprev, (int)s->has_landing, (int)s->has_free,
-                    (int)s->free_bound, s->bprev_t, s->bprev_rate, s->landing, s->free_step};
+                    (int)s->free_bound, (int)s->has_planned, (int)s->plan_reset,
+                    s->bprev_t, s->bprev_rate, s->landing, s->free_step, s->planned_t,
+                    s->planned_star, s->plan_rate};
     int plan = 1;
     double land = 0.0;
     if (!pending && s->bridging) {
@@ -2924,6 +2933,8 @@ int64_t mechsim_projection_segment(mechsim_projection *pc, mechsim_segment *s) {
     s->has_bprev = b.has_prev; s->bprev_t = b.prev_t; s->bprev_rate = b.prev_rate;
     s->has_landing = b.has_landing; s->landing = b.landing;
     s->has_free = b.has_free; s->free_step = b.free_step; s->free_bound = b.free_bound;
+    s->has_planned = b.has_planned; s->planned_t = b.planned_t;
+    s->planned_star = b.planned_star; s->plan_rate = b.rate; s->plan_reset = b.reset;
     commit_step(s, N, n, t_old, y_here, f_end, evaluations, next, k, y_here, y_here + n, speed,
                 s_un, rate_un);
     if (runaway_due(s)) break;

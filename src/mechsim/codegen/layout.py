@@ -219,7 +219,8 @@ SEGMENT = Layout("mechsim_segment", [
         # method's steps (`mechsim_projection_segment`): its far flag now and for the last
         # step, the hybrid's stable steps, the bridge's previous plan, what was counted
         "kind", "far", "far_taken", "stable", "stable_steps", "bridging", "has_bprev",
-        "has_landing", "has_free", "free_bound", "projections", "pending",
+        "has_landing", "has_free", "free_bound", "has_planned", "plan_reset", "projections",
+        "pending",
         "dense_formed", "open_at_start",
         # the passages a segment observes itself (`handles_passages`; `through`: also
         # through their band, a step ending inside one): the open one, whether its
@@ -237,7 +238,8 @@ SEGMENT = Layout("mechsim_segment", [
         "prev_rate", "floor_t", "floor_v", "m_smin", "m_smax", "ratio_speed", "cond_max",
         "growth", "keep_t", "chord", "machine_eps", "rank_factor", "rate_step",
         "rate_rcond", "cut", "min_rcond", "previous", "lu_limit", "project_tol", "skip_tol",
-        "bprev_t", "bprev_rate", "landing", "free_step", "landing_share", "edge",
+        "bprev_t", "bprev_rate", "landing", "free_step", "planned_t", "planned_star",
+        "plan_rate", "landing_share", "edge",
         "round_off", "open_t_start", "open_t_min", "open_s_min", "open_bridged", "vector_t",
         "refine_tol")),
     *(Field(name, "const double*") for name in ("coef", "extra_coef", "dense", "atol", "ts")),

@@ -170,6 +170,19 @@ class PassageBridge(EngineCrossing):
         if self.free_step is None or h_next >= self.free_step:
             self.free_step, self._free_bound = h_next, max_step_bound
 
+    def planned_in_engine(self, prev, landing, free, free_bound, planned, reset) -> None:
+        """The state `plan` leaves after the plans the compiled engine made (nothing, or a
+        landing: `mechsim.run.segment`): its previous step's (t, rate) `prev`, `landing`,
+        the longest free step `free` (its `free_bound`), the latest prediction `planned`
+        ((t, time to the configuration), the rate of fall) where one was made, and
+        whether s rose at a step since (`reset`: a declined crossing is forgotten)."""
+        self._prev, self.landing = prev, landing
+        self.free_step, self._free_bound = free, free_bound
+        if planned is not None:
+            self._planned, self._rate = planned
+        if reset:
+            self.standing_down, self._declined = False, None
+
     def plan(self, s, rate, t, h_next, max_step_bound=False):
         """What to do after a step ending at t with σ_min/σ_max = s falling at `rate` and a
         next step of h_next proposed (`max_step_bound`: h_next is the run's max_step): None

@@ -45,6 +45,13 @@ class Runaway:
         if not j % self.stride:
             self.note_speed(j, h, np.max(np.abs(v), initial=0.0))
 
+    def note_speeds(self, first, hs, speeds) -> None:
+        """`note_speed` of the steps first, first + 1, … of lengths `hs` and speeds
+        `speeds` (the steps a segment took)."""
+        for j, (h, speed) in enumerate(zip(hs, speeds), first):
+            if not j % self.stride:
+                self.note_speed(j, h, speed)
+
     def note_speed(self, j, h, speed) -> None:
         """`note` of a step whose largest speed |v|∞ is `speed`."""
         if j % self.stride:

@@ -205,6 +205,7 @@ class Segment:
         # observes the passages itself (`mechsim_projection_segment`).
         s.handles_passages = s.through = s.bridging
         s.has_bprev, s.has_landing, s.has_free = (x is not None for x in (prev, landing, free))
+        s.has_planned = s.plan_reset = False
         s.bprev_t, s.bprev_rate = prev if prev is not None else (0.0, 0.0)
         s.landing = landing if landing is not None else 0.0
         s.free_step = free if free is not None else 0.0
@@ -415,11 +416,18 @@ class Segment:
         if s.pending:
             self.pending = Pending(s.t_old, s.t, run.solver.y, s.pending == PENDING_OBSERVE,
                                    self._interpolant(run.solver, compiled))
-        for j, (t, h, speed, h_free, sv, rate) in enumerate(log.tolist()):
-            run.runaway.note_speed(first + j, h, speed)
-            if s.pending and j == count - 1:
-                break                    # the loop's own plan, after the step's end
-            if planned:              # Run._bridge's plan, which planned nothing (the engine)
-                bridge.plan(sv, rate, t, min(h_free, bound), h_free >= bound)
-            elif bridge is not None:
+        rows = log.tolist()
+        run.runaway.note_speeds(first, [h for _, h, _, _, _, _ in rows],
+                                [speed for _, _, speed, _, _, _ in rows])
+        # the bridge after Run._bridge's plans, which planned nothing or a landing (the
+        # engine's, `bridge_plan`); a pending step's is the loop's own, after its end
+        if planned:
+            bridge.planned_in_engine(
+                (s.bprev_t, s.bprev_rate) if s.has_bprev else None,
+                s.landing if s.has_landing else None, s.free_step if s.has_free else None,
+                bool(s.free_bound),
+                ((s.planned_t, s.planned_star), s.plan_rate) if s.has_planned else None,
+                bool(s.plan_reset))
+        elif bridge is not None:
+            for _, _, _, h_free, _, _ in rows[:count - bool(s.pending)]:
                 bridge.note_step(min(h_free, bound), h_free >= bound)
