@@ -22,6 +22,8 @@ from mechsim.formulations.partitioned import Partitioned
 from mechsim.integrators.compiled import Interpolant
 from mechsim.run import segment
 
+from conftest import seeded_cache
+
 needs_compiler = pytest.mark.skipif(
     shutil.which((os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc").split()[0])
     is None or bool(os.environ.get("MECHSIM_NO_COMPILE")), reason="no C compiler")
@@ -215,10 +217,12 @@ def test_small_models_link_the_engine_compiled_once(tmp_path, monkeypatch, damag
     """In a new cache the engine's C is compiled once into an object file that each small
     model's library links. An object truncated is compiled again; one that passes its
     digest but cannot be linked leaves the library to be compiled whole. Either way the
-    next model's engine serves, and its run is the one in the suite's cache to the bit."""
+    next model's engine serves, and its run is the one in the suite's cache to the bit.
+    (The damaged cases start from the suite's compiled object: `seeded_cache`.)"""
     from mechsim.codegen.cache import adopt, verified_file
     reference = ms.examples.slider_crank().simulate(0.3, method="lu", rtol=1e-8)
-    monkeypatch.setenv("MECHSIM_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("MECHSIM_CACHE_DIR",
+                       str(tmp_path if damage == "none" else seeded_cache(tmp_path)))
     cache.clear_memory_cache()
     try:
         assert ms.examples.four_bar().compilation().engine
