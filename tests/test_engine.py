@@ -67,10 +67,12 @@ def _driven_slider_crank_with_pendulum():
 ], ids=["crank-rocker", "double-four-bar", "driven-slider-crank-pendulum", "cam-follower"])
 def test_the_jacobian_s_pattern_leaves_every_number_as_it_was(build):
     """J W Jᵀ summed over the columns each pair of rows shares in Φ_q's pattern (the
-    engine's `complement` with `layout.pair_pattern`) gives the accelerations, the
-    projected states and the multipliers of the sums over a row's nonzero columns found
-    at each call, to the bit, off the constraints too (the chord Newton at work); the
-    pattern leaves most pairs of rows out."""
+    engine's `complement` with `layout.pair_pattern`), J̃ and its differences over the
+    pattern's entries alone, give the accelerations, the projected states, the
+    multipliers, the passage search's floors, chords and singular values of the sums
+    over every column (or a row's nonzero ones found at each call), to the bit, off the
+    constraints too (the chord Newton at work); the pattern leaves most pairs of rows
+    out."""
     mech = build()
     prob = mech.problem()
     e = prob.algebra.engine
@@ -89,12 +91,14 @@ def test_the_jacobian_s_pattern_leaves_every_number_as_it_was(build):
                 done = e.project_state(t, q, v, 1e-13)
                 lam = np.zeros((1, prob.m))
                 e.multipliers(np.array([t]), q[None], v[None], Q[None], -1.0, 0.0, lam)
-                got.append([acc, *(done or ()), lam])
+                T, Qs = np.array([t, t + 1e-3]), np.array([q, q + 1e-3])
+                got.append([acc, *(done or ()), lam, e.extreme_bounds(T, Qs),
+                            e.chords(T, Qs), e.extremes(T, Qs, prob.m - 1)])
             runs.append(got)
     finally:
         e.ctx.pairs = pairs
     for a, b in zip(*runs):
-        assert len(a) == len(b) == 4
+        assert len(a) == len(b) == 7
         for x, y in zip(a, b):
             assert x is not None and x.tobytes() == np.asarray(y).tobytes()
 

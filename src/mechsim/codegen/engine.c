@@ -518,8 +518,18 @@ static int cholesky(mechsim_projection *c, double *S, double diag, double min_rc
 
 /* A = J W^(1/2) (row-major m x n; A may be J). */
 static void scale_columns(const mechsim_projection *c, const double *J, double *A) {
+  const int64_t n = c->n;
+  if (c->pairs) {                    /* the entries of Phi_q's pattern: the others are 0 */
+    if (A != J) memset(A, 0, c->m * n * sizeof(double));
+    for (int64_t i = 0; i < c->m; i++)
+      for (int64_t a = c->row_start[i]; a < c->row_start[i + 1]; a++) {
+        const int64_t j = c->row_cols[a];
+        A[i * n + j] = J[i * n + j] * c->wsqrt[j];
+      }
+    return;
+  }
   for (int64_t i = 0; i < c->m; i++)
-    for (int64_t j = 0; j < c->n; j++) A[i * c->n + j] = J[i * c->n + j] * c->wsqrt[j];
+    for (int64_t j = 0; j < n; j++) A[i * n + j] = J[i * n + j] * c->wsqrt[j];
 }
 
 /* LAPACK's dgesdd of A = J~ (row-major m x n, m <= n; destroyed) with `jobz`: c->sig
@@ -918,17 +928,24 @@ void mechsim_fall_rates(int64_t m, int64_t n, int64_t r, const double *in, const
   out[1] = (fall_b + in[5] / in[6] * rise) / in[6];
 }
 
-static double difference_norm(int64_t m, int64_t n, const double *A, const double *B,
-                              double *cols) {
+/* min(||D||_F, (||D||_1 ||D||_inf)^(1/2)), an upper bound of ||D||_2, of D = A - B (m x n
+   row-major, both of Phi_q's pattern where c has it: the sums then skip its zeros, to
+   the same bits); cols: n scratch. */
+static double difference_norm(const mechsim_projection *c, int64_t m, int64_t n,
+                              const double *A, const double *B, double *cols) {
   double frob = 0.0, rows = 0.0, colmax = 0.0;
+  const int patterned = c->pairs && m == c->m && n == c->n;
   memset(cols, 0, n * sizeof(double));
   for (int64_t i = 0; i < m; i++) {
     double r = 0.0;
-    for (int64_t j = 0; j < n; j++) {
-      const double d = A[i * n + j] - B[i * n + j], a = fabs(d);
+    const int64_t first = patterned ? c->row_start[i] : 0;
+    const int64_t last = patterned ? c->row_start[i + 1] : n;
+    for (int64_t a = first; a < last; a++) {
+      const int64_t j = patterned ? c->row_cols[a] : a;
+      const double d = A[i * n + j] - B[i * n + j], e = fabs(d);
       frob += d * d;
-      r += a;
-      cols[j] += a;
+      r += e;
+      cols[j] += e;
     }
     if (r > rows) rows = r;
   }
@@ -947,7 +964,7 @@ void mechsim_chords(mechsim_projection *c, int64_t k, const double *T, const dou
   double *prev = c->J1, *next = c->A;
   for (int64_t i = 0; i < k; i++) {
     scaled_jacobian(c, Q + i * n, T[i], next);
-    if (i > 0) out[i - 1] = difference_norm(m, n, next, prev, c->x);
+    if (i > 0) out[i - 1] = difference_norm(c, m, n, next, prev, c->x);
     double *swap = prev;
     prev = next;
     next = swap;
@@ -1009,8 +1026,8 @@ int mechsim_extremes(mechsim_projection *c, int64_t k, int64_t kk, const double 
   return 0;
 }
 
-static int extreme_bounds(int64_t m, int64_t n, const double *J, double *G, double *H,
-                          double *out);
+static int extreme_bounds(const mechsim_projection *c, int64_t m, int64_t n,
+                          const double *J, double *G, double *H, double *out);
 
 /* `extreme_bounds` of J~ at each of the k states (T[i], Q[i, :]) into out[2 i], out[2 i + 1]
    (a lower bound of sigma_min, an upper bound of sigma_max; NaN where the bounds decline),
@@ -1019,7 +1036,7 @@ void mechsim_extreme_bounds(mechsim_projection *c, int64_t k, const double *T,
                             const double *Q, double *out) {
   for (int64_t i = 0; i < k; i++) {
     scaled_jacobian(c, Q + i * c->n, T[i], c->A);
-    if (extreme_bounds(c->m, c->n, c->A, c->S, c->X, out + 2 * i))
+    if (extreme_bounds(c, c->m, c->n, c->A, c->S, c->X, out + 2 * i))
       out[2 * i] = out[2 * i + 1] = NAN;
   }
 }
@@ -1546,14 +1563,27 @@ static double square_frobenius2(int64_t m, const double *S) {
    1 where G is not positive definite in floating point or so ill-conditioned that
    round-off (about (m + n) eps cond(G) of the bound) could reach that margin: the node
    takes an SVD. */
-static int extreme_bounds(int64_t m, int64_t n, const double *J, double *G, double *H,
-                          double *out) {
-  for (int64_t i = 0; i < m; i++)
-    for (int64_t j = 0; j <= i; j++) {
+static int extreme_bounds(const mechsim_projection *c, int64_t m, int64_t n,
+                          const double *J, double *G, double *H, double *out) {
+  if (c->pairs && m == c->m && n == c->n) {    /* J's pattern: `complement`'s sums */
+    memset(G, 0, m * m * sizeof(double));
+    for (int64_t p = 0; p < c->pairs; p++) {
+      const int64_t i = c->pair_rows[2 * p], j = c->pair_rows[2 * p + 1];
       double e = 0.0;
-      for (int64_t k = 0; k < n; k++) e += J[i * n + k] * J[j * n + k];
+      for (int64_t a = c->pair_start[p]; a < c->pair_start[p + 1]; a++) {
+        const int64_t k = c->pair_cols[a];
+        e += J[i * n + k] * J[j * n + k];
+      }
       G[i * m + j] = G[j * m + i] = e;
     }
+  } else {
+    for (int64_t i = 0; i < m; i++)
+      for (int64_t j = 0; j <= i; j++) {
+        double e = 0.0;
+        for (int64_t k = 0; k < n; k++) e += J[i * n + k] * J[j * n + k];
+        G[i * m + j] = G[j * m + i] = e;
+      }
+  }
   double frob = 0.0;
   for (int64_t i = 0; i < m * m; i++) frob += G[i] * G[i];
   const double top = fmin(sqrt(frob), pow(square_frobenius2(m, G), 0.25));
@@ -1615,8 +1645,8 @@ static int measure_node(mechsim_projection *pc, mechsim_search *w, int64_t i) {
 
 /* A floor anchor at the search's node i (`extreme_bounds` of its J~). 0: done; 1: the
    bounds declined (the node takes an SVD). */
-static int floor_node(mechsim_search *w, int64_t i) {
-  if (extreme_bounds(w->m, w->n, node_jacobian(w, i), w->gram, w->inverse,
+static int floor_node(const mechsim_projection *pc, mechsim_search *w, int64_t i) {
+  if (extreme_bounds(pc, w->m, w->n, node_jacobian(w, i), w->gram, w->inverse,
                      w->node_anchor + 2 * i))
     return 1;
   ((int64_t *)w->node_has)[i] = 2;
@@ -1649,7 +1679,7 @@ static int grid_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
   for (int64_t i = 0; i < count; i++) {       /* J~ at the nodes, and the chords between */
     slot[i] = i;
     scaled_jacobian(pc, Q + i * n, T[i], node_jacobian(w, i));
-    if (i > 0) ch[i - 1] = difference_norm(w->m, n, node_jacobian(w, i),
+    if (i > 0) ch[i - 1] = difference_norm(pc, w->m, n, node_jacobian(w, i),
                                            node_jacobian(w, i - 1), pc->x);
   }
   int64_t slots = count;
@@ -1683,7 +1713,7 @@ static int grid_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
     if (nf) {
       int64_t floored = 0;
       for (int64_t a = 0; floors && a < nf; a++)
-        if (!has[fresh[a]] && !floor_node(w, fresh[a])) floored++;
+        if (!has[fresh[a]] && !floor_node(pc, w, fresh[a])) floored++;
       w->floored += floored;
       if (floored) continue;                   /* what the floors clear, first */
       if (nf > budget - spent) nf = budget - spent;
@@ -1708,8 +1738,8 @@ static int grid_search(mechsim_lu *c, mechsim_projection *pc, mechsim_search *w,
       const int64_t j = todo[a];
       double *Jm = w->node_J + (slots + a) * mn;
       scaled_jacobian(pc, mq + a * n, mid[a], Jm);
-      pieces[2 * a] = chord * difference_norm(w->m, n, Jm, node_jacobian(w, j), pc->x);
-      pieces[2 * a + 1] = chord * difference_norm(w->m, n, node_jacobian(w, j + 1), Jm,
+      pieces[2 * a] = chord * difference_norm(pc, w->m, n, Jm, node_jacobian(w, j), pc->x);
+      pieces[2 * a + 1] = chord * difference_norm(pc, w->m, n, node_jacobian(w, j + 1), Jm,
                                                   pc->x);
     }
     for (int64_t a = nt - 1; a >= 0; a--) {      /* insert each midpoint, last first */

@@ -126,6 +126,8 @@ PROJECTION = Layout("mechsim_projection", [
     # pair_start[p + 1]]
     Field("pairs", "int64"), Field("pair_rows", "const int64*"),
     Field("pair_start", "const int64*"), Field("pair_cols", "const int64*"),
+    # and row i's columns row_cols[row_start[i]:row_start[i + 1]] (with pairs > 0)
+    Field("row_start", "const int64*"), Field("row_cols", "const int64*"),
     Field("iwork", "int*", lambda d: 8 * d.m),
     # the extreme singular values' workspace (`extremes_of`: bidiagonal, dlasq1's; then the
     # accelerations' QR: its reflectors' factors, R's diagonal and three vectors)
@@ -136,17 +138,20 @@ PROJECTION = Layout("mechsim_projection", [
 ])
 
 def pair_pattern(model, m: int) -> dict[str, np.ndarray]:
-    """`PROJECTION`'s pair_rows, pair_start and pair_cols for a model of m constraint rows:
-    the pairs of rows i and k ≤ i (i outer) whose entries in Φ_q's pattern
-    (`JACOBIAN_ROWS`, `JACOBIAN_COLS`: the entries its code sets, all others zero) share
-    columns, and those columns in increasing order; none (one zero each) where the model
-    gives no pattern (`complement` then finds the columns a row uses at each call)."""
-    rows, start, shared = [], [0], []
+    """`PROJECTION`'s pair_rows, pair_start, pair_cols, row_start and row_cols for a model
+    of m constraint rows: the pairs of rows i and k ≤ i (i outer) whose entries in Φ_q's
+    pattern (`JACOBIAN_ROWS`, `JACOBIAN_COLS`: the entries its code sets, all others zero)
+    share columns, those columns, and each row's columns, in increasing order; none (one
+    zero each) where the model gives no pattern (`complement` then finds the columns a row
+    uses at each call, and J~'s other sums run over every column)."""
+    rows, start, shared, row_start, row_cols = [], [0], [], [0], []
     if hasattr(model, "JACOBIAN_ROWS"):
         used = [set() for _ in range(m)]
         for i, j in zip(model.JACOBIAN_ROWS, model.JACOBIAN_COLS):
             used[i].add(j)
         for i in range(m):
+            row_cols += sorted(used[i])
+            row_start.append(len(row_cols))
             for k in range(i + 1):
                 both = sorted(used[i] & used[k])
                 if both:
@@ -155,7 +160,9 @@ def pair_pattern(model, m: int) -> dict[str, np.ndarray]:
                     start.append(len(shared))
     return {"pair_rows": np.array(rows or [0], np.int64),
             "pair_start": np.array(start, np.int64),
-            "pair_cols": np.array(shared or [0], np.int64)}
+            "pair_cols": np.array(shared or [0], np.int64),
+            "row_start": np.array(row_start, np.int64),
+            "row_cols": np.array(row_cols or [0], np.int64)}
 
 
 # The most nodes a segment's passage search holds (`mechsim_lu_segment`; more: the loop
