@@ -67,21 +67,22 @@ def _driven_slider_crank_with_pendulum():
 ], ids=["crank-rocker", "double-four-bar", "driven-slider-crank-pendulum", "cam-follower"])
 def test_the_jacobian_s_pattern_leaves_every_number_as_it_was(build):
     """J W Jᵀ summed over the columns each pair of rows shares in Φ_q's pattern (the
-    engine's `complement` with `layout.pair_pattern`), J̃ and its differences over the
-    pattern's entries alone, give the accelerations, the projected states, the
-    multipliers, the passage search's floors, chords and singular values of the sums
-    over every column (or a row's nonzero ones found at each call), to the bit, off the
-    constraints too (the chord Newton at work); the pattern leaves most pairs of rows
-    out."""
+    engine's `complement` with `layout.pair_pattern`), its Cholesky factor and solves on
+    the factor's pattern, J̃ and its differences over the pattern's entries alone, give
+    the accelerations, the projected states, the multipliers, the passage search's
+    floors, chords and singular values of the dense sums (or those over a row's nonzero
+    columns found at each call), to the bit, off the constraints too (the chord Newton at
+    work); the patterns leave most pairs of rows and entries of the factor out."""
     mech = build()
     prob = mech.problem()
     e = prob.algebra.engine
     assert e is not None and 0 < e.ctx.pairs < prob.m * (prob.m + 1) // 2
     q0 = mech.initial_coordinates()
-    runs, pairs = [], e.ctx.pairs
+    runs, pairs, ops = [], e.ctx.pairs, e.ctx.chol_ops
+    assert 0 < ops < prob.m * (prob.m + 1) // 2
     try:
-        for used in (pairs, 0):
-            e.ctx.pairs = used
+        for used in ((pairs, ops), (0, 0)):
+            e.ctx.pairs, e.ctx.chol_ops = used
             got, states = [], np.random.default_rng(7)
             for _ in range(10):
                 t = 1e-4 * states.random()
@@ -96,7 +97,7 @@ def test_the_jacobian_s_pattern_leaves_every_number_as_it_was(build):
                             e.chords(T, Qs), e.extremes(T, Qs, prob.m - 1)])
             runs.append(got)
     finally:
-        e.ctx.pairs = pairs
+        e.ctx.pairs, e.ctx.chol_ops = pairs, ops
     for a, b in zip(*runs):
         assert len(a) == len(b) == 7
         for x, y in zip(a, b):

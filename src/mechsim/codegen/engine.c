@@ -486,6 +486,60 @@ static void cholesky_solve(int64_t m, const double *R, const double *rdiag, doub
   }
 }
 
+/* `small_cholesky` of S (m x m, both triangles) into R on c's pattern of L
+   (layout._cholesky_pattern: the entries of S's pattern and their fill, each a sum over
+   the columns where its row and column have entries): the products it leaves out are of
+   an exact zero, so R is small_cholesky's to the bit, its other entries left as they
+   were in R (zero: S's, or set by the caller). 0: done; 1: not positive definite. */
+static int pattern_cholesky(const mechsim_projection *c, const double *S, double *R) {
+  const int64_t m = c->m, *ij = c->chol_ij, *start = c->chol_start, *ks = c->chol_ks;
+  double inv = 0.0;
+  for (int64_t p = 0; p < c->chol_ops; p++) {
+    const int64_t i = ij[2 * p], j = ij[2 * p + 1];
+    double e = S[i * m + j];
+    for (int64_t a = start[p]; a < start[p + 1]; a++) {
+      const int64_t k = ks[a];
+      e -= R[i * m + k] * R[j * m + k];
+    }
+    if (i == j) {                                   /* each column's diagonal first */
+      if (!(e > 0.0)) return 1;
+      const double rjj = sqrt(e);
+      inv = 1.0 / rjj;
+      R[j * m + j] = rjj;
+    } else {
+      R[i * m + j] = e * inv;
+    }
+  }
+  return 0;
+}
+
+/* `cholesky_solve` on c's pattern of L where it has one (the products it leaves out are
+   of an exact zero). */
+static void factor_solve(const mechsim_projection *c, const double *R, const double *rdiag,
+                         double *b) {
+  const int64_t m = c->m;
+  if (!c->chol_ops) {
+    cholesky_solve(m, R, rdiag, b);
+    return;
+  }
+  for (int64_t j = 0; j < m; j++) {                /* R^T y = b */
+    double e = b[j];
+    for (int64_t a = c->lrow_start[j]; a < c->lrow_start[j + 1]; a++) {
+      const int64_t k = c->lrow_cols[a];
+      e -= R[j * m + k] * b[k];
+    }
+    b[j] = e * rdiag[j];
+  }
+  for (int64_t j = m - 1; j >= 0; j--) {           /* R x = y */
+    double e = b[j];
+    for (int64_t a = c->lcol_start[j]; a < c->lcol_start[j + 1]; a++) {
+      const int64_t k = c->lcol_rows[a];
+      e -= R[k * m + j] * b[k];
+    }
+    b[j] = e * rdiag[j];
+  }
+}
+
 /* The Cholesky factor of S = J W J^T in place (upper triangle: `small_cholesky`, or
    LAPACK's dpotrf with `lapack`, as the multipliers take it to agree with the Python path's
    state by state to round-off of the same algorithm); 1 where it fails or, with
@@ -502,7 +556,7 @@ static int cholesky(mechsim_projection *c, double *S, double diag, double min_rc
   if (lapack) {
     mechsim_dpotrf(&uplo, &M, S, &M, &info);
     if (info != 0) return 1;
-  } else if (small_cholesky(c->m, S, S)) {
+  } else if (c->chol_ops ? pattern_cholesky(c, S, S) : small_cholesky(c->m, S, S)) {
     return 1;
   }
   for (int64_t j = 0; j < c->m; j++) c->rdiag[j] = 1.0 / S[j + j * c->m];
@@ -646,7 +700,7 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
   const double diag = complement(c, J, winv, S, c->nz);
   if (cholesky(c, S, diag, min_rcond, 0))
     return cut > 0.0 ? svd_accelerations(c, J, g, cut) : 1;
-  cholesky_solve(m, S, c->rdiag, lam);
+  factor_solve(c, S, c->rdiag, lam);
   memcpy(c->out, c->v, n * sizeof(double));
   for (int64_t j = 0; j < n; j++) {
     double s = 0.0;
@@ -710,7 +764,7 @@ int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
 static int correct(mechsim_projection *c, const double *J, const double *S, double *r,
                    double *x) {
   const int64_t n = c->n, m = c->m;
-  cholesky_solve(m, S, c->rdiag, r);
+  factor_solve(c, S, c->rdiag, r);
   for (int64_t j = 0; j < n; j++) {
     double s = 0.0;
     for (int64_t i = 0; i < m; i++) s += J[i * n + j] * r[i];
@@ -1587,7 +1641,10 @@ static int extreme_bounds(const mechsim_projection *c, int64_t m, int64_t n,
   double frob = 0.0;
   for (int64_t i = 0; i < m * m; i++) frob += G[i] * G[i];
   const double top = fmin(sqrt(frob), pow(square_frobenius2(m, G), 0.25));
-  if (small_cholesky(m, G, H)) return 1;      /* L (lower, row-major) into H */
+  const int patterned = c->chol_ops && m == c->m && n == c->n;
+  if (patterned) memset(H, 0, m * m * sizeof(double));
+  if (patterned ? pattern_cholesky(c, G, H) : small_cholesky(m, G, H))
+    return 1;                                  /* L (lower, row-major) into H */
   /* M = L^-1 into G: row-major lower L is column-major upper R = L^T, whose inverse
      (column-major upper) is row-major lower L^-1 */
   upper_inverse(m, H, G);

@@ -404,7 +404,8 @@ class ProjectionEngine:
         self.ctx = PROJECTION.make(dict(
             n=n, m=m, count=0, lwork=self.buffers["svd_work"].size,
             stall_ratio=STALL_RATIO, stall_span=STALL_SPAN,
-            pairs=len(self.pattern["pair_start"]) - 1), arrays)
+            pairs=len(self.pattern["pair_start"]) - 1,
+            chol_ops=len(self.pattern["chol_start"]) - 1), arrays)
         self.n = n
         self.lib = lib
         self.context = ctypes.addressof(self.ctx)

@@ -126,8 +126,17 @@ PROJECTION = Layout("mechsim_projection", [
     # pair_start[p + 1]]
     Field("pairs", "int64"), Field("pair_rows", "const int64*"),
     Field("pair_start", "const int64*"), Field("pair_cols", "const int64*"),
-    # and row i's columns row_cols[row_start[i]:row_start[i + 1]] (with pairs > 0)
+    # and row i's columns row_cols[row_start[i]:row_start[i + 1]] (with pairs > 0); the
+    # Cholesky factor L of J W Jᵀ on that pattern with its fill (`pattern_cholesky`):
+    # chol_ops of its entries in the order they are made, entry p = L[chol_ij[2 p],
+    # chol_ij[2 p + 1]] taking the products of the columns chol_ks[chol_start[p]:
+    # chol_start[p + 1]]; L's rows (columns k < i) and columns (rows k > j) by
+    # lrow_start/lrow_cols and lcol_start/lcol_rows
     Field("row_start", "const int64*"), Field("row_cols", "const int64*"),
+    Field("chol_ops", "int64"),
+    *(Field(name, "const int64*") for name in (
+        "chol_ij", "chol_start", "chol_ks", "lrow_start", "lrow_cols", "lcol_start",
+        "lcol_rows")),
     Field("iwork", "int*", lambda d: 8 * d.m),
     # the extreme singular values' workspace (`extremes_of`: bidiagonal, dlasq1's; then the
     # accelerations' QR: its reflectors' factors, R's diagonal and three vectors)
@@ -158,11 +167,42 @@ def pair_pattern(model, m: int) -> dict[str, np.ndarray]:
                     rows += [i, k]
                     shared += both
                     start.append(len(shared))
-    return {"pair_rows": np.array(rows or [0], np.int64),
-            "pair_start": np.array(start, np.int64),
-            "pair_cols": np.array(shared or [0], np.int64),
-            "row_start": np.array(row_start, np.int64),
-            "row_cols": np.array(row_cols or [0], np.int64)}
+    out = {"pair_rows": rows, "pair_start": start, "pair_cols": shared,
+           "row_start": row_start, "row_cols": row_cols,
+           **_cholesky_pattern(m, rows if hasattr(model, "JACOBIAN_ROWS") else None)}
+    return {name: np.array(v or [0], np.int64) for name, v in out.items()}
+
+
+def _cholesky_pattern(m: int, pairs) -> dict[str, list]:
+    """The lists of `PROJECTION`'s chol_* and l* fields for J W Jᵀ of the pattern whose
+    lower triangle's entries are `pairs` (flat i, k pairs): L's entries (the pattern with
+    the fill of the elimination in its natural order, which the small Cholesky takes),
+    column after column, the diagonal first, each with the columns k < j where both its
+    row and column j of L have entries."""
+    ops, start, ks = [], [0], []
+    rows = [[] for _ in range(m)]
+    if pairs is None:
+        return {"chol_ij": ops, "chol_start": start, "chol_ks": ks, "lrow_start": [0],
+                "lrow_cols": [], "lcol_start": [0], "lcol_rows": []}
+    filled = [[False] * m for _ in range(m)]
+    for i, k in zip(pairs[0::2], pairs[1::2]):
+        filled[i][k] = True
+    for j in range(m):
+        for i in range(j, m):
+            both = [k for k in range(j) if filled[i][k] and filled[j][k]]
+            if i == j or filled[i][j] or both:
+                filled[i][j] = True
+                ops += [i, j]
+                ks += both
+                start.append(len(ks))
+    lrow_start, lrow_cols, lcol_start, lcol_rows = [0], [], [0], []
+    for i in range(m):
+        lrow_cols += [k for k in range(i) if filled[i][k]]
+        lrow_start.append(len(lrow_cols))
+        lcol_rows += [k for k in range(i + 1, m) if filled[k][i]]
+        lcol_start.append(len(lcol_rows))
+    return {"chol_ij": ops, "chol_start": start, "chol_ks": ks, "lrow_start": lrow_start,
+            "lrow_cols": lrow_cols, "lcol_start": lcol_start, "lcol_rows": lcol_rows}
 
 
 # The most nodes a segment's passage search holds (`mechsim_lu_segment`; more: the loop
