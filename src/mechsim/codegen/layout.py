@@ -180,7 +180,6 @@ def _cholesky_pattern(m: int, pairs) -> dict[str, list]:
     column after column, the diagonal first, each with the columns k < j where both its
     row and column j of L have entries."""
     ops, start, ks = [], [0], []
-    rows = [[] for _ in range(m)]
     if pairs is None:
         return {"chol_ij": ops, "chol_start": start, "chol_ks": ks, "lrow_start": [0],
                 "lrow_cols": [], "lcol_start": [0], "lcol_rows": []}
