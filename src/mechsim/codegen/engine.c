@@ -486,6 +486,40 @@ static void cholesky_solve(int64_t m, const double *R, const double *rdiag, doub
   }
 }
 
+/* Row i of J (m x n row-major, Phi_q or J~) times x, over the row's entries of c's pattern
+   where it has one (the products left out are of an exact zero: the same sum). */
+static double row_times(const mechsim_projection *c, const double *J, int64_t i,
+                        const double *x) {
+  const int64_t n = c->n;
+  const double *Ji = J + i * n;
+  double s = 0.0;
+  if (c->pairs) {
+    for (int64_t a = c->row_start[i]; a < c->row_start[i + 1]; a++) {
+      const int64_t j = c->row_cols[a];
+      s += Ji[j] * x[j];
+    }
+  } else {
+    for (int64_t j = 0; j < n; j++) s += Ji[j] * x[j];
+  }
+  return s;
+}
+
+/* Column j of J (m x n row-major) times y, as `row_times`. */
+static double col_times(const mechsim_projection *c, const double *J, int64_t j,
+                        const double *y) {
+  const int64_t n = c->n;
+  double s = 0.0;
+  if (c->pairs) {
+    for (int64_t a = c->col_start[j]; a < c->col_start[j + 1]; a++) {
+      const int64_t i = c->col_rows[a];
+      s += J[i * n + j] * y[i];
+    }
+  } else {
+    for (int64_t i = 0; i < c->m; i++) s += J[i * n + j] * y[i];
+  }
+  return s;
+}
+
 /* `small_cholesky` of S (m x m, both triangles) into R on c's pattern of L
    (layout._cholesky_pattern: the entries of S's pattern and their fill, each a sum over
    the columns where its row and column have entries): the products it leaves out are of
@@ -691,22 +725,13 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
   memset(g, 0, m * sizeof(double));
   mechsim_gamma(c->q, c->v, t, c->p, g);
   for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * c->Q[j];
-  for (int64_t i = 0; i < m; i++) {                    /* lam = J W Q - gamma */
-    const double *Ji = J + i * n;
-    double s = 0.0;
-    for (int64_t j = 0; j < n; j++) s += Ji[j] * wq[j];
-    lam[i] = s - g[i];
-  }
+  for (int64_t i = 0; i < m; i++) lam[i] = row_times(c, J, i, wq) - g[i];  /* J W Q - gamma */
   const double diag = complement(c, J, winv, S, c->nz);
   if (cholesky(c, S, diag, min_rcond, 0))
     return cut > 0.0 ? svd_accelerations(c, J, g, cut) : 1;
   factor_solve(c, S, c->rdiag, lam);
   memcpy(c->out, c->v, n * sizeof(double));
-  for (int64_t j = 0; j < n; j++) {
-    double s = 0.0;
-    for (int64_t i = 0; i < m; i++) s += J[i * n + j] * lam[i];
-    c->out[n + j] = wq[j] - winv[j] * s;
-  }
+  for (int64_t j = 0; j < n; j++) c->out[n + j] = wq[j] - winv[j] * col_times(c, J, j, lam);
   return 0;
 }
 
@@ -739,12 +764,7 @@ int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
     memset(g, 0, m * sizeof(double));
     mechsim_gamma(q, v, ts[s], c->p, g);
     for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * F[j];
-    for (int64_t i = 0; i < m; i++) {
-      const double *Ji = J + i * n;
-      double e = 0.0;
-      for (int64_t j = 0; j < n; j++) e += Ji[j] * wq[j];
-      lam[i] = e - g[i];
-    }
+    for (int64_t i = 0; i < m; i++) lam[i] = row_times(c, J, i, wq) - g[i];
     done[s] = 0;
     const double diag = complement(c, J, winv, S, c->nz);
     if (cholesky(c, S, diag, min_rcond, 1)) continue;
@@ -763,13 +783,9 @@ int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
 /* x -= W J^T (S^-1 r), S the Cholesky factor in place; r is overwritten. */
 static int correct(mechsim_projection *c, const double *J, const double *S, double *r,
                    double *x) {
-  const int64_t n = c->n, m = c->m;
+  const int64_t n = c->n;
   factor_solve(c, S, c->rdiag, r);
-  for (int64_t j = 0; j < n; j++) {
-    double s = 0.0;
-    for (int64_t i = 0; i < m; i++) s += J[i * n + j] * r[i];
-    x[j] -= c->winv[j] * s;
-  }
+  for (int64_t j = 0; j < n; j++) x[j] -= c->winv[j] * col_times(c, J, j, r);
   return 0;
 }
 
@@ -777,16 +793,11 @@ static int correct(mechsim_projection *c, const double *J, const double *S, doub
    v -= W J^T S^-1 (J v + Phi_t), with J = c->J Phi_q at c->q and S = c->S the Cholesky
    factor of `cholesky`. 0: done; 1: declined. */
 static int project_velocity(mechsim_projection *c, double t) {
-  const int64_t n = c->n, m = c->m;
+  const int64_t m = c->m;
   double *r = c->r;
   memset(r, 0, m * sizeof(double));
   mechsim_phi_t(c->q, t, c->p, r);
-  for (int64_t i = 0; i < m; i++) {
-    const double *Ji = c->J + i * n;
-    double s = 0.0;
-    for (int64_t j = 0; j < n; j++) s += Ji[j] * c->v[j];
-    r[i] += s;
-  }
+  for (int64_t i = 0; i < m; i++) r[i] += row_times(c, c->J, i, c->v);
   return correct(c, c->J, c->S, r, c->v);
 }
 

@@ -398,7 +398,7 @@ class ProjectionEngine:
         self._right = self.buffers["U"].reshape(m, n)
         self._sig = self.buffers["sig"]
         self.wsqrt = np.sqrt(self.winv)
-        self.pattern = pair_pattern(problem.model, m)
+        self.pattern = pair_pattern(problem.model, m, n)
         arrays = {**self.buffers, **self.pattern, "p": self.p, "winv": self.winv,
                   "wsqrt": self.wsqrt, "q": self.q, "v": self.v, "Q": self.Q, "out": self.out}
         self.ctx = PROJECTION.make(dict(

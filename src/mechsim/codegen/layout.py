@@ -126,13 +126,15 @@ PROJECTION = Layout("mechsim_projection", [
     # pair_start[p + 1]]
     Field("pairs", "int64"), Field("pair_rows", "const int64*"),
     Field("pair_start", "const int64*"), Field("pair_cols", "const int64*"),
-    # and row i's columns row_cols[row_start[i]:row_start[i + 1]] (with pairs > 0); the
+    # and row i's columns row_cols[row_start[i]:row_start[i + 1]], column j's rows
+    # col_rows[col_start[j]:col_start[j + 1]] (with pairs > 0); the
     # Cholesky factor L of J W Jᵀ on that pattern with its fill (`pattern_cholesky`):
     # chol_ops of its entries in the order they are made, entry p = L[chol_ij[2 p],
     # chol_ij[2 p + 1]] taking the products of the columns chol_ks[chol_start[p]:
     # chol_start[p + 1]]; L's rows (columns k < i) and columns (rows k > j) by
     # lrow_start/lrow_cols and lcol_start/lcol_rows
     Field("row_start", "const int64*"), Field("row_cols", "const int64*"),
+    Field("col_start", "const int64*"), Field("col_rows", "const int64*"),
     Field("chol_ops", "int64"),
     *(Field(name, "const int64*") for name in (
         "chol_ij", "chol_start", "chol_ks", "lrow_start", "lrow_cols", "lcol_start",
@@ -146,18 +148,23 @@ PROJECTION = Layout("mechsim_projection", [
           lambda d: 3 * d.k + max(d.n, d.m, 5 * d.k * d.k + 4 * d.k) + 64),
 ])
 
-def pair_pattern(model, m: int) -> dict[str, np.ndarray]:
-    """`PROJECTION`'s pair_rows, pair_start, pair_cols, row_start and row_cols for a model
-    of m constraint rows: the pairs of rows i and k ≤ i (i outer) whose entries in Φ_q's
-    pattern (`JACOBIAN_ROWS`, `JACOBIAN_COLS`: the entries its code sets, all others zero)
-    share columns, those columns, and each row's columns, in increasing order; none (one
-    zero each) where the model gives no pattern (`complement` then finds the columns a row
-    uses at each call, and J~'s other sums run over every column)."""
+def pair_pattern(model, m: int, n: int) -> dict[str, np.ndarray]:
+    """`PROJECTION`'s pattern arrays for a model of m constraint rows and n coordinates:
+    the pairs of rows i and k ≤ i (i outer) whose entries in Φ_q's pattern
+    (`JACOBIAN_ROWS`, `JACOBIAN_COLS`: the entries its code sets, all others zero) share
+    columns, those columns, each row's columns and each column's rows, in increasing
+    order, and the Cholesky factor's (`_cholesky_pattern`); none (one zero each) where the
+    model gives no pattern (`complement` then finds the columns a row uses at each call,
+    and the other sums run over every entry)."""
     rows, start, shared, row_start, row_cols = [], [0], [], [0], []
+    col_start, col_rows = [0], []
     if hasattr(model, "JACOBIAN_ROWS"):
         used = [set() for _ in range(m)]
         for i, j in zip(model.JACOBIAN_ROWS, model.JACOBIAN_COLS):
             used[i].add(j)
+        for j in range(n):
+            col_rows += [i for i in range(m) if j in used[i]]
+            col_start.append(len(col_rows))
         for i in range(m):
             row_cols += sorted(used[i])
             row_start.append(len(row_cols))
@@ -168,7 +175,8 @@ def pair_pattern(model, m: int) -> dict[str, np.ndarray]:
                     shared += both
                     start.append(len(shared))
     out = {"pair_rows": rows, "pair_start": start, "pair_cols": shared,
-           "row_start": row_start, "row_cols": row_cols,
+           "row_start": row_start, "row_cols": row_cols, "col_start": col_start,
+           "col_rows": col_rows,
            **_cholesky_pattern(m, rows if hasattr(model, "JACOBIAN_ROWS") else None)}
     return {name: np.array(v or [0], np.int64) for name, v in out.items()}
 
