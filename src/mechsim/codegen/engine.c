@@ -39,6 +39,9 @@ void mechsim_engine_init(void *gesv, void *posv, void *potrf, void *pocon, void 
   mechsim_dlasq1 = (mechsim_lasq1_t)lasq1;
 }
 
+/* The rows a reflector tracks its nonzero entries in (a longer column: every row). */
+#define SPARSE_ROWS 128
+
 /* A = P L U in place (r x r, column-major), partial pivoting on the first largest |entry|
    of each column (as LAPACK's dgetf2 chooses), ipiv 1-based as LAPACK's. The partitions'
    blocks are a few rows: a library call costs more than the arithmetic there. 0: done;
@@ -640,7 +643,9 @@ static int singular_values(mechsim_projection *c, double *A) { return dgesdd_of(
 /* The Householder reflection H = I - beta v v^T taking column k of the column-major M x N
    matrix A (rows k..M-1) to alpha e_k, applied to its columns k+1..N-1; v is left in
    column k (rows k..), beta in *beta (0 where the column is zero: H = I). Returns alpha
-   (-sign(a_kk) |a_k|). */
+   (-sign(a_kk) |a_k|). J~ is sparse, and so are the first reflectors: the sums and
+   updates run over the rows where v is not zero (the products left out are of an exact
+   zero), a column v does not meet is left as it is. */
 static double reflect_column(double *A, int64_t M, int64_t N, int64_t k, double *beta) {
   double *col = A + k * M, norm = 0.0;
   for (int64_t i = k; i < M; i++) norm += col[i] * col[i];
@@ -650,11 +655,23 @@ static double reflect_column(double *A, int64_t M, int64_t N, int64_t k, double 
   if (!(norm > 0.0)) return alpha;
   *beta = 1.0 / (norm * (norm + fabs(col[k])));
   col[k] -= alpha;
+  int64_t rows[SPARSE_ROWS], used = 0;
+  const int sparse = M <= SPARSE_ROWS;
+  if (sparse)
+    for (int64_t i = k; i < M; i++)
+      if (col[i] != 0.0) rows[used++] = i;
   for (int64_t j = k + 1; j < N; j++) {
     double *cj = A + j * M, e = 0.0;
-    for (int64_t i = k; i < M; i++) e += col[i] * cj[i];
-    e *= *beta;
-    for (int64_t i = k; i < M; i++) cj[i] -= e * col[i];
+    if (sparse) {
+      for (int64_t u = 0; u < used; u++) e += col[rows[u]] * cj[rows[u]];
+      if (e == 0.0) continue;
+      e *= *beta;
+      for (int64_t u = 0; u < used; u++) cj[rows[u]] -= e * col[rows[u]];
+    } else {
+      for (int64_t i = k; i < M; i++) e += col[i] * cj[i];
+      e *= *beta;
+      for (int64_t i = k; i < M; i++) cj[i] -= e * col[i];
+    }
   }
   return alpha;
 }
