@@ -8,12 +8,12 @@ partition's end or the state's projection, the passage bridge's plan, the run's
 bookkeeping, each a few numpy calls on arrays of a dozen numbers. Where a step is plain
 (nothing happens but the step, its samples, the monitor's measurement, the partition's
 predictor or the projection: no passage in reach, no change of partition or of
-formulation, no crossing, no sample due at its end), all of that is arithmetic that
+formulation, no crossing), all of that is arithmetic that
 `mechsim_lu_segment` (LU) or `mechsim_projection_segment` (projection: the hybrid's
 projection phase between passages and after them, the bridge's approach to a landing
 point included) does in C, step after step, until a step is not plain. A step whose end
 is the loop's to decide (a switch of the hybrid, a new partition, a crossing by the
-passage bridge) or to observe (in LU where its tolerances change inside a passage: a
+passage bridge, a sample due at its end, the run's end) or to observe (in LU where its tolerances change inside a passage: a
 passage open at its start, the band, a dip the monitor's search finds) the segment still takes, with its samples, up to that point, and
 hands it over pending (`Pending`: the loop finishes it, `Run._finish_pending`); any other
 step it drops, and the Python loop (`mechsim.run.loop.Run`) takes it from the same state,
@@ -32,9 +32,9 @@ engine's functions the loop calls (the DOP853 step, its dense output, the partit
 and predictor, the projections, the samples' and the monitor's evaluations); the few
 formulas the loop evaluates in Python floats (the monitor's rates and bounds, the
 policy's limit, the re-reference, the bridge's prediction of the singular instant) it
-evaluates in the same order. The bridge's own state after the steps is replayed by its
-`plan`, called with the numbers each step logged. A run with segments and one without
-them give bitwise the same samples, steps and counts (tests).
+evaluates in the same order. The bridge's state after the steps is the engine's copy of
+what its `plan` keeps (`PassageBridge.planned_in_engine`). A run with segments and one
+without them give bitwise the same samples, steps and counts (tests).
 
 It applies to runs of "lu", "projection" and the hybrid with the compiled DOP853 on a
 compiled rate (`Partitioned.compiled_rate`, `Projection.compiled_rate`) and the compiled
