@@ -362,6 +362,31 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
 
 /* ---- the projection method (Projection.accelerations, NumericProblem.project_state) ---- */
 
+/* S = J W J^T (m x m, symmetric) over the columns each pair of rows shares in c's pattern
+   of Phi_q (J: Phi_q or J~, row-major m x n; W = diag(w), or the identity where w is
+   NULL); the entries of rows that share none are zero. */
+static void pair_products(const mechsim_projection *c, const double *J, const double *w,
+                          double *S) {
+  const int64_t n = c->n, m = c->m;
+  const int64_t *rows = c->pair_rows, *start = c->pair_start, *shared = c->pair_cols;
+  memset(S, 0, m * m * sizeof(double));
+  for (int64_t p = 0; p < c->pairs; p++) {
+    const int64_t i = rows[2 * p], k = rows[2 * p + 1];
+    const double *Ji = J + i * n, *Jk = J + k * n;
+    double e = 0.0;
+    if (w) {
+      for (int64_t a = start[p]; a < start[p + 1]; a++) {
+        const int64_t j = shared[a];
+        e += Ji[j] * w[j] * Jk[j];
+      }
+    } else {
+      for (int64_t a = start[p]; a < start[p + 1]; a++) e += Ji[shared[a]] * Jk[shared[a]];
+    }
+    S[i + k * m] = e;
+    S[k + i * m] = e;
+  }
+}
+
 /* S = J W J^T (both triangles, column-major) of J = Phi_q (row-major m x n) or J~ with
    W = winv; returns max S_ii. Each entry sums over the columns its two rows share in c's
    pattern of Phi_q (c->pairs; the entries of rows that share none are zero), or where
@@ -374,19 +399,7 @@ static double complement(const mechsim_projection *c, const double *J, const dou
   const int64_t n = c->n, m = c->m;
   double diag = 0.0;
   if (c->pairs) {
-    const int64_t *rows = c->pair_rows, *start = c->pair_start, *shared = c->pair_cols;
-    memset(S, 0, m * m * sizeof(double));
-    for (int64_t p = 0; p < c->pairs; p++) {
-      const int64_t i = rows[2 * p], k = rows[2 * p + 1];
-      const double *Ji = J + i * n, *Jk = J + k * n;
-      double e = 0.0;
-      for (int64_t a = start[p]; a < start[p + 1]; a++) {
-        const int64_t j = shared[a];
-        e += Ji[j] * winv[j] * Jk[j];
-      }
-      S[i + k * m] = e;
-      S[k + i * m] = e;
-    }
+    pair_products(c, J, winv, S);
     for (int64_t i = 0; i < m; i++)
       if (S[i + i * m] > diag) diag = S[i + i * m];
     return diag;
@@ -1648,16 +1661,7 @@ static double square_frobenius2(int64_t m, const double *S) {
 static int extreme_bounds(const mechsim_projection *c, int64_t m, int64_t n,
                           const double *J, double *G, double *H, double *out) {
   if (c->pairs && m == c->m && n == c->n) {    /* J's pattern: `complement`'s sums */
-    memset(G, 0, m * m * sizeof(double));
-    for (int64_t p = 0; p < c->pairs; p++) {
-      const int64_t i = c->pair_rows[2 * p], j = c->pair_rows[2 * p + 1];
-      double e = 0.0;
-      for (int64_t a = c->pair_start[p]; a < c->pair_start[p + 1]; a++) {
-        const int64_t k = c->pair_cols[a];
-        e += J[i * n + k] * J[j * n + k];
-      }
-      G[i * m + j] = G[j * m + i] = e;
-    }
+    pair_products(c, J, NULL, G);
   } else {
     for (int64_t i = 0; i < m; i++)
       for (int64_t j = 0; j <= i; j++) {

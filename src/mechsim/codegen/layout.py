@@ -148,6 +148,12 @@ PROJECTION = Layout("mechsim_projection", [
           lambda d: 3 * d.k + max(d.n, d.m, 5 * d.k * d.k + 4 * d.k) + 64),
 ])
 
+# The arrays of Φ_q's pattern in `PROJECTION` (`pair_pattern`).
+PATTERN_ARRAYS = ("pair_rows", "pair_start", "pair_cols", "row_start", "row_cols",
+                  "col_start", "col_rows", "chol_ij", "chol_start", "chol_ks", "lrow_start",
+                  "lrow_cols", "lcol_start", "lcol_rows")
+
+
 def pair_pattern(model, m: int, n: int) -> dict[str, np.ndarray]:
     """`PROJECTION`'s pattern arrays for a model of m constraint rows and n coordinates:
     the pairs of rows i and k ≤ i (i outer) whose entries in Φ_q's pattern
@@ -156,29 +162,29 @@ def pair_pattern(model, m: int, n: int) -> dict[str, np.ndarray]:
     order, and the Cholesky factor's (`_cholesky_pattern`); none (one zero each) where the
     model gives no pattern (`complement` then finds the columns a row uses at each call,
     and the other sums run over every entry)."""
+    if not hasattr(model, "JACOBIAN_ROWS"):
+        return {name: np.zeros(1, np.int64) for name in PATTERN_ARRAYS}
+    used = [set() for _ in range(m)]
+    for i, j in zip(model.JACOBIAN_ROWS, model.JACOBIAN_COLS):
+        used[i].add(j)
     rows, start, shared, row_start, row_cols = [], [0], [], [0], []
     col_start, col_rows = [0], []
-    if hasattr(model, "JACOBIAN_ROWS"):
-        used = [set() for _ in range(m)]
-        for i, j in zip(model.JACOBIAN_ROWS, model.JACOBIAN_COLS):
-            used[i].add(j)
-        for j in range(n):
-            col_rows += [i for i in range(m) if j in used[i]]
-            col_start.append(len(col_rows))
-        for i in range(m):
-            row_cols += sorted(used[i])
-            row_start.append(len(row_cols))
-            for k in range(i + 1):
-                both = sorted(used[i] & used[k])
-                if both:
-                    rows += [i, k]
-                    shared += both
-                    start.append(len(shared))
+    for j in range(n):
+        col_rows += [i for i in range(m) if j in used[i]]
+        col_start.append(len(col_rows))
+    for i in range(m):
+        row_cols += sorted(used[i])
+        row_start.append(len(row_cols))
+        for k in range(i + 1):
+            both = sorted(used[i] & used[k])
+            if both:
+                rows += [i, k]
+                shared += both
+                start.append(len(shared))
     out = {"pair_rows": rows, "pair_start": start, "pair_cols": shared,
            "row_start": row_start, "row_cols": row_cols, "col_start": col_start,
-           "col_rows": col_rows,
-           **_cholesky_pattern(m, rows if hasattr(model, "JACOBIAN_ROWS") else None)}
-    return {name: np.array(v or [0], np.int64) for name, v in out.items()}
+           "col_rows": col_rows, **_cholesky_pattern(m, rows)}
+    return {name: np.array(out[name] or [0], np.int64) for name in PATTERN_ARRAYS}
 
 
 def _cholesky_pattern(m: int, pairs) -> dict[str, list]:
@@ -188,9 +194,6 @@ def _cholesky_pattern(m: int, pairs) -> dict[str, list]:
     column after column, the diagonal first, each with the columns k < j where both its
     row and column j of L have entries."""
     ops, start, ks = [], [0], []
-    if pairs is None:
-        return {"chol_ij": ops, "chol_start": start, "chol_ks": ks, "lrow_start": [0],
-                "lrow_cols": [], "lcol_start": [0], "lcol_rows": []}
     filled = [[False] * m for _ in range(m)]
     for i, k in zip(pairs[0::2], pairs[1::2]):
         filled[i][k] = True

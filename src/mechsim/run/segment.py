@@ -13,8 +13,9 @@ formulation, no crossing), all of that is arithmetic that
 projection phase between passages and after them, the bridge's approach to a landing
 point included) does in C, step after step, until a step is not plain. A step whose end
 is the loop's to decide (a switch of the hybrid, a new partition, a crossing by the
-passage bridge, a sample due at its end, the run's end) or to observe (in LU where its tolerances change inside a passage: a
-passage open at its start, the band, a dip the monitor's search finds) the segment still takes, with its samples, up to that point, and
+passage bridge, a sample due at its end, the run's end) or to observe (in LU where its
+tolerances change inside a passage: a passage open at its start, the band, a dip the
+monitor's search finds) the segment still takes, with its samples, up to that point, and
 hands it over pending (`Pending`: the loop finishes it, `Run._finish_pending`); any other
 step it drops, and the Python loop (`mechsim.run.loop.Run`) takes it from the same state,
 with its own decisions. Where the bridge crosses the passages (the run's tolerances stay
