@@ -396,7 +396,7 @@ def python_only(problem):
 @needs_compiler
 def test_compiled_singularity_measure_agrees_with_the_python_path():
     """The monitor's measurement over the double four-bar's first passage (t* ≈ 0.714 s),
-    compiled (one dgesdd and two Jacobians in C) and in Python: σ_min/σ_max and σ_min to
+    compiled (one SVD and two Jacobians in C) and in Python: σ_min/σ_max and σ_min to
     round-off, the rate (a difference quotient over 1e-7 of motion) to 1e-6 of its
     scale, the same left singular vector (up to sign) and the same J̃."""
     from mechsim.formulations.monitor import SingularityMonitor
@@ -444,6 +444,40 @@ def test_compiled_singularity_measure_agrees_with_the_python_path():
                                                               python_only(prob).algebra))
         np.testing.assert_allclose(Ja, Jb, rtol=0, atol=1e-14)
         assert Ea == pytest.approx(Eb, rel=1e-12) and Ea > 0.0
+
+
+@needs_compiler
+@pytest.mark.parametrize("build", [
+    lambda: ms.examples.general_four_bar(0.3, 0.9, 0.7, 1.0, math.radians(60.0),
+                                         masses=(1.0, 1.5, 1.0)),       # 8 rows: Jacobi
+    lambda: ms.examples.double_four_bar(2),                             # 14 rows: Jacobi
+    lambda: ms.examples.double_four_bar(4)],                            # 26 rows: dgesdd
+    ids=["crank-rocker", "double-four-bar", "four-windows"])
+def test_the_compiled_measure_s_svd_is_numpy_s_to_round_off(build):
+    """The compiled measure's SVD of J̃ (one-sided Jacobi up to JACOBI_ROWS rows, LAPACK's
+    dgesdd above) against numpy's along a run: σ_min and σ_max to 1e-12, the left
+    singular vector of σ_min up to its sign, the rates' difference quotients to 1e-7 of
+    their scale, and the fall basis P (every right singular vector, scaled by σ_min/σ_l)
+    through P Pᵀ, which no vector's sign changes."""
+    mech = build()
+    res = mech.simulate(t_end=0.6, method="lu", rtol=1e-8, atol=1e-10, output_step=0.05)
+    prob = res.problem
+    fast, slow = prob.algebra, python_only(prob).algebra
+    assert fast.engine is not None
+    k = prob.m - 1
+    for t, q, v in zip(res.t, res.q, res.v):
+        a = fast.measure(q, t, v, 1e-7, k)
+        b = slow.measure(q, t, v, 1e-7, k)
+        assert a[0] == pytest.approx(b[0], rel=1e-12) and a[1] == pytest.approx(b[1], rel=1e-12)
+        sig = np.linalg.svd(np.asarray(b[5]), compute_uv=False)
+        assert a[0] == pytest.approx(sig[-1], rel=1e-12) and a[1] == pytest.approx(sig[0],
+                                                                                  rel=1e-12)
+        assert abs(abs(a[4] @ b[4]) - 1.0) < 1e-10
+        scale = max(abs(b[2]), abs(b[3]), 1e-3 * b[6])
+        assert abs(a[2] - b[2]) <= 1e-7 * scale and abs(a[3] - b[3]) <= 1e-7 * scale
+        if prob.algebra.small:
+            Pa, Pb = a[7][1], b[7][1]
+            np.testing.assert_allclose(Pa @ Pa.T, Pb @ Pb.T, rtol=0, atol=1e-11)
 
 
 @needs_compiler
