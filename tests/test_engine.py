@@ -72,17 +72,19 @@ def test_the_jacobian_s_pattern_leaves_every_number_as_it_was(build):
     the accelerations, the projected states, the multipliers, the passage search's
     floors, chords and singular values of the dense sums (or those over a row's nonzero
     columns found at each call), to the bit, off the constraints too (the chord Newton at
-    work); the patterns leave most pairs of rows and entries of the factor out."""
+    work); the patterns leave most pairs of rows and entries of the factor out. The
+    model's straight-line kernels of the same sums (`layout.pattern_kernels`) give the
+    index loops' numbers to the bit."""
     mech = build()
     prob = mech.problem()
     e = prob.algebra.engine
     assert e is not None and 0 < e.ctx.pairs < prob.m * (prob.m + 1) // 2
     q0 = mech.initial_coordinates()
     runs, pairs, ops = [], e.ctx.pairs, e.ctx.chol_ops
-    assert 0 < ops < prob.m * (prob.m + 1) // 2
+    assert 0 < ops < prob.m * (prob.m + 1) // 2 and e.ctx.kernels == 1
     try:
-        for used in ((pairs, ops), (0, 0)):
-            e.ctx.pairs, e.ctx.chol_ops = used
+        for used in ((pairs, ops, 1), (pairs, ops, 0), (0, 0, 0)):
+            e.ctx.pairs, e.ctx.chol_ops, e.ctx.kernels = used
             got, states = [], np.random.default_rng(7)
             for _ in range(10):
                 t = 1e-4 * states.random()
@@ -97,11 +99,12 @@ def test_the_jacobian_s_pattern_leaves_every_number_as_it_was(build):
                             e.chords(T, Qs), e.extremes(T, Qs, prob.m - 1)])
             runs.append(got)
     finally:
-        e.ctx.pairs, e.ctx.chol_ops = pairs, ops
-    for a, b in zip(*runs):
-        assert len(a) == len(b) == 7
-        for x, y in zip(a, b):
-            assert x is not None and x.tobytes() == np.asarray(y).tobytes()
+        e.ctx.pairs, e.ctx.chol_ops, e.ctx.kernels = pairs, ops, 1
+    for other in runs[1:]:
+        for a, b in zip(runs[0], other):
+            assert len(a) == len(b) == 7
+            for x, y in zip(a, b):
+                assert x is not None and x.tobytes() == np.asarray(y).tobytes()
 
 
 @needs_compiler

@@ -369,6 +369,10 @@ static void pair_products(const mechsim_projection *c, const double *J, const do
                           double *S) {
   const int64_t n = c->n, m = c->m;
   const int64_t *rows = c->pair_rows, *start = c->pair_start, *shared = c->pair_cols;
+  if (w && c->kernels) {
+    mechsim_kernel_products(J, w, S);
+    return;
+  }
   memset(S, 0, m * m * sizeof(double));
   for (int64_t p = 0; p < c->pairs; p++) {
     const int64_t i = rows[2 * p], k = rows[2 * p + 1];
@@ -536,6 +540,26 @@ static double col_times(const mechsim_projection *c, const double *J, int64_t j,
   return s;
 }
 
+/* out = J x, `row_times` of every row (the model's kernel where c has it). */
+static void rows_times(const mechsim_projection *c, const double *J, const double *x,
+                       double *out) {
+  if (c->kernels) {
+    mechsim_kernel_rows(J, x, out);
+    return;
+  }
+  for (int64_t i = 0; i < c->m; i++) out[i] = row_times(c, J, i, x);
+}
+
+/* out = J^T y, `col_times` of every column (the model's kernel where c has it). */
+static void cols_times(const mechsim_projection *c, const double *J, const double *y,
+                       double *out) {
+  if (c->kernels) {
+    mechsim_kernel_cols(J, y, out);
+    return;
+  }
+  for (int64_t j = 0; j < c->n; j++) out[j] = col_times(c, J, j, y);
+}
+
 /* `small_cholesky` of S (m x m, both triangles) into R on c's pattern of L
    (layout._cholesky_pattern: the entries of S's pattern and their fill, each a sum over
    the columns where its row and column have entries): the products it leaves out are of
@@ -544,6 +568,7 @@ static double col_times(const mechsim_projection *c, const double *J, int64_t j,
 static int pattern_cholesky(const mechsim_projection *c, const double *S, double *R) {
   const int64_t m = c->m, *ij = c->chol_ij, *start = c->chol_start, *ks = c->chol_ks;
   double inv = 0.0;
+  if (c->kernels) return mechsim_kernel_cholesky(S, R);
   for (int64_t p = 0; p < c->chol_ops; p++) {
     const int64_t i = ij[2 * p], j = ij[2 * p + 1];
     double e = S[i * m + j];
@@ -570,6 +595,10 @@ static void factor_solve(const mechsim_projection *c, const double *R, const dou
   const int64_t m = c->m;
   if (!c->chol_ops) {
     cholesky_solve(m, R, rdiag, b);
+    return;
+  }
+  if (c->kernels) {
+    mechsim_kernel_solve(R, rdiag, b);
     return;
   }
   for (int64_t j = 0; j < m; j++) {                /* R^T y = b */
@@ -843,13 +872,15 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
   memset(g, 0, m * sizeof(double));
   mechsim_gamma(c->q, c->v, t, c->p, g);
   for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * c->Q[j];
-  for (int64_t i = 0; i < m; i++) lam[i] = row_times(c, J, i, wq) - g[i];  /* J W Q - gamma */
+  rows_times(c, J, wq, lam);
+  for (int64_t i = 0; i < m; i++) lam[i] -= g[i];                     /* J W Q - gamma */
   const double diag = complement(c, J, winv, S, c->nz);
   if (cholesky(c, S, diag, min_rcond, 0))
     return cut > 0.0 ? svd_accelerations(c, J, g, cut) : 1;
   factor_solve(c, S, c->rdiag, lam);
   memcpy(c->out, c->v, n * sizeof(double));
-  for (int64_t j = 0; j < n; j++) c->out[n + j] = wq[j] - winv[j] * col_times(c, J, j, lam);
+  cols_times(c, J, lam, c->tj);
+  for (int64_t j = 0; j < n; j++) c->out[n + j] = wq[j] - winv[j] * c->tj[j];
   return 0;
 }
 
@@ -882,7 +913,8 @@ int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
     memset(g, 0, m * sizeof(double));
     mechsim_gamma(q, v, ts[s], c->p, g);
     for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * F[j];
-    for (int64_t i = 0; i < m; i++) lam[i] = row_times(c, J, i, wq) - g[i];
+    rows_times(c, J, wq, lam);
+    for (int64_t i = 0; i < m; i++) lam[i] -= g[i];
     done[s] = 0;
     const double diag = complement(c, J, winv, S, c->nz);
     if (cholesky(c, S, diag, min_rcond, 1)) continue;
@@ -903,7 +935,8 @@ static int correct(mechsim_projection *c, const double *J, const double *S, doub
                    double *x) {
   const int64_t n = c->n;
   factor_solve(c, S, c->rdiag, r);
-  for (int64_t j = 0; j < n; j++) x[j] -= c->winv[j] * col_times(c, J, j, r);
+  cols_times(c, J, r, c->tj);
+  for (int64_t j = 0; j < n; j++) x[j] -= c->winv[j] * c->tj[j];
   return 0;
 }
 
@@ -915,7 +948,8 @@ static int project_velocity(mechsim_projection *c, double t) {
   double *r = c->r;
   memset(r, 0, m * sizeof(double));
   mechsim_phi_t(c->q, t, c->p, r);
-  for (int64_t i = 0; i < m; i++) r[i] += row_times(c, c->J, i, c->v);
+  rows_times(c, c->J, c->v, c->tj);
+  for (int64_t i = 0; i < m; i++) r[i] += c->tj[i];
   return correct(c, c->J, c->S, r, c->v);
 }
 

@@ -59,8 +59,8 @@ from ..linalg.dense import fall_basis
 from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
 from .cache import adopt, env_flag, verified_file
 from .compiled import build_library, compiler, compiler_identity, flags_digest, shared_library
-from .layout import (PARTITION, PROJECTION, SEARCH, SEARCH_KEY, SEGMENT, Dims, declare,
-                     pair_pattern)
+from .layout import (KERNEL_DECLARATIONS, KERNELS_VERSION, PARTITION, PROJECTION, SEARCH,
+                     SEARCH_KEY, SEGMENT, Dims, declare, pair_pattern, pattern_kernels)
 from .scratch import Scratch
 from .search import StepSearch
 
@@ -68,14 +68,13 @@ from .search import StepSearch
 # twins it calls and the structures' typedefs (`layout`).
 _ENGINE_C = "engine.c"
 _HEADERS = "#include <float.h>\n#include <math.h>\n#include <stdint.h>\n#include <string.h>\n\n"
-# The model's C twins the engine calls (`mechsim.codegen.printer`), declared for the
-# engine compiled on its own (`engine_object`).
+# The model's C twins the engine calls (`mechsim.codegen.printer`) and its pattern kernels
+# (`layout.pattern_kernels`), declared for the engine compiled on its own (`engine_object`).
 _MODEL = """void mechsim_phi(const double *q, double t, const double *p, double *o0);
 void mechsim_phi_q(const double *q, double t, const double *p, double *o0);
 void mechsim_phi_t(const double *q, double t, const double *p, double *o0);
 void mechsim_gamma(const double *q, const double *v, double t, const double *p, double *o0);
-
-"""
+""" + KERNEL_DECLARATIONS + "\n"
 
 
 @functools.cache
@@ -174,8 +173,10 @@ def for_problem(problem):
 
 def library_path(module_path: Path) -> Path:
     """Where the compiled evaluations of the model module at `module_path` are cached: the
-    model's name with `.evaluations-<digest of the engine's C and the compile's FLAGS>.so`."""
-    digest = hashlib.sha256("\0".join([source(), flags_digest()]).encode()).hexdigest()[:12]
+    model's name with `.evaluations-<digest of the engine's C, the pattern kernels' version
+    and the compile's FLAGS>.so`."""
+    digest = hashlib.sha256("\0".join([source(), flags_digest(), str(KERNELS_VERSION)])
+                            .encode()).hexdigest()[:12]
     return module_path.with_name(f"{module_path.stem}.evaluations-{digest}.so")
 
 
@@ -205,6 +206,7 @@ def library(model):
     path = getattr(model, "__file__", None)
     if not model_source or not path:
         return None
+    model_source += "\n" + pattern_kernels(model, model.M, model.N)
     target = library_path(Path(path))
     lib = shared_library(model_source + source(), target,
                          (model_source, lambda command: engine_object(target.parent, command)))
@@ -405,7 +407,8 @@ class ProjectionEngine:
             n=n, m=m, count=0, lwork=self.buffers["svd_work"].size,
             stall_ratio=STALL_RATIO, stall_span=STALL_SPAN,
             pairs=len(self.pattern["pair_start"]) - 1,
-            chol_ops=len(self.pattern["chol_start"]) - 1), arrays)
+            chol_ops=len(self.pattern["chol_start"]) - 1,
+            kernels=int(len(self.pattern["pair_start"]) > 1)), arrays)
         self.n = n
         self.lib = lib
         self.context = ctypes.addressof(self.ctx)

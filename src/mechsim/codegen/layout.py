@@ -136,6 +136,9 @@ PROJECTION = Layout("mechsim_projection", [
     Field("row_start", "const int64*"), Field("row_cols", "const int64*"),
     Field("col_start", "const int64*"), Field("col_rows", "const int64*"),
     Field("chol_ops", "int64"),
+    # the model's straight-line code of the same sums (`pattern_kernels`), where 1, and
+    # their scratch (max(m, n))
+    Field("kernels", "int64"), Field("tj", "double*", lambda d: max(d.m, d.n)),
     *(Field(name, "const int64*") for name in (
         "chol_ij", "chol_start", "chol_ks", "lrow_start", "lrow_cols", "lcol_start",
         "lcol_rows")),
@@ -185,6 +188,79 @@ def pair_pattern(model, m: int, n: int) -> dict[str, np.ndarray]:
            "row_start": row_start, "row_cols": row_cols, "col_start": col_start,
            "col_rows": col_rows, **_cholesky_pattern(m, rows)}
     return {name: np.array(out[name] or [0], np.int64) for name in PATTERN_ARRAYS}
+
+
+# The model's pattern kernels the engine calls where `PROJECTION`'s `kernels` is set
+# (`pattern_kernels`; stubs without a pattern). Bump KERNELS_VERSION with any change to
+# their code: the libraries' names take it (`engine.library_path`).
+KERNELS_VERSION = 1
+KERNEL_DECLARATIONS = """void mechsim_kernel_products(const double *J, const double *w, double *S);
+int mechsim_kernel_cholesky(const double *S, double *R);
+void mechsim_kernel_solve(const double *R, const double *rdiag, double *b);
+void mechsim_kernel_rows(const double *J, const double *x, double *out);
+void mechsim_kernel_cols(const double *J, const double *y, double *out);
+"""
+
+
+def pattern_kernels(model, m: int, n: int) -> str:
+    """C of the engine's sums over Φ_q's pattern (`pair_pattern`) as straight-line code
+    for this model: J W Jᵀ (`pair_products` with weights), its Cholesky factor
+    (`pattern_cholesky`) and solves (`factor_solve`), J x and Jᵀ y (`row_times` and
+    `col_times` of every row and column). Each statement is the index loop's, in its
+    order and with its parentheses (compiled without contracted multiply-adds), so each
+    number is the loop's to the bit; the loops' index reads and bounds go. Stubs (never
+    called) where the model has no pattern."""
+    if not hasattr(model, "JACOBIAN_ROWS"):
+        return ("void mechsim_kernel_products(const double *J, const double *w, double *S) {}\n"
+                "int mechsim_kernel_cholesky(const double *S, double *R) { return 1; }\n"
+                "void mechsim_kernel_solve(const double *R, const double *rdiag, double *b) {}\n"
+                "void mechsim_kernel_rows(const double *J, const double *x, double *out) {}\n"
+                "void mechsim_kernel_cols(const double *J, const double *y, double *out) {}\n")
+    pat = {name: values.tolist() for name, values in pair_pattern(model, m, n).items()}
+    out = ["void mechsim_kernel_products(const double *J, const double *w, double *S) {",
+           f"  for (int a = 0; a < {m * m}; a++) S[a] = 0.0;", "  double e;"]
+    rows, start, shared = pat["pair_rows"], pat["pair_start"], pat["pair_cols"]
+    for p in range(len(start) - 1):
+        i, k = rows[2 * p], rows[2 * p + 1]
+        terms = "".join(f" e += J[{i * n + j}] * w[{j}] * J[{k * n + j}];"
+                        for j in shared[start[p]:start[p + 1]])
+        store = f" S[{i + k * m}] = e;" + ("" if i == k else f" S[{k + i * m}] = e;")
+        out.append(f"  e = 0.0;{terms}{store}")
+    out += ["}", "", "int mechsim_kernel_cholesky(const double *S, double *R) {",
+            "  double e, r, inv = 0.0;"]
+    ij, start, ks = pat["chol_ij"], pat["chol_start"], pat["chol_ks"]
+    for p in range(len(start) - 1):
+        i, j = ij[2 * p], ij[2 * p + 1]
+        terms = "".join(f" e -= R[{i * m + k}] * R[{j * m + k}];" for k in ks[start[p]:start[p + 1]])
+        if i == j:
+            out.append(f"  e = S[{i * m + j}];{terms} if (!(e > 0.0)) return 1;"
+                       f" r = sqrt(e); inv = 1.0 / r; R[{j * m + j}] = r;")
+        else:
+            out.append(f"  e = S[{i * m + j}];{terms} R[{i * m + j}] = e * inv;")
+    out += ["  (void)inv;", "  return 0;", "}", "",
+            "void mechsim_kernel_solve(const double *R, const double *rdiag, double *b) {",
+            "  double e;"]
+    for j in range(m):
+        cols = pat["lrow_cols"][pat["lrow_start"][j]:pat["lrow_start"][j + 1]]
+        terms = "".join(f" e -= R[{j * m + k}] * b[{k}];" for k in cols)
+        out.append(f"  e = b[{j}];{terms} b[{j}] = e * rdiag[{j}];")
+    for j in range(m - 1, -1, -1):
+        below = pat["lcol_rows"][pat["lcol_start"][j]:pat["lcol_start"][j + 1]]
+        terms = "".join(f" e -= R[{k * m + j}] * b[{k}];" for k in below)
+        out.append(f"  e = b[{j}];{terms} b[{j}] = e * rdiag[{j}];")
+    out += ["}", "", "void mechsim_kernel_rows(const double *J, const double *x, double *out) {",
+            "  double e;"]
+    for i in range(m):
+        cols = pat["row_cols"][pat["row_start"][i]:pat["row_start"][i + 1]]
+        terms = "".join(f" e += J[{i * n + j}] * x[{j}];" for j in cols)
+        out.append(f"  e = 0.0;{terms} out[{i}] = e;")
+    out += ["}", "", "void mechsim_kernel_cols(const double *J, const double *y, double *out) {",
+            "  double e;"]
+    for j in range(n):
+        below = pat["col_rows"][pat["col_start"][j]:pat["col_start"][j + 1]]
+        terms = "".join(f" e += J[{i * n + j}] * y[{i}];" for i in below)
+        out.append(f"  e = 0.0;{terms} out[{j}] = e;")
+    return "#include <math.h>\n\n" + "\n".join(out + ["}", ""])
 
 
 def _cholesky_pattern(m: int, pairs) -> dict[str, list]:
