@@ -1110,14 +1110,21 @@ double mechsim_change(mechsim_projection *c, double t, const double *Jm, double 
   return sqrt(e);
 }
 
-/* |X P|_F^2 for X (m x n) and P (n x r), both row-major. */
-static double product_square(int64_t m, int64_t n, int64_t r, const double *X, const double *P) {
+/* |X P|_F^2 for X (m x n) and P (n x r), both row-major; with `start`, X has entries only
+   in row i's columns cols[start[i]:start[i + 1]] (Phi_q's pattern: the products left out
+   are of an exact zero, the same sums). */
+static double product_square(int64_t m, int64_t n, int64_t r, const double *X, const double *P,
+                             const int64_t *start, const int64_t *cols) {
   double total = 0.0;
   for (int64_t i = 0; i < m; i++) {
     const double *Xi = X + i * n;
     for (int64_t l = 0; l < r; l++) {
       double s = 0.0;
-      for (int64_t j = 0; j < n; j++) s += Xi[j] * P[j * r + l];
+      if (start) {
+        for (int64_t a = start[i]; a < start[i + 1]; a++) s += Xi[cols[a]] * P[cols[a] * r + l];
+      } else {
+        for (int64_t j = 0; j < n; j++) s += Xi[j] * P[j * r + l];
+      }
       total += s * s;
     }
   }
@@ -1129,19 +1136,26 @@ static double product_square(int64_t m, int64_t n, int64_t r, const double *X, c
    through J~ (Ja, Jb) and D = dJ~/dt (Da, Db) at both ends, C = (Jb - Ja)/h - (Da + Db)/2,
    P_e the ends' fall bases (n x r, row-major); in = (ta, tb, smin_a, smax_a, rise_a,
    smin_b, smax_b, rise_b), out = (rate seen from a, rate seen from b). C goes to work
-   (m x n). */
-void mechsim_fall_rates(int64_t m, int64_t n, int64_t r, const double *in, const double *Ja,
-                        const double *Da, const double *Pa, const double *Jb,
-                        const double *Db, const double *Pb, double *work, double *out) {
+   (m x n). J~, D and so C have entries only in Phi_q's pattern, which c gives where it
+   has one of these sizes (c may be NULL): the products then skip its zeros. */
+void mechsim_fall_rates(const mechsim_projection *c, int64_t m, int64_t n, int64_t r,
+                        const double *in, const double *Ja, const double *Da,
+                        const double *Pa, const double *Jb, const double *Db,
+                        const double *Pb, double *work, double *out) {
+  const int patterned = c && c->pairs && m == c->m && n == c->n;
+  const int64_t *start = patterned ? c->row_start : NULL, *cols = c ? c->row_cols : NULL;
   const double scale = 1.0 / (in[1] - in[0]);
   double cc = 0.0;
   for (int64_t i = 0; i < m * n; i++) {
     work[i] = (Jb[i] - Ja[i]) * scale - 0.5 * (Da[i] + Db[i]);
     cc += work[i] * work[i];
   }
-  const double da_a = product_square(m, n, r, Da, Pa), db_a = product_square(m, n, r, Db, Pa);
-  const double da_b = product_square(m, n, r, Da, Pb), db_b = product_square(m, n, r, Db, Pb);
-  const double c_a = product_square(m, n, r, work, Pa), c_b = product_square(m, n, r, work, Pb);
+  const double da_a = product_square(m, n, r, Da, Pa, start, cols);
+  const double db_a = product_square(m, n, r, Db, Pa, start, cols);
+  const double da_b = product_square(m, n, r, Da, Pb, start, cols);
+  const double db_b = product_square(m, n, r, Db, Pb, start, cols);
+  const double c_a = product_square(m, n, r, work, Pa, start, cols);
+  const double c_b = product_square(m, n, r, work, Pb, start, cols);
   const double rise = fmax(in[4], in[7]) + 1.5 * sqrt(cc);
   const double fall_a = sqrt(fmax(da_a, db_a)) + 1.5 * sqrt(c_a);
   const double fall_b = sqrt(fmax(da_b, db_b)) + 1.5 * sqrt(c_b);
@@ -2234,7 +2248,8 @@ static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t
    t_old; and whether _hidden_passages' bounds clear the step to t_new (the rate bound, and
    with `falls` _fall_clears), with the rate bound into *rate_bound. Returns -1 where there
    is no start (no search), else whether cleared; a = (t, s/peak, rate/peak) of the start. */
-static int search_clear(mechsim_segment *s, const seg_observation *o, int64_t m, int64_t n,
+static int search_clear(const mechsim_projection *pc, mechsim_segment *s,
+                        const seg_observation *o, int64_t m, int64_t n,
                         double t_old, double t_new, int falls, double *a,
                         double *rate_bound) {
   const int64_t mn = m * n, nr = n * m;
@@ -2268,7 +2283,7 @@ static int search_clear(mechsim_segment *s, const seg_observation *o, int64_t m,
       double fin[8], rates[2];
       fin[0] = fs_a[0]; fin[1] = t_new; fin[2] = fs_a[1]; fin[3] = fs_a[2];
       fin[4] = fs_a[3]; fin[5] = smin; fin[6] = smax; fin[7] = rate_norm;
-      mechsim_fall_rates(m, n, m, fin, s->Js + cur * mn, s->Ds + cur * mn,
+      mechsim_fall_rates(pc, m, n, m, fin, s->Js + cur * mn, s->Ds + cur * mn,
                          s->Ps + cur * nr, Jn, Dn, Pn, s->fall_work, rates);
       const double r0 = py_max(s->hermite_margin * rates[0], least);
       const double r1 = py_max(s->hermite_margin * rates[1], least);
@@ -2310,7 +2325,7 @@ static int64_t hidden_clear(mechsim_lu *c, mechsim_projection *pc, mechsim_segme
   if (o->skip) return 0;
   const int64_t n = pc->n, m = pc->m, N = c ? 2 * c->f : 2 * n;
   double a[3], rate_bound = 0.0;
-  if (search_clear(s, o, m, n, t_old, t_new, 1, a, &rate_bound)) return 0;
+  if (search_clear(pc, s, o, m, n, t_old, t_new, 1, a, &rate_bound)) return 0;
   if (!s->small ||
       monitor_search(c, pc, s, N, o, a, rate_bound, t_old, t_new, h, y, y_new, f_new, 0,
                      ready, evaluations))
@@ -2479,7 +2494,7 @@ static int64_t passages_step(mechsim_lu *c, mechsim_projection *pc, mechsim_segm
   const double *u_end = s->measured + 4;
   const double peak = o->peak, enter = s->enter * peak, leave = s->leave * peak;
   double a[3], rate_bound = 0.0;
-  if (!search_clear(s, o, m, n, t_old, t_new, !p->has_open, a, &rate_bound)) {
+  if (!search_clear(pc, s, o, m, n, t_old, t_new, !p->has_open, a, &rate_bound)) {
     if (!s->small ||                          /* _anchored, then _dips_seen */
         monitor_search(c, pc, s, N, o, a, rate_bound, t_old, t_new, h, y, y_new, f_new,
                        p->has_open, ready, evaluations))

@@ -519,7 +519,8 @@ class ProjectionEngine:
         P are C-contiguous floats of this mechanism's sizes), in one call."""
         inputs = self._fall_in
         inputs[:] = (a.t, b.t, a.smin, a.smax, a.rise, b.smin, b.smax, b.rise)
-        self._fall_rates(self.m, self.n, a.P.shape[1], self._fall_in_at, a.J.ctypes.data,
+        self._fall_rates(self.context, self.m, self.n, a.P.shape[1], self._fall_in_at,
+                         a.J.ctypes.data,
                          a.D.ctypes.data, a.P.ctypes.data, b.J.ctypes.data, b.D.ctypes.data,
                          b.P.ctypes.data, self._fall_work_at, self._fall_out_at)
         return self._fall_out[0], self._fall_out[1]
