@@ -187,6 +187,32 @@ def test_a_motion_that_runs_away_ends_the_run_naming_its_driver(law, limit):
     np.testing.assert_allclose(res.coordinate("rod.angle"), exact, rtol=1e-5, atol=1e-8)
 
 
+def test_a_segment_s_steps_are_kept_as_one_by_one():
+    """The runaway rule keeps a segment's steps (`note_speeds`, array slices between its
+    thinnings) exactly as one `note_speed` a step keeps them: the same rows, count and
+    stride, over random chunks, keeps and single steps between them."""
+    from mechsim.run.runaway import Runaway
+    rng = np.random.default_rng(1)
+    for _ in range(100):
+        one, sliced = Runaway(), Runaway()
+        one.keep = sliced.keep = int(rng.integers(4, 40))
+        one.rows, sliced.rows = np.empty((one.keep + 1, 3)), np.empty((one.keep + 1, 3))
+        j = 1
+        for _ in range(int(rng.integers(1, 30))):
+            k = int(rng.integers(0, 60))
+            hs, speeds = rng.random(k), rng.random(k)
+            for i in range(k):
+                one.note_speed(j + i, hs[i], speeds[i])
+            sliced.note_speeds(j, hs, speeds)
+            j += k
+            v, h = rng.random(3), rng.random()
+            one.note(j, h, v)
+            sliced.note(j, h, v)
+            j += 1
+        assert (one.count, one.stride) == (sliced.count, sliced.stride)
+        assert one.rows[:one.count].tobytes() == sliced.rows[:sliced.count].tobytes()
+
+
 @pytest.mark.parametrize("law", ["20*t**3", "3*exp(2*t)"])
 def test_a_motion_that_speeds_up_within_reach_runs_to_the_end(law):
     """A crank driven ever faster, but with an end in reach (60 t² rad/s up to 540 rad/s;

@@ -47,10 +47,20 @@ class Runaway:
 
     def note_speeds(self, first, hs, speeds) -> None:
         """`note_speed` of the steps first, first + 1, … of lengths `hs` and speeds
-        `speeds` (the steps a segment took)."""
-        for j, (h, speed) in enumerate(zip(hs, speeds), first):
-            if not j % self.stride:
-                self.note_speed(j, h, speed)
+        `speeds` (arrays: the steps a segment took), kept in slices between the thinnings."""
+        i, total = 0, len(hs)
+        while i < total:
+            start = i + (-(first + i)) % self.stride
+            if start >= total:
+                return
+            taken = np.arange(start, total, self.stride)[:self.keep + 1 - self.count]
+            rows = self.rows[self.count:self.count + len(taken)]
+            rows[:, 0], rows[:, 1], rows[:, 2] = first + taken, hs[taken], speeds[taken]
+            self.count += len(taken)
+            if self.count <= self.keep:
+                return
+            self._thin()
+            i = int(taken[-1]) + 1
 
     def note_speed(self, j, h, speed) -> None:
         """`note` of a step whose largest speed |v|∞ is `speed`."""
@@ -59,10 +69,14 @@ class Runaway:
         self.rows[self.count] = j, h, speed
         self.count += 1
         if self.count > self.keep:
-            self.stride *= 2
-            kept = self.rows[:self.count:2]
-            self.count = len(kept)
-            self.rows[:self.count] = kept.copy()
+            self._thin()
+
+    def _thin(self) -> None:
+        """Every other kept step, the stride doubled (the rows are full)."""
+        self.stride *= 2
+        kept = self.rows[:self.count:2]
+        self.count = len(kept)
+        self.rows[:self.count] = kept.copy()
 
     def verdict(self, k, t, t_end) -> str:
         """"" while the run may go on; else why it cannot reach t_end."""

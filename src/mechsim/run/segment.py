@@ -418,8 +418,7 @@ class Segment:
             self.pending = Pending(s.t_old, s.t, run.solver.y, s.pending == PENDING_OBSERVE,
                                    self._interpolant(run.solver, compiled))
         rows = log.tolist()
-        run.runaway.note_speeds(first, [h for _, h, _, _, _, _ in rows],
-                                [speed for _, _, speed, _, _, _ in rows])
+        run.runaway.note_speeds(first, log[:, 1], log[:, 2])
         # the bridge after Run._bridge's plans, which planned nothing or a landing (the
         # engine's, `bridge_plan`); a pending step's is the loop's own, after its end
         if planned:
