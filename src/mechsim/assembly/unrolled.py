@@ -127,8 +127,10 @@ _SPARSE = [
 ]
 # Which of a kernel's outputs (0 Φ, 1 Φ_q, 2 γ) each function output reads.
 _KERNEL_OUTPUT = {0: 0, 1: 1, 2: 2, 3: None, 4: 1}
-# The C twins the compiled engine calls (`mechsim.codegen.engine`) for a small model.
-ENGINE_FUNCTIONS = ("phi", "phi_q", "phi_t", "gamma")
+# The C twins the compiled engine calls (`mechsim.codegen.engine`) for a small model: the
+# pairs evaluated at one state share their sines and cosines and common terms, and give
+# each output to the bit as its own function does.
+ENGINE_FUNCTIONS = ("phi", "phi_q", "phi_t", "gamma", "position_terms", "dynamics_terms")
 
 
 class _Writer:

@@ -36,7 +36,7 @@ import numpy as np
 from ..linalg.sparse import template, with_data
 
 # Bump when the generated code changes meaning, so stale cache entries are not used.
-CODEGEN_VERSION = 16          # 16: undriven fused models unrolled from type kernels
+CODEGEN_VERSION = 17          # 17: small models' C twins of (Φ, Φ_q) and (Φ_q, γ) for the engine
 
 
 def cache_dir() -> Path:

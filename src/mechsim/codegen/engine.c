@@ -868,9 +868,8 @@ int mechsim_projection_accelerations(mechsim_projection *c, double t, double min
   const double *winv = c->winv;
   double *J = c->J, *g = c->g, *wq = c->wq, *lam = c->lam, *S = c->S;
   memset(J, 0, m * n * sizeof(double));
-  mechsim_phi_q(c->q, t, c->p, J);
   memset(g, 0, m * sizeof(double));
-  mechsim_gamma(c->q, c->v, t, c->p, g);
+  mechsim_dynamics_terms(c->q, c->v, t, c->p, J, g);      /* Phi_q and gamma, their bits */
   for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * c->Q[j];
   rows_times(c, J, wq, lam);
   for (int64_t i = 0; i < m; i++) lam[i] -= g[i];                     /* J W Q - gamma */
@@ -909,9 +908,8 @@ int64_t mechsim_multipliers(mechsim_projection *c, int64_t k, const double *ts,
       mechsim_phi_t(q, ts[s], c->p, Phit + s * m);
     }
     memset(J, 0, m * n * sizeof(double));
-    mechsim_phi_q(q, ts[s], c->p, J);
     memset(g, 0, m * sizeof(double));
-    mechsim_gamma(q, v, ts[s], c->p, g);
+    mechsim_dynamics_terms(q, v, ts[s], c->p, J, g);
     for (int64_t j = 0; j < n; j++) wq[j] = winv[j] * F[j];
     rows_times(c, J, wq, lam);
     for (int64_t i = 0; i < m; i++) lam[i] -= g[i];
@@ -959,17 +957,16 @@ static int project_velocity(mechsim_projection *c, double t) {
    residual shrinks by less than stall_ratio and lies within stall_span tol; then `extra`
    further iterations); c->J is Phi_q at the new q after it, c->S the factor at the given
    q. 0: projected, c->count the Newton iterations; 2: max|Phi| <= skip_tol, left as it
-   is; 1: declined (the factor fails, or with min_rcond >= 0 its condition estimate is not
+   is (c->J is Phi_q there); 1: declined (the factor fails, or with min_rcond >= 0 its condition estimate is not
    above it; the chord does not converge within max_iter). */
 static int project_positions(mechsim_projection *c, double t, double skip_tol, double tol,
                              double min_rcond, int64_t extra, int64_t max_iter) {
   const int64_t n = c->n, m = c->m;
   double *q = c->q, *J = c->J, *phi = c->phi, *r = c->r, *S = c->S;
-  mechsim_phi(q, t, c->p, phi);
+  memset(J, 0, m * n * sizeof(double));
+  mechsim_position_terms(q, t, c->p, phi, J);   /* Phi and Phi_q, their bits, at once */
   double err = max_abs(m, phi);
   if (err <= skip_tol) return 2;
-  memset(J, 0, m * n * sizeof(double));
-  mechsim_phi_q(q, t, c->p, J);
   const double diag = complement(c, J, c->winv, S, c->nz);
   if (cholesky(c, S, diag, min_rcond, 0)) return 1;
   double prev = INFINITY;

@@ -74,6 +74,10 @@ _MODEL = """void mechsim_phi(const double *q, double t, const double *p, double 
 void mechsim_phi_q(const double *q, double t, const double *p, double *o0);
 void mechsim_phi_t(const double *q, double t, const double *p, double *o0);
 void mechsim_gamma(const double *q, const double *v, double t, const double *p, double *o0);
+void mechsim_position_terms(const double *q, double t, const double *p, double *o0,
+                            double *o1);
+void mechsim_dynamics_terms(const double *q, const double *v, double t, const double *p,
+                            double *o0, double *o1);
 """ + KERNEL_DECLARATIONS + "\n"
 
 
