@@ -73,7 +73,7 @@ def test_the_jacobian_s_pattern_leaves_every_number_as_it_was(build):
     floors, chords and singular values of the dense sums (or those over a row's nonzero
     columns found at each call), to the bit, off the constraints too (the chord Newton at
     work); the patterns leave most pairs of rows and entries of the factor out. The
-    model's straight-line kernels of the same sums (`layout.pattern_kernels`) give the
+    model's straight-line kernels of the same sums (`kernels.pattern_kernels`) give the
     index loops' numbers to the bit."""
     mech = build()
     prob = mech.problem()

@@ -59,8 +59,9 @@ from ..linalg.dense import fall_basis
 from ..linalg.newton import CHORD_CONTRACTION, STALL_RATIO, STALL_SPAN
 from .cache import adopt, env_flag, verified_file
 from .compiled import build_library, compiler, compiler_identity, flags_digest, shared_library
-from .layout import (KERNEL_DECLARATIONS, KERNELS_VERSION, PARTITION, PROJECTION, SEARCH,
-                     SEARCH_KEY, SEGMENT, Dims, declare, pair_pattern, pattern_kernels)
+from .kernels import KERNELS_VERSION, MODEL_DECLARATIONS, pattern_kernels
+from .layout import (PARTITION, PROJECTION, SEARCH, SEARCH_KEY, SEGMENT, Dims, declare,
+                     pair_pattern)
 from .scratch import Scratch
 from .search import StepSearch
 
@@ -68,17 +69,7 @@ from .search import StepSearch
 # twins it calls and the structures' typedefs (`layout`).
 _ENGINE_C = "engine.c"
 _HEADERS = "#include <float.h>\n#include <math.h>\n#include <stdint.h>\n#include <string.h>\n\n"
-# The model's C twins the engine calls (`mechsim.codegen.printer`) and its pattern kernels
-# (`layout.pattern_kernels`), declared for the engine compiled on its own (`engine_object`).
-_MODEL = """void mechsim_phi(const double *q, double t, const double *p, double *o0);
-void mechsim_phi_q(const double *q, double t, const double *p, double *o0);
-void mechsim_phi_t(const double *q, double t, const double *p, double *o0);
-void mechsim_gamma(const double *q, const double *v, double t, const double *p, double *o0);
-void mechsim_position_terms(const double *q, double t, const double *p, double *o0,
-                            double *o1);
-void mechsim_dynamics_terms(const double *q, const double *v, double t, const double *p,
-                            double *o0, double *o1);
-""" + KERNEL_DECLARATIONS + "\n"
+
 
 
 @functools.cache
@@ -87,7 +78,7 @@ def source() -> str:
     typedefs of `layout.PARTITION`, `layout.PROJECTION`, `layout.SEARCH` and
     `layout.SEGMENT` (with `layout.SEARCH_KEY`), and `engine.c`."""
     text = resources.files(__package__).joinpath(_ENGINE_C).read_text(encoding="utf-8")
-    return (_HEADERS + _MODEL + f"#define MECHSIM_SEARCH_KEY {SEARCH_KEY}\n" +
+    return (_HEADERS + MODEL_DECLARATIONS + f"#define MECHSIM_SEARCH_KEY {SEARCH_KEY}\n" +
             PARTITION.typedef() + "\n" + PROJECTION.typedef() + "\n" +
             SEARCH.typedef() + "\n" + SEGMENT.typedef() + "\n" + text)
 
