@@ -727,7 +727,7 @@ static int jacobi_svd(mechsim_projection *c, double *A) {
   const int64_t m = c->m, n = c->n;
   double *Q = c->svd_work, *d = Q + m * m;        /* column-major m x m; squared norms */
   int64_t *order = c->perm;
-  const double tol = (double)m * DBL_EPSILON;
+  const double tol2 = (double)m * DBL_EPSILON * (double)m * DBL_EPSILON;
   memset(Q, 0, m * m * sizeof(double));
   for (int64_t i = 0; i < m; i++) Q[i + i * m] = 1.0;
   int settled = 0;
@@ -737,16 +737,22 @@ static int jacobi_svd(mechsim_projection *c, double *A) {
     for (int64_t i = 0; i + 1 < m; i++)
       for (int64_t j = i + 1; j < m; j++) {
         const double g = dot_pairs(n, A + i * n, A + j * n);
-        if (!(fabs(g) > tol * sqrt(d[i]) * sqrt(d[j]))) continue;
+        if (!(g * g > tol2 * d[i] * d[j])) continue;      /* |g| <= tol |row i| |row j| */
         settled = 0;
-        const double zeta = (d[j] - d[i]) / (2.0 * g);
-        const double t = fabs(zeta) > 1e100 ? 0.5 / zeta :
-            (zeta >= 0.0 ? 1.0 : -1.0) / (fabs(zeta) + sqrt(1.0 + zeta * zeta));
-        const double cs = 1.0 / sqrt(1.0 + t * t), sn = cs * t;
+        /* The rotation by t = tan, |t| <= 1, with the sign of zeta = (d_j - d_i) / (2 g),
+           that makes rows i and j orthogonal, from h = |(a, b)|, a = |d_j - d_i|,
+           b = 2 |g|: |t| = b / (a + h), cos = sqrt((a + h) / (2 h)), |sin| =
+           b / sqrt(2 h (a + h)), sums of positive terms only, and three roots and
+           quotients in a row where zeta, t and cos took five. */
+        const double diff = d[j] - d[i], a = fabs(diff), b = 2.0 * fabs(g);
+        const double sign = diff == 0.0 || (diff > 0.0) == (g > 0.0) ? 1.0 : -1.0;
+        const double h = sqrt(a * a + b * b), ah = a + h;
+        const double cs = sqrt(ah / (2.0 * h)), sn = sign * b / sqrt(2.0 * h * ah);
+        const double tg = sign * b * g / ah;
         rotate_rows(n, cs, sn, A + i * n, A + j * n);
         rotate_rows(m, cs, sn, Q + i * m, Q + j * m);
-        d[i] -= t * g;
-        d[j] += t * g;
+        d[i] -= tg;
+        d[j] += tg;
       }
   }
   if (!settled) return 1;
