@@ -35,7 +35,8 @@ value under the cut) returns a status and the Python path takes the evaluation f
 start, so the two agree on every decision and differ only in the rounding of their sums.
 
 The library is built beside the cached model module on first use (`library`), from the
-model's C twins linked with the engine compiled once per cache (`engine_object`), or
+model's C twins and its pattern kernels (`mechsim.codegen.kernels`) linked with the engine
+compiled once per cache (`engine_object`), or
 from both compiled together where that object cannot serve; without a compiler, with
 `MECHSIM_NO_COMPILE` set, or for a model kept in memory only, there is none and the
 formulations take the Python path. The structures both sides share, and the sizes
