@@ -454,11 +454,14 @@ def test_compiled_singularity_measure_agrees_with_the_python_path():
     lambda: ms.examples.general_four_bar(0.3, 0.9, 0.7, 1.0, math.radians(60.0),
                                          masses=(1.0, 1.5, 1.0)),       # 8 rows: Jacobi
     lambda: ms.examples.double_four_bar(2),                             # 14 rows: Jacobi
-    lambda: ms.examples.double_four_bar(4)],                            # 26 rows: dgesdd
-    ids=["crank-rocker", "double-four-bar", "four-windows"])
+    lambda: ms.examples.double_four_bar(4),                             # 26 rows: dgesdd
+    lambda: ms.examples.general_four_bar(0.3, 0.9, 0.7, 1.0, math.radians(60.0),
+                                         masses=(1e150, 1.5e150, 1e150))],  # J~ ~ 1e-75
+    ids=["crank-rocker", "double-four-bar", "four-windows", "heavy-crank-rocker"])
 def test_the_compiled_measure_s_svd_is_numpy_s_to_round_off(build):
     """The compiled measure's SVD of J̃ (one-sided Jacobi up to JACOBI_ROWS rows, LAPACK's
-    dgesdd above) against numpy's along a run: σ_min and σ_max to 1e-12, the left
+    dgesdd above; J̃ of 1e-75 too, whose squared norms' products would underflow) against
+    numpy's along a run: σ_min and σ_max to 1e-12, the left
     singular vector of σ_min up to its sign, the rates' difference quotients to 1e-7 of
     their scale, and the fall basis P (every right singular vector, scaled by σ_min/σ_l)
     through P Pᵀ, which no vector's sign changes."""

@@ -727,7 +727,7 @@ static int jacobi_svd(mechsim_projection *c, double *A) {
   const int64_t m = c->m, n = c->n;
   double *Q = c->svd_work, *d = Q + m * m;        /* column-major m x m; squared norms */
   int64_t *order = c->perm;
-  const double tol2 = (double)m * DBL_EPSILON * (double)m * DBL_EPSILON;
+  const double tol = (double)m * DBL_EPSILON;
   memset(Q, 0, m * m * sizeof(double));
   for (int64_t i = 0; i < m; i++) Q[i + i * m] = 1.0;
   int settled = 0;
@@ -737,7 +737,8 @@ static int jacobi_svd(mechsim_projection *c, double *A) {
     for (int64_t i = 0; i + 1 < m; i++)
       for (int64_t j = i + 1; j < m; j++) {
         const double g = dot_pairs(n, A + i * n, A + j * n);
-        if (!(g * g > tol2 * d[i] * d[j])) continue;      /* |g| <= tol |row i| |row j| */
+        if (!(fabs(g) > tol * sqrt(d[i]) * sqrt(d[j]))) continue;  /* no product of d's:
+                                                             they may underflow together */
         settled = 0;
         /* The rotation by t = tan, |t| <= 1, with the sign of zeta = (d_j - d_i) / (2 g),
            that makes rows i and j orthogonal, from h = |(a, b)|, a = |d_j - d_i|,
