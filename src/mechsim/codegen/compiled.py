@@ -115,7 +115,7 @@ def compiler_identity(command: list[str]) -> str:
     return f"{found} {st.st_size} {st.st_mtime_ns}"
 
 
-def shared_library(source: str, target: Path, parts=None):
+def shared_library(source, target: Path, parts=None):
     """The ctypes library compiled from `source` at `target`: loaded where the file there
     passes its digest (`mechsim.codegen.cache`), else built (once: a failure is remembered
     beside it, `<target>.failed`, for the same compiler, and said in one warning per
@@ -124,7 +124,8 @@ def shared_library(source: str, target: Path, parts=None):
 
     `parts` = (own, objects): `source` is `own` followed by code that `objects(command)`
     gives compiled (object files kept in the cache, [] where it cannot): the library is
-    built from `own` linked with them, and from `source` whole where that fails."""
+    built from `own` linked with them, and from `source` whole where that fails. `source`
+    and `own` may be functions giving the text: called only where a build is needed."""
     if env_flag("MECHSIM_NO_COMPILE"):
         _declined[str(target)] = "MECHSIM_NO_COMPILE is set"
         return None
@@ -148,8 +149,8 @@ def shared_library(source: str, target: Path, parts=None):
     remembered = error is not None
     if error is None:
         found = parts[1](command) if parts is not None else []
-        if not (found and build_library(parts[0], target, command, found) is None):
-            error = build_library(source, target, command)
+        if not (found and build_library(_text(parts[0]), target, command, found) is None):
+            error = build_library(_text(source), target, command)
         if error is None:
             adopt(target)
             failed.unlink(missing_ok=True)
@@ -168,6 +169,11 @@ def shared_library(source: str, target: Path, parts=None):
     warn_once(("compiler", identity), f"mechsim: {message}; models run on the Python path "
               f"(slower). {then}")
     return None
+
+
+def _text(source) -> str:
+    """`source` as text (`shared_library`'s source, or the function giving it)."""
+    return source() if callable(source) else source
 
 
 # What a compile that failed for want of a resource says: not remembered (the next process

@@ -506,58 +506,52 @@ static void cholesky_solve(int64_t m, const double *R, const double *rdiag, doub
   }
 }
 
-/* Row i of J (m x n row-major, Phi_q or J~) times x, over the row's entries of c's pattern
-   where it has one (the products left out are of an exact zero: the same sum). */
-static double row_times(const mechsim_projection *c, const double *J, int64_t i,
-                        const double *x) {
-  const int64_t n = c->n;
-  const double *Ji = J + i * n;
-  double s = 0.0;
-  if (c->pairs) {
-    for (int64_t a = c->row_start[i]; a < c->row_start[i + 1]; a++) {
-      const int64_t j = c->row_cols[a];
-      s += Ji[j] * x[j];
-    }
-  } else {
-    for (int64_t j = 0; j < n; j++) s += Ji[j] * x[j];
-  }
-  return s;
-}
-
-/* Column j of J (m x n row-major) times y, as `row_times`. */
-static double col_times(const mechsim_projection *c, const double *J, int64_t j,
-                        const double *y) {
-  const int64_t n = c->n;
-  double s = 0.0;
-  if (c->pairs) {
-    for (int64_t a = c->col_start[j]; a < c->col_start[j + 1]; a++) {
-      const int64_t i = c->col_rows[a];
-      s += J[i * n + j] * y[i];
-    }
-  } else {
-    for (int64_t i = 0; i < c->m; i++) s += J[i * n + j] * y[i];
-  }
-  return s;
-}
-
-/* out = J x, `row_times` of every row (the model's kernel where c has it). */
+/* out = J x for J (m x n row-major, Phi_q or J~): the model's kernel where c has one,
+   else each row over its entries of c's pattern where it has one (the products left out
+   are of an exact zero: the same sums), or over every entry. */
 static void rows_times(const mechsim_projection *c, const double *J, const double *x,
                        double *out) {
+  const int64_t n = c->n;
   if (c->kernels) {
     mechsim_kernel_rows(J, x, out);
     return;
   }
-  for (int64_t i = 0; i < c->m; i++) out[i] = row_times(c, J, i, x);
+  for (int64_t i = 0; i < c->m; i++) {
+    const double *Ji = J + i * n;
+    double s = 0.0;
+    if (c->pairs) {
+      for (int64_t a = c->row_start[i]; a < c->row_start[i + 1]; a++)
+        s += Ji[c->row_cols[a]] * x[c->row_cols[a]];
+    } else {
+      for (int64_t j = 0; j < n; j++) s += Ji[j] * x[j];
+    }
+    out[i] = s;
+  }
 }
 
-/* out = J^T y, `col_times` of every column (the model's kernel where c has it). */
+/* out = J^T y, as `rows_times` by columns. */
 static void cols_times(const mechsim_projection *c, const double *J, const double *y,
                        double *out) {
+  const int64_t n = c->n;
   if (c->kernels) {
     mechsim_kernel_cols(J, y, out);
     return;
   }
-  for (int64_t j = 0; j < c->n; j++) out[j] = col_times(c, J, j, y);
+  for (int64_t j = 0; j < n; j++) {
+    double s = 0.0;
+    if (c->pairs) {
+      for (int64_t a = c->col_start[j]; a < c->col_start[j + 1]; a++)
+        s += J[c->col_rows[a] * n + j] * y[c->col_rows[a]];
+    } else {
+      for (int64_t i = 0; i < c->m; i++) s += J[i * n + j] * y[i];
+    }
+    out[j] = s;
+  }
+}
+
+/* Whether an m x n matrix has c's pattern of Phi_q (c has one, of these sizes). */
+static int patterned(const mechsim_projection *c, int64_t m, int64_t n) {
+  return c && c->pairs && m == c->m && n == c->n;
 }
 
 /* `small_cholesky` of S (m x m, both triangles) into R on c's pattern of L
@@ -964,8 +958,8 @@ static int project_velocity(mechsim_projection *c, double t) {
    residual shrinks by less than stall_ratio and lies within stall_span tol; then `extra`
    further iterations); c->J is Phi_q at the new q after it, c->S the factor at the given
    q. 0: projected, c->count the Newton iterations; 2: max|Phi| <= skip_tol, left as it
-   is (c->J is Phi_q there); 1: declined (the factor fails, or with min_rcond >= 0 its condition estimate is not
-   above it; the chord does not converge within max_iter). */
+   is (c->J is Phi_q there); 1: declined (the factor fails, or with min_rcond >= 0 its
+   condition estimate is not above it; the chord does not converge within max_iter). */
 static int project_positions(mechsim_projection *c, double t, double skip_tol, double tol,
                              double min_rcond, int64_t extra, int64_t max_iter) {
   const int64_t n = c->n, m = c->m;
@@ -1146,8 +1140,8 @@ void mechsim_fall_rates(const mechsim_projection *c, int64_t m, int64_t n, int64
                         const double *in, const double *Ja, const double *Da,
                         const double *Pa, const double *Jb, const double *Db,
                         const double *Pb, double *work, double *out) {
-  const int patterned = c && c->pairs && m == c->m && n == c->n;
-  const int64_t *start = patterned ? c->row_start : NULL, *cols = c ? c->row_cols : NULL;
+  const int64_t *start = patterned(c, m, n) ? c->row_start : NULL;
+  const int64_t *cols = start ? c->row_cols : NULL;
   const double scale = 1.0 / (in[1] - in[0]);
   double cc = 0.0;
   for (int64_t i = 0; i < m * n; i++) {
@@ -1173,14 +1167,14 @@ void mechsim_fall_rates(const mechsim_projection *c, int64_t m, int64_t n, int64
 static double difference_norm(const mechsim_projection *c, int64_t m, int64_t n,
                               const double *A, const double *B, double *cols) {
   double frob = 0.0, rows = 0.0, colmax = 0.0;
-  const int patterned = c->pairs && m == c->m && n == c->n;
+  const int sparse = patterned(c, m, n);
   memset(cols, 0, n * sizeof(double));
   for (int64_t i = 0; i < m; i++) {
     double r = 0.0;
-    const int64_t first = patterned ? c->row_start[i] : 0;
-    const int64_t last = patterned ? c->row_start[i + 1] : n;
+    const int64_t first = sparse ? c->row_start[i] : 0;
+    const int64_t last = sparse ? c->row_start[i + 1] : n;
     for (int64_t a = first; a < last; a++) {
-      const int64_t j = patterned ? c->row_cols[a] : a;
+      const int64_t j = sparse ? c->row_cols[a] : a;
       const double d = A[i * n + j] - B[i * n + j], e = fabs(d);
       frob += d * d;
       r += e;
@@ -1804,7 +1798,8 @@ static double square_frobenius2(int64_t m, const double *S) {
    takes an SVD. */
 static int extreme_bounds(const mechsim_projection *c, int64_t m, int64_t n,
                           const double *J, double *G, double *H, double *out) {
-  if (c->pairs && m == c->m && n == c->n) {    /* J's pattern: `complement`'s sums */
+  const int sparse = patterned(c, m, n);
+  if (sparse) {                                 /* J's pattern: `complement`'s sums */
     pair_products(c, J, NULL, G);
   } else {
     for (int64_t i = 0; i < m; i++)
@@ -1817,9 +1812,9 @@ static int extreme_bounds(const mechsim_projection *c, int64_t m, int64_t n,
   double frob = 0.0;
   for (int64_t i = 0; i < m * m; i++) frob += G[i] * G[i];
   const double top = fmin(sqrt(frob), pow(square_frobenius2(m, G), 0.25));
-  const int patterned = c->chol_ops && m == c->m && n == c->n;
-  if (patterned) memset(H, 0, m * m * sizeof(double));
-  if (patterned ? pattern_cholesky(c, G, H) : small_cholesky(m, G, H))
+  const int factored = sparse && c->chol_ops;
+  if (factored) memset(H, 0, m * m * sizeof(double));
+  if (factored ? pattern_cholesky(c, G, H) : small_cholesky(m, G, H))
     return 1;                                  /* L (lower, row-major) into H */
   /* M = L^-1 into G: row-major lower L is column-major upper R = L^T, whose inverse
      (column-major upper) is row-major lower L^-1 */

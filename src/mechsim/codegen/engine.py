@@ -72,7 +72,6 @@ _ENGINE_C = "engine.c"
 _HEADERS = "#include <float.h>\n#include <math.h>\n#include <stdint.h>\n#include <string.h>\n\n"
 
 
-
 @functools.cache
 def source() -> str:
     """The engine's C: headers, the declarations of the model's C twins it calls, the
@@ -202,10 +201,13 @@ def library(model):
     path = getattr(model, "__file__", None)
     if not model_source or not path:
         return None
-    model_source += "\n" + pattern_kernels(model, model.M, model.N)
     target = library_path(Path(path))
-    lib = shared_library(model_source + source(), target,
-                         (model_source, lambda command: engine_object(target.parent, command)))
+
+    def own():           # the model's C with its pattern kernels, where a build needs it
+        return model_source + "\n" + pattern_kernels(model, model.M, model.N)
+
+    lib = shared_library(lambda: own() + source(), target,
+                         (own, lambda command: engine_object(target.parent, command)))
     if lib is None:
         return None
     try:
@@ -397,14 +399,14 @@ class ProjectionEngine:
         self._sig = self.buffers["sig"]
         self.wsqrt = np.sqrt(self.winv)
         self.pattern = pair_pattern(problem.model, m, n)
+        pairs = len(self.pattern["pair_start"]) - 1
         arrays = {**self.buffers, **self.pattern, "p": self.p, "winv": self.winv,
                   "wsqrt": self.wsqrt, "q": self.q, "v": self.v, "Q": self.Q, "out": self.out}
         self.ctx = PROJECTION.make(dict(
             n=n, m=m, count=0, lwork=self.buffers["svd_work"].size,
             stall_ratio=STALL_RATIO, stall_span=STALL_SPAN,
-            pairs=len(self.pattern["pair_start"]) - 1,
-            chol_ops=len(self.pattern["chol_start"]) - 1,
-            kernels=int(len(self.pattern["pair_start"]) > 1)), arrays)
+            pairs=pairs, chol_ops=len(self.pattern["chol_start"]) - 1,
+            kernels=int(pairs > 0)), arrays)
         self.n = n
         self.lib = lib
         self.context = ctypes.addressof(self.ctx)
@@ -516,9 +518,9 @@ class ProjectionEngine:
         inputs = self._fall_in
         inputs[:] = (a.t, b.t, a.smin, a.smax, a.rise, b.smin, b.smax, b.rise)
         self._fall_rates(self.context, self.m, self.n, a.P.shape[1], self._fall_in_at,
-                         a.J.ctypes.data,
-                         a.D.ctypes.data, a.P.ctypes.data, b.J.ctypes.data, b.D.ctypes.data,
-                         b.P.ctypes.data, self._fall_work_at, self._fall_out_at)
+                         a.J.ctypes.data, a.D.ctypes.data, a.P.ctypes.data, b.J.ctypes.data,
+                         b.D.ctypes.data, b.P.ctypes.data, self._fall_work_at,
+                         self._fall_out_at)
         return self._fall_out[0], self._fall_out[1]
 
     def project_states(self, T, Q, V, tols, max_iter=8):

@@ -136,12 +136,12 @@ PROJECTION = Layout("mechsim_projection", [
     Field("row_start", "const int64*"), Field("row_cols", "const int64*"),
     Field("col_start", "const int64*"), Field("col_rows", "const int64*"),
     Field("chol_ops", "int64"),
-    # the model's straight-line code of the same sums (`pattern_kernels`), where 1, and
-    # their scratch (max(m, n))
-    Field("kernels", "int64"), Field("tj", "double*", lambda d: max(d.m, d.n)),
     *(Field(name, "const int64*") for name in (
         "chol_ij", "chol_start", "chol_ks", "lrow_start", "lrow_cols", "lcol_start",
         "lcol_rows")),
+    # the model's straight-line code of the same sums (`kernels.pattern_kernels`), where
+    # 1, and their scratch (max(m, n))
+    Field("kernels", "int64"), Field("tj", "double*", lambda d: max(d.m, d.n)),
     Field("iwork", "int*", lambda d: 8 * d.m),
     # the extreme singular values' workspace (`extremes_of`: bidiagonal, dlasq1's; then the
     # accelerations' QR: its reflectors' factors, R's diagonal and three vectors)

@@ -417,7 +417,6 @@ class Segment:
         if s.pending:
             self.pending = Pending(s.t_old, s.t, run.solver.y, s.pending == PENDING_OBSERVE,
                                    self._interpolant(run.solver, compiled))
-        rows = log.tolist()
         run.runaway.note_speeds(first, log[:, 1], log[:, 2])
         # the bridge after Run._bridge's plans, which planned nothing or a landing (the
         # engine's, `bridge_plan`); a pending step's is the loop's own, after its end
@@ -429,5 +428,5 @@ class Segment:
                 ((s.planned_t, s.planned_star), s.plan_rate) if s.has_planned else None,
                 bool(s.plan_reset))
         elif bridge is not None:
-            for _, _, _, h_free, _, _ in rows[:count - bool(s.pending)]:
+            for h_free in log[:count - bool(s.pending), 3].tolist():
                 bridge.note_step(min(h_free, bound), h_free >= bound)
