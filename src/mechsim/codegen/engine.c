@@ -956,8 +956,9 @@ static int project_velocity(mechsim_projection *c, double t) {
    NumericProblem.project_state's positions: a chord Newton on Phi with the one Cholesky
    factor of J W J^T at the given q (stopping at max|Phi| <= tol or at round-off: the
    residual shrinks by less than stall_ratio and lies within stall_span tol; then `extra`
-   further iterations); c->J is Phi_q at the new q after it, c->S the factor at the given
-   q. 0: projected, c->count the Newton iterations; 2: max|Phi| <= skip_tol, left as it
+   further iterations); c->J is Phi_q at the new q after it (evaluated with each Phi, into
+   the scratch c->J1), c->S the factor at the given q. 0: projected, c->count the Newton
+   iterations; 2: max|Phi| <= skip_tol, left as it
    is (c->J is Phi_q there); 1: declined (the factor fails, or with min_rcond >= 0 its
    condition estimate is not above it; the chord does not converge within max_iter). */
 static int project_positions(mechsim_projection *c, double t, double skip_tol, double tol,
@@ -970,6 +971,10 @@ static int project_positions(mechsim_projection *c, double t, double skip_tol, d
   if (err <= skip_tol) return 2;
   const double diag = complement(c, J, c->winv, S, c->nz);
   if (cholesky(c, S, diag, min_rcond, 0)) return 1;
+  /* Phi_q at each new q with its Phi (one call, shared sines), into J1: the chord goes on
+     with J at the given q; the last one is Phi_q at the projected q */
+  double *Jq = c->J1;
+  memset(Jq, 0, m * n * sizeof(double));
   double prev = INFINITY;
   int64_t count = 0;
   for (int64_t k = 0;; k++) {
@@ -980,17 +985,16 @@ static int project_positions(mechsim_projection *c, double t, double skip_tol, d
     memcpy(r, phi, m * sizeof(double));
     if (correct(c, J, S, r, q)) return 1;
     count++;
-    mechsim_phi(q, t, c->p, phi);
+    mechsim_position_terms(q, t, c->p, phi, Jq);
     err = max_abs(m, phi);
   }
   for (int64_t k = 0; k < extra; k++) {
     memcpy(r, phi, m * sizeof(double));
     if (correct(c, J, S, r, q)) return 1;
     count++;
-    mechsim_phi(q, t, c->p, phi);
+    mechsim_position_terms(q, t, c->p, phi, Jq);
   }
-  memset(J, 0, m * n * sizeof(double));
-  mechsim_phi_q(q, t, c->p, J);
+  if (count > 0) memcpy(J, Jq, m * n * sizeof(double));
   c->count = count;
   return 0;
 }
