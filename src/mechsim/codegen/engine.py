@@ -483,6 +483,12 @@ class ProjectionEngine:
         self.counters.projections += self.ctx.count
         return self.q.copy(), self.v.copy()
 
+    def forget(self):
+        """The next `measure` from J̃ itself: the monitor's Jacobi SVD otherwise starts from
+        the rotation the last one ended with (a run's start forgets it: a run does not
+        depend on the runs before it)."""
+        self.ctx.jacobi_warm = 0
+
     def measure(self, t, q, v=None, eps=0.0, fall=True):
         """The extreme singular values of J̃ = Φ_q M^{-1/2} at (q, t) and, with eps > 0,
         their rates along v (from J̃ at (q + eps v, t + eps)): (σ_min, σ_max, σ̇_min,

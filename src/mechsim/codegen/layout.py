@@ -142,6 +142,9 @@ PROJECTION = Layout("mechsim_projection", [
     # the model's straight-line code of the same sums (`kernels.pattern_kernels`), where
     # 1, and their scratch (max(m, n))
     Field("kernels", "int64"), Field("tj", "double*", lambda d: max(d.m, d.n)),
+    # the rotation of J~'s rows the monitor's last Jacobi SVD ended with (`jacobi_svd`: the
+    # next one starts from it where jacobi_warm is 1; a run starts afresh)
+    Field("jacobi_warm", "int64"), Field("jacobi_from", "double*", lambda d: d.m * d.m),
     Field("iwork", "int*", lambda d: 8 * d.m),
     # the extreme singular values' workspace (`extremes_of`: bidiagonal, dlasq1's; then the
     # accelerations' QR: its reflectors' factors, R's diagonal and three vectors)
@@ -323,6 +326,10 @@ SEGMENT = Layout("mechsim_segment", [
     *(Field(name, "double*", lambda d: d.m * d.n) for name in ("Jm", "Jc", "Jq",
                                                                 "fall_work", "J_end")),
     *(Field(name, "double*", lambda d: 2 * d.m * d.n) for name in ("Js", "Ds", "Ps")),
+    # the projection context's warm start of the monitor's SVD before the step's
+    # observation (`keep_measures`): put back where the loop observes the step again
+    Field("jacobi_kept", "int64"), Field("jacobi_open", "int64"),
+    Field("jacobi_keep", "double*", lambda d: d.m * d.m),
     Field("fall_scalars", "double*", lambda d: 8), Field("known", "double*", lambda d: 6),
     # the passage search's grid and scratch (a `SEARCH` structure the segment owns), the
     # step's rate's context

@@ -70,6 +70,8 @@ class ConstraintAlgebra:
       ‖dJ̃/dt‖_F, fall) at (q, t), rates along v from J̃ at (q + eps v, t + eps) (0 where
       eps is 0; `J`: J̃ at q if at hand); σ_max = 0 where J̃ lost that rank; fall:
       (dJ̃/dt, `mechsim.linalg.dense.fall_basis`) where small and eps > 0, else None
+    - ``forget()``: at a run's start, what earlier runs left behind is dropped (the
+      compiled measure's last rotation, where its next SVD would start)
     - ``chords(times, Q)``, ``singular_extremes(times, Q, k)``: bounds of ‖J̃ᵢ₊₁ − J̃ᵢ‖₂
       (`chord_bound`), (σ_k, σ_max) at each configuration: the passage search's grid
     - ``anchored``, ``passage_minimum``: the search in a step in C (`codegen.search`), or None
@@ -174,6 +176,10 @@ class ConstraintAlgebra:
         """Where the compiled engine takes a run's plain LU steps itself: its `PlainSteps`
         (`mechsim.codegen.steps`); None here."""
         return None
+
+    def forget(self):
+        """Forget what an earlier run left behind (a run's start, `NumericProblem.start_run`);
+        nothing here."""
 
     def change(self, q, t, Jm):
         """(J̃ at (q, t), ‖J̃ − Jm‖_F): how far J̃ moved since Jm, which bounds how far each
@@ -296,6 +302,13 @@ class DenseAlgebra(ConstraintAlgebra):
         from ..codegen import engine
         lib = engine.for_problem(self.problem)
         return None if lib is None else engine.ProjectionEngine(lib, self.problem)
+
+    def forget(self):
+        """The compiled monitor's next SVD from J̃ itself, not from the last one's rotation
+        (`ProjectionEngine.forget`), where the engine was made."""
+        engine = self.__dict__.get("engine")
+        if engine is not None:
+            engine.forget()
 
     def _compiled(self, k):
         """The engine where it may measure: J̃ without redundant rows (k = m − 1) whose

@@ -177,11 +177,13 @@ class NumericProblem:
         self._sparse = bool(value)
 
     def start_run(self):
-        """Forget what earlier runs left behind (the banded form's eigenvector warm starts):
-        the same run twice gives the same result."""
+        """Forget what earlier runs left behind (the banded form's eigenvector warm starts,
+        the compiled monitor's last SVD): the same run twice gives the same result."""
         band = self.solver.decided_band()
         if band is not None:
             band.forget()
+        if self._algebra is not None and self._algebra.problem is self:
+            self._algebra.forget()
 
     # --- constraints -----------------------------------------------------------------------
     def phi(self, q, t):
