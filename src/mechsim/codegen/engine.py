@@ -14,7 +14,6 @@ It is the dense constraint algebra's implementation of its state-level operation
 - one coordinate partition's solver (`PartitionedEngine`, the algebra's
   `partition_solver`): the dependent coordinates and velocities of a state or of a
   step's samples, and the reduced accelerations;
-
 - the projection method's accelerations (`ProjectionEngine.accelerations`, `rhs`): by the
   Cholesky factor of J W Jᵀ where LAPACK's condition estimate clears it, else by the SVD
   of J̃ where no singular value is under the truncation cut;
@@ -23,24 +22,24 @@ It is the dense constraint algebra's implementation of its state-level operation
 - the singularity monitor's σ_min, σ_max and their rates (`measure`), and its passage
   search's grid: J̃'s chords between states and the extreme singular values at many
   (`chords`, `extremes`);
-- the hybrid's test for a return to LU, cond₁ of the block LU pivoting picks
-  (`lu_condition`);
+- the hybrid's test for a return to LU, cond₁ of the block LU pivots (`lu_condition`);
 - the multipliers of many states (`multipliers`).
 
-The compiled path takes only the plain case: a chord Newton converging by the same rules as
-the Python path's (`mechsim.linalg.newton`, whose constants it is handed), a nonsingular square Φ_q D and a positive definite Schur complement; for the
-projection method, a state outside the truncation band. Anything else (a stalled chord
+The compiled path takes only the plain case: a chord Newton converging by the same rules
+as the Python path's (`mechsim.linalg.newton`, whose constants it is handed), a
+nonsingular square Φ_q D and a positive definite Schur complement; for the projection
+method, a state outside the truncation band. Anything else (a stalled chord
 that needs fresh Jacobians, redundant constraints, Newton failing altogether, a singular
 value under the cut) returns a status and the Python path takes the evaluation from the
 start, so the two agree on every decision and differ only in the rounding of their sums.
 
 The library is built beside the cached model module on first use (`library`), from the
 model's C twins and its pattern kernels (`mechsim.codegen.kernels`) linked with the engine
-compiled once per cache (`engine_object`), or
-from both compiled together where that object cannot serve; without a compiler, with
-`MECHSIM_NO_COMPILE` set, or for a model kept in memory only, there is none and the
-formulations take the Python path. The structures both sides share, and the sizes
-of the buffers they point to, are described once in `layout`.
+compiled once per cache (`engine_object`), or from both compiled together where that
+object cannot serve; without a compiler, with `MECHSIM_NO_COMPILE` set, or for a model
+kept in memory only, there is none and the formulations take the Python path. The
+structures both sides share, and the sizes of the buffers they point to, are described
+once in `layout`.
 """
 
 from __future__ import annotations
@@ -484,9 +483,7 @@ class ProjectionEngine:
         return self.q.copy(), self.v.copy()
 
     def forget(self):
-        """The next `measure` from J̃ itself: the monitor's Jacobi SVD otherwise starts from
-        the rotation the last one ended with (a run's start forgets it: a run does not
-        depend on the runs before it)."""
+        """The next `measure` from J̃ itself, not from the last SVD's rotation (a run's start)."""
         self.ctx.jacobi_warm = 0
 
     def measure(self, t, q, v=None, eps=0.0, fall=True):

@@ -48,8 +48,7 @@ class ConstraintAlgebra:
     - ``small``: bool, J̃'s SVD is cheap (dense, at most `SMALL_ROWS` constraint rows)
     - ``batched``: bool, J̃ of many states is measured together by one stacked dense SVD
     - ``dense_complement``: bool, Φ_q M⁻¹ Φ_qᵀ is formed dense with a constant diagonal
-      mass, so many right-hand sides share one factor (output samples settled by one
-      stacked Newton step, the friction forces' unit responses)
+      mass: many right-hand sides share one factor (a step's samples, friction's responses)
     - ``compiles``: bool, the compiled engine (`mechsim.codegen.engine`) computes as this
       algebra does and may serve its runs
     - ``jacobian(q, t)``: Φ_q in the form the solvers take (dense, or CSR)
@@ -69,9 +68,8 @@ class ConstraintAlgebra:
     - ``measure(q, t, v, eps, k, J=None)``: (σ_k, σ_max, σ̇_k, σ̇_max, u_k, J̃,
       ‖dJ̃/dt‖_F, fall) at (q, t), rates along v from J̃ at (q + eps v, t + eps) (0 where
       eps is 0; `J`: J̃ at q if at hand); σ_max = 0 where J̃ lost that rank; fall:
-      (dJ̃/dt, `mechsim.linalg.dense.fall_basis`) where small and eps > 0, else None
-    - ``forget()``: at a run's start, what earlier runs left behind is dropped (the
-      compiled measure's last rotation, where its next SVD would start)
+      (dJ̃/dt, `mechsim.linalg.dense.fall_basis`) where small and eps > 0, else None;
+      ``forget()``: a run's start (the compiled measure's start from the last SVD dropped)
     - ``chords(times, Q)``, ``singular_extremes(times, Q, k)``: bounds of ‖J̃ᵢ₊₁ − J̃ᵢ‖₂
       (`chord_bound`), (σ_k, σ_max) at each configuration: the passage search's grid
     - ``anchored``, ``passage_minimum``: the search in a step in C (`codegen.search`), or None
