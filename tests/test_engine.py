@@ -486,6 +486,45 @@ def test_the_compiled_measure_s_svd_is_numpy_s_to_round_off(build):
 
 
 @needs_compiler
+@pytest.mark.parametrize("build", [PROBLEMS["crank-rocker"].build,
+                                   lambda: ms.examples.double_four_bar(2)],
+                         ids=["crank-rocker", "double-four-bar"])
+def test_the_measure_from_the_last_svd_s_rotation_is_the_measure_afresh(build):
+    """The monitor's Jacobi SVD starts from the rotation its last one ended with: along a
+    run (the double four-bar's through its first passage, where σ_min/σ_max falls to a
+    hundredth of its peak and below) each measure so started agrees with one started afresh (`forget` first) to
+    round-off of σ_max, its singular vector up to sign; and after `forget` a measure is a
+    new engine's to the bit (what a run's start relies on)."""
+    mech = build()
+    res = mech.simulate(t_end=0.8, method="projection", rtol=1e-9, atol=1e-11,
+                        output_step=1e-3)
+    prob = res.problem
+    engine = prob.algebra.engine
+    assert engine is not None
+    k, ratios = prob.m - 1, []
+    engine.forget()
+    for t, q, v in zip(res.t, res.q, res.v):
+        warm = engine.measure(t, q, v, 1e-7)
+        state = (engine.ctx.jacobi_warm, engine.buffers["jacobi_from"].copy())
+        engine.forget()
+        fresh = engine.measure(t, q, v, 1e-7)
+        engine.ctx.jacobi_warm, engine.buffers["jacobi_from"][:] = state  # the warm path on
+        assert abs(warm[0] - fresh[0]) <= 8 * prob.m * 2.2e-16 * fresh[1]
+        assert warm[1] == pytest.approx(fresh[1], rel=8 * prob.m * 2.2e-16)
+        assert abs(abs(warm[4] @ fresh[4]) - 1.0) < 1e-9 or fresh[0] < 1e-6 * fresh[1]
+        ratios.append(fresh[0] / fresh[1])
+    assert len(ratios) > 100
+    if prob.m == 14:
+        assert min(ratios) < 1e-2 * max(ratios)          # through the passage
+    t, q, v = res.t[-1], res.q[-1], res.v[-1]
+    engine.forget()
+    again = engine.measure(t, q, v, 1e-7)
+    first = type(engine)(engine.lib, prob).measure(t, q, v, 1e-7)
+    assert all(np.array_equal(np.asarray(x), np.asarray(y)) for x, y in
+               zip(again[:7], first[:7]))
+
+
+@needs_compiler
 def test_the_extreme_singular_values_of_many_states_agree_with_one_by_one_measures():
     """(σ_min, σ_max) at many states in one call, compiled (dgesdd without vectors) and by
     a stacked numpy SVD (`singular_extremes`, the passage search's anchors), give the
