@@ -501,7 +501,7 @@ def test_the_measure_from_the_last_svd_s_rotation_is_the_measure_afresh(build):
     prob = res.problem
     engine = prob.algebra.engine
     assert engine is not None
-    k, ratios = prob.m - 1, []
+    ratios = []
     engine.forget()
     for t, q, v in zip(res.t, res.q, res.v):
         warm = engine.measure(t, q, v, 1e-7)
