@@ -715,8 +715,8 @@ static double dot_pairs(int64_t n, const double *x, const double *y) {
    to within m eps of its norms, make A = P J~ with P orthogonal and A's rows sigma_l times
    the right singular vectors. Where c->jacobi_warm, the rows start rotated by the last
    SVD's P (c->jacobi_from): J~ moves little from one step's end to the next, and its
-   rows so rotated are nearly orthogonal already (double four-bar: 59 % fewer rotations,
-   crank-rocker 29 %); else from J~ itself. Into c->sig, c->U and c->VT as dgesdd_of
+   rows so rotated are nearly orthogonal already (docs/design-notes.md); else from J~
+   itself. Into c->sig, c->U and c->VT as dgesdd_of
    leaves them (largest first; a vector's sign may differ); its singular values are
    accurate to the largest's round-off. 1 where a row's norm is not positive and finite or
    the sweeps do not settle within JACOBI_SWEEPS (A is then left rotated; the next SVD
