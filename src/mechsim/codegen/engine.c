@@ -9,7 +9,6 @@
    (the function pointers scipy.linalg.cython_lapack exports). */
 
 typedef void (*mechsim_gesv_t)(int *, int *, double *, int *, int *, double *, int *, int *);
-typedef void (*mechsim_posv_t)(char *, int *, int *, double *, int *, double *, int *, int *);
 typedef void (*mechsim_potrf_t)(char *, int *, double *, int *, int *);
 typedef void (*mechsim_pocon_t)(char *, int *, double *, int *, double *, double *, double *,
                                 int *, int *);
@@ -19,7 +18,6 @@ typedef void (*mechsim_lasq1_t)(int *, double *, double *, double *, int *);
 typedef void (*mechsim_gesdd_t)(char *, int *, int *, double *, int *, double *, double *, int *,
                                 double *, int *, double *, int *, int *, int *);
 static mechsim_gesv_t mechsim_dgesv = 0;
-static mechsim_posv_t mechsim_dposv = 0;
 static mechsim_potrf_t mechsim_dpotrf = 0;
 static mechsim_pocon_t mechsim_dpocon = 0;
 static mechsim_potrs_t mechsim_dpotrs = 0;
@@ -27,10 +25,9 @@ static mechsim_gesdd_t mechsim_dgesdd = 0;
 static mechsim_getrf_t mechsim_dgetrf = 0;
 static mechsim_lasq1_t mechsim_dlasq1 = 0;
 
-void mechsim_engine_init(void *gesv, void *posv, void *potrf, void *pocon, void *potrs,
-                         void *gesdd, void *getrf, void *lasq1) {
+void mechsim_engine_init(void *gesv, void *potrf, void *pocon, void *potrs, void *gesdd,
+                         void *getrf, void *lasq1) {
   mechsim_dgesv = (mechsim_gesv_t)gesv;
-  mechsim_dposv = (mechsim_posv_t)posv;
   mechsim_dpotrf = (mechsim_potrf_t)potrf;
   mechsim_dpocon = (mechsim_pocon_t)pocon;
   mechsim_dpotrs = (mechsim_potrs_t)potrs;
@@ -312,6 +309,9 @@ int mechsim_lu_end(mechsim_lu *c, double t, double *Ainv, double *Xo, double *ou
   return 0;
 }
 
+static int small_cholesky(int64_t m, const double *S, double *R);
+static void cholesky_solve(int64_t m, const double *R, const double *rdiag, double *b);
+
 /* [zd; zdd] at the state mechsim_lu_state left in the buffers, with the forces c->Q, by
    the partition's reduced equations (as Partitioned._qdd): with A = J D, X = A^-1 J B
    and s = A^-1 gamma (one LU of A with f + 1 right-hand sides),
@@ -349,11 +349,13 @@ int mechsim_lu_accelerations(mechsim_lu *c, double t) {
       Mh[l + k * f] = e;
     }
   }
-  char uplo = 'U';
-  int F = (int)f, one = 1, info = 0;
+  /* The reduced mass is f x f (one row for a crank): its Cholesky factor and solves in
+     plain loops, as a complement's (LAPACK's call costs more than their arithmetic at
+     these sizes); zk (free here) holds the diagonal's reciprocals. */
   if (f > 0) {
-    mechsim_dposv(&uplo, &F, &one, Mh, &F, Qh, &F, &info);
-    if (info != 0) return 1;
+    if (small_cholesky(f, Mh, Mh)) return 1;
+    for (int64_t k = 0; k < f; k++) c->zk[k] = 1.0 / Mh[k * f + k];
+    cholesky_solve(f, Mh, c->zk, Qh);
   }
   memcpy(c->out, c->y + f, f * sizeof(double));
   memcpy(c->out + f, Qh, f * sizeof(double));

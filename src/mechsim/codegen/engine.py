@@ -218,8 +218,7 @@ def library(model):
             fn.argtypes, fn.restype = [], ctypes.c_int64
             if fn() != ctypes.sizeof(layout.structure):
                 return None        # the C and ctypes layouts disagree: the Python path serves
-        routines = ("dgesv", "dposv", "dpotrf", "dpocon", "dpotrs", "dgesdd", "dgetrf",
-                    "dlasq1")
+        routines = ("dgesv", "dpotrf", "dpocon", "dpotrs", "dgesdd", "dgetrf", "dlasq1")
         lib.mechsim_engine_init.argtypes = [ctypes.c_void_p] * len(routines)
         lib.mechsim_engine_init.restype = None
         lib.mechsim_engine_init(*map(_lapack, routines))
