@@ -458,14 +458,21 @@ def test_compiled_singularity_measure_agrees_with_the_python_path():
     np.testing.assert_allclose(prob.algebra.singular_extremes(T, Q, k),
                                python_only(prob).algebra.singular_extremes(T, Q, k),
                                rtol=1e-10, atol=1e-14)
-    # The skip's Weyl bound: J̃ and how far it moved since an earlier J̃, compiled and in
-    # numpy.
+    # The skip's bounds: J̃, how far it moved since an earlier J̃ (Weyl) and its Gram floor
+    # of σ_min/σ_max, compiled and in numpy; the floor below the ratio and within m^¼ of
+    # it.
     for (ta, qa), (tb, qb) in zip(zip(T, Q), zip(T[1:], Q[1:])):
         Jm = prob.algebra.scaled_jacobian(qa, ta)
         (Ja, Ea), (Jb, Eb) = (x.change(qb, tb, Jm) for x in (prob.algebra,
                                                               python_only(prob).algebra))
         np.testing.assert_allclose(Ja, Jb, rtol=0, atol=1e-14)
         assert Ea == pytest.approx(Eb, rel=1e-12) and Ea > 0.0
+        sig = np.linalg.svd(Ja, compute_uv=False)
+        lo, hi = prob.algebra.gram_bounds(Ja)
+        np.testing.assert_allclose((lo, hi), python_only(prob).algebra.gram_bounds(Ja),
+                                   rtol=1e-10)
+        assert sig[-1] * prob.m ** -0.125 <= lo <= sig[-1] * (1 + 1e-12)
+        assert sig[0] * (1 - 1e-12) <= hi <= sig[0] * prob.m ** 0.125
 
 
 @needs_compiler

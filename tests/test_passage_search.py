@@ -214,3 +214,48 @@ def test_the_monitor_s_ratio_is_its_measurement_without_the_vectors():
     want = np.array([monitor.measure(q, t)[0] for t, q in zip(res.t, res.q)])
     assert np.all(np.abs(got - want) <= 4 * algebra.problem.m * 2.2e-16)
     assert want.min() < 1e-2 * want.max()
+
+
+@needs_compiler
+@pytest.mark.parametrize("name, method, rtol", [
+    ("crank-rocker", "projection", 3e-4),     # never near the band: long steps skipped
+    ("crank-rocker", "lu", 1e-4),
+    ("double-four-bar", "hybrid", 1e-10),     # falls from its peak (s has no rate there)
+    ("double-four-bar", "lu", 1e-10),
+])
+def test_a_skipped_measurement_hides_no_approach_to_the_band(name, method, rtol,
+                                                              monkeypatch):
+    """Where the monitor skips a step's measurement, σ_min/σ_max measured afresh by an
+    SVD stays above twice `enter` of the peak at every output sample of that step, and
+    the floor the skip took lies below the ratio at the step's end; the run's passages
+    are those of a run that measures every step, bridged where those are."""
+    from mechsim.formulations.monitor import SingularityMonitor
+    from mechsim.run import segment
+    skips = []
+    may_skip = SingularityMonitor._may_skip
+
+    def logged(self, q, t, t_old, speed):
+        got = may_skip(self, q, t, t_old, speed)
+        if got[0]:
+            skips.append((t_old, t, q.copy(), self._floor[1], self.peak, self.enter))
+        return got
+    monkeypatch.setattr(SingularityMonitor, "_may_skip", logged)
+    monkeypatch.setattr(segment, "enabled", False)
+    mech, run = _run(name, method, rtol)
+    res = mech.simulate(**run)
+    assert res.success and skips
+    algebra = mech.problem().algebra
+
+    def ratio(t, q):
+        sig = np.linalg.svd(algebra.scaled_jacobian(q, t), compute_uv=False)
+        return sig[-1] / sig[0]
+    for t_old, t, q, floor, peak, enter in skips:
+        assert floor <= ratio(t, q) * (1 + 1e-12)
+        inside = (res.t > t_old) & (res.t <= t)
+        assert all(ratio(tk, qk) > 2.0 * enter * peak
+                   for tk, qk in zip(res.t[inside], res.q[inside]))
+    monkeypatch.setattr(SingularityMonitor, "max_skip", 0)
+    every = mech.simulate(**run)
+    assert len(res.singular_passages) == len(every.singular_passages)
+    for a, b in zip(res.singular_passages, every.singular_passages):
+        assert a.t_min == pytest.approx(b.t_min, abs=1e-2) and a.bridged == b.bridged

@@ -1133,8 +1133,70 @@ int mechsim_measure(mechsim_projection *c, double t, double eps, double *out, do
   return 0;
 }
 
-/* An upper bound of the spectral norm of the m x n difference A - B: the smaller of its
-   Frobenius norm and sqrt(||.||_1 ||.||_inf). */
+/* |X^2|_F^2 of the symmetric m x m X (row-major): the sum of (X_i . X_j)^2 over its rows,
+   each pair once and counted twice off the diagonal. */
+static double square_norm2(int64_t m, const double *X) {
+  double total = 0.0;
+  for (int64_t i = 0; i < m; i++)
+    for (int64_t j = i; j < m; j++) {
+      const double e = dot_pairs(m, X + i * m, X + j * m);
+      total += (i == j ? 1.0 : 2.0) * e * e;
+    }
+  return total;
+}
+
+/* Bounds of the extreme singular values of J~ (row-major m x n, m <= n, full rank)
+   without an SVD, into b: with G = J~ J~^T / g (g its largest diagonal entry; over c's
+   pattern of Phi_q where it has one) and H = G^-1 = W W^T from G's Cholesky factor
+   R = W^-1 (the projection's factor and inverse), lambda_max(G) <= |G^2|_F^(1/2) and
+   1 / lambda_min(G) <= |H^2|_F^(1/2), so sigma_min >= b[0] = g^(1/2) |H^2|_F^(-1/4) and
+   sigma_max <= b[1] = g^(1/2) |G^2|_F^(1/4), each within m^(1/8) (their ratio 0.84-0.95
+   of sigma_min / sigma_max on the crank-rocker and the double four-bar). b = (0, 1) where
+   G is not positive definite to its Cholesky factor or a norm is not finite.
+   work: 4 m^2 doubles. */
+static void gram_bounds(const mechsim_projection *c, const double *Jt, double *work,
+                        double *b) {
+  const int64_t m = c->m, n = c->n, mm = m * m;
+  double *G = work, *R = work + mm, *W = work + 2 * mm, *H = work + 3 * mm;
+  b[0] = 0.0;
+  b[1] = 1.0;
+  if (c->pairs) {
+    pair_products(c, Jt, NULL, G);
+  } else {
+    for (int64_t i = 0; i < m; i++)
+      for (int64_t j = 0; j <= i; j++)
+        G[i * m + j] = G[j * m + i] = dot_pairs(n, Jt + i * n, Jt + j * n);
+  }
+  double top = 0.0;
+  for (int64_t i = 0; i < m; i++)
+    if (G[i * m + i] > top) top = G[i * m + i];
+  if (!(top > 0.0 && top <= DBL_MAX)) return;
+  const double scale = 1.0 / top;
+  for (int64_t i = 0; i < mm; i++) G[i] *= scale;
+  const double g2 = square_norm2(m, G);
+  memcpy(R, G, mm * sizeof(double));
+  if (c->chol_ops ? pattern_cholesky(c, R, R) : small_cholesky(m, R, R)) return;
+  memset(W, 0, mm * sizeof(double));
+  upper_inverse(m, R, W);                          /* column-major, upper */
+  for (int64_t i = 0; i < m; i++)
+    for (int64_t j = 0; j <= i; j++) {
+      double e = 0.0;
+      for (int64_t k = i; k < m; k++) e += W[i + k * m] * W[j + k * m];
+      H[i * m + j] = H[j * m + i] = e;
+    }
+  const double h2 = square_norm2(m, H), root = sqrt(top);
+  const double lo = root / sqrt(sqrt(sqrt(h2))), hi = root * sqrt(sqrt(sqrt(g2)));
+  if (lo > 0.0 && isfinite(lo) && hi > 0.0 && isfinite(hi)) {
+    b[0] = lo;
+    b[1] = hi;
+  }
+}
+
+/* `gram_bounds` of J~ (row-major m x n) with c's sizes and workspace. */
+void mechsim_gram_bounds(mechsim_projection *c, const double *Jt, double *b) {
+  gram_bounds(c, Jt, c->svd_work, b);
+}
+
 /* J~ = Phi_q W^1/2 at (c->q, t) into Jt; returns |J~ - Jm|_F (Jm: m x n, row-major), the
    singularity monitor's Weyl bound on how far the singular values moved since Jm. */
 double mechsim_change(mechsim_projection *c, double t, const double *Jm, double *Jt) {
@@ -2223,11 +2285,25 @@ enum { PENDING_DECIDE = 1, PENDING_OBSERVE = 2 };
    the step stands. */
 typedef struct {
   int skip, slot, has_fall;
-  double floor_value, smin, smax, srel, rate, rate_norm, peak, peak_rate, ratio_speed;
+  double speed, floor_value, floor_lo, floor_hi, smin, smax, srel, rate, rate_norm, peak, peak_rate, ratio_speed;
 } seg_observation;
 
+/* Whether a floor of sigma_min / sigma_max (not normalized) at t_new clears the step from
+   t_old (s/peak `start` there) and a next one up to twice as long for the monitor's skip
+   (SingularityMonitor._skip_clears). */
+static int skip_clears(const mechsim_segment *s, double t_old, double t_new, double speed,
+                       double start, double floor) {
+  const double h = t_new - t_old, f = floor / s->peak;
+  const double span = t_new - s->prev_t;
+  const double fall = py_max(s->prev_s - f, 0.0) / span, was = py_max(-s->prev_rate, 0.0);
+  const double ahead = was + 2.0 * (fall - was) * (1.0 + 2.0 * h / span);
+  const double bound = py_max(py_max(2.0 * fabs(s->prev_rate), s->peak_rate), ahead) *
+                       py_max(1.0, speed / s->m_speed);
+  return f - 2.0 * h * bound > 2.0 * s->enter && start + f - h * bound > 4.0 * s->enter;
+}
+
 /* SingularityMonitor.observe at the end (q_new, v_new; |v|inf = speed) of the step from
-   t_old: its skip by Weyl's bound (o->skip, o->floor_value), or its measurement into the
+   t_old: its skip by the bounds of SingularityMonitor._may_skip (o->skip, o->floor_value), or its measurement into the
    free slot of the fall buffers. 0: the step is plain for the monitor so far (a passage
    hidden in it is `hidden_clear`'s to rule out); else the reason it is not (a measurement
    that fails, the band). */
@@ -2237,15 +2313,30 @@ static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t
   const int64_t n = pc->n, m = pc->m, mn = m * n, nr = n * m;
   o->skip = 0;
   o->floor_value = 0.0;
-  if (!s->has_open && s->has_prev && s->skipped < s->max_skip && s->has_measured) {
-    const double bound = py_max(2.0 * fabs(s->prev_rate), s->peak_rate);
-    const double horizon = t_new + 2.0 * (t_new - t_old) - s->prev_t;
-    if (!(s->prev_s - bound * horizon <= 2.0 * s->enter)) {
-      memcpy(pc->q, q_new, n * sizeof(double));
-      const double E = mechsim_change(pc, t_new, s->Jm, s->Jc);
-      o->floor_value = py_max(s->m_smin - E, 0.0) / (s->m_smax + E);
-      o->skip = o->floor_value > 2.0 * s->enter * s->peak;
+  o->speed = speed;
+  const int starts = s->has_prev && (s->prev_t == t_old ||
+                                      (s->skipped && s->has_floor && s->floor_t == t_old));
+  if (!s->has_open && starts && t_new > t_old && s->skipped < s->max_skip &&
+      s->has_measured && s->m_speed > 0.0) {
+    /* SingularityMonitor._may_skip */
+    const double start = s->prev_t == t_old ? s->prev_s : s->floor_v / s->peak;
+    memcpy(pc->q, q_new, n * sizeof(double));
+    const double E = mechsim_change(pc, t_new, s->Jm, s->Jc);
+    o->floor_lo = py_max(s->m_smin - E, 0.0);
+    o->floor_hi = s->m_smax + E;
+    o->floor_value = o->floor_lo / o->floor_hi;
+    const double top = s->m_smax - E, most = top > 0.0 ? (s->m_smin + E) / top : INFINITY;
+    const double likely = py_min(most, s->gram_rise * py_max(s->prev_s, start) * s->peak);
+    if (s->small && skip_clears(s, t_old, t_new, speed, start, likely)) {
+      double b[2];
+      gram_bounds(pc, s->Jc, pc->svd_work, b);
+      if (b[0] / b[1] > o->floor_value) {                /* J~'s own floor */
+        o->floor_lo = b[0];
+        o->floor_hi = b[1];
+        o->floor_value = b[0] / b[1];
+      }
     }
+    o->skip = skip_clears(s, t_old, t_new, speed, start, o->floor_value);
   }
   const int slot = o->slot = 1 - (int)s->cur;
   double *Jn = s->Js + slot * mn, *Dn = s->Ds + slot * mn, *Pn = s->Ps + slot * nr;
@@ -2645,6 +2736,8 @@ static void commit_observation(mechsim_segment *s, const seg_observation *o, int
   if (o->skip) {
     s->skipped += 1;
     s->floor_t = t_new; s->floor_v = o->floor_value; s->has_floor = 1;
+    s->known_n = 1;                    /* the floor's bounds: the next search's anchor */
+    s->known[0] = t_new; s->known[1] = o->floor_lo; s->known[2] = o->floor_hi;
     return;
   }
   int64_t kept = 0;                    /* the measurements known: the one at t_old, if any */
@@ -2659,7 +2752,7 @@ static void commit_observation(mechsim_segment *s, const seg_observation *o, int
   kn[0] = t_new; kn[1] = o->smin; kn[2] = o->smax;
   s->known_n += 1;
   memcpy(s->Jm, s->Js + o->slot * mn, mn * sizeof(double));
-  s->m_smin = o->smin; s->m_smax = o->smax; s->has_measured = 1;
+  s->m_smin = o->smin; s->m_smax = o->smax; s->m_speed = o->speed; s->has_measured = 1;
   s->ratio_speed = o->ratio_speed;
   if (o->has_fall) {
     double *fs = s->fall_scalars + 4 * o->slot;
@@ -2837,7 +2930,7 @@ static void commit_pending(mechsim_segment *s, int64_t N, int64_t n, int64_t mn,
 /* Up to s->budget accepted steps of DOP853 on the partition c (kind 1), each followed by
    what Run._advance does after a plain step of a small rigid mechanism in LU (the hybrid's LU
    phase, or "lu"): its output samples (dense output, positions and velocities) written to
-   the rows of s->rows, the singularity monitor's observation (its skip by Weyl's bound, or
+   the rows of s->rows, the singularity monitor's observation (its skip by the bounds of SingularityMonitor._may_skip, or
    its measurement and the cheap clears of a hidden passage, or its search and the passages
    found inside the step recorded, passages_step; with s->through, where the run's
    tolerances stay its own inside a passage, also the band, the open passage going on and
@@ -3397,6 +3490,20 @@ static int starting_step(mechsim_projection *pc, mechsim_segment *s, int64_t N) 
                                                : pow(0.01 / py_max(d1, d2), 1.0 / 8.0);
   s->h_abs = py_min(py_min(100.0 * h0, h1), py_min(interval, s->max_step));
   return 0;
+}
+
+/* The rate at s->y (s->t; min_rcond s->min_rcond) into s->fy and f0 (N entries), and
+   from there `starting_step`'s first step into s->h_abs: the history's start, as
+   mechsim_history makes it, for the history the Python loop integrates
+   (PassageBridge._history) to take the same first step. 0, or 1 where a rate is
+   declined. */
+int mechsim_history_start(mechsim_projection *pc, mechsim_segment *s, double *f0) {
+  const int64_t N = 2 * pc->n;
+  s->rate_ctx = pc;
+  s->kind = 0;
+  if (projection_rate(pc, s->t, s->y, s->min_rcond, s->cut, s->fy)) return 1;
+  memcpy(f0, s->fy, N * sizeof(double));
+  return starting_step(pc, s, N);
 }
 
 /* The passage bridge's history (PassageBridge._history and the rates of _start): DOP853

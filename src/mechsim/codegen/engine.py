@@ -1,12 +1,11 @@
 """The evaluations of small rigid mechanisms, compiled with the model's C twins.
 
 An evaluation of "lu" or "qr" on a small rigid mechanism is about twenty small numpy and
-LAPACK calls (the chord Newton on the dependent coordinates, Φ_q, the velocity solve, γ
-and the reduced accelerations), each costing more in Python's call overhead than in
-arithmetic. Here the same steps run in one C function (`engine.c`), compiled together with
-the model's C twins of Φ, Φ_q, Φ_t and γ, with LAPACK taken from scipy's own (the function
-pointers `scipy.linalg.cython_lapack` exports). Python keeps the forces, which may be any
-user code, between the state and the accelerations.
+LAPACK calls (the chord Newton on the dependent coordinates, Φ_q, the velocity solve, γ and
+the reduced accelerations), each costing more in Python's call overhead than in arithmetic.
+Here they run in one C function (`engine.c`), compiled with the model's C twins of Φ, Φ_q,
+Φ_t and γ, with LAPACK taken from scipy's own (the pointers `scipy.linalg.cython_lapack`
+exports). Python keeps the forces, which may be any user code.
 
 It is the dense constraint algebra's implementation of its state-level operations
 (`mechsim.problem.algebra.DenseAlgebra`, which builds and calls it; no formulation does):
@@ -19,9 +18,9 @@ It is the dense constraint algebra's implementation of its state-level operation
   of J̃ where no singular value is under the truncation cut;
 - the projection of a state onto the constraints (`project_state`), one Cholesky factor
   for the positions' chord Newton and the velocities;
-- the singularity monitor's σ_min, σ_max and their rates (`measure`), and its passage
-  search's grid: J̃'s chords between states and the extreme singular values at many
-  (`chords`, `extremes`);
+- the singularity monitor's σ_min, σ_max and their rates (`measure`), its skip's bounds
+  (`change`, `gram_bounds`), and its passage search's grid: J̃'s chords between states and
+  the extreme singular values at many (`chords`, `extremes`);
 - the hybrid's test for a return to LU, cond₁ of the block LU pivots (`lu_condition`);
 - the multipliers of many states (`multipliers`).
 
@@ -405,8 +404,7 @@ class ProjectionEngine:
             stall_ratio=STALL_RATIO, stall_span=STALL_SPAN,
             pairs=pairs, chol_ops=len(self.pattern["chol_start"]) - 1,
             kernels=int(pairs > 0)), arrays)
-        self.n = n
-        self.lib = lib
+        self.n, self.m, self.lib = n, m, lib
         self.context = ctypes.addressof(self.ctx)
         self._fn = lib.mechsim_projection_accelerations
         self._project = lib.mechsim_project_state
@@ -421,10 +419,10 @@ class ProjectionEngine:
         self._choice_at, self._choice_J_at = self._choice.ctypes.data, self._choice_J.ctypes.data
         self._multipliers = lib.mechsim_multipliers
         self._change, self._fall_rates = lib.mechsim_change, lib.mechsim_fall_rates
+        self._gram, self._bounds = lib.mechsim_gram_bounds, np.zeros(2)
         self._fall_in, self._fall_out, self._fall_work = np.zeros(8), np.zeros(2), np.zeros(m * n)
         self._fall_in_at, self._fall_out_at = self._fall_in.ctypes.data, self._fall_out.ctypes.data
         self._fall_work_at = self._fall_work.ctypes.data
-        self.m = m
         self.counters = problem.counters
         self._scratch = Scratch()
         self._measured_at, self._Jt_at = self.measured.ctypes.data, self.Jt.ctypes.data
@@ -450,8 +448,7 @@ class ProjectionEngine:
         positive definite and (min_rcond ≥ 0) its reciprocal condition estimate is above
         min_rcond; else, with cut > 0, by the SVD of J̃ where every singular value is
         above cut σ_max (truncation drops nothing); else None."""
-        self.q[:] = q
-        self.v[:] = v
+        self.q[:], self.v[:] = q, v
         return None if self._evaluate(t, Q, min_rcond, cut) else self.out[self.n:].copy()
 
     def rhs(self, t, y, Q, min_rcond, cut=0.0):
@@ -471,8 +468,7 @@ class ProjectionEngine:
         False where ‖Φ‖∞ ≤ skip_tol already (nothing done); None where the Python path
         must decide: the factor fails, its condition estimate is not above min_rcond
         (when min_rcond ≥ 0), or the chord does not converge in max_iter iterations."""
-        self.q[:] = q
-        self.v[:] = v
+        self.q[:], self.v[:] = q, v
         status = self._project(self.context, t, skip_tol, tol, min_rcond, extra, max_iter)
         if status == 2:
             return False
@@ -513,6 +509,11 @@ class ProjectionEngine:
         self.q[:] = q
         change = self._change(self.context, t, Jm.ctypes.data, self._Jt_at)
         return self.Jt.copy(), change
+
+    def gram_bounds(self, J):
+        """`mechsim.linalg.dense.gram_bounds` of J̃ (C-contiguous floats of its shape)."""
+        self._gram(self.context, J.ctypes.data, self._bounds.ctypes.data)
+        return tuple(self._bounds.tolist())
 
     def fall_rates(self, a, b):
         """`mechsim.linalg.dense.fall_rates` of the ends a and b (`Fall`s whose J, D and

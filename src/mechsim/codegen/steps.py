@@ -121,6 +121,19 @@ class PlainSteps:
             return None if done == -1 else False
         return states, F, s.evaluations, s.projections
 
+    def history_start(self, projection, rate, y):
+        """The rate at y and the first step of the integrator `start_integrator` loaded,
+        as `history` starts it (`mechsim_history_start`): (first step, rate (2n,), the
+        rates evaluated), or None where the engine declined a rate."""
+        s, N = self.s, 2 * self.shape[0]
+        self._rate(rate)
+        s.evaluations = 0
+        self.buffers["y"][:N] = y
+        f0 = np.empty(N)
+        if self.lib.mechsim_history_start(projection, self._address, f0.ctypes.data):
+            return None
+        return s.h_abs, f0, s.evaluations + 1
+
     def corrector(self, projection, rate, y_n, F, weights, H, t_b, tolerances, iterations):
         """The passage bridge's corrector and order estimates in the engine
         (`mechsim_bridge_corrector`) on the projection context `projection` (its address)

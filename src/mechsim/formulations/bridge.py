@@ -276,9 +276,14 @@ class PassageBridge(EngineCrossing):
             done = self._history_in_engine(t_n, y_n, ts, inner, engine)
             if done is not None:
                 return done or None
-        solver = CompiledDOP853(self._f, t_n, y_n, ts[-1], rtol=inner.rtol, atol=inner.atol)
+        start = {}
+        if self.rate is not None and self.extension is None:
+            start = self._history_start(t_n, y_n, ts, inner, engine)
+        solver = CompiledDOP853(self._f, t_n, y_n, ts[-1], rtol=inner.rtol, atol=inner.atol,
+                                **start)
         if self.rate is not None and self.extension is None:
             solver.rate = self._history_rate
+            solver.nfev += bool(start)      # the starting step's rate, as the engine counts
         states, k = [], 0
         while k < len(ts):
             solver.step()

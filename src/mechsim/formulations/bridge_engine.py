@@ -61,6 +61,24 @@ class EngineCrossing:
         self._counted_history(rate, evaluations, len(F), projections)
         return list(states), F
 
+    def _history_start(self, t_n, y_n, ts, inner, engine) -> dict:
+        """The first step and the rate at y_n as `_history_in_engine` starts, for the
+        history the Python loop integrates: {first_step, f0} for `CompiledDOP853`, their
+        two rates counted as the bridge's, or {} (scipy's start) where the engine has no
+        steps or declines a rate. (scipy's start sums its norms in another order: a first
+        step an ulp apart, which a history at a hundredth of the run's tolerances turns
+        into other steps.)"""
+        rate, steps = engine
+        if steps is None:
+            return {}
+        steps.start_integrator(t_n, ts[-1], inner.rtol, self._atol(y_n.size, True))
+        done = steps.history_start(rate.context, rate, y_n)
+        if done is None:
+            return {}
+        h, f0, evaluations = done
+        self._history_rate().counted(evaluations)
+        return {"first_step": h, "f0": f0}
+
     def _attempt_in_engine(self, ts, nodes, y_n, H, ratio_row, iterations, engine):
         """`_start`, `_out_of_band`'s first length and `_corrector_in_engine` in one call of
         the engine (`mechsim_bridge_attempt`: the same projections, steps, rates and

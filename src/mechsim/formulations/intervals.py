@@ -127,3 +127,39 @@ def dips(values, enter, leave, open_at_start=False):
         dips.append((run, False))
     return dips
 
+
+
+def bisect(ends, s_at, rate_bound, budget, apart, enter) -> dict:
+    """{t: s} over the step `ends` = (t0, s0, t1, s1), halving every interval the bound
+    `rate_bound` on |ds/dt| does not keep above `enter` and that lies farther than `apart`
+    from a value under it, breadth first, each midpoint measured by `s_at(t)`, at most
+    `budget` of them in all (the search of a mechanism whose algebra measures one state
+    at a time)."""
+    t0, s0, t1, s1 = ends
+    h = t1 - t0
+    seen = {t0: s0, t1: s1}
+    lows = [tk for tk, sk in seen.items() if sk < enter]
+    level = [ends]
+    while level and budget > 0:
+        todo = [(ta, sa, tb, sb) for ta, sa, tb, sb in level
+                if not ((sa + sb) - rate_bound * (tb - ta) >= 2.0 * enter or
+                        tb - ta < 1e-9 * h or covered(ta, tb, lows, apart))][:budget]
+        mids = [0.5 * (ta + tb) for ta, _, tb, _ in todo]
+        budget -= len(mids)
+        level = []
+        for (ta, sa, tb, sb), tm, sm in zip(todo, mids, map(s_at, mids)):
+            seen[tm] = sm
+            if sm < enter:
+                lows.append(tm)
+            level += [(ta, sa, tm, sm), (tm, sm, tb, sb)]
+    return seen
+
+
+def minimum_of(s_at, ta, tb, xatol):
+    """(t, s) at the minimum of s on [ta, tb] to `xatol`: a bounded scalar search on s²
+    (s is V-shaped where a singular value passes through zero, s² smooth there: about ten
+    evaluations where s itself takes twenty)."""
+    from scipy.optimize import minimize_scalar
+    found = minimize_scalar(lambda tk: s_at(tk) ** 2, bounds=(ta, tb), method="bounded",
+                            options={"xatol": xatol})
+    return float(found.x), math.sqrt(float(found.fun))

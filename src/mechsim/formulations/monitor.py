@@ -21,13 +21,20 @@ while s/peak is nearly the same function of the crank angle for all three (0.15�
 from the singular configuration, 0.03–0.04 at 2°). `enter = 0.07`, `leave = 0.14` of the
 peak (hysteresis) open a band of about ±4° around each passage.
 
-Far from the band the measurement (an SVD and a second Jacobian) is skipped for up
-to `max_skip` steps when two bounds keep s above twice `enter`: Weyl's inequality on the
-Jacobian's change since the last measurement, |σᵢ(J̃) − σᵢ(J̃ₘ)| ≤ ‖J̃ − J̃ₘ‖ (one Jacobian,
-no SVD), for the step's end; and s − R (t_next − t_measured) > 2 enter through a next step
-up to twice as long, with R twice the latest rate or the fastest rate seen in the run. Small
-fixed steps (a flexible mechanism at max step 5e-4 s) then pay for one SVD in a few steps,
-while large steps, which move J̃ a lot, are measured every time.
+Far from the band the measurement (an SVD and a second Jacobian) is skipped for up to
+`max_skip` steps when a floor f of s at the step's end keeps s above twice `enter` through
+the step and a next one up to twice as long: f − 2 R h > 2 enter and (s_start + f − R h)/2
+> 2 enter for a step of length h from s_start (measured, or the previous skip's floor),
+with R twice the latest rate, the fastest rate seen, or the rate at the next step's end
+of a fall accelerating steadily from the last measured rate to f's mean fall since then
+(s at a peak has no rate; a parallelogram turning steadily falls from its peak into
+its passage), times the growth of |v|∞ since then (no skip after a measurement at rest). f is the better of two bounds from one Jacobian: Weyl's
+on its change since the last measurement, |σᵢ(J̃) − σᵢ(J̃ₘ)| ≤ ‖J̃ − J̃ₘ‖, and on a small
+mechanism J̃'s own Gram bounds (`mechsim.linalg.dense.gram_bounds`, 0.84–0.95 of s on the
+crank-rocker and the double four-bar), which do not fade as J̃ moves on. The bounds
+anchor the next step's search at its start, in place of an SVD there. Small fixed steps
+(a flexible mechanism at max step 5e-4 s) and the long steps of a small mechanism far
+from the band then pay for one SVD in a few steps.
 """
 
 from __future__ import annotations
@@ -40,7 +47,7 @@ import numpy as np
 from ..linalg import sparse
 from ..linalg.dense import Fall
 from ..records import SingularPassage
-from .intervals import covered, dips, fresh_nodes, lowest, uncleared
+from .intervals import bisect, dips, fresh_nodes, lowest, minimum_of, uncleared
 
 
 # Mechanisms that are not small (`ConstraintAlgebra.small`) bound the search for passages
@@ -62,11 +69,14 @@ RATE_STEP = 1e-7
 GRID = 8
 CHORD = 0.25
 # The margin of the rate at which σ_min/σ_max can fall along a step, bounded on the cubic
-# through J̃'s values and rates at the step's ends (`mechsim.linalg.dense.fall_rates`), for J̃'s departure from
-# that cubic.
+# through J̃'s values and rates at the step's ends (`mechsim.linalg.dense.fall_rates`),
+# for J̃'s departure from that cubic.
 HERMITE_MARGIN = 1.25
+# The skip tries J̃'s Gram floor where it could clear the step with s/peak at most this
+# many times its value at the step's start or the last measurement, and Weyl's bound.
+GRAM_RISE = 1.25
 # A passage's minimum inside a step is located to this fraction of the interval searched
-# (`SingularityMonitor._refine`, `mechsim_passage_minimum`).
+# (`intervals.minimum_of`, `mechsim_passage_minimum`).
 REFINE_TOL = 1e-5
 
 
@@ -101,7 +111,7 @@ class Observation:
     """What the monitor carries from one observation to the next (`SingularityMonitor.
     observation`): the steps skipped since the last measurement and the bound of the
     latest skip (t, σ_min/σ_max floor), the last measured (t, s/peak, ṡ/peak), `last` and
-    `rate`, the peak and the fastest rate seen, the last measurement (J̃, σ_min, σ_max),
+    `rate`, the peak and the fastest rate seen, the last measurement (J̃, σ_min, σ_max, |v|∞),
     its bound on |d(σ_min/σ_max)/dt|, its `Fall` (or None), the measurements at the
     latest step's ends (time -> (σ_min, σ_max)) and the latest measurement's (t, left
     singular vector of σ_min), or None."""
@@ -139,7 +149,7 @@ class SingularityMonitor:
         self._skipped = 0            # steps skipped since that observation
         self._floor = None           # (t, lower bound of σ_min/σ_max) at the latest skip
         self.peak_rate = 0.0         # fastest |ṡ|/peak seen
-        self._measured = None        # (J̃, σ_min, σ_max) at the last observation measured
+        self._measured = None        # (J̃, σ_min, σ_max, |v|∞) at the last observation measured
         self._known = {}             # time -> (σ_min, σ_max) measured at the latest step's ends
         self._vector = None          # (t, left singular vector of σ_min) of the latest measurement
         self._ratio_speed = 0.0      # the bound on |d(σ_min/σ_max)/dt| there (`_speed`)
@@ -195,8 +205,7 @@ class SingularityMonitor:
 
     def _masses_hide(self, q, t) -> bool:
         """Do unequal masses, not the configuration, make σ_min/σ_max of J̃ that small?
-        (Φ_q's own ratio is above `PLAIN_OK`; decided at the first call: the masses do not
-        change.)"""
+        (Φ_q's own ratio is above `PLAIN_OK`; decided once: the masses do not change.)"""
         if self._hidden_by_masses is None:
             sig = np.linalg.svd(sparse.dense(self.problem.phi_q(q, t)), compute_uv=False)
             k = sig.size - 1 - self.redundant
@@ -216,23 +225,45 @@ class SingularityMonitor:
         """Will s fall below `enter` within the next `h` seconds at its present rate?"""
         return self.last < self.enter or (self.rate < 0.0 and self.last + self.rate * h < self.enter)
 
-    def _may_skip(self, q, t, t_old):
-        """(skip?, J̃(q) if it was computed for the Weyl bound)."""
+    def _may_skip(self, q, t, t_old, speed):
+        """(skip?, J̃(q) if it was computed for the bounds)."""
         prev = self._prev
-        if self.open_passage is not None or prev is None or t_old is None or \
-                self._skipped >= self.max_skip or self._measured is None:
+        measured = self._measured
+        if self.open_passage is not None or prev is None or t_old is None or not t > t_old or \
+                self._skipped >= self.max_skip or measured is None or not measured[3] > 0.0:
             return False, None
-        bound = max(2.0 * abs(prev[2]), self.peak_rate)
-        horizon = t + 2.0 * (t - t_old) - prev[0]       # through a next step up to twice as long
-        if prev[1] - bound * horizon <= 2.0 * self.enter:
+        last = self._floor                          # the step's start: measured, or skipped
+        if prev[0] != t_old and not (self._skipped and last is not None and last[0] == t_old):
             return False, None
-        Jm, smin, smax = self._measured
-        J, E = self.problem.algebra.change(q, t, Jm)
-        floor = max(smin - E, 0.0) / (smax + E)
-        if floor > 2.0 * self.enter * self.peak:
+        start = prev[1] if prev[0] == t_old else last[1] / self.peak
+        Jm, smin, smax, speed_then = measured
+        algebra = self.problem.algebra
+        J, E = algebra.change(q, t, Jm)
+        bounds = (max(smin - E, 0.0), smax + E)                # σ_min above, σ_max below
+        floor = bounds[0] / bounds[1]
+        most = (smin + E) / (smax - E) if smax - E > 0.0 else math.inf    # Weyl's, above
+        likely = min(most, GRAM_RISE * max(prev[1], start) * self.peak)
+        growth = speed / speed_then
+        if algebra.small and not self.redundant and \
+                self._skip_clears(t, t_old, growth, start, likely):
+            gram = algebra.gram_bounds(J)                           # J̃'s own
+            if gram[0] / gram[1] > floor:
+                bounds, floor = gram, gram[0] / gram[1]
+        if self._skip_clears(t, t_old, growth, start, floor):
             self._floor = (t, floor)
+            self._known = {t: bounds}          # the next search's anchor at its start
             return True, J
         return False, J
+
+    def _skip_clears(self, t, t_old, growth, start, floor) -> bool:
+        """Does `floor` (σ_min/σ_max at t, not normalized) keep s above 2 `enter` through
+        the step from t_old (s/peak `start` there) and a next one up to twice as long?"""
+        h, f, prev = t - t_old, floor / self.peak, self._prev
+        span = t - prev[0]                          # since the last measurement
+        fall, was = max(prev[1] - f, 0.0) / span, max(-prev[2], 0.0)     # mean, and then
+        ahead = was + 2.0 * (fall - was) * (1.0 + 2.0 * h / span)     # at t + 2h, accelerating
+        bound = max(2.0 * abs(prev[2]), self.peak_rate, ahead) * max(1.0, growth)
+        return f - 2.0 * h * bound > 2.0 * self.enter and start + f - h * bound > 4.0 * self.enter
 
     def observation(self) -> Observation:
         """The state the next observation starts from (for steps observed in the engine,
@@ -267,12 +298,13 @@ class SingularityMonitor:
         if self._prev is None:
             self.t_first = t
         floor = self._floor if self._skipped else None
-        skip, J = self._may_skip(q, t, t_old)
+        speed = float(np.max(np.abs(v))) if v is not None and v.size else 0.0
+        skip, J = self._may_skip(q, t, t_old, speed)
         if skip:
             self._skipped += 1
             return self.last
         raw, rate, u, smin, smax, J, rate_norm, fall = self._measure(q, t, v, J)
-        self._measured = (J, smin, smax) if smax > 0.0 else None
+        self._measured = (J, smin, smax, speed) if smax > 0.0 else None
         vectors = {t: u}             # the singular vectors measured at the step's ends
         if self._vector is not None and self._vector[0] == t_old:
             vectors[t_old] = self._vector[1]
@@ -370,7 +402,7 @@ class SingularityMonitor:
         Steps clear of any passage cost nothing: their ends already exclude it, by that bound
         or by `_fall_clears` (`falls`). Where the algebra measures many states together (a
         small mechanism) the values come from `_anchored` (Weyl's inequality along J̃'s
-        path), elsewhere from `_bisect` on the rate bound, one `measure` each.
+        path), elsewhere from `intervals.bisect` on the rate bound, one `measure` each.
         `on_step() -> (positions context, dense output) or None`, where given, lets the
         compiled engine search the step and locate a dip's minimum
         (`ConstraintAlgebra.anchored`, `passage_minimum`); where it declines, the search
@@ -402,7 +434,7 @@ class SingularityMonitor:
         def refine(ta, tb):
             found = None if step is None else self.problem.algebra.passage_minimum(
                 *step, ta, tb, kk, REFINE_TOL * (tb - ta))
-            return self._refine(s_at, ta, tb) if found is None else found
+            return minimum_of(s_at, ta, tb, REFINE_TOL * (tb - ta)) if found is None else found
 
         # Enough evaluations to cover the step with intervals the bound can clear (a
         # large mechanism's SVD costs milliseconds: there the rates seen bound the search).
@@ -413,8 +445,8 @@ class SingularityMonitor:
         if positions_at is not None and self.problem.algebra.batched:
             seen = self._anchored((t0, t1), positions_at, budget, apart, self._known, step)
         else:
-            seen = self._bisect((t0, s0 * peak, t1, s1 * peak), s_at, rate_bound, budget,
-                                apart)
+            seen = bisect((t0, s0 * peak, t1, s1 * peak), s_at, rate_bound, budget, apart,
+                          enter)
         return self._dips_seen(seen, (t0, t1), enter / (rate_bound / 2.0), refine, s_at,
                                state_at, vectors or {})
 
@@ -483,7 +515,7 @@ class SingularityMonitor:
         algebra's `chords`), each enlarged by `CHORD` for the arc. An interval that neither
         neighbouring anchor keeps above `enter`, and that is not joined to a passage found
         (`intervals.uncleared`), has its nodes measured, then is halved;
-        near a value under `enter` the search stops as `_bisect`'s does (`apart`). At most
+        near a value under `enter` the search stops as `intervals.bisect` does (`apart`). At most
         `budget` SVDs; `known`: time -> (σ_k, σ_max) measured already (the step's ends).
         Of a run of uncleared intervals one node is measured at a time, the run's middle
         one not measured yet (`intervals.fresh_nodes`): on the slope into a passage the
@@ -537,40 +569,6 @@ class SingularityMonitor:
                 Q.insert(j + 1, qm)
                 chords[j:j + 1] = [pieces[c], pieces[c + 1]]
         return {tk: (sm / sx if sx > 0.0 else 0.0) for tk, (sm, sx) in anchors.items()}
-
-    def _bisect(self, ends, s_at, rate_bound, budget, apart) -> dict:
-        """{t: s} over the step `ends` = (t0, s0, t1, s1) (not normalized), halving every
-        interval the bound `rate_bound` does not keep above `enter` and that lies farther
-        than `apart` from a value under it, breadth first, each midpoint measured by
-        `s_at(t)`, at most `budget` of them in all."""
-        t0, s0, t1, s1 = ends
-        enter, h = self.enter * self.peak, t1 - t0
-        seen = {t0: s0, t1: s1}
-        lows = [tk for tk, sk in seen.items() if sk < enter]
-        level = [ends]
-        while level and budget > 0:
-            todo = [(ta, sa, tb, sb) for ta, sa, tb, sb in level
-                    if not ((sa + sb) - rate_bound * (tb - ta) >= 2.0 * enter or
-                            tb - ta < 1e-9 * h or covered(ta, tb, lows, apart))][:budget]
-            mids = [0.5 * (ta + tb) for ta, _, tb, _ in todo]
-            budget -= len(mids)
-            level = []
-            for (ta, sa, tb, sb), tm, sm in zip(todo, mids, map(s_at, mids)):
-                seen[tm] = sm
-                if sm < enter:
-                    lows.append(tm)
-                level += [(ta, sa, tm, sm), (tm, sm, tb, sb)]
-        return seen
-
-    @staticmethod
-    def _refine(s_at, ta, tb):
-        """(t, s) at the minimum of s on [ta, tb]: a bounded scalar search on s² (s is
-        V-shaped where a singular value passes through zero, s² smooth there: about ten
-        evaluations where s itself takes twenty)."""
-        from scipy.optimize import minimize_scalar
-        found = minimize_scalar(lambda tk: s_at(tk) ** 2, bounds=(ta, tb), method="bounded",
-                                options={"xatol": REFINE_TOL * (tb - ta)})
-        return float(found.x), math.sqrt(float(found.fun))
 
     @property
     def clear_since(self) -> float:

@@ -127,6 +127,29 @@ def svdvals(A):
     return s
 
 
+def gram_bounds(J) -> tuple[float, float]:
+    """(a lower bound of σ_min, an upper bound of σ_max) of the full-rank J (m × n, m ≤ n)
+    without an SVD: with G = J Jᵀ and H = G⁻¹, λ_max(G) ≤ ‖G²‖_F^½ and 1/λ_min(G) ≤
+    ‖H²‖_F^½, each within m^¼ (σ's within m^⅛); (0, 1) where G is not positive definite
+    to its Cholesky factor (the engine's `gram_bounds` in C)."""
+    J = np.asarray(J, dtype=float)
+    G = J @ J.T
+    top = float(np.max(np.diag(G))) if G.size else 0.0
+    if not 0.0 < top < math.inf:
+        return 0.0, 1.0
+    G = G / top
+    U = cho_factor_or_none(G)             # G = Uᵀ U, so H = U⁻¹ U⁻ᵀ
+    if U is None:
+        return 0.0, 1.0
+    X = lapack.dtrtri(np.triu(U))[0]
+    H = X @ X.T
+    root = math.sqrt(top)
+    with np.errstate(over="ignore", divide="ignore"):
+        lo = root / float(np.linalg.norm(H @ H)) ** 0.25
+        hi = root * float(np.linalg.norm(G @ G)) ** 0.25
+    return (lo, hi) if 0.0 < lo < math.inf and 0.0 < hi < math.inf else (0.0, 1.0)
+
+
 def fall_basis(sig, V, k) -> np.ndarray:
     """P = σ_k V_r Σ_r⁻¹ (n × r, r = k + 1) from a matrix A's singular values `sig`
     (descending) and right singular vectors V (columns): for any A' of A's shape,

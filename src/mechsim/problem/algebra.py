@@ -185,6 +185,12 @@ class ConstraintAlgebra:
         J = self.scaled_jacobian(q, t)
         return J, sparse.frobenius(sparse.difference(J, Jm))
 
+    def gram_bounds(self, J):
+        """(a lower bound of σ_min, an upper bound of σ_max) of a small mechanism's J̃ of
+        full rank, from J̃ J̃ᵀ (`mechsim.linalg.dense.gram_bounds`; the singularity
+        monitor's skip)."""
+        return dense.gram_bounds(J)
+
     def fall_rates(self, a, b):
         """`mechsim.linalg.dense.fall_rates` of the monitor's ends a and b."""
         return dense.fall_rates(a, b)
@@ -342,6 +348,11 @@ class DenseAlgebra(ConstraintAlgebra):
         if self.engine is not None and Jm.flags.c_contiguous and Jm.dtype == np.float64:
             return self.engine.change(t, q, Jm)
         return super().change(q, t, Jm)
+
+    def gram_bounds(self, J):
+        if self.engine is not None and J.flags.c_contiguous and J.dtype == np.float64:
+            return self.engine.gram_bounds(J)
+        return super().gram_bounds(J)
 
     def fall_rates(self, a, b):
         if self.engine is not None:

@@ -57,8 +57,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ..formulations.hybrid import Hybrid
-from ..formulations.monitor import (BLIND, CHORD, GRID, HERMITE_MARGIN, RATE_STEP, REFINE_TOL,
-                                    WEYL_SPAN, Fall, Observation, OpenPassage)
+from ..formulations.monitor import (BLIND, CHORD, GRAM_RISE, GRID, HERMITE_MARGIN, RATE_STEP,
+                                    REFINE_TOL, WEYL_SPAN, Fall, Observation, OpenPassage)
 from ..records import SingularPassage
 from ..problem.algebra import RANK_FACTOR
 from ..formulations.full import ROUND_OFF
@@ -241,7 +241,7 @@ class Segment:
         s.small = bool(run.problem.algebra.small)
         s.max_skip, s.enter, s.leave = monitor.max_skip, monitor.enter, monitor.leave
         s.blind, s.weyl_span, s.hermite_margin = BLIND, WEYL_SPAN, HERMITE_MARGIN
-        s.grid, s.chord, s.rate_step = GRID, 1.0 + CHORD, RATE_STEP
+        s.grid, s.chord, s.rate_step, s.gram_rise = GRID, 1.0 + CHORD, RATE_STEP, GRAM_RISE
         s.machine_eps, s.rank_factor = np.finfo(float).eps, RANK_FACTOR
         s.skipped = o.skipped
         s.peak, s.peak_rate, s.last, s.rate = o.peak, o.peak_rate, o.last, o.rate
@@ -254,7 +254,7 @@ class Segment:
         s.has_measured = o.measured is not None
         if o.measured is not None:
             b["Jm"].reshape(m, n)[:] = o.measured[0]
-            s.m_smin, s.m_smax = o.measured[1], o.measured[2]
+            s.m_smin, s.m_smax, s.m_speed = o.measured[1:]
         s.ratio_speed = o.ratio_speed
         s.has_fall, s.cur = o.fall is not None, 0
         if o.fall is not None:
@@ -394,7 +394,8 @@ class Segment:
             s.skipped, (s.floor_t, s.floor_v) if s.has_floor else None,
             (s.prev_t, s.prev_s, s.prev_rate) if s.has_prev else None, s.last, s.rate,
             s.peak, s.peak_rate,
-            (b["Jm"].reshape(m, n).copy(), s.m_smin, s.m_smax) if s.has_measured else None,
+            (b["Jm"].reshape(m, n).copy(), s.m_smin, s.m_smax, s.m_speed)
+            if s.has_measured else None,
             s.ratio_speed, fall,
             {b["known"][3 * j]: (b["known"][3 * j + 1], b["known"][3 * j + 2])
              for j in range(s.known_n)},
