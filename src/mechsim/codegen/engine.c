@@ -2320,23 +2320,25 @@ static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t
       s->has_measured && s->m_speed > 0.0) {
     /* SingularityMonitor._may_skip */
     const double start = s->prev_t == t_old ? s->prev_s : s->floor_v / s->peak;
-    memcpy(pc->q, q_new, n * sizeof(double));
-    const double E = mechsim_change(pc, t_new, s->Jm, s->Jc);
-    o->floor_lo = py_max(s->m_smin - E, 0.0);
-    o->floor_hi = s->m_smax + E;
-    o->floor_value = o->floor_lo / o->floor_hi;
-    const double top = s->m_smax - E, most = top > 0.0 ? (s->m_smin + E) / top : INFINITY;
-    const double likely = py_min(most, s->gram_rise * py_max(s->prev_s, start) * s->peak);
-    if (s->small && skip_clears(s, t_old, t_new, speed, start, likely)) {
-      double b[2];
-      gram_bounds(pc, s->Jc, pc->svd_work, b);
-      if (b[0] / b[1] > o->floor_value) {                /* J~'s own floor */
-        o->floor_lo = b[0];
-        o->floor_hi = b[1];
-        o->floor_value = b[0] / b[1];
+    const double cap = s->gram_rise * py_max(s->prev_s, start) * s->peak;
+    if (skip_clears(s, t_old, t_new, speed, start, cap)) {   /* where s may have risen so */
+      memcpy(pc->q, q_new, n * sizeof(double));
+      const double E = mechsim_change(pc, t_new, s->Jm, s->Jc);
+      o->floor_lo = py_max(s->m_smin - E, 0.0);
+      o->floor_hi = s->m_smax + E;
+      o->floor_value = o->floor_lo / o->floor_hi;
+      const double top = s->m_smax - E, most = top > 0.0 ? (s->m_smin + E) / top : INFINITY;
+      if (s->small && skip_clears(s, t_old, t_new, speed, start, py_min(most, cap))) {
+        double b[2];
+        gram_bounds(pc, s->Jc, pc->svd_work, b);
+        if (b[0] / b[1] > o->floor_value) {              /* J~'s own floor */
+          o->floor_lo = b[0];
+          o->floor_hi = b[1];
+          o->floor_value = b[0] / b[1];
+        }
       }
+      o->skip = skip_clears(s, t_old, t_new, speed, start, o->floor_value);
     }
-    o->skip = skip_clears(s, t_old, t_new, speed, start, o->floor_value);
   }
   const int slot = o->slot = 1 - (int)s->cur;
   double *Jn = s->Js + slot * mn, *Dn = s->Ds + slot * mn, *Pn = s->Ps + slot * nr;

@@ -237,13 +237,15 @@ class SingularityMonitor:
             return False, None
         start = prev[1] if prev[0] == t_old else last[1] / self.peak
         Jm, smin, smax, speed_then = measured
+        growth, likely = speed / speed_then, GRAM_RISE * max(prev[1], start) * self.peak
+        if not self._skip_clears(t, t_old, growth, start, likely):
+            return False, None                  # not even where s has risen that much
         algebra = self.problem.algebra
         J, E = algebra.change(q, t, Jm)
         bounds = (max(smin - E, 0.0), smax + E)                # σ_min above, σ_max below
         floor = bounds[0] / bounds[1]
         most = (smin + E) / (smax - E) if smax - E > 0.0 else math.inf    # Weyl's, above
-        likely = min(most, GRAM_RISE * max(prev[1], start) * self.peak)
-        growth = speed / speed_then
+        likely = min(most, likely)
         if algebra.small and not self.redundant and \
                 self._skip_clears(t, t_old, growth, start, likely):
             gram = algebra.gram_bounds(J)                           # J̃'s own
