@@ -1133,70 +1133,6 @@ int mechsim_measure(mechsim_projection *c, double t, double eps, double *out, do
   return 0;
 }
 
-/* |X^2|_F^2 of the symmetric m x m X (row-major): the sum of (X_i . X_j)^2 over its rows,
-   each pair once and counted twice off the diagonal. */
-static double square_norm2(int64_t m, const double *X) {
-  double total = 0.0;
-  for (int64_t i = 0; i < m; i++)
-    for (int64_t j = i; j < m; j++) {
-      const double e = dot_pairs(m, X + i * m, X + j * m);
-      total += (i == j ? 1.0 : 2.0) * e * e;
-    }
-  return total;
-}
-
-/* Bounds of the extreme singular values of J~ (row-major m x n, m <= n, full rank)
-   without an SVD, into b: with G = J~ J~^T / g (g its largest diagonal entry; over c's
-   pattern of Phi_q where it has one) and H = G^-1 = W W^T from G's Cholesky factor
-   R = W^-1 (the projection's factor and inverse), lambda_max(G) <= |G^2|_F^(1/2) and
-   1 / lambda_min(G) <= |H^2|_F^(1/2), so sigma_min >= b[0] = g^(1/2) |H^2|_F^(-1/4) and
-   sigma_max <= b[1] = g^(1/2) |G^2|_F^(1/4), each within m^(1/8) (their ratio 0.84-0.95
-   of sigma_min / sigma_max on the crank-rocker and the double four-bar). b = (0, 1) where
-   G is not positive definite to its Cholesky factor or a norm is not finite.
-   work: 4 m^2 doubles. */
-static void gram_bounds(const mechsim_projection *c, const double *Jt, double *work,
-                        double *b) {
-  const int64_t m = c->m, n = c->n, mm = m * m;
-  double *G = work, *R = work + mm, *W = work + 2 * mm, *H = work + 3 * mm;
-  b[0] = 0.0;
-  b[1] = 1.0;
-  if (c->pairs) {
-    pair_products(c, Jt, NULL, G);
-  } else {
-    for (int64_t i = 0; i < m; i++)
-      for (int64_t j = 0; j <= i; j++)
-        G[i * m + j] = G[j * m + i] = dot_pairs(n, Jt + i * n, Jt + j * n);
-  }
-  double top = 0.0;
-  for (int64_t i = 0; i < m; i++)
-    if (G[i * m + i] > top) top = G[i * m + i];
-  if (!(top > 0.0 && top <= DBL_MAX)) return;
-  const double scale = 1.0 / top;
-  for (int64_t i = 0; i < mm; i++) G[i] *= scale;
-  const double g2 = square_norm2(m, G);
-  memcpy(R, G, mm * sizeof(double));
-  if (c->chol_ops ? pattern_cholesky(c, R, R) : small_cholesky(m, R, R)) return;
-  memset(W, 0, mm * sizeof(double));
-  upper_inverse(m, R, W);                          /* column-major, upper */
-  for (int64_t i = 0; i < m; i++)
-    for (int64_t j = 0; j <= i; j++) {
-      double e = 0.0;
-      for (int64_t k = i; k < m; k++) e += W[i + k * m] * W[j + k * m];
-      H[i * m + j] = H[j * m + i] = e;
-    }
-  const double h2 = square_norm2(m, H), root = sqrt(top);
-  const double lo = root / sqrt(sqrt(sqrt(h2))), hi = root * sqrt(sqrt(sqrt(g2)));
-  if (lo > 0.0 && isfinite(lo) && hi > 0.0 && isfinite(hi)) {
-    b[0] = lo;
-    b[1] = hi;
-  }
-}
-
-/* `gram_bounds` of J~ (row-major m x n) with c's sizes and workspace. */
-void mechsim_gram_bounds(mechsim_projection *c, const double *Jt, double *b) {
-  gram_bounds(c, Jt, c->svd_work, b);
-}
-
 /* J~ = Phi_q W^1/2 at (c->q, t) into Jt; returns |J~ - Jm|_F (Jm: m x n, row-major), the
    singularity monitor's Weyl bound on how far the singular values moved since Jm. */
 double mechsim_change(mechsim_projection *c, double t, const double *Jm, double *Jt) {
@@ -2328,9 +2264,9 @@ static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t
       o->floor_hi = s->m_smax + E;
       o->floor_value = o->floor_lo / o->floor_hi;
       const double top = s->m_smax - E, most = top > 0.0 ? (s->m_smin + E) / top : INFINITY;
-      if (s->small && skip_clears(s, t_old, t_new, speed, start, py_min(most, cap))) {
-        double b[2];
-        gram_bounds(pc, s->Jc, pc->svd_work, b);
+      double b[2];
+      if (s->small && skip_clears(s, t_old, t_new, speed, start, py_min(most, cap)) &&
+          !extreme_bounds(pc, m, n, s->Jc, pc->svd_work, pc->svd_work + m * m, b)) {
         if (b[0] / b[1] > o->floor_value) {              /* J~'s own floor */
           o->floor_lo = b[0];
           o->floor_hi = b[1];

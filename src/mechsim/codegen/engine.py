@@ -19,7 +19,7 @@ It is the dense constraint algebra's implementation of its state-level operation
 - the projection of a state onto the constraints (`project_state`), one Cholesky factor
   for the positions' chord Newton and the velocities;
 - the singularity monitor's σ_min, σ_max and their rates (`measure`), its skip's bounds
-  (`change`, `gram_bounds`), and its passage search's grid: J̃'s chords between states and
+  (`change`, `extreme_bounds`), and its passage search's grid: J̃'s chords between states and
   the extreme singular values at many (`chords`, `extremes`);
 - the hybrid's test for a return to LU, cond₁ of the block LU pivots (`lu_condition`);
 - the multipliers of many states (`multipliers`).
@@ -419,7 +419,6 @@ class ProjectionEngine:
         self._choice_at, self._choice_J_at = self._choice.ctypes.data, self._choice_J.ctypes.data
         self._multipliers = lib.mechsim_multipliers
         self._change, self._fall_rates = lib.mechsim_change, lib.mechsim_fall_rates
-        self._gram, self._bounds = lib.mechsim_gram_bounds, np.zeros(2)
         self._fall_in, self._fall_out, self._fall_work = np.zeros(8), np.zeros(2), np.zeros(m * n)
         self._fall_in_at, self._fall_out_at = self._fall_in.ctypes.data, self._fall_out.ctypes.data
         self._fall_work_at = self._fall_work.ctypes.data
@@ -509,11 +508,6 @@ class ProjectionEngine:
         self.q[:] = q
         change = self._change(self.context, t, Jm.ctypes.data, self._Jt_at)
         return self.Jt.copy(), change
-
-    def gram_bounds(self, J):
-        """`mechsim.linalg.dense.gram_bounds` of J̃ (C-contiguous floats of its shape)."""
-        self._gram(self.context, J.ctypes.data, self._bounds.ctypes.data)
-        return tuple(self._bounds.tolist())
 
     def fall_rates(self, a, b):
         """`mechsim.linalg.dense.fall_rates` of the ends a and b (`Fall`s whose J, D and

@@ -368,7 +368,7 @@ SIGNATURES = {
     "mechsim_project_states": "plpppplp>-", "mechsim_chords": "plppp>-",
     "mechsim_extremes": "pllppp>i", "mechsim_dop853": "pll" + "p" * 11 + ">i",
     "mechsim_dop853_extra": "pll" + "p" * 7 + ">i", "mechsim_interpolate": "llpddplpp>-",
-    "mechsim_change": "pdpp>d", "mechsim_gram_bounds": "ppp>-",
+    "mechsim_change": "pdpp>d",
     "mechsim_fall_rates": "plll" + "p" * 9 + ">-",
     "mechsim_dense_coefficients": "lllpppppdp>-",
     "mechsim_passage_minimum": "pppdddp>i", "mechsim_anchored": "pppddlpl>i",

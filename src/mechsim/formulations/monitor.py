@@ -27,14 +27,15 @@ the step and a next one up to twice as long: f − 2 R h > 2 enter and (s_start 
 > 2 enter for a step of length h from s_start (measured, or the previous skip's floor),
 with R twice the latest rate, the fastest rate seen, or the rate at the next step's end
 of a fall accelerating steadily from the last measured rate to f's mean fall since then
-(s at a peak has no rate; a parallelogram turning steadily falls from its peak into
-its passage), times the growth of |v|∞ since then (no skip after a measurement at rest). f is the better of two bounds from one Jacobian: Weyl's
-on its change since the last measurement, |σᵢ(J̃) − σᵢ(J̃ₘ)| ≤ ‖J̃ − J̃ₘ‖, and on a small
-mechanism J̃'s own Gram bounds (`mechsim.linalg.dense.gram_bounds`, 0.84–0.95 of s on the
-crank-rocker and the double four-bar), which do not fade as J̃ moves on. The bounds
-anchor the next step's search at its start, in place of an SVD there. Small fixed steps
-(a flexible mechanism at max step 5e-4 s) and the long steps of a small mechanism far
-from the band then pay for one SVD in a few steps.
+(s at a peak has no rate; a parallelogram turning steadily falls from its peak into its
+passage), times the growth of |v|∞ since then (no skip after a measurement at rest). f is
+the better of two bounds from one Jacobian: Weyl's on its change since the last
+measurement, |σᵢ(J̃) − σᵢ(J̃ₘ)| ≤ ‖J̃ − J̃ₘ‖, and on a small mechanism J̃'s own bounds
+from J̃J̃ᵀ (`mechsim.linalg.dense.extreme_bounds`, the passage search's floor anchors;
+0.84–0.95 of s on the crank-rocker and the double four-bar), which do not fade as J̃
+moves on. The bounds anchor the next step's search at its start, in place of an SVD
+there. Small fixed steps (a flexible mechanism at max step 5e-4 s) and the long steps of
+a small mechanism far from the band then pay for one SVD in a few steps.
 """
 
 from __future__ import annotations
@@ -248,9 +249,9 @@ class SingularityMonitor:
         likely = min(most, likely)
         if algebra.small and not self.redundant and \
                 self._skip_clears(t, t_old, growth, start, likely):
-            gram = algebra.gram_bounds(J)                           # J̃'s own
-            if gram[0] / gram[1] > floor:
-                bounds, floor = gram, gram[0] / gram[1]
+            own = algebra.extreme_bounds(t, q, J)                  # J̃'s own
+            if own is not None and own[0] / own[1] > floor:
+                bounds, floor = own, own[0] / own[1]
         if self._skip_clears(t, t_old, growth, start, floor):
             self._floor = (t, floor)
             self._known = {t: bounds}          # the next search's anchor at its start

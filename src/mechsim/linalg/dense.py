@@ -127,27 +127,28 @@ def svdvals(A):
     return s
 
 
-def gram_bounds(J) -> tuple[float, float]:
-    """(a lower bound of σ_min, an upper bound of σ_max) of the full-rank J (m × n, m ≤ n)
-    without an SVD: with G = J Jᵀ and H = G⁻¹, λ_max(G) ≤ ‖G²‖_F^½ and 1/λ_min(G) ≤
-    ‖H²‖_F^½, each within m^¼ (σ's within m^⅛); (0, 1) where G is not positive definite
-    to its Cholesky factor (the engine's `gram_bounds` in C)."""
+def extreme_bounds(J) -> tuple[float, float] | None:
+    """(a lower bound of σ_min, an upper bound of σ_max) of J (m × n, m ≤ n) without an
+    SVD, as the engine's `extreme_bounds` (C) takes them: with G = J Jᵀ and H = G⁻¹ (from
+    G's Cholesky factor), the largest eigenvalue of each is at most its ‖·‖_F and ‖·²‖_F^½
+    (within m^¼), σ_min lowered by 1e-6 and σ_max raised by 1e-12 of itself for
+    round-off; None where G is not positive definite in floating point or so
+    ill-conditioned that round-off could reach that margin."""
     J = np.asarray(J, dtype=float)
+    m, n = J.shape
     G = J @ J.T
-    top = float(np.max(np.diag(G))) if G.size else 0.0
-    if not 0.0 < top < math.inf:
-        return 0.0, 1.0
-    G = G / top
-    U = cho_factor_or_none(G)             # G = Uᵀ U, so H = U⁻¹ U⁻ᵀ
+    U = cho_factor_or_none(G) if m else None          # G = Uᵀ U, so H = U⁻¹ U⁻ᵀ
     if U is None:
-        return 0.0, 1.0
+        return None
     X = lapack.dtrtri(np.triu(U))[0]
     H = X @ X.T
-    root = math.sqrt(top)
-    with np.errstate(over="ignore", divide="ignore"):
-        lo = root / float(np.linalg.norm(H @ H)) ** 0.25
-        hi = root * float(np.linalg.norm(G @ G)) ** 0.25
-    return (lo, hi) if 0.0 < lo < math.inf and 0.0 < hi < math.inf else (0.0, 1.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        top, inverse_top = (min(float(np.linalg.norm(S)), float(np.linalg.norm(S @ S)) ** 0.5)
+                            for S in (G, H))
+    if not (0.0 < inverse_top < math.inf and top > 0.0) or \
+            not 4.0 * (m + n) * np.finfo(float).eps * top * inverse_top <= 1e-7:
+        return None
+    return (1.0 - 1e-6) / math.sqrt(inverse_top), (1.0 + 1e-12) * math.sqrt(top)
 
 
 def fall_basis(sig, V, k) -> np.ndarray:

@@ -13,6 +13,7 @@ does and serves in its place where it takes the problem (`compiles`).
 
 from __future__ import annotations
 
+import math
 from functools import cached_property
 
 import numpy as np
@@ -185,11 +186,11 @@ class ConstraintAlgebra:
         J = self.scaled_jacobian(q, t)
         return J, sparse.frobenius(sparse.difference(J, Jm))
 
-    def gram_bounds(self, J):
-        """(a lower bound of σ_min, an upper bound of σ_max) of a small mechanism's J̃ of
-        full rank, from J̃ J̃ᵀ (`mechsim.linalg.dense.gram_bounds`; the singularity
-        monitor's skip)."""
-        return dense.gram_bounds(J)
+    def extreme_bounds(self, t, q, J):
+        """(a lower bound of σ_min, an upper bound of σ_max) of a small mechanism's J̃ = J
+        at (q, t) without an SVD (`mechsim.linalg.dense.extreme_bounds`; the singularity
+        monitor's skip), or None where J̃J̃ᵀ is too ill-conditioned for them."""
+        return dense.extreme_bounds(J)
 
     def fall_rates(self, a, b):
         """`mechsim.linalg.dense.fall_rates` of the monitor's ends a and b."""
@@ -349,10 +350,11 @@ class DenseAlgebra(ConstraintAlgebra):
             return self.engine.change(t, q, Jm)
         return super().change(q, t, Jm)
 
-    def gram_bounds(self, J):
-        if self.engine is not None and J.flags.c_contiguous and J.dtype == np.float64:
-            return self.engine.gram_bounds(J)
-        return super().gram_bounds(J)
+    def extreme_bounds(self, t, q, J):
+        if self.engine is not None:       # from J̃ at (q, t) again, as the engine's skip
+            lo, hi = self.engine.extreme_bounds([t], np.reshape(q, (1, -1)))[0].tolist()
+            return None if math.isnan(lo) else (lo, hi)
+        return super().extreme_bounds(t, q, J)
 
     def fall_rates(self, a, b):
         if self.engine is not None:
