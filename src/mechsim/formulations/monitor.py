@@ -73,8 +73,9 @@ CHORD = 0.25
 # through J̃'s values and rates at the step's ends (`mechsim.linalg.dense.fall_rates`),
 # for J̃'s departure from that cubic.
 HERMITE_MARGIN = 1.25
-# The skip tries J̃'s Gram floor where it could clear the step with s/peak at most this
-# many times its value at the step's start or the last measurement, and Weyl's bound.
+# The skip evaluates J̃ (and its own bounds, below Weyl's) only where it could clear the
+# step with s/peak at most this many times its value at the step's start or the last
+# measurement (`SingularityMonitor._may_skip`).
 GRAM_RISE = 1.25
 # A passage's minimum inside a step is located to this fraction of the interval searched
 # (`intervals.minimum_of`, `mechsim_passage_minimum`).
@@ -243,9 +244,9 @@ class SingularityMonitor:
             return False, None                  # not even where s has risen that much
         algebra = self.problem.algebra
         J, E = algebra.change(q, t, Jm)
-        bounds = (max(smin - E, 0.0), smax + E)                # σ_min above, σ_max below
+        bounds = (max(smin - E, 0.0), smax + E)        # σ_min from below, σ_max from above
         floor = bounds[0] / bounds[1]
-        most = (smin + E) / (smax - E) if smax - E > 0.0 else math.inf    # Weyl's, above
+        most = (smin + E) / (smax - E) if smax - E > 0.0 else math.inf    # s from above
         likely = min(most, likely)
         if algebra.small and not self.redundant and \
                 self._skip_clears(t, t_old, growth, start, likely):
