@@ -1300,15 +1300,19 @@ int mechsim_extremes(mechsim_projection *c, int64_t k, int64_t kk, const double 
 static int extreme_bounds(const mechsim_projection *c, int64_t m, int64_t n,
                           const double *J, double *G, double *H, double *out);
 
-/* `extreme_bounds` of J~ at each of the k states (T[i], Q[i, :]) into out[2 i], out[2 i + 1]
-   (a lower bound of sigma_min, an upper bound of sigma_max; NaN where the bounds decline),
-   c->S and c->X as scratch. */
+/* `extreme_bounds` of J~ (row-major m x n) into out[0], out[1] (a lower bound of
+   sigma_min, an upper bound of sigma_max; NaN where the bounds decline), c->S and c->X as
+   scratch; mechsim_extreme_bounds: of J~ at each of the k states (T[i], Q[i, :]) into
+   out[2 i], out[2 i + 1]. */
+void mechsim_bounds_of(mechsim_projection *c, const double *Jt, double *out) {
+  if (extreme_bounds(c, c->m, c->n, Jt, c->S, c->X, out)) out[0] = out[1] = NAN;
+}
+
 void mechsim_extreme_bounds(mechsim_projection *c, int64_t k, const double *T,
                             const double *Q, double *out) {
   for (int64_t i = 0; i < k; i++) {
     scaled_jacobian(c, Q + i * c->n, T[i], c->A);
-    if (extreme_bounds(c, c->m, c->n, c->A, c->S, c->X, out + 2 * i))
-      out[2 * i] = out[2 * i + 1] = NAN;
+    mechsim_bounds_of(c, c->A, out + 2 * i);
   }
 }
 
@@ -2221,7 +2225,8 @@ enum { PENDING_DECIDE = 1, PENDING_OBSERVE = 2 };
    the step stands. */
 typedef struct {
   int skip, slot, has_fall;
-  double speed, floor_value, floor_lo, floor_hi, smin, smax, srel, rate, rate_norm, peak, peak_rate, ratio_speed;
+  double speed, floor_value, floor_lo, floor_hi, smin, smax, srel, rate, rate_norm, peak,
+      peak_rate, ratio_speed;
 } seg_observation;
 
 /* Whether a floor of sigma_min / sigma_max (not normalized) at t_new clears the step from
@@ -2239,8 +2244,9 @@ static int skip_clears(const mechsim_segment *s, double t_old, double t_new, dou
 }
 
 /* SingularityMonitor.observe at the end (q_new, v_new; |v|inf = speed) of the step from
-   t_old: its skip by the bounds of SingularityMonitor._may_skip (o->skip, o->floor_value), or its measurement into the
-   free slot of the fall buffers. 0: the step is plain for the monitor so far (a passage
+   t_old: its skip by the bounds of SingularityMonitor._may_skip (o->skip, o->floor_value
+   and the bounds o->floor_lo, o->floor_hi), or its measurement into the free slot of the
+   fall buffers. 0: the step is plain for the monitor so far (a passage
    hidden in it is `hidden_clear`'s to rule out); else the reason it is not (a measurement
    that fails, the band). */
 static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t_old,
@@ -2256,7 +2262,7 @@ static int64_t observe_step(mechsim_projection *pc, mechsim_segment *s, double t
       s->has_measured && s->m_speed > 0.0) {
     /* SingularityMonitor._may_skip */
     const double start = s->prev_t == t_old ? s->prev_s : s->floor_v / s->peak;
-    const double cap = s->gram_rise * py_max(s->prev_s, start) * s->peak;
+    const double cap = s->skip_rise * py_max(s->prev_s, start) * s->peak;
     if (skip_clears(s, t_old, t_new, speed, start, cap)) {   /* where s may have risen so */
       memcpy(pc->q, q_new, n * sizeof(double));
       const double E = mechsim_change(pc, t_new, s->Jm, s->Jc);
@@ -2868,7 +2874,7 @@ static void commit_pending(mechsim_segment *s, int64_t N, int64_t n, int64_t mn,
 /* Up to s->budget accepted steps of DOP853 on the partition c (kind 1), each followed by
    what Run._advance does after a plain step of a small rigid mechanism in LU (the hybrid's LU
    phase, or "lu"): its output samples (dense output, positions and velocities) written to
-   the rows of s->rows, the singularity monitor's observation (its skip by the bounds of SingularityMonitor._may_skip, or
+   the rows of s->rows, the singularity monitor's observation (its skip, `observe_step`, or
    its measurement and the cheap clears of a hidden passage, or its search and the passages
    found inside the step recorded, passages_step; with s->through, where the run's
    tolerances stay its own inside a passage, also the band, the open passage going on and
@@ -3467,11 +3473,9 @@ int64_t mechsim_history(mechsim_projection *pc, mechsim_segment *s, int64_t k,
   s->rate_ctx = pc;
   s->kind = 0;
   s->projections = 0;
-  if (projection_rate(pc, t0, y, s->min_rcond, s->cut, F)) return -1;
-  if (s->h_abs == 0.0) {
-    memcpy(fy, F, N * sizeof(double));
-    if (starting_step(pc, s, N)) return -1;
-  }
+  if (s->h_abs == 0.0 ? mechsim_history_start(pc, s, F)
+                      : projection_rate(pc, t0, y, s->min_rcond, s->cut, F))
+    return -1;
   int64_t j = 0;
   while (j < k) {
     const int status = dop853_step(s, N);

@@ -411,7 +411,7 @@ class ProjectionEngine:
         self._measure = lib.mechsim_measure
         self._chords = lib.mechsim_chords
         self._extremes = lib.mechsim_extremes
-        self._extreme_bounds = lib.mechsim_extreme_bounds
+        self._extreme_bounds, self._bounds_of = lib.mechsim_extreme_bounds, lib.mechsim_bounds_of
         self.steps = StepSearch(lib, self.context, n, m)   # the monitor's search in a step
         self._project_many = lib.mechsim_project_states
         self._lu_condition, self._choose = lib.mechsim_lu_condition, lib.mechsim_choose
@@ -561,6 +561,12 @@ class ProjectionEngine:
         self._extreme_bounds(self.context, len(T), scratch.put("T", T),
                              scratch.put("Q", Q, self.n), at_out)
         return out.copy()
+
+    def bounds_of(self, J):
+        """`extreme_bounds` of J̃ itself (C-contiguous floats of its shape), shape (2,)."""
+        out = np.empty(2)
+        self._bounds_of(self.context, J.ctypes.data, out.ctypes.data)
+        return out
 
     def multipliers(self, T, Q, V, F, min_rcond, min_pivot, lam, phi_t=None):
         """λ at the states (T[i], Q[i], V[i]) under the applied forces F[i] into the rows

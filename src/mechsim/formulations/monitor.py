@@ -76,7 +76,7 @@ HERMITE_MARGIN = 1.25
 # The skip evaluates J̃ (and its own bounds, below Weyl's) only where it could clear the
 # step with s/peak at most this many times its value at the step's start or the last
 # measurement (`SingularityMonitor._may_skip`).
-GRAM_RISE = 1.25
+SKIP_RISE = 1.25
 # A passage's minimum inside a step is located to this fraction of the interval searched
 # (`intervals.minimum_of`, `mechsim_passage_minimum`).
 REFINE_TOL = 1e-5
@@ -188,11 +188,12 @@ class SingularityMonitor:
         smin, smax = self.problem.algebra.singular_extremes([t], [q], row)[0].tolist()
         return smin / smax if smax > 0.0 else 0.0
 
-    def _measure(self, q, t, v, J=None):
+    def _measure(self, q, t, v, J=None, speed=None):
         """`measure`, also returning σ_min, σ_max (σ_max = 0: rank lost), J̃ = J̃(q)
-        (`J` if the caller has it), ‖dJ̃/dt‖_F along v (0 without v) and the algebra's
+        (`J`, and `speed` |v|∞, where the caller has them), ‖dJ̃/dt‖_F along v (0 without v) and the algebra's
         `fall` (dJ̃/dt, P) where it gives one."""
-        speed = float(np.max(np.abs(v))) if v is not None and v.size else 0.0
+        if speed is None:
+            speed = float(np.max(np.abs(v))) if v is not None and v.size else 0.0
         eps = RATE_STEP / speed if speed > 0.0 else 0.0
         m = self.problem.m
         if m == 0:
@@ -239,7 +240,7 @@ class SingularityMonitor:
             return False, None
         start = prev[1] if prev[0] == t_old else last[1] / self.peak
         Jm, smin, smax, speed_then = measured
-        growth, likely = speed / speed_then, GRAM_RISE * max(prev[1], start) * self.peak
+        growth, likely = speed / speed_then, SKIP_RISE * max(prev[1], start) * self.peak
         if not self._skip_clears(t, t_old, growth, start, likely):
             return False, None                  # not even where s has risen that much
         algebra = self.problem.algebra
@@ -250,7 +251,7 @@ class SingularityMonitor:
         likely = min(most, likely)
         if algebra.small and not self.redundant and \
                 self._skip_clears(t, t_old, growth, start, likely):
-            own = algebra.extreme_bounds(t, q, J)                  # J̃'s own
+            own = algebra.extreme_bounds(J)                        # J̃'s own
             if own is not None and own[0] / own[1] > floor:
                 bounds, floor = own, own[0] / own[1]
         if self._skip_clears(t, t_old, growth, start, floor):
@@ -307,7 +308,7 @@ class SingularityMonitor:
         if skip:
             self._skipped += 1
             return self.last
-        raw, rate, u, smin, smax, J, rate_norm, fall = self._measure(q, t, v, J)
+        raw, rate, u, smin, smax, J, rate_norm, fall = self._measure(q, t, v, J, speed)
         self._measured = (J, smin, smax, speed) if smax > 0.0 else None
         vectors = {t: u}             # the singular vectors measured at the step's ends
         if self._vector is not None and self._vector[0] == t_old:

@@ -186,10 +186,10 @@ class ConstraintAlgebra:
         J = self.scaled_jacobian(q, t)
         return J, sparse.frobenius(sparse.difference(J, Jm))
 
-    def extreme_bounds(self, t, q, J):
-        """(a lower bound of σ_min, an upper bound of σ_max) of a small mechanism's J̃ = J
-        at (q, t) without an SVD (`mechsim.linalg.dense.extreme_bounds`; the singularity
-        monitor's skip), or None where J̃J̃ᵀ is too ill-conditioned for them."""
+    def extreme_bounds(self, J):
+        """(a lower bound of σ_min, an upper bound of σ_max) of a small mechanism's J̃
+        without an SVD (`mechsim.linalg.dense.extreme_bounds`; the singularity monitor's
+        skip), or None where J̃J̃ᵀ is too ill-conditioned for them."""
         return dense.extreme_bounds(J)
 
     def fall_rates(self, a, b):
@@ -350,11 +350,11 @@ class DenseAlgebra(ConstraintAlgebra):
             return self.engine.change(t, q, Jm)
         return super().change(q, t, Jm)
 
-    def extreme_bounds(self, t, q, J):
-        if self.engine is not None:       # from J̃ at (q, t) again, as the engine's skip
-            lo, hi = self.engine.extreme_bounds([t], np.reshape(q, (1, -1)))[0].tolist()
+    def extreme_bounds(self, J):
+        if self.engine is not None and J.flags.c_contiguous and J.dtype == np.float64:
+            lo, hi = self.engine.bounds_of(J).tolist()
             return None if math.isnan(lo) else (lo, hi)
-        return super().extreme_bounds(t, q, J)
+        return super().extreme_bounds(J)
 
     def fall_rates(self, a, b):
         if self.engine is not None:

@@ -57,8 +57,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ..formulations.hybrid import Hybrid
-from ..formulations.monitor import (BLIND, CHORD, GRAM_RISE, GRID, HERMITE_MARGIN, RATE_STEP,
-                                    REFINE_TOL, WEYL_SPAN, Fall, Observation, OpenPassage)
+from ..formulations.monitor import (BLIND, CHORD, GRID, HERMITE_MARGIN, RATE_STEP,
+                                    REFINE_TOL, SKIP_RISE, WEYL_SPAN, Fall, Observation, OpenPassage)
 from ..records import SingularPassage
 from ..problem.algebra import RANK_FACTOR
 from ..formulations.full import ROUND_OFF
@@ -241,7 +241,7 @@ class Segment:
         s.small = bool(run.problem.algebra.small)
         s.max_skip, s.enter, s.leave = monitor.max_skip, monitor.enter, monitor.leave
         s.blind, s.weyl_span, s.hermite_margin = BLIND, WEYL_SPAN, HERMITE_MARGIN
-        s.grid, s.chord, s.rate_step, s.gram_rise = GRID, 1.0 + CHORD, RATE_STEP, GRAM_RISE
+        s.grid, s.chord, s.rate_step, s.skip_rise = GRID, 1.0 + CHORD, RATE_STEP, SKIP_RISE
         s.machine_eps, s.rank_factor = np.finfo(float).eps, RANK_FACTOR
         s.skipped = o.skipped
         s.peak, s.peak_rate, s.last, s.rate = o.peak, o.peak_rate, o.last, o.rate
